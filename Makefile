@@ -1,0 +1,52 @@
+# Two commands for a new user: `make demo` and `make test`. Both set everything up first.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+PIP := $(VENV)/bin/pip
+STAMP := $(VENV)/.installed
+
+.PHONY: setup llvm test test-fast demo lint bench contact-sheet clean
+
+setup: $(STAMP)
+
+# libLLVM >= 16 lets Mitsuba use its fast llvm_ad_rgb variant; without it the code falls
+# back to scalar_rgb with a warning, so a failed install is not fatal.
+llvm:
+	@if ls /usr/lib/*/libLLVM-19.so* /usr/lib/*/libLLVM.so.19* >/dev/null 2>&1; then \
+	  echo "libLLVM 19 present"; \
+	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19) \
+	    || echo "warning: could not install libllvm19; rendering will use scalar_rgb (slower)"; \
+	else \
+	  echo "warning: libllvm19 missing and not root; rendering will use scalar_rgb (slower)"; \
+	fi
+
+$(STAMP): pyproject.toml
+	$(MAKE) llvm
+	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
+	$(PIP) install -q torch==2.14.1 torchvision==0.29.1
+	$(PIP) install -q -e '.[dev]'
+	touch $(STAMP)
+
+test: setup
+	$(PY) -m pytest -q
+
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow"
+
+lint: setup
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+demo: setup
+	$(PY) -m datagen
+
+contact-sheet: setup
+	$(PY) -m datagen.contact_sheet outputs/datasets/demo docs/img/contact_sheet.png
+
+bench: setup
+	$(PY) benchmarks/datagen_throughput.py
+
+clean:
+	rm -rf outputs multirun

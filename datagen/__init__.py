@@ -1,0 +1,1 @@
+"""datagen: labeled corridor renders and evaluation flights with Mitsuba 3."""

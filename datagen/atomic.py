@@ -1,0 +1,62 @@
+"""Atomic file writes: write to a temporary file in the same folder, then rename."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], None], suffix: str = "") -> None:
+    """Call ``write(tmp_path)`` and rename the result onto ``path``.
+
+    A crash leaves either the old file or none, never half a file.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix,
+                               dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+    atomic_write(path, lambda p: p.write_bytes(data))
+
+
+def atomic_write_text(path: str | Path, text: str) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_json(path: str | Path, obj) -> None:
+    atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+
+
+def write_png(path: str | Path, image: np.ndarray) -> None:
+    """Write an (H, W, 3) RGB uint8 image or an (H, W) uint8/uint16 map as PNG, atomically."""
+    if image.dtype != np.uint8 and not (image.ndim == 2 and image.dtype == np.uint16):
+        raise ValueError(f"{path}: PNG images must be uint8 (or 2-D uint16), got {image.dtype}")
+    bgr = image[..., ::-1] if image.ndim == 3 else image
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(bgr))
+    if not ok:
+        raise OSError(f"could not encode PNG for {path}")
+    atomic_write_bytes(path, buf.tobytes())
+
+
+def read_png(path: str | Path, rgb: bool = True) -> np.ndarray:
+    """Read a PNG written by ``write_png``: (H, W, 3) RGB uint8, or (H, W) uint8 if not rgb."""
+    path = Path(path)
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR if rgb else cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise FileNotFoundError(f"cannot read image {path}")
+    return img[..., ::-1].copy() if rgb else img

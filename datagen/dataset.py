@@ -1,0 +1,158 @@
+"""The dataset layout on disk (DESIGN.md) and readers for the later stages.
+
+```
+<dataset>/
+  dataset.json                 schema, classes, camera, config, seed, counts, versions
+  stats.json                   images_per_second, counts, render settings
+  world/model.ply              structural mesh, face colour = class colour
+  world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
+  world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8
+  world/world.json             corridor parameters, free space boxes, z range
+  train|val|test/rgb/NNNNNN.png, label/NNNNNN.png, depth/NNNNNN.npy (optional), poses.txt
+  flights/<name>/rgb/, label/, groundtruth.txt, odometry.txt, flight.json
+```
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from datagen.poses import read_tum
+
+SCHEMA_VERSION = 1
+SPLITS = ("train", "val", "test")
+
+
+def frame_name(index: int) -> str:
+    return f"{index:06d}.png"
+
+
+def read_json(path: Path) -> dict:
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found: is this a dataset made by `python -m datagen`?")
+    return json.loads(path.read_text())
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Camera of a dataset: K (3,3), image size, body_from_cam (4,4)."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    body_from_cam: np.ndarray
+
+
+@dataclass(frozen=True)
+class World:
+    """The structural model the localizer uses.
+
+    vertices (V,3) metres, faces (F,3), face_class (F,) class ids; segments (M,2,3) metres,
+    segment_classes (M,2), crease_deg (M,); free_boxes (B,4) [xmin, ymin, xmax, ymax] of free
+    space; z_range (2,) flyable heights; info: world.json.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_class: np.ndarray
+    segments: np.ndarray
+    segment_classes: np.ndarray
+    crease_deg: np.ndarray
+    free_boxes: np.ndarray
+    z_range: np.ndarray
+    info: dict
+
+
+@dataclass(frozen=True)
+class Flight:
+    """One evaluation flight: frame paths, ground truth and odometry (world_from_body)."""
+
+    name: str
+    rgb: list[Path]
+    label: list[Path]
+    timestamps: np.ndarray
+    groundtruth: np.ndarray  # (N, 4, 4)
+    odometry: np.ndarray  # (N, 4, 4)
+    info: dict
+
+
+class Dataset:
+    """Read access to a dataset directory made by ``python -m datagen``."""
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        if not self.root.is_dir():
+            raise FileNotFoundError(
+                f"dataset not found: {self.root}. Make one with `python -m datagen name=...`."
+            )
+        self.meta = read_json(self.root / "dataset.json")
+        if self.meta.get("schema_version") != SCHEMA_VERSION:
+            raise ValueError(
+                f"{self.root / 'dataset.json'}: schema_version {self.meta.get('schema_version')}"
+                f" is not {SCHEMA_VERSION}; regenerate the dataset with this version of datagen."
+            )
+
+    @property
+    def classes(self) -> list[dict]:
+        return self.meta["classes"]
+
+    @property
+    def camera(self) -> Camera:
+        c = self.meta["camera"]
+        return Camera(np.array(c["K"]), int(c["width"]), int(c["height"]),
+                      np.array(c["body_from_cam"]))
+
+    def split(self, name: str) -> tuple[list[Path], list[Path]]:
+        """Paired (rgb, label) image paths of a split, sorted by frame index."""
+        if name not in SPLITS:
+            raise ValueError(f"unknown split {name!r}; expected one of {SPLITS}")
+        rgb = sorted((self.root / name / "rgb").glob("*.png"))
+        label = [self.root / name / "label" / p.name for p in rgb]
+        missing = [p for p in label if not p.is_file()]
+        if missing:
+            raise FileNotFoundError(f"label images missing for {len(missing)} frames, e.g. "
+                                    f"{missing[0]}; re-run datagen to finish the dataset")
+        return rgb, label
+
+    def split_poses(self, name: str) -> np.ndarray:
+        """(N, 4, 4) world_from_body of a split's frames."""
+        return read_tum(self.root / name / "poses.txt")[1]
+
+    def flight_names(self) -> list[str]:
+        d = self.root / "flights"
+        return sorted(p.name for p in d.iterdir() if p.is_dir()) if d.is_dir() else []
+
+    def flight(self, name: str) -> Flight:
+        d = self.root / "flights" / name
+        if not d.is_dir():
+            raise FileNotFoundError(f"flight {name!r} not in {self.root / 'flights'}; "
+                                    f"available: {self.flight_names()}")
+        t, gt = read_tum(d / "groundtruth.txt")
+        _, odo = read_tum(d / "odometry.txt")
+        rgb = [d / "rgb" / frame_name(i) for i in range(len(t))]
+        label = [d / "label" / frame_name(i) for i in range(len(t))]
+        return Flight(name, rgb, label, t, gt, odo, read_json(d / "flight.json"))
+
+    def world(self) -> World:
+        return load_world(self.root / "world")
+
+
+def load_world(world_dir: str | Path) -> World:
+    """Load ``world/`` (model.npz, edges.npz, world.json)."""
+    d = Path(world_dir)
+    for f in ("model.npz", "edges.npz", "world.json"):
+        if not (d / f).is_file():
+            raise FileNotFoundError(f"world model file missing: {d / f}; re-run datagen")
+    m = np.load(d / "model.npz")
+    e = np.load(d / "edges.npz")
+    info = read_json(d / "world.json")
+    return World(
+        vertices=m["vertices"], faces=m["faces"], face_class=m["face_class"],
+        segments=e["segments"], segment_classes=e["classes"], crease_deg=e["crease_deg"],
+        free_boxes=np.array(info["free_space"]["boxes"], dtype=np.float64).reshape(-1, 4),
+        z_range=np.array(info["free_space"]["z_range"], dtype=np.float64), info=info,
+    )

@@ -1,0 +1,515 @@
+"""Distractors: furniture-like clutter and walking people, which are not in the 3D model.
+
+Meshes are built from trimesh primitives in an object frame with z up, the origin at the
+centre of the footprint on the floor (z = 0) and, for people, facing +x. Placement works on
+floor circles: an object of footprint radius r at (x, y) must lie inside one of the free
+floor boxes and must not overlap another object or a keep-out circle (e.g. the camera).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from datagen.poses import pose_from_xyzyaw, wrap_angle
+
+CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
+MAX_HEIGHT = 1.8  # m, tallest clutter object
+
+
+# --------------------------------------------------------------------------- primitives
+
+
+def _box(extents: tuple[float, float, float], centre: tuple[float, float, float],
+         yaw: float = 0.0) -> trimesh.Trimesh:
+    """Axis box of the given extents (m) centred at centre, rotated by yaw about z."""
+    T = trimesh.transformations.rotation_matrix(yaw, (0, 0, 1))
+    T[:3, 3] = centre
+    return trimesh.creation.box(extents=extents, transform=T)
+
+
+def _rod(p0: np.ndarray, p1: np.ndarray, radius: float, sections: int = 10) -> trimesh.Trimesh:
+    """Closed cylinder between two points."""
+    return trimesh.creation.cylinder(radius=radius, segment=np.array([p0, p1], float),
+                                     sections=sections)
+
+
+def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> trimesh.Trimesh:
+    """Capsule whose axis runs from p0 to p1 (the caps extend radius beyond them)."""
+    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
+    axis = p1 - p0
+    length = float(np.linalg.norm(axis))
+    mesh = trimesh.creation.capsule(height=max(length, 1e-3), radius=radius, count=[8, 8])
+    T = trimesh.geometry.align_vectors([0, 0, 1], axis / max(length, 1e-9))
+    T[:3, 3] = (p0 + p1) / 2
+    mesh.apply_transform(T)
+    return mesh
+
+
+def _ellipsoid(centre: tuple[float, float, float], radii: tuple[float, float, float],
+               subdivisions: int = 1) -> trimesh.Trimesh:
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+    mesh.apply_scale(radii)
+    mesh.apply_translation(centre)
+    return mesh
+
+
+def _frustum(r_bottom: float, r_top: float, height: float, sections: int = 14) -> trimesh.Trimesh:
+    """Closed truncated cone standing on z = 0 (a pot)."""
+    mesh = trimesh.creation.cylinder(radius=1.0, height=height, sections=sections)
+    v = mesh.vertices.copy()
+    top = v[:, 2] > 0
+    v[:, :2] *= np.where(top, r_top, r_bottom)[:, None]
+    v[:, 2] += height / 2
+    return trimesh.Trimesh(v, mesh.faces, process=False)
+
+
+def _join(parts: list[trimesh.Trimesh], yaw: float = 0.0) -> trimesh.Trimesh:
+    """Concatenate parts, rotate by yaw and re-centre the footprint on the origin."""
+    mesh = trimesh.util.concatenate(parts)
+    if yaw:
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(yaw, (0, 0, 1)))
+    lo, hi = mesh.bounds
+    mesh.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    return mesh
+
+
+# --------------------------------------------------------------------------- clutter
+
+
+def _cardboard(rng: np.random.Generator) -> trimesh.Trimesh:
+    parts, z = [], 0.0
+    size = rng.uniform([0.35, 0.3, 0.25], [0.7, 0.6, 0.55])
+    for _ in range(rng.integers(1, 4)):
+        parts.append(_box(tuple(size), (rng.normal(0, 0.03), rng.normal(0, 0.03),
+                                        z + size[2] / 2), rng.normal(0, 0.15)))
+        z += size[2]
+        size = size * rng.uniform(0.6, 1.0, 3)
+        if z + size[2] > 1.4:
+            break
+    return _join(parts)
+
+
+def _cabinet(rng: np.random.Generator) -> trimesh.Trimesh:
+    w, d = rng.uniform(0.45, 1.0), rng.uniform(0.35, 0.6)
+    h = rng.uniform(0.7, MAX_HEIGHT)
+    parts = [_box((d, w, h), (0, 0, h / 2))]
+    if rng.random() < 0.5:  # filing cabinet: drawers with handles on the front (+x)
+        drawers = int(np.clip(round(h / 0.33), 2, 5))
+        for i in range(drawers):
+            zc = h * (i + 0.75) / drawers
+            parts.append(_box((0.03, 0.15, 0.025), (d / 2 + 0.015, 0, zc)))
+    else:  # two doors with vertical handles and a plinth
+        for s in (-1, 1):
+            parts.append(_box((0.03, 0.025, 0.15), (d / 2 + 0.015, s * 0.06, 0.55 * h)))
+        parts.append(_box((d * 1.02, w * 1.02, 0.04), (0, 0, h + 0.02)))
+    return _join(parts)
+
+
+def _chair(rng: np.random.Generator) -> trimesh.Trimesh:
+    s, seat_z = rng.uniform(0.4, 0.5), rng.uniform(0.42, 0.48)
+    t = rng.uniform(0.03, 0.06)
+    back_h = rng.uniform(0.35, 0.5)
+    parts = [_box((s, s, t), (0, 0, seat_z - t / 2)),
+             _box((0.04, s, back_h), (-s / 2 + 0.02, 0, seat_z + back_h / 2 + 0.02))]
+    if rng.random() < 0.5:  # four legs
+        r = rng.uniform(0.012, 0.022)
+        for x in (-1, 1):
+            for y in (-1, 1):
+                p = np.array([x * (s / 2 - 0.03), y * (s / 2 - 0.03)])
+                parts.append(_rod([*p, 0.0], [*p, seat_z - t], r, 8))
+    else:  # office chair: column on a five-star base with casters
+        parts.append(_rod([0, 0, 0.08], [0, 0, seat_z - t], 0.025, 10))
+        for k in range(5):
+            a = 2 * np.pi * k / 5
+            arm = 0.3
+            parts.append(_box((arm, 0.04, 0.03), (np.cos(a) * arm / 2, np.sin(a) * arm / 2,
+                                                  0.07), a))
+            parts.append(_ellipsoid((np.cos(a) * arm, np.sin(a) * arm, 0.03), (0.03,) * 3, 0))
+        if rng.random() < 0.6:  # armrests
+            for y in (-1, 1):
+                parts.append(_box((0.3, 0.05, 0.03), (0, y * (s / 2 + 0.02), seat_z + 0.2)))
+                parts.append(_rod([0, y * (s / 2 + 0.02), seat_z], [0, y * (s / 2 + 0.02),
+                                                                    seat_z + 0.2], 0.015, 8))
+    return _join(parts)
+
+
+def _table(rng: np.random.Generator) -> trimesh.Trimesh:
+    lx, ly = rng.uniform(0.5, 1.0), rng.uniform(0.45, 0.7)
+    h, t = rng.uniform(0.7, 0.78), rng.uniform(0.025, 0.04)
+    parts = [_box((lx, ly, t), (0, 0, h - t / 2))]
+    r = rng.uniform(0.015, 0.03)
+    for x in (-1, 1):
+        for y in (-1, 1):
+            p = np.array([x * (lx / 2 - 0.05), y * (ly / 2 - 0.05)])
+            parts.append(_rod([*p, 0.0], [*p, h - t], r, 8))
+    if rng.random() < 0.5:  # drawer block under the top, or items on it
+        parts.append(_box((lx * 0.35, ly * 0.9, 0.15), (lx * 0.25, 0, h - t - 0.075)))
+    if rng.random() < 0.6:
+        for _ in range(rng.integers(1, 4)):
+            e = rng.uniform([0.1, 0.1, 0.03], [0.35, 0.3, 0.3])
+            parts.append(_box(tuple(e), (rng.uniform(-0.5, 0.5) * (lx - e[0]),
+                                         rng.uniform(-0.5, 0.5) * (ly - e[1]), h + e[2] / 2),
+                              rng.uniform(-np.pi, np.pi)))
+    return _join(parts)
+
+
+def _plant(rng: np.random.Generator) -> trimesh.Trimesh:
+    r_top, pot_h = rng.uniform(0.12, 0.22), rng.uniform(0.2, 0.4)
+    parts = [_frustum(r_top * rng.uniform(0.65, 0.85), r_top, pot_h)]
+    total = rng.uniform(0.5, 1.6)
+    stem_top = max(pot_h + 0.1, total - 0.25)
+    parts.append(_rod([0, 0, pot_h], [0, 0, stem_top], 0.015, 6))
+    spread = rng.uniform(0.15, 0.35)
+    for _ in range(rng.integers(4, 9)):
+        rad = rng.uniform(0.08, 0.18)
+        z_lo = max(pot_h + rad, stem_top - 0.4)
+        c = (rng.uniform(-1, 1) * spread, rng.uniform(-1, 1) * spread,
+             rng.uniform(z_lo, max(z_lo, stem_top)))
+        parts.append(_ellipsoid(c, (rad, rad, rad * rng.uniform(0.7, 1.2)), 1))
+    mesh = _join(parts)
+    lo, hi = mesh.bounds
+    if hi[2] > MAX_HEIGHT:
+        mesh.apply_scale([1.0, 1.0, MAX_HEIGHT / hi[2]])
+    return mesh
+
+
+_MAKERS = {"box": _cardboard, "cabinet": _cabinet, "chair": _chair, "table": _table,
+           "plant": _plant}
+
+
+def make_clutter_mesh(kind: str, rng: np.random.Generator) -> trimesh.Trimesh:
+    """A random furniture-like object.
+
+    Args:
+        kind: one of CLUTTER_KINDS.
+        rng: random generator.
+
+    Returns:
+        Mesh in metres, z up, footprint centred on the origin, standing on z = 0,
+        at most MAX_HEIGHT tall and under 2000 faces.
+    """
+    if kind not in _MAKERS:
+        raise ValueError(f"unknown clutter kind {kind!r}; use one of {list(CLUTTER_KINDS)}")
+    return _MAKERS[kind](rng)
+
+
+def make_person_mesh(rng: np.random.Generator) -> trimesh.Trimesh:
+    """A person-like figure in mid-stride: legs, feet, torso, arms, neck and head.
+
+    Returns:
+        Mesh 1.5-1.95 m tall, z up, origin on the floor between the feet, facing +x.
+    """
+    H = rng.uniform(1.5, 1.95)
+    s = H / 1.75  # proportions of a 1.75 m adult
+    stride = np.deg2rad(rng.uniform(0.0, 20.0))
+    swing = np.deg2rad(rng.uniform(0.0, 25.0))
+    hip_z, shoulder_z = 0.52 * H, 0.815 * H
+    hip_y, shoulder_y = 0.09 * s, rng.uniform(0.19, 0.23) * s
+    leg_r, arm_r = 0.062 * s, 0.042 * s
+    head = np.array([0.1, 0.082, 0.115]) * s
+    parts = []
+    for side, sign in ((1, 1), (-1, -1)):  # left leg forward, right arm forward
+        angle = sign * stride
+        ankle = np.array([np.sin(angle) * (hip_z - 0.07 * s), side * hip_y,
+                          hip_z - np.cos(angle) * (hip_z - 0.07 * s)])
+        parts.append(_capsule([0, side * hip_y, hip_z - 0.02 * s], ankle, leg_r))
+        foot = 0.26 * s
+        parts.append(_box((foot, 0.095 * s, 0.07 * s),
+                          (ankle[0] + 0.3 * foot, side * hip_y, 0.035 * s)))
+        a = -sign * swing  # arms swing against the legs
+        hand_len = 0.34 * H
+        shoulder = np.array([0.0, side * shoulder_y, shoulder_z - arm_r])
+        hand = shoulder + hand_len * np.array([np.sin(a), 0.08 * side, -np.cos(a)])
+        parts.append(_capsule(shoulder, hand, arm_r))
+    torso_h = shoulder_z - hip_z
+    torso = trimesh.creation.cylinder(radius=1.0, height=torso_h, sections=14)
+    torso.apply_scale([0.12 * s, shoulder_y + 0.01 * s, 1.0])
+    torso.apply_translation([0, 0, hip_z + torso_h / 2])
+    parts.append(torso)
+    parts.append(_ellipsoid((0, 0, shoulder_z), (0.12 * s, shoulder_y + 0.02 * s, 0.05 * s), 1))
+    neck_top = H - 2 * head[2] + 0.02 * s
+    parts.append(_rod([0, 0, shoulder_z], [0, 0, neck_top + 0.02 * s], 0.05 * s, 10))
+    parts.append(_ellipsoid((0.01 * s, 0, H - head[2]), tuple(head), 2))
+    parts.append(_ellipsoid((0.1 * s, 0, H - 1.1 * head[2]), (0.02 * s,) * 3, 0))  # nose
+    mesh = trimesh.util.concatenate(parts)
+    lo, hi = mesh.bounds
+    mesh.apply_translation([0.0, 0.0, -lo[2]])  # ankles straddle x = 0
+    mesh.apply_scale([1.0, 1.0, H / (hi[2] - lo[2])])
+    return mesh
+
+
+def footprint_radius(mesh: trimesh.Trimesh) -> float:
+    """Radius (m) of the smallest origin-centred circle holding the mesh's XY footprint."""
+    return float(np.max(np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1])))
+
+
+# --------------------------------------------------------------------------- placement
+
+
+def _check_boxes(boxes: np.ndarray) -> np.ndarray:
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    if len(boxes) == 0 or np.any(boxes[:, 2] <= boxes[:, 0]) or np.any(boxes[:, 3] <= boxes[:, 1]):
+        raise ValueError(f"boxes must be (B, 4) [xmin, ymin, xmax, ymax] with B >= 1 and "
+                         f"max > min, got {boxes.tolist()}")
+    return boxes
+
+
+def _boxes_sample(rng: np.random.Generator, n: int, boxes: np.ndarray, shrink: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Uniform points over the shrunk boxes; also each point's box lo, hi ((n, 2) each)."""
+    boxes = _check_boxes(boxes)
+    lo, hi = boxes[:, :2] + shrink, boxes[:, 2:] - shrink
+    area = np.prod(np.clip(hi - lo, 0, None), axis=1)
+    if area.sum() <= 0:
+        nan = np.full((n, 2), np.nan)
+        return nan, nan, nan, np.zeros(n, int)
+    which = rng.choice(len(boxes), size=n, p=area / area.sum())
+    pts = lo[which] + rng.random((n, 2)) * (hi[which] - lo[which])
+    return pts, lo[which], hi[which], which
+
+
+def sample_in_boxes(rng: np.random.Generator, n: int, boxes: np.ndarray, shrink: float = 0.0
+                    ) -> np.ndarray:
+    """Points uniform over the union of boxes (area-weighted), each shrunk by a margin.
+
+    Args:
+        rng: random generator.
+        n: number of points.
+        boxes: (B, 4) [xmin, ymin, xmax, ymax] in metres.
+        shrink: margin (m) removed from every side; boxes that vanish are skipped.
+
+    Returns:
+        (n, 2) x, y; all NaN when no box is left.
+    """
+    return _boxes_sample(rng, n, boxes, shrink)[0]
+
+
+def place_objects(rng: np.random.Generator, radii: np.ndarray, boxes: np.ndarray,
+                  keepout: np.ndarray | None = None, max_tries: int = 256,
+                  against_walls: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Place circular footprints on the floor without overlaps.
+
+    Objects are placed largest first; for each, max_tries candidates are drawn at once,
+    uniform over the boxes it fits in, and the first one clear of the keep-outs and of the
+    objects already placed is taken.
+
+    Args:
+        rng: random generator.
+        radii: (K,) footprint radii in metres.
+        boxes: (B, 4) [xmin, ymin, xmax, ymax] floor regions; each circle must lie entirely
+            inside one box (walls are the box sides).
+        keepout: (Q, 3) x, y, radius circles no object may overlap (camera, flight path).
+        max_tries: candidates per object.
+        against_walls: probability that a candidate is pushed against a long side of its
+            box (furniture in a corridor stands along the walls), leaving the middle free.
+
+    Returns:
+        xy_yaw: (K, 3) x, y (m) and yaw (rad, uniform) of each object; NaN where unplaced.
+        placed: (K,) bool.
+    """
+    radii = np.asarray(radii, dtype=np.float64).reshape(-1)
+    if np.any(radii < 0):
+        raise ValueError(f"radii must be non-negative, got {radii.tolist()}")
+    keep = (np.zeros((0, 3)) if keepout is None
+            else np.asarray(keepout, dtype=np.float64).reshape(-1, 3))
+    K = len(radii)
+    xy_yaw = np.full((K, 3), np.nan)
+    placed = np.zeros(K, bool)
+    obstacles = [keep]
+    for k in np.argsort(-radii, kind="stable"):
+        cand, lo, hi, _ = _boxes_sample(rng, max_tries, boxes, radii[k])
+        snap = rng.random(max_tries) < against_walls
+        side = rng.random(max_tries) < 0.5
+        yaw = rng.uniform(-np.pi, np.pi)
+        if np.isnan(cand[0, 0]):
+            continue
+        cross = ((hi - lo)[:, 0] > (hi - lo)[:, 1]).astype(int)  # short axis of the box
+        t = np.arange(max_tries)
+        cand[t, cross] = np.where(snap, np.where(side, lo[t, cross], hi[t, cross]),
+                                  cand[t, cross])
+        obs = np.concatenate(obstacles)
+        d = np.linalg.norm(cand[:, None, :] - obs[None, :, :2], axis=-1)  # (T, Q)
+        ok = np.all(d >= obs[None, :, 2] + radii[k], axis=1)
+        if ok.any():
+            i = int(np.argmax(ok))
+            xy_yaw[k] = [cand[i, 0], cand[i, 1], yaw]
+            placed[k] = True
+            obstacles.append(np.array([[cand[i, 0], cand[i, 1], radii[k]]]))
+    return xy_yaw, placed
+
+
+def object_poses(xy_yaw: np.ndarray) -> np.ndarray:
+    """(K, 4, 4) world_from_object for floor placements (K, 3) x, y, yaw (z = 0)."""
+    xy_yaw = np.asarray(xy_yaw, dtype=np.float64).reshape(-1, 3)
+    state = np.stack([xy_yaw[:, 0], xy_yaw[:, 1], np.zeros(len(xy_yaw)), xy_yaw[:, 2]], 1)
+    return pose_from_xyzyaw(state)
+
+
+# --------------------------------------------------------------------------- people
+
+
+def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fps: float,
+                  boxes: np.ndarray, speed: tuple[float, float] = (0.6, 1.4),
+                  radius: float = 0.3, obstacles: np.ndarray | None = None,
+                  avoid: np.ndarray | None = None, avoid_radius: float = 0.5,
+                  max_turn_deg_s: float = 180.0, patience_s: float = 2.0) -> np.ndarray:
+    """Trajectories of people walking up and down the corridor.
+
+    Each person lives in one box (area-weighted choice) and walks towards a goal near one
+    end of the box's long axis, at a random lateral offset; on arrival the goal moves to
+    the other end. The heading turns at a bounded rate towards the goal, steered around
+    other people, static obstacles and the avoid track (a small social-force model: a push
+    away from what is ahead plus a sidestep). A step that would overlap someone or
+    something is not taken; a person blocked for patience_s turns around. Best effort:
+    people rarely overlap, and never leave their box shrunk by radius.
+
+    Args:
+        rng: random generator.
+        num_people, num_frames: counts.
+        fps: frame rate (Hz).
+        boxes: (B, 4) [xmin, ymin, xmax, ymax] floor regions people may walk in.
+        speed: (min, max) walking speed in m/s, drawn per person.
+        radius: body radius (m) kept from the box sides and used for avoidance.
+        obstacles: (Q, 3) x, y, radius static circles to walk around (e.g. clutter).
+        avoid: (num_frames, 2) x, y of something to keep clear of at each frame (the camera).
+        avoid_radius: radius (m) of that keep-out.
+        max_turn_deg_s: largest heading change rate.
+        patience_s: how long a blocked person waits before turning around.
+
+    Returns:
+        (num_people, num_frames, 3) x, y (m), yaw (rad, walking direction).
+    """
+    boxes = _check_boxes(boxes)
+    if fps <= 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    P, N, dt = int(num_people), int(num_frames), 1.0 / float(fps)
+    out = np.zeros((P, N, 3))
+    if P == 0 or N == 0:
+        return out
+    lo, hi = boxes[:, :2] + radius, boxes[:, 2:] - radius
+    size = np.clip(hi - lo, 0, None)
+    area = np.prod(size, axis=1)
+    if area.sum() <= 0:
+        raise ValueError(f"no box is wider than 2 * radius = {2 * radius} m: {boxes.tolist()}")
+    obs = (np.zeros((0, 3)) if obstacles is None
+           else np.asarray(obstacles, dtype=np.float64).reshape(-1, 3))
+    avoid_xy = None if avoid is None else np.asarray(avoid, dtype=np.float64).reshape(N, 2)
+
+    # start: placed like objects (clear of obstacles, the avoid point and each other)
+    start_keep = obs if avoid_xy is None else np.vstack([obs, [*avoid_xy[0], avoid_radius]])
+    start, ok = place_objects(rng, np.full(P, radius), boxes, start_keep)
+    if not ok.all():
+        start[~ok, :2] = sample_in_boxes(rng, int((~ok).sum()), boxes, shrink=radius)
+    pos = start[:, :2].copy()
+    inside = (pos[:, None, :] >= lo[None] - 1e-9) & (pos[:, None, :] <= hi[None] + 1e-9)
+    home = np.argmax(inside.all(-1), axis=1)  # the box each person starts in
+    blo, bhi = lo[home], hi[home]
+    axis = (size[home, 1] >= size[home, 0]).astype(int)  # long axis of each home box
+    rows = np.arange(P)
+    v = rng.uniform(speed[0], speed[1], P)
+    direction = rng.choice([-1.0, 1.0], P)
+    goal = np.zeros((P, 2))
+
+    def new_goals(mask: np.ndarray) -> None:
+        idx = np.flatnonzero(mask)
+        g = blo[idx] + rng.random((len(idx), 2)) * (bhi[idx] - blo[idx])
+        ax = axis[idx]
+        g[np.arange(len(idx)), ax] = np.where(direction[idx] > 0, bhi[idx, ax] - 0.05,
+                                              blo[idx, ax] + 0.05)
+        goal[idx] = g
+
+    new_goals(np.ones(P, bool))
+    heading = np.arctan2(*(goal - pos)[:, ::-1].T)
+    blocked = np.zeros(P, int)
+    max_turn = np.deg2rad(max_turn_deg_s) * dt
+    eye = np.eye(P, dtype=bool)
+
+    def clearances(p: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
+        """(P, O) free distance from each person at p to every circle, and the (O, 3) circles."""
+        circles = [np.column_stack([pos, np.full(P, radius)]), obs]
+        if avoid_xy is not None:
+            circles.append(np.array([[*avoid_xy[t], avoid_radius]]))
+        o = np.concatenate(circles)
+        dist = np.linalg.norm(p[:, None, :] - o[None, :, :2], axis=-1)
+        clear = dist - radius - o[None, :, 2]
+        clear[:, :P][eye] = np.inf
+        return clear, o
+
+    for t in range(N):
+        out[:, t, :2] = pos
+        out[:, t, 2] = heading
+        along = pos[rows, axis]
+        arrived = np.abs(goal[rows, axis] - along) < 0.1
+        stuck = blocked > patience_s * fps
+        turn = arrived | stuck
+        if turn.any():
+            direction[turn] *= -1
+            new_goals(turn)
+            blocked[turn] = 0
+        want = goal - pos
+        want /= np.linalg.norm(want, axis=1, keepdims=True) + 1e-9
+        clear, o = clearances(pos, t)
+        diff = pos[:, None, :] - o[None, :, :2]  # (P, O, 2) from the others to each person
+        away = diff / (np.linalg.norm(diff, axis=-1, keepdims=True) + 1e-9)
+        fwd = np.stack([np.cos(heading), np.sin(heading)], 1)
+        ahead = np.einsum("poc,pc->po", -away, fwd) > -0.2
+        weight = np.exp(-np.clip(clear, 0, None) / 0.4) * ahead * np.isfinite(clear)
+        perp = np.stack([-want[:, 1], want[:, 0]], 1)  # left of the wanted direction
+        side = np.sign(np.einsum("poc,pc->po", away, perp) + 1e-6)  # sidestep away
+        push = away + side[..., None] * perp[:, None, :]
+        steer = want + 1.5 * np.sum(weight[..., None] * push, axis=1)
+        # keep off the long walls of the home box
+        cross = 1 - axis
+        gap_lo = pos[rows, cross] - blo[rows, cross]
+        gap_hi = bhi[rows, cross] - pos[rows, cross]
+        steer[rows, cross] += 0.5 * (np.exp(-gap_lo / 0.2) - np.exp(-gap_hi / 0.2))
+        target = np.arctan2(steer[:, 1], steer[:, 0])
+        heading = wrap_angle(heading + np.clip(wrap_angle(target - heading), -max_turn, max_turn))
+        step = v[:, None] * dt * np.stack([np.cos(heading), np.sin(heading)], 1)
+        new = np.clip(pos + step, blo, bhi)
+        new_clear, _ = clearances(new, t)
+        bad = np.any((new_clear < 0) & (new_clear < clear), axis=1)
+        pos = np.where(bad[:, None], pos, new)
+        blocked = np.where(bad, blocked + 1, 0)
+    return out
+
+
+# --------------------------------------------------------------------------- presets
+
+
+def preset_counts(rng: np.random.Generator, cfg: Mapping[str, Any]) -> tuple[int, int]:
+    """Number of clutter objects and people for one image or flight.
+
+    Args:
+        cfg: a distractors preset (conf/distractors/*.yaml) with clutter.{min,max} and
+            people.{min,max}.
+
+    Returns:
+        (num_clutter, num_people).
+    """
+    counts = []
+    for key in ("clutter", "people"):
+        try:
+            lo, hi = int(cfg[key]["min"]), int(cfg[key]["max"])
+        except (KeyError, TypeError) as err:
+            raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: {key}.min and "
+                             f"{key}.max are required integers") from err
+        if not 0 <= lo <= hi:
+            raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: need 0 <= "
+                             f"{key}.min <= {key}.max, got {lo}, {hi}")
+        counts.append(int(rng.integers(lo, hi + 1)))
+    return counts[0], counts[1]
+
+
+def sample_kinds(rng: np.random.Generator, n: int, cfg: Mapping[str, Any]) -> list[str]:
+    """n clutter kinds drawn from the preset's `kinds` list (uniformly)."""
+    kinds = list(cfg.get("kinds", CLUTTER_KINDS))
+    bad = set(kinds) - set(CLUTTER_KINDS)
+    if bad or not kinds:
+        raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: kinds must be a "
+                         f"non-empty subset of {list(CLUTTER_KINDS)}, got {kinds}")
+    return [kinds[i] for i in rng.integers(0, len(kinds), n)]

@@ -1,0 +1,412 @@
+"""The datagen job: render the training splits and the evaluation flights of one world.
+
+Every frame draws its randomness from its own stream, ``SeedSequence([seed, stream, index])``,
+so a frame's bytes do not depend on which shard renders it or on what was rendered before:
+a stopped run re-run with the same config skips finished frames and ends byte-identical to an
+uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import platform
+import shutil
+import time
+import zlib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from datagen import appearance, distractors, trajectories
+from datagen import classes as C
+from datagen.atomic import atomic_write_json, write_png
+from datagen.camera import intrinsics
+from datagen.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
+from datagen.poses import pose_from_xyz_rpy, write_tum
+from datagen.world import MAIN, OPENING, CorridorModel, build_world
+
+log = logging.getLogger(__name__)
+
+SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
+# Keys that do not change the dataset's content (left out of the config hash).
+NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir")
+
+
+def rng_for(seed: int, *keys: int) -> np.random.Generator:
+    """An independent generator for (seed, keys...)."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), *map(int, keys)]))
+
+
+def flight_stream(name: str) -> int:
+    return 1000 + zlib.crc32(name.encode()) % 1_000_000
+
+
+def config_hash(cfg: Mapping) -> str:
+    content = {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def make_camera(cam_cfg: Mapping) -> Camera:
+    """Camera from config: K and body_from_cam for a forward camera (OpenCV axes)."""
+    W, H = int(cam_cfg["width"]), int(cam_cfg["height"])
+    K = intrinsics(W, H, float(cam_cfg["hfov_deg"]))
+    # Columns: the camera's x (right), y (down), z (forward) axes in the body frame (FLU).
+    base = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    pitch = math.radians(float(cam_cfg["mount"]["pitch_deg"]))
+    tilt = pose_from_xyz_rpy(np.zeros(3), np.array([0.0, pitch, 0.0]))[0, :3, :3]
+    xyz = np.asarray(cam_cfg["mount"]["xyz"], dtype=np.float64)
+    if np.linalg.norm(xyz) > 0.5:
+        raise ValueError(f"camera.mount.xyz {xyz.tolist()} puts the camera more than 0.5 m from "
+                         "the body centre; give it in metres in the body frame")
+    body_from_cam = np.eye(4)
+    body_from_cam[:3, :3] = tilt @ base
+    body_from_cam[:3, 3] = xyz
+    return Camera(K, W, H, body_from_cam)
+
+
+def floor_boxes(model: CorridorModel, margin: float) -> np.ndarray:
+    """(B, 4) floor regions of the corridor and its openings, shrunk by margin (m)."""
+    out = [[b.lo[0] + margin, b.lo[1] + margin, b.hi[0] - margin, b.hi[1] - margin]
+           for b in model.boxes if b.kind in (MAIN, OPENING)]
+    return np.array(out)
+
+
+@dataclass
+class Job:
+    """Everything a shard needs, resolved and checked before any rendering."""
+
+    cfg: dict
+    out: Path
+    model: CorridorModel
+    camera: Camera
+    split_poses: dict[str, np.ndarray]  # split -> (N, 4, 4) world_from_body
+    flights: dict[str, dict[str, Any]]  # name -> preset, groundtruth, odometry, timestamps
+
+
+def _check_counts(cfg: Mapping) -> None:
+    for split, n in cfg["splits"].items():
+        if split not in SPLITS:
+            raise ValueError(f"splits.{split}: unknown split; use {list(SPLITS)}")
+        if int(n) < 0:
+            raise ValueError(f"splits.{split} = {n} must be >= 0")
+    for key in ("width", "height"):
+        if int(cfg["camera"][key]) <= 0:
+            raise ValueError(f"camera.{key} = {cfg['camera'][key]} must be positive")
+    if int(cfg["render"]["spp"]) <= 0 or int(cfg["render"]["max_depth"]) <= 0:
+        raise ValueError("render.spp and render.max_depth must be positive")
+    if not 0 <= int(cfg["shard"]) < int(cfg["num_shards"]):
+        raise ValueError(f"shard={cfg['shard']} must be in [0, num_shards={cfg['num_shards']})")
+    if int(cfg["training"]["chunk"]) <= 0:
+        raise ValueError("training.chunk must be positive")
+    presets = cfg["distractor_presets"]
+    for name in cfg["training"]["distractors"]:
+        if name not in presets:
+            raise ValueError(f"training.distractors: unknown preset {name!r}; "
+                             f"known: {sorted(presets)}")
+    for name in cfg["render_flights"]:
+        if name not in cfg["flights"]:
+            raise ValueError(f"render_flights: unknown flight preset {name!r}; "
+                             f"known: {sorted(cfg['flights'])}")
+        dp = cfg["flights"][name].get("distractors", "none")
+        if dp not in presets:
+            raise ValueError(f"flights.{name}.distractors: unknown preset {dp!r}; "
+                             f"known: {sorted(presets)}")
+
+
+def _check_inside(model: CorridorModel, camera: Camera, poses: np.ndarray, where: str) -> None:
+    """Every camera centre must lie inside the corridor's free space."""
+    centres = (poses @ camera.body_from_cam)[:, :3, 3]
+    inside = np.zeros(len(centres), dtype=bool)
+    for b in model.boxes:
+        inside |= np.all((centres > np.array(b.lo)) & (centres < np.array(b.hi)), axis=1)
+    if not inside.all():
+        i = int(np.flatnonzero(~inside)[0])
+        raise ValueError(f"{where}: camera {i} at {np.round(centres[i], 3).tolist()} is outside "
+                         "the corridor; check world.camera_margin, world.z_range, camera.mount "
+                         "and the flight preset's trajectory")
+
+
+def prepare(cfg: Mapping) -> Job:
+    """Resolve and validate a datagen config; build the world and every pose. No rendering."""
+    cfg = dict(cfg)
+    _check_counts(cfg)
+    model = build_world(cfg["world"])
+    camera = make_camera(cfg["camera"])
+    w = model.world
+    split_poses = {}
+    for split in SPLITS:
+        n = int(cfg["splits"].get(split, 0))
+        rngs = [rng_for(cfg["seed"], SPLIT_STREAM[split], i, 0) for i in range(n)]
+        poses = np.stack([trajectories.sample_training_poses(
+            r, 1, w.free_boxes, w.z_range, cfg["training"]["max_roll_pitch_deg"])[0]
+            for r in rngs]) if n else np.zeros((0, 4, 4))
+        _check_inside(model, camera, poses, f"splits.{split}")
+        split_poses[split] = poses
+    flights = {}
+    for name in cfg["render_flights"]:
+        preset = cfg["flights"][name]
+        r = rng_for(cfg["seed"], flight_stream(name), 0)
+        n, fps = int(preset["num_frames"]), float(preset["fps"])
+        if n <= 0 or fps <= 0:
+            raise ValueError(f"flights.{name}: num_frames and fps must be positive")
+        gt = trajectories.flight_trajectory(r, n, fps, w.free_boxes, w.z_range, preset)
+        odo = trajectories.noisy_odometry(r, gt, preset, fps=fps)
+        _check_inside(model, camera, gt, f"flights.{name}")
+        flights[name] = {"preset": preset, "groundtruth": gt, "odometry": odo,
+                         "timestamps": trajectories.timestamps(n, fps)}
+    return Job(cfg, Path(cfg["out_dir"]), model, camera, split_poses, flights)
+
+
+def shard_range(n: int, shard: int, num_shards: int) -> range:
+    """Frames [start, stop) of one shard of n frames."""
+    return range(n * shard // num_shards, n * (shard + 1) // num_shards)
+
+
+def software_versions(variant: str) -> dict[str, str]:
+    import drjit
+    import mitsuba
+    import trimesh
+
+    return {"python": platform.python_version(), "numpy": np.__version__,
+            "mitsuba": mitsuba.__version__, "drjit": drjit.__version__,
+            "trimesh": trimesh.__version__, "mitsuba_variant": variant}
+
+
+def write_metadata(job: Job, variant: str) -> None:
+    """dataset.json, world/ and the pose files (identical bytes from every shard)."""
+    from datagen.save import save_world
+
+    cfg, out, cam = job.cfg, job.out, job.camera
+    meta = {
+        "schema_version": SCHEMA_VERSION,
+        "name": cfg["name"],
+        "classes": C.as_json(),
+        "structural_classes": list(C.STRUCTURAL),
+        "ignore_index": C.IGNORE,
+        "camera": {"K": cam.K.tolist(), "width": cam.width, "height": cam.height,
+                   "hfov_deg": float(cfg["camera"]["hfov_deg"]),
+                   "body_from_cam": cam.body_from_cam.tolist()},
+        "seed": int(cfg["seed"]),
+        "config_hash": config_hash(cfg),
+        "counts": {**{s: int(cfg["splits"].get(s, 0)) for s in SPLITS},
+                   "flights": {k: int(v["groundtruth"].shape[0]) for k, v in job.flights.items()}},
+        "generator": {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS},
+        "software": software_versions(variant),
+    }
+    save_world(out / "world", job.model)
+    for split, poses in job.split_poses.items():
+        if len(poses):
+            write_tum(out / split / "poses.txt", np.arange(len(poses), dtype=float), poses)
+    for name, f in job.flights.items():
+        d = out / "flights" / name
+        write_tum(d / "groundtruth.txt", f["timestamps"], f["groundtruth"])
+        write_tum(d / "odometry.txt", f["timestamps"], f["odometry"])
+        atomic_write_json(d / "flight.json", {
+            "name": name, "fps": float(f["preset"]["fps"]),
+            "num_frames": int(len(f["timestamps"])),
+            "distractors": f["preset"].get("distractors", "none"), "preset": f["preset"],
+            "seed_stream": flight_stream(name)})
+    atomic_write_json(out / "dataset.json", meta)
+
+
+def check_existing(cfg: Mapping, out: Path) -> None:
+    """Refuse to mix two configs in one output directory (before any rendering)."""
+    meta = out / "dataset.json"
+    if not meta.is_file():
+        return
+    old = json.loads(meta.read_text()).get("config_hash")
+    if old == config_hash(cfg):
+        return
+    if cfg.get("overwrite"):
+        log.warning("overwrite=true: deleting %s, made with another config", out)
+        shutil.rmtree(out)
+        return
+    raise ValueError(f"{out} holds a dataset made with another config (hash {old}, now "
+                     f"{config_hash(cfg)}). Use another name=..., or overwrite=true to replace it.")
+
+
+def frame_done(d: Path, index: int, depth: bool) -> bool:
+    names = ["rgb", "label"] + (["depth"] if depth else [])
+    return all((d / sub / frame_name(index)).is_file() for sub in names)
+
+
+def write_frame(d: Path, index: int, rgb: np.ndarray, label: np.ndarray,
+                depth: np.ndarray | None) -> None:
+    """Write one frame; the label goes last, so a frame with a label is complete."""
+    if depth is not None:
+        write_png(d / "depth" / frame_name(index),
+                  np.clip(np.rint(depth * 1000.0), 0, 65535).astype(np.uint16))
+    write_png(d / "rgb" / frame_name(index), rgb)
+    write_png(d / "label" / frame_name(index), label)
+
+
+def _slot_meshes(cfg: Mapping, chunk_rng: np.random.Generator, presets: list[Mapping]):
+    """Distractor meshes for one scene load: enough slots for the busiest preset used."""
+    n_clutter = max(int(p["clutter"]["max"]) for p in presets)
+    n_people = max(int(p["people"]["max"]) for p in presets)
+    kinds_from = next((p for p in presets if p["clutter"]["max"]), presets[0])
+    kinds = distractors.sample_kinds(chunk_rng, n_clutter, kinds_from)
+    clutter = [distractors.make_clutter_mesh(k, chunk_rng) for k in kinds]
+    people = [distractors.make_person_mesh(chunk_rng) for _ in range(n_people)]
+    return clutter, people
+
+
+def _new_renderer(job: Job, textures, clutter, people):
+    from datagen.render import CorridorRenderer
+
+    return CorridorRenderer(job.model, job.camera, textures, clutter, people,
+                            max_depth=int(job.cfg["render"]["max_depth"]))
+
+
+def _dress(job: Job, renderer, rng: np.random.Generator, preset: Mapping,
+           body_pose: np.ndarray) -> None:
+    """Randomize textures, lights and distractors of one training image."""
+    cfg = job.cfg
+    renderer.set_textures(appearance.sample_textures(rng, None, cfg["appearance"]))
+    renderer.set_lights(appearance.sample_lights(rng, renderer.num_lights, cfg["appearance"])[1])
+    n_clutter, n_people = distractors.preset_counts(rng, preset)
+    slots = renderer.slots
+    clutter_ids = [i for i, (_, c) in enumerate(slots) if c == C.CLUTTER]
+    people_ids = [i for i, (_, c) in enumerate(slots) if c == C.PERSON]
+    use = (list(rng.permutation(clutter_ids)[:n_clutter])
+           + list(rng.permutation(people_ids)[:n_people]))
+    poses = np.full((len(slots), 3), np.nan)
+    if use:
+        radii = np.array([distractors.footprint_radius(slots[i][0]) for i in use])
+        cam = (body_pose @ job.camera.body_from_cam)[:3, 3]
+        keep = np.array([[cam[0], cam[1], float(preset.get("camera_keepout_m", 0.6))]])
+        xy_yaw, _ = distractors.place_objects(
+            rng, radii, floor_boxes(job.model, float(preset.get("wall_margin", 0.05))), keep,
+            against_walls=float(preset.get("against_walls", 0.0)))
+        poses[use] = xy_yaw
+    renderer.set_objects(poses, appearance.object_colours(rng, len(slots)))
+
+
+def render_split(job: Job, split: str, progress: bool = True) -> int:
+    """Render this shard's frames of a split; returns the number of frames rendered."""
+    cfg, poses = job.cfg, job.split_poses[split]
+    frames = shard_range(len(poses), int(cfg["shard"]), int(cfg["num_shards"]))
+    depth = bool(cfg["render"]["depth"])
+    d = job.out / split
+    todo = [i for i in frames if not frame_done(d, i, depth)]
+    if not todo:
+        return 0
+    names = list(cfg["training"]["distractors"])
+    weights = np.array([float(cfg["training"]["distractors"][n]) for n in names])
+    presets = [cfg["distractor_presets"][n] for n in names]
+    chunk = int(cfg["training"]["chunk"])
+    renderer, loaded = None, None
+    stream = SPLIT_STREAM[split]
+    for i in tqdm(todo, desc=f"{split:>5}", unit="img", disable=not progress):
+        c = i // chunk
+        if loaded != c:
+            crng = rng_for(cfg["seed"], stream, c, 1)
+            clutter, people = _slot_meshes(cfg, crng, presets)
+            tex = appearance.sample_textures(crng, None, cfg["appearance"])
+            renderer, loaded = _new_renderer(job, tex, clutter, people), c
+        rng = rng_for(cfg["seed"], stream, i, 2)
+        preset = presets[rng.choice(len(presets), p=weights / weights.sum())]
+        _dress(job, renderer, rng, preset, poses[i])
+        _render_frame(job, renderer, d, i, poses[i], seed=int(rng.integers(2**31)))
+    return len(todo)
+
+
+def _render_frame(job: Job, renderer, d: Path, i: int, body_pose: np.ndarray, seed: int) -> None:
+    r = job.cfg["render"]
+    renderer.set_camera(body_pose @ job.camera.body_from_cam)
+    rgb, label, depth = renderer.render(int(r["spp"]), seed, float(r["exposure"]),
+                                        float(r["denoise_sigma_px"]))
+    write_frame(d, i, rgb, label, depth if r["depth"] else None)
+
+
+def render_flight(job: Job, name: str, progress: bool = True) -> int:
+    """Render this shard's frames of a flight: one appearance, fixed clutter, walking people."""
+    cfg, f = job.cfg, job.flights[name]
+    gt, preset = f["groundtruth"], f["preset"]
+    frames = shard_range(len(gt), int(cfg["shard"]), int(cfg["num_shards"]))
+    depth = bool(cfg["render"]["depth"])
+    d = job.out / "flights" / name
+    todo = [i for i in frames if not frame_done(d, i, depth)]
+    if not todo:
+        return 0
+    rng = rng_for(cfg["seed"], flight_stream(name), 1)
+    dp = cfg["distractor_presets"][preset.get("distractors", "none")]
+    n_clutter, n_people = distractors.preset_counts(rng, dp)
+    clutter = [distractors.make_clutter_mesh(k, rng)
+               for k in distractors.sample_kinds(rng, n_clutter, dp)]
+    people = [distractors.make_person_mesh(rng) for _ in range(n_people)]
+    textures = appearance.sample_textures(rng, None, cfg["appearance"])
+    lights = appearance.sample_lights(rng, len(job.model.lights), cfg["appearance"])[1]
+    colours = appearance.object_colours(rng, n_clutter + n_people)
+    cam_xy = (gt @ job.camera.body_from_cam)[:, :2, 3]
+    path = cam_xy[:: max(1, len(cam_xy) // 60)]
+    keep = np.concatenate([path, np.full((len(path), 1),
+                                         float(dp.get("camera_keepout_m", 0.6)))], axis=1)
+    radii = np.array([distractors.footprint_radius(m) for m in clutter])
+    boxes = floor_boxes(job.model, float(dp.get("wall_margin", 0.05)))
+    placed = distractors.place_objects(rng, radii, boxes, keep,
+                                       against_walls=float(dp.get("against_walls", 0.0)))[0]
+    ok = ~np.isnan(placed[:, 0])
+    obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
+    tracks = distractors.person_tracks(
+        rng, n_people, len(gt), float(preset["fps"]), boxes,
+        speed=tuple(dp.get("person_speed", (0.6, 1.4))),
+        radius=float(dp.get("person_radius", 0.3)), obstacles=obstacles, avoid=cam_xy,
+    ) if n_people else np.zeros((0, len(gt), 3))
+    renderer = _new_renderer(job, textures, clutter, people)
+    renderer.set_lights(lights)
+    for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
+        poses = np.concatenate([placed, tracks[:, i]], axis=0)
+        renderer.set_objects(poses, colours)
+        seed = int(rng_for(cfg["seed"], flight_stream(name), 2, i).integers(2**31))
+        _render_frame(job, renderer, d, i, gt[i], seed)
+    return len(todo)
+
+
+def run(cfg: Mapping, progress: bool = True) -> Path:
+    """Render (this shard of) a dataset; returns the dataset directory."""
+    from datagen.variant import choose_variant
+
+    job = prepare(cfg)
+    check_existing(job.cfg, job.out)
+    variant = choose_variant(job.cfg["render"]["variant"])
+    write_metadata(job, variant)
+    t0 = time.perf_counter()
+    counts = {s: render_split(job, s, progress) for s in SPLITS if len(job.split_poses[s])}
+    counts.update({f"flight:{n}": render_flight(job, n, progress) for n in job.flights})
+    seconds = time.perf_counter() - t0
+    write_stats(job, variant, counts, seconds)
+    return job.out
+
+
+def write_stats(job: Job, variant: str, counts: dict[str, int], seconds: float) -> None:
+    """stats/shard-K-of-N.json for this run, and stats.json summing every shard's file."""
+    cfg = job.cfg
+    rendered = sum(counts.values())
+    shard = {"shard": int(cfg["shard"]), "num_shards": int(cfg["num_shards"]),
+             "rendered": counts, "seconds": round(seconds, 3),
+             "images_per_second": round(rendered / seconds, 3) if rendered else None}
+    d = job.out / "stats"
+    atomic_write_json(d / f"shard-{cfg['shard']}-of-{cfg['num_shards']}.json", shard)
+    runs = [json.loads(p.read_text()) for p in sorted(d.glob("shard-*.json"))]
+    timed = [r for r in runs if r["images_per_second"]]
+    r = cfg["render"]
+    atomic_write_json(job.out / "stats.json", {
+        "images_per_second": (round(sum(sum(x["rendered"].values()) for x in timed)
+                                    / sum(x["seconds"] for x in timed), 3) if timed else None),
+        "images_per_second_note": "labeled RGB+label images per second of one process, "
+                                  "summed over the shards' last runs",
+        "counts": job.cfg and {s: int(cfg["splits"].get(s, 0)) for s in SPLITS}
+        | {f"flight:{n}": len(f["timestamps"]) for n, f in job.flights.items()},
+        "render": {"variant": variant, "width": job.camera.width, "height": job.camera.height,
+                   "spp": int(r["spp"]), "max_depth": int(r["max_depth"]),
+                   "depth": bool(r["depth"])},
+        "shards": runs,
+    })

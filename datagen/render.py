@@ -1,0 +1,326 @@
+"""Mitsuba 3 scene of a corridor and a renderer that moves the camera and re-dresses the scene.
+
+The scene is loaded once per world (and per set of distractor meshes); per frame only
+parameters change through ``mi.traverse``: the camera pose, texture images, light radiance,
+distractor positions and colours. That re-uses Dr.Jit's compiled kernels.
+
+RGB: path tracer (spp, max_depth), Gaussian pixel filter, then (optionally) the albedo-
+demodulation denoiser of ``datagen.denoise``, sRGB 8-bit output.
+Labels: ``aov`` integrator (``shape_index``) through a second sensor with a box filter and one
+un-jittered sample at each pixel centre, mapped to class ids; 0 (void) where nothing is hit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from datagen import classes as C
+from datagen.camera import mitsuba_to_world
+from datagen.dataset import Camera
+from datagen.denoise import denoise, segment_ids
+from datagen.world import DOOR_RECESS, WINDOW_RECESS, CorridorModel
+
+HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor
+
+#: Physical size (u, v) in metres each texture image covers; doors and windows cover their
+#: panel exactly (None).
+TEXTURE_EXTENT = {"floor": (2.0, 2.0), "ceiling": (2.0, 2.0), "wall": (4.0, 2.8),
+                  "frame": (0.5, 0.5), "door": None, "window": None}
+
+
+@dataclass
+class Surface:
+    """One textured part of the structural model: unshared triangle soup."""
+
+    name: str
+    class_id: int
+    texture: str
+    vertices: np.ndarray  # (3T, 3)
+    uv: np.ndarray  # (3T, 2)
+
+
+def _face_uv(tri: np.ndarray, axis: np.ndarray, origin: np.ndarray,
+             extent: np.ndarray) -> np.ndarray:
+    """Planar UVs of triangles: u along the wall (or x on floors), v up (or y on floors).
+
+    Args:
+        tri: (T, 3, 3) corners; axis: (T,) normal axis; origin: (T, 2) uv origin in metres;
+        extent: (T, 2) metres per texture repeat.
+    """
+    u_axis = np.where(axis == 0, 1, 0)  # walls facing x run along y; else along x
+    v_axis = np.where(axis == 2, 1, 2)  # floors/ceilings: v along y; walls: v up
+    u = np.take_along_axis(tri, u_axis[:, None, None], 2)[..., 0]
+    v = np.take_along_axis(tri, v_axis[:, None, None], 2)[..., 0]
+    uv = np.stack([(u - origin[:, None, 0]) / extent[:, None, 0],
+                   (v - origin[:, None, 1]) / extent[:, None, 1]], axis=-1)
+    return uv
+
+
+def surfaces(model: CorridorModel) -> list[Surface]:
+    """Split the model into textured surfaces with UVs (see ``TEXTURE_EXTENT``)."""
+    w = model.world
+    tri = w.vertices[w.faces]  # (F, 3, 3)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.argmax(np.abs(n), axis=1)
+    kind = np.array([b.kind for b in model.boxes])[model.face_box]
+    lo = np.array([b.lo for b in model.boxes])[model.face_box]
+    hi = np.array([b.hi for b in model.boxes])[model.face_box]
+    in_recess = (kind == DOOR_RECESS) | (kind == WINDOW_RECESS)
+    groups = {
+        "floor": (C.FLOOR, "floor", w.face_class == C.FLOOR),
+        "ceiling": (C.CEILING, "ceiling", w.face_class == C.CEILING),
+        "wall": (C.WALL, "wall", (w.face_class == C.WALL) & ~in_recess),
+        "frame": (C.WALL, "frame", (w.face_class == C.WALL) & in_recess),
+        "door": (C.DOOR, "door", w.face_class == C.DOOR),
+        "window": (C.WINDOW, "window", w.face_class == C.WINDOW),
+    }
+    out = []
+    for name, (cls, tex, mask) in groups.items():
+        if not mask.any():
+            continue
+        ext = TEXTURE_EXTENT[tex]
+        if ext is None:  # the panel's own box: u across it, v from its bottom to its top
+            u_axis = np.where(axis[mask] == 0, 1, 0)
+            r = np.arange(mask.sum())
+            origin = np.stack([lo[mask][r, u_axis], lo[mask][r, 2]], axis=1)
+            extent = np.stack([hi[mask][r, u_axis] - lo[mask][r, u_axis],
+                               hi[mask][r, 2] - lo[mask][r, 2]], axis=1)
+        else:
+            origin = np.zeros((mask.sum(), 2))
+            extent = np.tile(ext, (mask.sum(), 1))
+        uv = _face_uv(tri[mask], axis[mask], origin, extent)
+        out.append(Surface(name, cls, tex, tri[mask].reshape(-1, 3), uv.reshape(-1, 2)))
+    return out
+
+
+def light_panels(model: CorridorModel) -> list[np.ndarray]:
+    """(4, 3) corners of each ceiling light, wound so the panel emits downwards."""
+    z = model.height - 0.01
+    out = []
+    for cx, cy, sx, sy in model.lights:
+        out.append(np.array([[cx - sx / 2, cy - sy / 2, z], [cx - sx / 2, cy + sy / 2, z],
+                             [cx + sx / 2, cy + sy / 2, z], [cx + sx / 2, cy - sy / 2, z]]))
+    return out
+
+
+def _set(params, key: str, value: np.ndarray) -> None:
+    """Assign a numpy array to a traversed parameter, whatever the variant's array type."""
+    current = params[key]
+    params[key] = type(current)(np.ascontiguousarray(value))
+
+
+class CorridorRenderer:
+    """Renders RGB, labels and depth of a corridor world from OpenCV-convention poses.
+
+    Args:
+        model: the built corridor.
+        camera: intrinsics and image size (K must be centred with square pixels).
+        textures: name -> (R, R, 3) float32 linear RGB, row 0 = top (see ``TEXTURE_EXTENT``).
+        clutter: distractor meshes labelled clutter (origin on the floor, z up).
+        people: distractor meshes labelled person.
+        max_depth: path length limit of the path tracer.
+    """
+
+    def __init__(self, model: CorridorModel, camera: Camera, textures: Mapping[str, np.ndarray],
+                 clutter: Sequence[trimesh.Trimesh] = (), people: Sequence[trimesh.Trimesh] = (),
+                 max_depth: int = 3):
+        import mitsuba as mi
+
+        self.mi = mi
+        self.camera = camera
+        K = camera.K
+        if abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0] or abs(K[0, 2] - (camera.width - 1) / 2) > 1e-6 \
+                or abs(K[1, 2] - (camera.height - 1) / 2) > 1e-6:
+            raise ValueError("camera: the renderer needs square pixels and a centred principal "
+                             "point (use datagen.camera.intrinsics)")
+        hfov = math.degrees(2 * math.atan(camera.width / 2 / K[0, 0]))
+        self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
+        self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
+
+        def mesh(name, V, F, UV, bsdf, emitter=None):
+            props = mi.Properties()
+            props["bsdf"] = bsdf
+            if emitter is not None:
+                props["emitter"] = emitter
+            m = mi.Mesh(name, len(V), len(F), props=props, has_vertex_normals=False,
+                        has_vertex_texcoords=UV is not None)
+            p = mi.traverse(m)
+            _set(p, "vertex_positions", V.astype(np.float32).ravel())
+            _set(p, "faces", F.astype(np.uint32).ravel())
+            if UV is not None:
+                _set(p, "vertex_texcoords", UV.astype(np.float32).ravel())
+            p.update()
+            return m
+
+        def bitmap(img):
+            return {"type": "bitmap", "bitmap": mi.Bitmap(np.flipud(img).astype(np.float32)),
+                    "wrap_mode": "repeat", "raw": True}
+
+        scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
+        self.class_of: dict[str, int] = {}
+        for s in surfaces(model):
+            F = np.arange(len(s.vertices)).reshape(-1, 3)
+            if s.texture == "window":
+                bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                         "value": 0.05}})
+                emitter = mi.load_dict({"type": "area", "radiance": bitmap(textures["window"])})
+                scene[s.name] = mesh(s.name, s.vertices, F, s.uv, bsdf, emitter)
+            else:
+                bsdf = mi.load_dict({"type": "diffuse", "reflectance": bitmap(textures[s.texture])})
+                scene[s.name] = mesh(s.name, s.vertices, F, s.uv, bsdf)
+            self.class_of[s.name] = s.class_id
+        quad = np.array([[0, 1, 2], [0, 2, 3]])
+        for i, corners in enumerate(light_panels(model)):
+            name = f"light{i}"
+            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": 1.0}})
+            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}})
+            scene[name] = mesh(name, corners, quad, None, bsdf, emitter)
+            self.class_of[name] = C.CEILING
+        self.num_lights = len(model.lights)
+        for i, (m, cls) in enumerate(self.slots):
+            name = f"object{i}"
+            V = self._slot_vertices[i] + [0.0, 0.0, HIDDEN_Z]
+            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}})
+            scene[name] = mesh(name, V, np.asarray(m.faces), None, bsdf)
+            self.class_of[name] = cls
+        film = {"type": "hdrfilm", "width": camera.width, "height": camera.height,
+                "pixel_format": "rgb"}
+        scene["sensor"] = {"type": "perspective", "fov": hfov, "fov_axis": "x",
+                           "near_clip": 0.01, "far_clip": 1000.0,
+                           "film": {**film, "rfilter": {"type": "gaussian"}}}
+        scene["label_sensor"] = {"type": "perspective", "fov": hfov, "fov_axis": "x",
+                                 "near_clip": 0.01, "far_clip": 1000.0,
+                                 "sampler": {"type": "stratified", "sample_count": 1,
+                                             "jitter": False},
+                                 "film": {**film, "rfilter": {"type": "box"}}}
+        self.scene = mi.load_dict(scene)
+        self.params = mi.traverse(self.scene)
+        self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
+        self.rgb_integrator = mi.load_dict({
+            "type": "aov", "aovs": "al:albedo",
+            "integrator": {"type": "path", "max_depth": int(max_depth)}})
+        self._emitter_class = {C.WINDOW}
+        self._lut = self._class_lookup()
+        self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
+        # Ray length -> z depth factor per pixel: z = t / |K^-1 [u, v, 1]|.
+        u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+        rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u,
+                        dtype=float)], axis=-1)
+        self._ray_norm = np.linalg.norm(rays, axis=-1)
+
+    def _class_lookup(self) -> np.ndarray:
+        """Map aov ``shape_index`` values to class ids (built right after loading)."""
+        mi = self.mi
+        import drjit as dr
+
+        shapes = list(self.scene.shapes())
+        lut = np.zeros(len(shapes) + 2, dtype=np.uint8)
+        light = np.zeros(len(shapes) + 2, dtype=bool)
+        for pos, shape in enumerate(shapes):
+            if hasattr(mi, "ShapePtr"):  # JIT variants: the shape's registry id
+                index = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+            else:  # scalar: position in scene.shapes(), counted from 1
+                index = pos + 1
+            if index >= len(lut):
+                lut = np.concatenate([lut, np.zeros(index + 1 - len(lut), dtype=np.uint8)])
+                light = np.concatenate([light, np.zeros(index + 1 - len(light), dtype=bool)])
+            lut[index] = self.class_of[shape.id()]
+            light[index] = shape.id().startswith("light")
+        self._is_light = light
+        return lut
+
+    # --- per-frame state -------------------------------------------------------------------
+
+    def set_camera(self, world_from_cam: np.ndarray) -> None:
+        """Place both sensors at an OpenCV-convention pose (4, 4)."""
+        T = self.mi.ScalarTransform4f(mitsuba_to_world(world_from_cam).tolist())
+        self.params["sensor.to_world"] = T
+        self.params["label_sensor.to_world"] = T
+        self.params.update()
+
+    def set_textures(self, textures: Mapping[str, np.ndarray]) -> None:
+        """Replace texture images in place (shapes must match the ones the scene was built with)."""
+        for s in ("floor", "ceiling", "wall", "frame", "door"):
+            key = f"{s}.bsdf.reflectance.data"
+            if key in self.params:
+                self._put_texture(key, s, textures[s])
+        if "window.emitter.radiance.data" in self.params:
+            self._put_texture("window.emitter.radiance.data", "window", textures["window"])
+        self.params.update()
+
+    def _put_texture(self, key: str, name: str, img: np.ndarray) -> None:
+        if img.shape != self._textures[name]:
+            raise ValueError(f"texture {name!r} has shape {img.shape}, the scene was built with "
+                             f"{self._textures[name]}; keep appearance.resolution fixed")
+        self.params[key] = self.mi.TensorXf(np.flipud(img).astype(np.float32).copy())
+
+    def set_lights(self, radiance: np.ndarray) -> None:
+        """Set the ceiling lights' emitted radiance, (L, 3) linear RGB (0 = off)."""
+        radiance = np.asarray(radiance, dtype=np.float32).reshape(self.num_lights, 3)
+        for i, rad in enumerate(radiance):
+            self.params[f"light{i}.emitter.radiance.value"] = self.mi.Color3f(*rad.tolist())
+        self.params.update()
+
+    def set_objects(self, poses: np.ndarray, colors: np.ndarray) -> None:
+        """Place the distractor slots.
+
+        Args:
+            poses: (S, 3) x, y (metres), yaw (radians) per slot; NaN x hides the slot.
+            colors: (S, 3) linear RGB reflectance per slot.
+        """
+        poses = np.asarray(poses, dtype=np.float64).reshape(len(self.slots), 3)
+        for i, (pose, col) in enumerate(zip(poses, colors, strict=True)):
+            V = self._slot_vertices[i]
+            if np.isnan(pose[0]):
+                V = V + [0.0, 0.0, HIDDEN_Z]
+            else:
+                c, s = math.cos(pose[2]), math.sin(pose[2])
+                R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+                V = V @ R.T + [pose[0], pose[1], 0.0]
+            _set(self.params, f"object{i}.vertex_positions", V.astype(np.float32).ravel())
+            self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
+                *np.asarray(col, dtype=np.float32).tolist())
+        self.params.update()
+
+    # --- rendering -------------------------------------------------------------------------
+
+    def render(self, spp: int, seed: int, exposure: float = 1.0, denoise_sigma_px: float = 4.0
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Render the current view.
+
+        Args:
+            spp: path-tracer samples per pixel. seed: sample seed.
+            exposure: linear scale before sRGB encoding.
+            denoise_sigma_px: shading blur of the denoiser, pixels; 0 switches it off.
+
+        Returns:
+            rgb (H, W, 3) uint8 sRGB; label (H, W) uint8 class ids (void where nothing is hit);
+            depth (H, W) float32 z in metres (0 where nothing is hit).
+        """
+        aux = np.asarray(self.mi.render(self.scene, sensor=1, integrator=self.aov, spp=1,
+                                        seed=0))
+        index = np.rint(aux[..., 0]).astype(np.int64)
+        index = np.where((index >= 0) & (index < len(self._lut)), index, 0)
+        t = aux[..., 1]
+        label = self._lut[index]
+        label[t <= 0] = C.VOID
+        out = np.asarray(self.mi.render(self.scene, sensor=0, integrator=self.rgb_integrator,
+                                        spp=int(spp), seed=int(seed)))
+        rgb = out[..., :3]
+        if denoise_sigma_px > 0:
+            keep = np.isin(label, list(self._emitter_class)) | self._is_light[index]
+            rgb = denoise(rgb, out[..., -3:], segment_ids(index, aux[..., 2:5]), keep,
+                          denoise_sigma_px)
+        return linear_to_srgb8(rgb * exposure), label, (t / self._ray_norm).astype(np.float32)
+
+
+def linear_to_srgb8(img: np.ndarray) -> np.ndarray:
+    """Linear RGB (any shape, float) to 8-bit sRGB with clipping."""
+    x = np.clip(np.nan_to_num(img, nan=0.0), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.rint(s * 255.0).astype(np.uint8)

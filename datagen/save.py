@@ -1,0 +1,34 @@
+"""Write a built world to ``<dataset>/world/`` (see datagen.dataset for the layout)."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from datagen import classes as C
+from datagen.atomic import atomic_write_bytes, atomic_write_json
+from datagen.world import CorridorModel
+
+
+def _npz_bytes(**arrays: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    return buf.getvalue()
+
+
+def save_world(d: str | Path, model: CorridorModel) -> None:
+    """model.npz, edges.npz, world.json and model.ply (face colour = class colour)."""
+    d = Path(d)
+    w = model.world
+    atomic_write_bytes(d / "model.npz", _npz_bytes(
+        vertices=w.vertices, faces=w.faces.astype(np.int64), face_class=w.face_class))
+    atomic_write_bytes(d / "edges.npz", _npz_bytes(
+        segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg))
+    atomic_write_json(d / "world.json", w.info)
+    colors = np.concatenate([C.palette()[w.face_class],
+                             np.full((len(w.faces), 1), 255, np.uint8)], axis=1)
+    mesh = trimesh.Trimesh(w.vertices, w.faces, face_colors=colors, process=False)
+    atomic_write_bytes(d / "model.ply", trimesh.exchange.ply.export_ply(mesh, encoding="ascii"))

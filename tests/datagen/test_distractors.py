@@ -1,0 +1,185 @@
+"""Tests of datagen.distractors: meshes, placement, walking people, presets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from omegaconf import OmegaConf
+
+from datagen import distractors as D
+
+CONF = Path(__file__).resolve().parents[2] / "conf" / "distractors"
+# the default corridor floor (x in [-1, 1], y in [0, 10]) with a side opening on the left,
+# shrunk by a small wall margin
+FLOOR = np.array([[-0.95, 0.05, 0.95, 9.95], [-2.95, 5.45, -0.95, 6.95]])
+
+
+def inside_some_box(xy: np.ndarray, r: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(K,) whether each circle lies entirely inside one of the boxes."""
+    lo, hi = boxes[None, :, :2], boxes[None, :, 2:]
+    ok = (xy[:, None] - r[:, None, None] >= lo - 1e-9) & (xy[:, None] + r[:, None, None]
+                                                          <= hi + 1e-9)
+    return ok.all(-1).any(-1)
+
+
+class TestMeshes:
+    @pytest.mark.parametrize("kind", D.CLUTTER_KINDS)
+    def test_clutter_bounds(self, kind):
+        for seed in range(8):
+            mesh = D.make_clutter_mesh(kind, np.random.default_rng(seed))
+            lo, hi = mesh.bounds
+            assert isinstance(mesh, trimesh.Trimesh)
+            assert abs(lo[2]) < 1e-9, "must stand on z = 0"
+            assert 0.2 < hi[2] <= D.MAX_HEIGHT + 1e-9
+            np.testing.assert_allclose((lo[:2] + hi[:2]) / 2, 0.0, atol=1e-9)  # centred
+            assert D.footprint_radius(mesh) < 0.75  # fits in a 2 m corridor with room
+            assert len(mesh.faces) < 2000
+            assert np.isfinite(mesh.vertices).all()
+
+    def test_person(self):
+        for seed in range(8):
+            mesh = D.make_person_mesh(np.random.default_rng(seed))
+            lo, hi = mesh.bounds
+            assert abs(lo[2]) < 1e-9
+            assert 1.5 - 1e-9 <= hi[2] <= 1.95 + 1e-9
+            assert len(mesh.faces) < 2000
+            assert D.footprint_radius(mesh) < 0.6
+            v = mesh.vertices
+            feet = v[v[:, 2] < 0.05]
+            assert abs(feet[:, 0].mean()) < 0.15  # origin between the feet
+            head = v[v[:, 2] > 0.88 * hi[2]]
+            assert head[:, 0].max() > -head[:, 0].min()  # the nose points to +x
+            chest = mesh.section(plane_origin=[0, 0, 0.7 * hi[2]], plane_normal=[0, 0, 1])
+            extent = np.ptp(chest.vertices, axis=0)
+            assert extent[1] > 1.3 * extent[0]  # shoulders across y: facing +/-x
+
+    def test_deterministic(self):
+        a = D.make_clutter_mesh("chair", np.random.default_rng(3))
+        b = D.make_clutter_mesh("chair", np.random.default_rng(3))
+        np.testing.assert_array_equal(a.vertices, b.vertices)
+        np.testing.assert_array_equal(a.faces, b.faces)
+
+    def test_unknown_kind(self):
+        with pytest.raises(ValueError, match="unknown clutter kind"):
+            D.make_clutter_mesh("sofa", np.random.default_rng(0))
+
+    def test_footprint_radius(self):
+        box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+        assert D.footprint_radius(box) == pytest.approx(np.sqrt(0.5))
+
+
+class TestPlaceObjects:
+    def test_no_overlaps_inside_and_clear_of_keepouts(self):
+        keep = np.array([[0.0, 5.0, 0.6], [0.3, 2.0, 0.4]])
+        for seed in range(20):
+            rng = np.random.default_rng(seed)
+            radii = rng.uniform(0.15, 0.6, 10)
+            xy_yaw, placed = D.place_objects(rng, radii, FLOOR, keep)
+            assert xy_yaw.shape == (10, 3) and placed.shape == (10,)
+            assert placed.sum() >= 6
+            assert np.isnan(xy_yaw[~placed]).all()
+            xy, r = xy_yaw[placed, :2], radii[placed]
+            d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+            gap = d - r[:, None] - r[None]
+            assert np.all(gap[~np.eye(len(r), dtype=bool)] >= -1e-9)
+            assert inside_some_box(xy, r, FLOOR).all()
+            dk = np.linalg.norm(xy[:, None] - keep[None, :, :2], axis=-1)
+            assert np.all(dk >= r[:, None] + keep[None, :, 2] - 1e-9)
+            assert np.all(np.abs(xy_yaw[placed, 2]) <= np.pi)
+
+    def test_too_big_is_unplaced(self):
+        xy_yaw, placed = D.place_objects(np.random.default_rng(0), np.array([0.3, 1.2]), FLOOR)
+        np.testing.assert_array_equal(placed, [True, False])
+
+    def test_against_walls(self):
+        rng = np.random.default_rng(1)
+        radii = np.full(4, 0.3)
+        xy_yaw, placed = D.place_objects(rng, radii, FLOOR[:1], against_walls=1.0)
+        assert placed.all()
+        np.testing.assert_allclose(np.abs(xy_yaw[:, 0]), 0.95 - 0.3, atol=1e-9)
+
+    def test_deterministic(self):
+        radii = np.array([0.4, 0.3, 0.2])
+        a = D.place_objects(np.random.default_rng(5), radii, FLOOR)
+        b = D.place_objects(np.random.default_rng(5), radii, FLOOR)
+        np.testing.assert_array_equal(a[0], b[0])
+
+    def test_bad_boxes(self):
+        with pytest.raises(ValueError, match="boxes"):
+            D.place_objects(np.random.default_rng(0), [0.2], np.array([[1.0, 0.0, 0.0, 1.0]]))
+
+    def test_object_poses(self):
+        T = D.object_poses(np.array([[1.0, 2.0, np.pi / 2]]))
+        np.testing.assert_allclose(T[0] @ [1, 0, 0, 1], [1, 3, 0, 1], atol=1e-12)
+
+
+class TestPersonTracks:
+    def test_inside_walking_and_apart(self):
+        fps, radius = 10.0, 0.3
+        for seed in range(4):
+            rng = np.random.default_rng(seed)
+            tracks = D.person_tracks(rng, 3, 200, fps, FLOOR[:1], radius=radius)
+            assert tracks.shape == (3, 200, 3)
+            xy = tracks[..., :2]
+            lo, hi = FLOOR[0, :2] + radius, FLOOR[0, 2:] - radius
+            assert np.all((xy >= lo - 1e-9) & (xy <= hi + 1e-9))
+            step = np.diff(xy, axis=1)
+            speed = np.linalg.norm(step, axis=-1) * fps
+            assert speed.max() <= 1.4 + 1e-6
+            assert np.all(speed.mean(axis=1) > 0.3)  # they walk
+            assert np.abs(step[..., 1]).sum() > 3 * np.abs(step[..., 0]).sum()  # along Y
+            moving = speed > 0.2
+            walk_dir = np.arctan2(step[..., 1], step[..., 0])
+            yaw_err = np.abs(np.angle(np.exp(1j * (walk_dir - tracks[:, 1:, 2]))))
+            assert np.median(yaw_err[moving]) < np.deg2rad(5)  # yaw is the walking direction
+            d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)[np.triu_indices(3, 1)]
+            assert (d < 2 * radius - 0.05).mean() < 0.02  # rarely walk through each other
+
+    def test_avoid_obstacles_and_camera(self):
+        rng = np.random.default_rng(2)
+        obstacles = np.array([[0.6, 3.0, 0.3], [-0.6, 7.0, 0.3]])
+        camera = np.column_stack([np.zeros(150), np.linspace(1, 9, 150)])
+        tracks = D.person_tracks(rng, 2, 150, 10.0, FLOOR[:1], obstacles=obstacles,
+                                 avoid=camera, avoid_radius=0.4)
+        xy = tracks[..., :2]
+        d_obs = np.linalg.norm(xy[:, :, None] - obstacles[None, None, :, :2], axis=-1)
+        assert d_obs.min() >= 0.3 + 0.3 - 1e-6
+        d_cam = np.linalg.norm(xy - camera[None], axis=-1)
+        assert (d_cam < 0.3 + 0.4 - 0.05).mean() < 0.02
+
+    def test_deterministic_and_empty(self):
+        a = D.person_tracks(np.random.default_rng(9), 2, 50, 10.0, FLOOR)
+        b = D.person_tracks(np.random.default_rng(9), 2, 50, 10.0, FLOOR)
+        np.testing.assert_array_equal(a, b)
+        assert D.person_tracks(np.random.default_rng(0), 0, 50, 10.0, FLOOR).shape == (0, 50, 3)
+
+
+class TestPresets:
+    @pytest.mark.parametrize("name", ["none", "paper", "cluttered"])
+    def test_presets(self, name):
+        cfg = OmegaConf.load(CONF / f"{name}.yaml")
+        assert cfg.name == name
+        rng = np.random.default_rng(0)
+        for _ in range(20):
+            n_clutter, n_people = D.preset_counts(rng, cfg)
+            assert cfg.clutter.min <= n_clutter <= cfg.clutter.max
+            assert cfg.people.min <= n_people <= cfg.people.max
+            assert set(D.sample_kinds(rng, n_clutter, cfg)) <= set(cfg.kinds)
+        if name == "none":
+            assert D.preset_counts(rng, cfg) == (0, 0)
+
+    def test_presets_grow(self):
+        load = [OmegaConf.load(CONF / f"{n}.yaml") for n in ("none", "paper", "cluttered")]
+        assert load[0].clutter.max < load[1].clutter.max < load[2].clutter.min + 1
+        assert load[0].people.max < load[1].people.max <= load[2].people.max
+
+    def test_bad_preset(self):
+        with pytest.raises(ValueError, match="clutter"):
+            D.preset_counts(np.random.default_rng(0), {"name": "x", "clutter": {"min": 3,
+                                                                               "max": 1},
+                                                       "people": {"min": 0, "max": 0}})
+        with pytest.raises(ValueError, match="kinds"):
+            D.sample_kinds(np.random.default_rng(0), 2, {"name": "x", "kinds": ["sofa"]})

@@ -1,0 +1,185 @@
+"""Tests of datagen.trajectories: training poses, flights and noisy odometry."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+from scipy.spatial.transform import Rotation
+
+from datagen import trajectories as TR
+from datagen.poses import xyzyaw_from_pose
+
+CONF = Path(__file__).resolve().parents[2] / "conf" / "flights" / "default.yaml"
+BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
+Z = np.array([0.5, 2.2])
+
+
+@pytest.fixture(scope="module")
+def flights():
+    return OmegaConf.load(CONF)
+
+
+def rpy(T: np.ndarray) -> np.ndarray:
+    return Rotation.from_matrix(T[:, :3, :3]).as_euler("xyz")
+
+
+def assert_rigid(T: np.ndarray) -> None:
+    R = T[:, :3, :3]
+    np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape),
+                               atol=1e-9)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-9)
+    np.testing.assert_array_equal(T[:, 3], np.broadcast_to([0, 0, 0, 1], (len(T), 4)))
+
+
+class TestTrainingPoses:
+    def test_inside_and_bounded(self):
+        T = TR.sample_training_poses(np.random.default_rng(0), 4000, BOXES, Z, 5.0)
+        assert T.shape == (4000, 4, 4)
+        assert_rigid(T)
+        p = T[:, :3, 3]
+        in_box = ((p[:, None, 0] >= BOXES[:, 0]) & (p[:, None, 0] <= BOXES[:, 2])
+                  & (p[:, None, 1] >= BOXES[:, 1]) & (p[:, None, 1] <= BOXES[:, 3]))
+        assert in_box.any(1).all()
+        assert np.all((p[:, 2] >= Z[0]) & (p[:, 2] <= Z[1]))
+        angles = rpy(T)
+        assert np.abs(angles[:, :2]).max() <= np.deg2rad(5.0) + 1e-9
+        # yaw all around, positions area-weighted over the boxes
+        hist = np.histogram(angles[:, 2], bins=8, range=(-np.pi, np.pi))[0]
+        assert hist.min() > 0.7 * 4000 / 8
+        area = np.prod(BOXES[:, 2:] - BOXES[:, :2], axis=1)
+        in_opening = (p[:, 0] < -0.7).mean()
+        assert in_opening == pytest.approx(area[1] / area.sum(), abs=0.02)
+
+    def test_deterministic(self):
+        a = TR.sample_training_poses(np.random.default_rng(4), 10, BOXES, Z)
+        b = TR.sample_training_poses(np.random.default_rng(4), 10, BOXES, Z)
+        np.testing.assert_array_equal(a, b)
+
+    def test_bad_input(self):
+        with pytest.raises(ValueError, match="z_range"):
+            TR.sample_training_poses(np.random.default_rng(0), 3, BOXES, [2.0, 1.0])
+        with pytest.raises(ValueError, match="boxes"):
+            TR.sample_training_poses(np.random.default_rng(0), 3, np.zeros((0, 4)), Z)
+
+
+class TestFlight:
+    @pytest.mark.parametrize("preset", ["paper", "cluttered"])
+    def test_inside_smooth_forward(self, preset, flights):
+        cfg = flights[preset]
+        fps, n = float(cfg.fps), int(cfg.num_frames)
+        for seed in range(5):
+            T = TR.flight_trajectory(np.random.default_rng(seed), n, fps, BOXES, Z, cfg)
+            assert T.shape == (n, 4, 4)
+            assert_rigid(T)
+            s = xyzyaw_from_pose(T)
+            main = BOXES[0]
+            assert np.all((s[:, 0] >= main[0]) & (s[:, 0] <= main[2]))
+            assert np.all((s[:, 1] >= main[1]) & (s[:, 1] <= main[3]))
+            assert np.all((s[:, 2] >= Z[0]) & (s[:, 2] <= Z[1]))
+            # forward along +Y over most of the corridor, never backwards
+            assert s[-1, 1] - s[0, 1] > 0.6 * (main[3] - main[1])
+            assert np.all(np.diff(s[:, 1]) >= -1e-9)
+            speed = np.linalg.norm(np.diff(s[:, :3], axis=0), axis=1) * fps
+            assert speed.max() < 1.2
+            # smooth: bounded accelerations and yaw rate
+            acc = np.linalg.norm(np.diff(s[:, :3], 2, axis=0), axis=1) * fps**2
+            assert acc.max() < 1.5
+            yaw_rate = np.abs(np.angle(np.exp(1j * np.diff(s[:, 3])))) * fps
+            assert yaw_rate.max() < np.deg2rad(60)
+            # looking along the corridor, with real swings
+            off = np.abs(np.angle(np.exp(1j * (s[:, 3] - np.pi / 2))))
+            assert off.max() <= np.deg2rad(cfg.trajectory.yaw_amplitude_deg[1]) + 1e-9
+            assert off.max() >= np.deg2rad(cfg.trajectory.yaw_amplitude_deg[0]) - 1e-9
+            tilt = np.abs(rpy(T)[:, :2])
+            assert tilt.max() <= np.deg2rad(cfg.trajectory.max_tilt_deg) + 1e-9
+            # sway happens
+            assert np.ptp(s[:, 0]) > 0.2 and np.ptp(s[:, 2]) > 0.1
+
+    def test_pitch_follows_acceleration(self, flights):
+        cfg = OmegaConf.merge(flights.paper, {"trajectory": {"tilt_noise_deg": 0.0}})
+        T = TR.flight_trajectory(np.random.default_rng(0), 240, 10.0, BOXES, Z, cfg)
+        s = xyzyaw_from_pose(T)
+        acc = np.gradient(np.gradient(s[:, :2], 0.1, axis=0), 0.1, axis=0)
+        a_fwd = np.cos(s[:, 3]) * acc[:, 0] + np.sin(s[:, 3]) * acc[:, 1]
+        np.testing.assert_allclose(rpy(T)[:, 1], np.arctan(a_fwd / TR.GRAVITY), atol=1e-9)
+
+    def test_reverse(self, flights):
+        cfg = OmegaConf.merge(flights.paper, {"trajectory": {"reverse": True}})
+        s = xyzyaw_from_pose(TR.flight_trajectory(np.random.default_rng(0), 100, 10.0, BOXES,
+                                                  Z, cfg))
+        assert s[-1, 1] < s[0, 1]
+
+    def test_deterministic(self, flights):
+        a = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, flights.paper)
+        b = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, flights.paper)
+        np.testing.assert_array_equal(a, b)
+
+    def test_defaults_and_bad_input(self):
+        T = TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, BOXES, Z, None)
+        assert T.shape == (30, 4, 4)
+        with pytest.raises(ValueError, match="num_frames"):
+            TR.flight_trajectory(np.random.default_rng(0), 0, 10.0, BOXES, Z, None)
+        with pytest.raises(ValueError, match="speed"):
+            TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, BOXES, Z,
+                                 {"trajectory": {"speed": [0.8, 0.2]}})
+
+
+class TestOdometry:
+    def make(self, flights, seed):
+        cfg = flights.paper
+        rng = np.random.default_rng(seed)
+        gt = TR.flight_trajectory(rng, int(cfg.num_frames), float(cfg.fps), BOXES, Z, cfg)
+        return gt, TR.noisy_odometry(rng, gt, cfg)
+
+    def test_starts_at_truth_keeps_roll_pitch(self, flights):
+        gt, od = self.make(flights, 0)
+        assert od.shape == gt.shape
+        assert_rigid(od)
+        np.testing.assert_allclose(od[0], gt[0], atol=1e-9)
+        np.testing.assert_allclose(rpy(od)[:, :2], rpy(gt)[:, :2], atol=1e-9)
+
+    def test_drifts_but_relative_motion_is_close(self, flights):
+        end, start = [], []
+        for seed in range(6):
+            gt, od = self.make(flights, seed)
+            err = np.linalg.norm(od[:, :3, 3] - gt[:, :3, 3], axis=1)
+            start.append(err[:24].mean())
+            end.append(err[-24:].mean())
+            # frame-to-frame motions stay close to the truth's
+            rel_gt = np.linalg.inv(gt[:-1]) @ gt[1:]
+            rel_od = np.linalg.inv(od[:-1]) @ od[1:]
+            dt = np.linalg.norm(rel_gt[:, :3, 3] - rel_od[:, :3, 3], axis=1)
+            assert dt.max() < 0.03
+            dyaw = xyzyaw_from_pose(rel_gt)[:, 3] - xyzyaw_from_pose(rel_od)[:, 3]
+            assert np.abs(np.angle(np.exp(1j * dyaw))).max() < np.deg2rad(1.0)
+        assert np.mean(end) > 3 * np.mean(start)  # error grows
+        distance = 8.0
+        assert 0.005 * distance < np.mean(end) < 0.15 * distance  # a few % of the distance
+
+    def test_noise_free_is_exact(self, flights):
+        zero = {k: 0.0 for k in TR.ODOMETRY_DEFAULTS}
+        gt = TR.flight_trajectory(np.random.default_rng(1), 60, 10.0, BOXES, Z, flights.paper)
+        od = TR.noisy_odometry(np.random.default_rng(1), gt, {"odometry": zero}, fps=10.0)
+        np.testing.assert_allclose(od, gt, atol=1e-9)
+
+    def test_deterministic_and_bad_input(self, flights):
+        gt = TR.flight_trajectory(np.random.default_rng(1), 30, 10.0, BOXES, Z, flights.paper)
+        a = TR.noisy_odometry(np.random.default_rng(2), gt, flights.paper)
+        b = TR.noisy_odometry(np.random.default_rng(2), gt, flights.paper)
+        np.testing.assert_array_equal(a, b)
+        with pytest.raises(ValueError, match="groundtruth"):
+            TR.noisy_odometry(np.random.default_rng(0), gt[:, :3], flights.paper)
+
+
+def test_flight_presets(flights):
+    """Both presets exist and name a distractors preset that exists."""
+    assert {"paper", "cluttered"} <= set(flights)
+    conf = CONF.parents[1] / "distractors"
+    for name, preset in flights.items():
+        assert (conf / f"{preset.distractors}.yaml").is_file(), name
+        assert preset.num_frames > 0 and preset.fps > 0
+        assert set(preset.trajectory) <= set(TR.TRAJECTORY_DEFAULTS), name
+        assert set(preset.odometry) <= set(TR.ODOMETRY_DEFAULTS), name
