@@ -20,7 +20,8 @@ log = logging.getLogger(__name__)
 FAST, FALLBACK = "llvm_ad_rgb", "scalar_rgb"
 _PROBE = (
     "import mitsuba as mi; mi.set_variant('llvm_ad_rgb'); "
-    "s = mi.load_dict({'type': 'scene', 'integrator': {'type': 'path'}, 'sensor': {'type': 'perspective', "
+    "s = mi.load_dict({'type': 'scene', 'integrator': {'type': 'path'}, "
+    "'sensor': {'type': 'perspective', "
     "'film': {'type': 'hdrfilm', 'width': 4, 'height': 4}}}); mi.render(s, spp=1); print('ok')"
 )
 
@@ -28,8 +29,9 @@ _PROBE = (
 def newest_libllvm() -> str | None:
     """Path of the newest installed libLLVM with major version >= 16, or None."""
     found = []
-    patterns = ("/usr/lib/*/libLLVM*.so*", "/usr/lib/libLLVM*.so*", "/usr/lib/llvm-*/lib/libLLVM*.so*",
-                "/usr/local/lib/libLLVM*.so*", "/usr/lib64/libLLVM*.so*")
+    patterns = ("/usr/lib/*/libLLVM*.so*", "/usr/lib/libLLVM*.so*",
+                "/usr/lib/llvm-*/lib/libLLVM*.so*", "/usr/local/lib/libLLVM*.so*",
+                "/usr/lib64/libLLVM*.so*")
     for path in (p for pattern in patterns for p in glob.glob(pattern)):
         m = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
         if m and int(m.group(1)) >= 16:

@@ -106,8 +106,9 @@ def _check_along_walls(features: list[Box], width: float, length: float) -> None
         span = (-width / 2, width / 2) if axis == 0 else (0.0, extent)
         if b.lo[axis] < span[0] - 1e-9 or b.hi[axis] > span[1] + 1e-9:
             raise ValueError(
-                f"world: feature {i} (doors/windows/openings) spans {b.lo[axis]:.2f}..{b.hi[axis]:.2f}"
-                f" along its wall, outside the wall {span[0]:.2f}..{span[1]:.2f}; move its `at`")
+                f"world: feature {i} (doors/windows/openings) spans "
+                f"{b.lo[axis]:.2f}..{b.hi[axis]:.2f} along its wall, outside the wall "
+                f"{span[0]:.2f}..{span[1]:.2f}; move its `at`")
 
 
 def boundary_mesh(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
