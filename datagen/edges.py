@@ -35,6 +35,7 @@ def extract_edges(
     """
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise ValueError(f"faces must be (F, 3), got {faces.shape}")
+    vertices = np.asarray(vertices, dtype=np.float64)
     normals = face_normals(vertices, faces)
     e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     owner = np.repeat(np.arange(len(faces)), 3)
@@ -68,6 +69,7 @@ def merge_collinear(
     """
     if len(segments) == 0:
         return segments.reshape(0, 2, 3), classes.reshape(0, 2), crease.reshape(0)
+    segments = np.asarray(segments, dtype=np.float64)
     d = segments[:, 1] - segments[:, 0]
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     # Canonical direction: first non-zero component positive.

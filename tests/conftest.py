@@ -1,0 +1,20 @@
+"""Shared fixtures: a really rendered mini dataset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import TINY_DATAGEN, compose_config
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory) -> Path:
+    """A mini dataset rendered by the real datagen (128x96; 12/4/4 images; two 30-frame
+    flights at 10 fps). Read-only: copy it before changing anything."""
+    from datagen.generate import run
+
+    out = tmp_path_factory.mktemp("datasets") / "tiny"
+    cfg = compose_config("datagen", [*TINY_DATAGEN, "name=tiny", f"out_dir={out}"])
+    return run(cfg, progress=False)

@@ -1,0 +1,141 @@
+"""The datagen job: layout, determinism, resume after a crash, bad config."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import datagen.generate as gen
+from datagen import classes as C
+from datagen.atomic import read_png
+from datagen.dataset import Dataset
+from tests.helpers import compose_config
+
+SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",
+         "splits.test=0", "render.spp=1", "training.chunk=2", "render_flights=[cluttered]",
+         "flights.cluttered.num_frames=3"]
+
+
+def small_cfg(out: Path, *extra: str) -> dict:
+    return compose_config("datagen", [*SMALL, f"out_dir={out}", *extra])
+
+
+def tree_bytes(root: Path) -> dict[str, bytes]:
+    """Every file's bytes, except the timing statistics."""
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file() and not str(p.relative_to(root)).startswith("stats")}
+
+
+class TestLayout:
+    def test_tiny_dataset(self, tiny_dataset):
+        ds = Dataset(tiny_dataset)
+        assert ds.meta["counts"]["train"] == 12
+        assert [c["name"] for c in ds.classes] == list(C.NAMES)
+        rgb, lab = ds.split("train")
+        assert len(rgb) == 12 and all(p.is_file() for p in lab)
+        labels = np.stack([read_png(p, rgb=False) for p in lab])
+        assert labels.shape == (12, 96, 128) and labels.dtype == np.uint8
+        assert set(np.unique(labels)) <= set(range(C.NUM_CLASSES))
+        assert {C.FLOOR, C.WALL, C.CEILING, C.DOOR} <= set(np.unique(labels))
+        assert read_png(rgb[0]).shape == (96, 128, 3)
+        assert ds.split_poses("train").shape == (12, 4, 4)
+        assert ds.flight_names() == ["cluttered", "paper"]
+        f = ds.flight("paper")
+        assert len(f.rgb) == 30 and all(p.is_file() for p in f.rgb + f.label)
+        assert f.groundtruth.shape == f.odometry.shape == (30, 4, 4)
+        np.testing.assert_allclose(f.groundtruth[0], f.odometry[0], atol=1e-6)
+        w = ds.world()
+        assert w.segments.shape[1:] == (2, 3) and len(w.segments) == len(w.segment_classes)
+        stats = json.loads((tiny_dataset / "stats.json").read_text())
+        assert stats["images_per_second"] > 0
+        assert stats["render"]["width"] == 128
+
+    def test_flight_people_move_and_label_person(self, tiny_dataset):
+        ds = Dataset(tiny_dataset)
+        f = ds.flight("cluttered")
+        labels = [read_png(p, rgb=False) for p in f.label]
+        assert any((lab == C.PERSON).any() or (lab == C.CLUTTER).any() for lab in labels)
+
+
+@pytest.mark.slow
+class TestDeterminismAndResume:
+    def test_same_seed_same_bytes_and_resume(self, tmp_path, monkeypatch):
+        full = tmp_path / "full"
+        gen.run(small_cfg(full), progress=False)
+
+        # A run that dies after two frames, then is re-run.
+        crashed = tmp_path / "crashed"
+        real_write, calls = gen.write_frame, {"n": 0}
+
+        def dying_write(*args, **kwargs):
+            if calls["n"] == 2:
+                raise KeyboardInterrupt("simulated kill")
+            calls["n"] += 1
+            return real_write(*args, **kwargs)
+
+        monkeypatch.setattr(gen, "write_frame", dying_write)
+        with pytest.raises(KeyboardInterrupt):
+            gen.run(small_cfg(crashed), progress=False)
+        monkeypatch.setattr(gen, "write_frame", real_write)
+        assert len(list((crashed / "train" / "rgb").glob("*.png"))) == 2
+        gen.run(small_cfg(crashed), progress=False)
+
+        a, b = tree_bytes(full), tree_bytes(crashed)
+        assert sorted(a) == sorted(b)
+        assert all(a[k] == b[k] for k in a), [k for k in a if a[k] != b[k]]
+        assert not [k for k in a if Path(k).name.startswith(".")], "temp files left behind"
+
+    def test_other_seed_other_images(self, tmp_path):
+        gen.run(small_cfg(tmp_path / "s1", "seed=1", "splits.val=0",
+                          "render_flights=[]"), progress=False)
+        gen.run(small_cfg(tmp_path / "s0", "splits.val=0", "render_flights=[]"),
+                progress=False)
+        a = read_png(tmp_path / "s0" / "train" / "rgb" / "000000.png")
+        b = read_png(tmp_path / "s1" / "train" / "rgb" / "000000.png")
+        assert not np.array_equal(a, b)
+
+    def test_shards_cover_all_frames(self):
+        frames = [list(gen.shard_range(10, k, 3)) for k in range(3)]
+        assert sum(frames, []) == list(range(10))
+
+
+class TestBadConfig:
+    @pytest.mark.parametrize("override,match", [
+        ("camera.width=-320", "camera.width"),
+        ("splits.train=-1", "splits.train"),
+        ("world.length=-10", "world.length"),
+        ("world.z_range=[0.5,3.5]", "z_range"),
+        ("camera.mount.xyz=[0.0,0.0,0.9]", "camera.mount.xyz"),
+        ("+training.distractors.crowded=1.0", "unknown preset 'crowded'"),
+        ("render_flights=[spiral]", "unknown flight preset 'spiral'"),
+        ("flights.cluttered.distractors=crowd", "unknown preset 'crowd'"),
+        ("shard=2", "shard=2"),
+    ])
+    def test_clear_error_before_rendering(self, tmp_path, override, match):
+        out = tmp_path / "bad"
+        with pytest.raises(ValueError, match=match):
+            gen.run(small_cfg(out, override), progress=False)
+        assert not out.exists(), "nothing may be written for a bad config"
+
+    def test_camera_outside_corridor(self, tmp_path):
+        cfg = small_cfg(tmp_path / "bad", "world.z_range=[2.5,2.79]",
+                        "camera.mount.xyz=[0.0,0.0,0.45]")
+        with pytest.raises(ValueError, match="outside the corridor"):
+            gen.run(cfg, progress=False)
+
+    def test_existing_output_with_other_config(self, tmp_path):
+        out = tmp_path / "ds"
+        gen.run(small_cfg(out, "splits.val=0", "render_flights=[]"), progress=False)
+        with pytest.raises(ValueError, match="another config"):
+            gen.run(small_cfg(out, "splits.val=0", "render_flights=[]", "seed=3"),
+                    progress=False)
+        gen.run(small_cfg(out, "splits.val=0", "render_flights=[]", "seed=3",
+                          "overwrite=true"), progress=False)
+        assert json.loads((out / "dataset.json").read_text())["seed"] == 3
+
+    def test_missing_dataset_error(self, tmp_path):
+        with pytest.raises(FileNotFoundError, match="python -m datagen"):
+            Dataset(tmp_path / "nope")

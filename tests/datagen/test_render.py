@@ -1,0 +1,108 @@
+"""Rendering against the model: projected model edges land on rendered label boundaries."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from datagen import appearance
+from datagen import classes as C
+from datagen.generate import make_camera
+from datagen.poses import pose_from_xyz_rpy
+from datagen.world import build_world
+from tests.helpers import compose_config
+
+
+@pytest.fixture(scope="module")
+def view():
+    """A 160x120 render of the default corridor from a tilted pose looking down +Y."""
+    from datagen.render import CorridorRenderer
+    from datagen.variant import choose_variant
+
+    choose_variant()
+    cfg = compose_config("datagen", ["camera.width=160", "camera.height=120"])
+    model = build_world(cfg["world"])
+    camera = make_camera(cfg["camera"])
+    tex = appearance.sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
+    r = CorridorRenderer(model, camera, tex)
+    r.set_lights(np.full((r.num_lights, 3), 6.0))
+    body = pose_from_xyz_rpy([0.25, 0.8, 1.3], [0.06, -0.08, np.pi / 2 + 0.25])[0]
+    world_from_cam = body @ camera.body_from_cam
+    r.set_camera(world_from_cam)
+    rgb, label, depth = r.render(spp=2, seed=0)
+    return model, camera, world_from_cam, rgb, label, depth
+
+
+def _boundary_distance(label: np.ndarray) -> np.ndarray:
+    """Distance (px) from each pixel centre to the nearest pixel next to a class change."""
+    b = np.zeros(label.shape, bool)
+    b[:, 1:] |= label[:, 1:] != label[:, :-1]
+    b[:, :-1] |= label[:, 1:] != label[:, :-1]
+    b[1:] |= label[1:] != label[:-1]
+    b[:-1] |= label[1:] != label[:-1]
+    return cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, 5)
+
+
+def _visible_projection(model, camera, world_from_cam, depth, points):
+    from datagen.camera import project
+
+    uv, z = project(camera.K, np.linalg.inv(world_from_cam), points)
+    H, W = depth.shape
+    ok = (z > 0.2) & (z < 6.0) & (uv[:, 0] > 2) & (uv[:, 0] < W - 3) & (uv[:, 1] > 2) & (uv[:, 1] < H - 3)
+    uv, z = uv[ok], z[ok]
+    iu, iv = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
+    # visible: some pixel in the 3x3 neighbourhood renders this depth
+    near = np.stack([depth[iv + dv, iu + du] for dv in (-1, 0, 1) for du in (-1, 0, 1)], 1)
+    vis = (np.abs(near - z[:, None]) < 0.005 * z[:, None] + 0.01).any(axis=1)
+    return uv[vis], iu[vis], iv[vis]
+
+
+class TestRender:
+    def test_outputs(self, view):
+        _, camera, _, rgb, label, depth = view
+        assert rgb.shape == (120, 160, 3) and rgb.dtype == np.uint8
+        assert label.shape == (120, 160) and label.dtype == np.uint8
+        assert set(np.unique(label)) <= set(range(C.NUM_CLASSES))
+        assert {C.FLOOR, C.WALL, C.CEILING, C.DOOR} <= set(np.unique(label))
+        assert (depth > 0).all() and depth.max() < 12.0
+        assert 20 < rgb.mean() < 235  # neither black nor blown out
+
+    def test_model_corners_on_rendered_corners(self, view):
+        """Visible segment endpoints (3D corners) project within 1 px of a label corner."""
+        model, camera, T, _, label, depth = view
+        w = model.world
+        change = w.segment_classes[:, 0] != w.segment_classes[:, 1]
+        corners = np.unique(w.segments[change].reshape(-1, 3), axis=0)
+        uv, iu, iv = _visible_projection(model, camera, T, depth, corners)
+        assert len(uv) >= 6, "the test view should show several model corners"
+        dist = _boundary_distance(label)
+        assert (dist[iv, iu] <= 1.0).all(), dist[iv, iu]
+
+    def test_model_edges_on_label_boundaries(self, view):
+        """Points along visible class-changing model edges lie on label boundaries."""
+        model, camera, T, _, label, depth = view
+        w = model.world
+        seg = w.segments[w.segment_classes[:, 0] != w.segment_classes[:, 1]]
+        t = np.linspace(0, 1, 200)[None, :, None]
+        pts = (seg[:, :1] * (1 - t) + seg[:, 1:] * t).reshape(-1, 3)
+        uv, iu, iv = _visible_projection(model, camera, T, depth, pts)
+        assert len(uv) > 300
+        dist = _boundary_distance(label)
+        assert np.mean(dist[iv, iu] <= 1.0) > 0.98
+
+    def test_mirrored_pose_does_not_match(self, view):
+        """The check above can fail: a camera mirrored left-right misses the boundaries."""
+        model, camera, T, _, label, depth = view
+        w = model.world
+        seg = w.segments[w.segment_classes[:, 0] != w.segment_classes[:, 1]]
+        t = np.linspace(0, 1, 200)[None, :, None]
+        pts = (seg[:, :1] * (1 - t) + seg[:, 1:] * t).reshape(-1, 3)
+        from datagen.camera import project
+
+        uv, z = project(camera.K, np.linalg.inv(T), pts)
+        uv[:, 0] = camera.width - 1 - uv[:, 0]
+        ok = (z > 0.2) & (uv[:, 0] > 0) & (uv[:, 0] < 159) & (uv[:, 1] > 0) & (uv[:, 1] < 119)
+        dist = _boundary_distance(label)
+        iu, iv = np.rint(uv[ok, 0]).astype(int), np.rint(uv[ok, 1]).astype(int)
+        assert np.mean(dist[iv, iu] <= 1.0) < 0.6

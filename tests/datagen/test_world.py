@@ -1,0 +1,101 @@
+"""The corridor generator and the 3D edge extraction."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from datagen import classes as C
+from datagen.edges import extract_edges
+from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces
+from tests.helpers import compose_config
+
+
+@pytest.fixture(scope="module")
+def spec() -> dict:
+    return compose_config("datagen")["world"]
+
+
+@pytest.fixture(scope="module")
+def model(spec):
+    return build_world(spec)
+
+
+class TestBoundaryMesh:
+    def test_single_box_is_closed_with_inward_normals(self):
+        v, f, owner, normal = boundary_mesh([Box((0, 0, 0), (1, 2, 3), MAIN)])
+        mesh = trimesh.Trimesh(v, f, process=False)
+        assert mesh.is_watertight
+        assert len(f) == 12
+        np.testing.assert_allclose(mesh.volume, -6.0)  # normals point into the free space
+        assert (owner == 0).all()
+
+    def test_single_box_has_twelve_edges(self):
+        v, f, owner, normal = boundary_mesh([Box((0, 0, 0), (1, 2, 3), MAIN)])
+        cls = classify_faces([Box((0, 0, 0), (1, 2, 3), MAIN)], owner, normal)
+        seg, pairs, crease = extract_edges(v, f, cls)
+        assert len(seg) == 12  # diagonals dropped
+        np.testing.assert_allclose(crease, 90.0)
+        lengths = np.sort(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1))
+        np.testing.assert_allclose(lengths, [1] * 4 + [2] * 4 + [3] * 4)
+        assert {tuple(p) for p in pairs.tolist()} == {(1, 2), (2, 2), (2, 3)}
+
+
+class TestCorridor:
+    def test_watertight_and_sized(self, model, spec):
+        w = model.world
+        mesh = trimesh.Trimesh(w.vertices, w.faces, process=False)
+        assert mesh.is_watertight
+        lo, hi = w.vertices.min(0), w.vertices.max(0)
+        assert lo[2] == 0.0 and hi[2] == spec["height"]
+        assert lo[1] == 0.0 - spec["door"]["depth"] and hi[1] > spec["length"]
+
+    def test_classes(self, model, spec):
+        w = model.world
+        assert set(np.unique(w.face_class)) == {C.FLOOR, C.WALL, C.CEILING, C.DOOR, C.WINDOW}
+        normals = trimesh.Trimesh(w.vertices, w.faces, process=False).face_normals
+        np.testing.assert_allclose(normals[w.face_class == C.FLOOR] - [0, 0, 1], 0, atol=1e-9)
+        np.testing.assert_allclose(normals[w.face_class == C.CEILING] - [0, 0, -1], 0, atol=1e-9)
+        # one door panel area per door
+        area = trimesh.Trimesh(w.vertices, w.faces, process=False).area_faces
+        d = spec["door"]
+        np.testing.assert_allclose(area[w.face_class == C.DOOR].sum(),
+                                   len(spec["doors"]) * d["width"] * d["height"])
+
+    def test_edges_are_model_edges(self, model):
+        w = model.world
+        seg = w.segments
+        d = seg[:, 1] - seg[:, 0]
+        # axis-aligned, no zero-length pieces, no coplanar same-class seams
+        assert (np.count_nonzero(np.abs(d) > 1e-9, axis=1) == 1).all()
+        same = w.segment_classes[:, 0] == w.segment_classes[:, 1]
+        assert (w.crease_deg[same] > 20).all()
+        assert (w.segment_classes[~same] > 0).all()
+        # merged: long floor-wall lines exist
+        lengths = np.linalg.norm(d, axis=1)
+        assert lengths.max() > 5.0
+
+    def test_door_outline(self, model, spec):
+        """Each door panel is bounded by door edges: top and two sides (class pairs with 4)."""
+        w = model.world
+        door = (w.segment_classes == C.DOOR).any(axis=1)
+        assert door.sum() == 4 * len(spec["doors"])
+
+    def test_free_space_inside_corridor(self, model, spec):
+        b = model.world.free_boxes
+        assert b[0].tolist() == pytest.approx([-0.7, 0.3, 0.7, 9.7])
+        assert (b[:, 2] > b[:, 0]).all() and (b[:, 3] > b[:, 1]).all()
+
+    @pytest.mark.parametrize("key,value", [("width", -1.0), ("height", 0.0)])
+    def test_bad_sizes(self, spec, key, value):
+        with pytest.raises(ValueError, match=f"world.{key}"):
+            build_world({**spec, key: value})
+
+    def test_door_outside_wall(self, spec):
+        with pytest.raises(ValueError, match="outside the wall"):
+            build_world({**spec, "doors": [{"side": "left", "at": 9.9}]})
+
+    def test_unknown_side(self, spec):
+        with pytest.raises(ValueError, match="unknown wall side"):
+            build_world({**spec, "doors": [{"side": "up", "at": 2.0}]})
