@@ -49,7 +49,8 @@ def _visible_projection(model, camera, world_from_cam, depth, points):
 
     uv, z = project(camera.K, np.linalg.inv(world_from_cam), points)
     H, W = depth.shape
-    ok = (z > 0.2) & (z < 6.0) & (uv[:, 0] > 2) & (uv[:, 0] < W - 3) & (uv[:, 1] > 2) & (uv[:, 1] < H - 3)
+    ok = ((z > 0.2) & (z < 6.0) & (uv[:, 0] > 2) & (uv[:, 0] < W - 3)
+          & (uv[:, 1] > 2) & (uv[:, 1] < H - 3))
     uv, z = uv[ok], z[ok]
     iu, iv = np.rint(uv[:, 0]).astype(int), np.rint(uv[:, 1]).astype(int)
     # visible: some pixel in the 3x3 neighbourhood renders this depth
