@@ -11,6 +11,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
 
 def atomic_write(path: str | Path, write: Callable[[Path], None], suffix: str = "") -> None:
     """Call ``write(tmp_path)`` and rename the result onto ``path``.
@@ -24,6 +27,7 @@ def atomic_write(path: str | Path, write: Callable[[Path], None], suffix: str = 
     os.close(fd)
     try:
         write(Path(tmp))
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the usual file mode
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
