@@ -47,10 +47,27 @@ def denoise(rgb: np.ndarray, albedo: np.ndarray, segments: np.ndarray, keep: np.
     a = np.maximum(albedo, 1e-3).astype(np.float32)
     shading = (rgb / a).astype(np.float32)
     out = np.zeros_like(shading)
-    for k in np.unique(segments):  # a few dozen segments per frame, not pixels
-        m = (segments == k).astype(np.float32)
-        num = cv2.GaussianBlur(shading * m[..., None], (0, 0), sigma_px)
-        den = cv2.GaussianBlur(m, (0, 0), sigma_px)
-        out += (num / np.maximum(den, 1e-6)[..., None]) * m[..., None]
+    H, W = segments.shape
+    pad = int(np.ceil(3 * sigma_px))
+    ids, inverse = np.unique(segments, return_inverse=True)
+    inverse = inverse.reshape(H, W)
+    rows, cols = np.indices((H, W))
+    # Bounding box of every segment, so each blur only touches its own neighbourhood.
+    r0 = np.full(len(ids), H)
+    r1 = np.zeros(len(ids), int)
+    c0 = np.full(len(ids), W)
+    c1 = np.zeros(len(ids), int)
+    np.minimum.at(r0, inverse.ravel(), rows.ravel())
+    np.maximum.at(r1, inverse.ravel(), rows.ravel())
+    np.minimum.at(c0, inverse.ravel(), cols.ravel())
+    np.maximum.at(c1, inverse.ravel(), cols.ravel())
+    for k in range(len(ids)):  # a few dozen segments per frame, not pixels
+        ys = slice(max(r0[k] - pad, 0), min(r1[k] + pad + 1, H))
+        xs = slice(max(c0[k] - pad, 0), min(c1[k] + pad + 1, W))
+        m = (inverse[ys, xs] == k).astype(np.float32)
+        num = cv2.GaussianBlur(shading[ys, xs] * m[..., None], (0, 0), sigma_px,
+                               borderType=cv2.BORDER_CONSTANT)
+        den = cv2.GaussianBlur(m, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT)
+        out[ys, xs] += (num / np.maximum(den, 1e-6)[..., None]) * m[..., None]
     result = out * a
     return np.where(keep[..., None], rgb, result).astype(np.float32)

@@ -236,14 +236,13 @@ class CorridorRenderer:
         self._is_light = light
         return lut
 
-    # --- per-frame state -------------------------------------------------------------------
+    # --- per-frame state (applied to the scene by the next ``render``) ----------------------
 
     def set_camera(self, world_from_cam: np.ndarray) -> None:
         """Place both sensors at an OpenCV-convention pose (4, 4)."""
         T = self.mi.ScalarTransform4f(mitsuba_to_world(world_from_cam).tolist())
         self.params["sensor.to_world"] = T
         self.params["label_sensor.to_world"] = T
-        self.params.update()
 
     def set_textures(self, textures: Mapping[str, np.ndarray]) -> None:
         """Replace texture images in place (shapes must match the ones the scene was built with)."""
@@ -253,7 +252,6 @@ class CorridorRenderer:
                 self._put_texture(key, s, textures[s])
         if "window.emitter.radiance.data" in self.params:
             self._put_texture("window.emitter.radiance.data", "window", textures["window"])
-        self.params.update()
 
     def _put_texture(self, key: str, name: str, img: np.ndarray) -> None:
         if img.shape != self._textures[name]:
@@ -266,7 +264,6 @@ class CorridorRenderer:
         radiance = np.asarray(radiance, dtype=np.float32).reshape(self.num_lights, 3)
         for i, rad in enumerate(radiance):
             self.params[f"light{i}.emitter.radiance.value"] = self.mi.Color3f(*rad.tolist())
-        self.params.update()
 
     def set_objects(self, poses: np.ndarray, colors: np.ndarray) -> None:
         """Place the distractor slots.
@@ -291,7 +288,6 @@ class CorridorRenderer:
                 R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
                 V = V @ R.T + [pose[0], pose[1], 0.0]
             _set(self.params, f"object{i}.vertex_positions", V.astype(np.float32).ravel())
-        self.params.update()
 
     # --- rendering -------------------------------------------------------------------------
 
@@ -308,6 +304,7 @@ class CorridorRenderer:
             rgb (H, W, 3) uint8 sRGB; label (H, W) uint8 class ids (void where nothing is hit);
             depth (H, W) float32 z in metres (0 where nothing is hit).
         """
+        self.params.update()
         aux = np.asarray(self.mi.render(self.scene, sensor=1, integrator=self.aov, spp=1,
                                         seed=0))
         index = np.rint(aux[..., 0]).astype(np.int64)
