@@ -39,14 +39,20 @@ lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 
+# The whole pipeline on its default, small config: datagen -> train -> localize.
 demo: setup
 	$(PY) -m datagen
+	$(PY) -m train
+	$(PY) -m localize
+	@echo "report: outputs/reports/demo/report.md"
 
 contact-sheet: setup
 	$(PY) -m datagen.contact_sheet outputs/datasets/demo docs/img/contact_sheet.png
 
 bench: setup
 	$(PY) benchmarks/datagen_throughput.py
+	$(PY) benchmarks/segnet_speed.py
+	$(PY) benchmarks/localize_speed.py
 
 clean:
 	rm -rf outputs multirun

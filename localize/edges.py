@@ -1,0 +1,215 @@
+"""Image edge maps for the three edge modes, each with a mask of where edges are known.
+
+- ``none``: Canny on the grey image, optionally reduced to its Hough line segments (the paper's
+  pipeline without segmentation). Every pixel is "known".
+- ``cnn``: labels from the ONNX SegNet (``train.predict.OnnxSegmenter``); edges are the
+  boundaries between two *different structural* classes (floor, wall, ceiling, door, window);
+  pixels of clutter, person, void or ignore, dilated by a few pixels, are *unknown*: an object
+  that is not in the model may hide a model edge, so a model line falling there is neither
+  confirmed nor contradicted (the likelihood scores such samples with the image's chance level).
+- ``oracle``: the same from the true label images, the upper bound of what segmentation gives.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from datagen import classes as C
+
+MODES = ("none", "cnn", "oracle")
+
+
+@dataclass
+class EdgeImage:
+    """Edge pixels and where edges are known.
+
+    Attributes:
+        edges: (H, W) bool, True on an edge.
+        known: (H, W) bool, False where the image cannot tell whether a model edge is there
+            (masked objects that are not in the model).
+    """
+
+    edges: np.ndarray
+    known: np.ndarray
+
+    def __post_init__(self) -> None:
+        if self.edges.shape != self.known.shape or self.edges.ndim != 2:
+            raise ValueError(f"edges {self.edges.shape} and known {self.known.shape} must be "
+                             "the same (H, W)")
+
+
+def _check_rgb(rgb: np.ndarray) -> None:
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
+
+
+def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: int = 3,
+                hough: dict | None = None) -> EdgeImage:
+    """Canny edges of an RGB image, optionally replaced by the Hough line segments they hold.
+
+    Args:
+        rgb: (H, W, 3) uint8.
+        low, high: Canny hysteresis thresholds on the gradient magnitude.
+        blur: Gaussian blur kernel size before Canny (odd; <= 1 disables it).
+        hough: None or a dict with ``threshold`` (votes), ``min_length`` and ``max_gap``
+            (pixels) for ``cv2.HoughLinesP``; the found segments are drawn 1 px wide.
+
+    Returns:
+        The edge image; every pixel is known.
+    """
+    _check_rgb(rgb)
+    grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+    if blur and blur > 1:
+        grey = cv2.GaussianBlur(grey, (int(blur) | 1, int(blur) | 1), 0)
+    edges = cv2.Canny(grey, float(low), float(high), L2gradient=True)
+    if hough:
+        lines = cv2.HoughLinesP(edges, 1, np.pi / 180, int(hough.get("threshold", 30)),
+                                minLineLength=float(hough.get("min_length", 20)),
+                                maxLineGap=float(hough.get("max_gap", 3)))
+        edges = np.zeros_like(edges)
+        if lines is not None:
+            for x0, y0, x1, y1 in lines.reshape(-1, 4):
+                cv2.line(edges, (int(x0), int(y0)), (int(x1), int(y1)), 255, 1)
+    return EdgeImage(edges > 0, np.ones(edges.shape, dtype=bool))
+
+
+def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
+                dilate_px: int = 3, median: int = 0) -> EdgeImage:
+    """Boundaries between different structural classes, and the mask of unknown pixels.
+
+    A pixel is an edge pixel when a 4-neighbour holds a different structural class and it is
+    structural itself (both sides of a boundary are marked, so the boundary lies midway).
+    Non-structural pixels (clutter, person, void, 255) dilated by ``dilate_px`` are unknown.
+
+    Args:
+        labels: (H, W) uint8 class ids.
+        structural: the class ids that are in the model.
+        dilate_px: growth of the unknown mask, pixels (covers the objects' blurred borders).
+        median: median filter size applied to the labels first (odd; 0 disables it), which
+            removes speckle of a predicted segmentation.
+
+    Returns:
+        The edge image.
+    """
+    if labels.ndim != 2:
+        raise ValueError(f"expected an (H, W) label map, got {labels.shape}")
+    labels = np.ascontiguousarray(labels, dtype=np.uint8)
+    if median and median > 1:
+        labels = cv2.medianBlur(labels, int(median) | 1)
+    lut = np.zeros(256, dtype=bool)
+    lut[list(structural)] = True
+    struct = lut[labels]
+    edges = np.zeros(labels.shape, dtype=bool)
+    for axis in (0, 1):
+        a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
+        b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
+        sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
+        sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
+        diff = (a != b) & sa & sb
+        if axis == 0:
+            edges[:-1] |= diff
+            edges[1:] |= diff
+        else:
+            edges[:, :-1] |= diff
+            edges[:, 1:] |= diff
+    unknown = ~struct
+    if dilate_px > 0 and unknown.any():
+        k = 2 * int(dilate_px) + 1
+        unknown = cv2.dilate(unknown.astype(np.uint8),
+                             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
+    return EdgeImage(edges & ~unknown, ~unknown)
+
+
+def check_classes(model_classes: list[dict], dataset_classes: list[dict], where: str) -> None:
+    """Raise if the segmenter's classes differ from the dataset's (ids and names).
+
+    Args:
+        model_classes: the ONNX file's ``classes`` metadata.
+        dataset_classes: ``dataset.json`` classes.
+        where: the ONNX path, for the message.
+    """
+    def key(cs: list[dict]) -> list[tuple[int, str]]:
+        return [(int(c["id"]), str(c["name"])) for c in cs]
+
+    if key(model_classes) != key(dataset_classes):
+        raise ValueError(
+            f"{where}: the model's classes {key(model_classes)} do not match the dataset's "
+            f"{key(dataset_classes)}; train the model on a dataset with the same class list "
+            "(python -m train dataset=...) or localize with the dataset it was trained on.")
+
+
+def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int = 2):
+    """Open ``segnet.onnx`` with ``train.predict.OnnxSegmenter`` and check its class list.
+
+    Raises:
+        FileNotFoundError: the model file is missing (says how to make it).
+        ValueError: its classes do not match the dataset's.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"segmentation model not found: {path}. Train and export one with `python -m train` "
+            "(or set localize's `model=` to an existing segnet.onnx, or drop `cnn` from modes).")
+    from train.predict import OnnxSegmenter
+
+    seg = OnnxSegmenter(str(path), threads=threads)
+    classes = seg.classes
+    if isinstance(classes, str):
+        classes = json.loads(classes)
+    check_classes(list(classes), dataset_classes, str(path))
+    return seg
+
+
+class EdgeExtractor:
+    """Edge images of flight frames in one mode.
+
+    Args:
+        mode: ``none`` | ``cnn`` | ``oracle``.
+        cfg: the ``edges`` config (canny, hough, labels settings).
+        segmenter: an ``OnnxSegmenter`` (cnn mode only).
+    """
+
+    def __init__(self, mode: str, cfg: dict, segmenter=None):
+        if mode not in MODES:
+            raise ValueError(f"unknown edge mode {mode!r}; expected one of {MODES}")
+        if mode == "cnn" and segmenter is None:
+            raise ValueError("edge mode 'cnn' needs a segmenter (see load_segmenter)")
+        self.mode, self.cfg, self.segmenter = mode, cfg, segmenter
+
+    @property
+    def needs_labels(self) -> bool:
+        """Whether the mode reads the true label image."""
+        return self.mode == "oracle"
+
+    def segment(self, rgb: np.ndarray) -> np.ndarray:
+        """Predicted labels (H, W) uint8 of an RGB frame (cnn mode)."""
+        _check_rgb(rgb)
+        out = self.segmenter.predict(rgb)
+        labels = out[0] if isinstance(out, tuple) else out
+        labels = np.asarray(labels)
+        if labels.shape != rgb.shape[:2]:
+            raise ValueError(f"segmenter returned labels {labels.shape} for an image "
+                             f"{rgb.shape[:2]}")
+        return labels.astype(np.uint8, copy=False)
+
+    def edges(self, rgb: np.ndarray, labels: np.ndarray | None = None) -> EdgeImage:
+        """Edge image of a frame.
+
+        Args:
+            rgb: (H, W, 3) uint8 (used by mode none).
+            labels: (H, W) uint8 class ids (true labels for oracle, predicted for cnn).
+        """
+        if self.mode == "none":
+            c = self.cfg["canny"]
+            hough = dict(self.cfg["hough"]) if self.cfg["hough"].get("enabled", False) else None
+            return canny_edges(rgb, c["low"], c["high"], c["blur"], hough)
+        if labels is None:
+            raise ValueError(f"edge mode {self.mode!r} needs a label map")
+        lc = self.cfg["labels"]
+        median = lc["median"] if self.mode == "cnn" else 0
+        return label_edges(labels, C.STRUCTURAL, int(lc["dilate_px"]), int(median))

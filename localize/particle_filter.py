@@ -1,0 +1,414 @@
+"""A particle filter over body poses (x, y, z, yaw), in pure numpy with log-weights.
+
+Three functions make the filter (as in nchopin's ``particles``): an initial draw (around a
+known start for tracking, or uniform over the free space for global localization), a move
+(odometry increment plus noise) and a log-likelihood (``likelihood.EdgeLikelihood``). Around
+them: effective-sample-size triggered systematic resampling, a free-space prior (a copter is
+never inside a wall), recovery from depletion (random particles are injected when the recent
+best edge score falls well below its long-run level, as in augmented MCL), and the estimate,
+the weighted mean with a circular mean for yaw.
+
+Motion: the odometry increment between two frames is expressed in the gravity-aligned heading
+frame of the earlier pose (forward, left, up, yaw change), the frame a VIO's increments are
+integrated in; each particle applies it in its own heading frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+from scipy.special import logsumexp
+
+from datagen.poses import wrap_angle, xyzyaw_from_pose
+
+
+@dataclass(frozen=True)
+class FilterParams:
+    """Filter settings (conf/filter/*.yaml).
+
+    Attributes:
+        num_particles: particles while tracking.
+        global_particles: particles of the initial uniform draw for global localization; the
+            set is thinned to ``num_particles`` by resampling after ``global_frames`` frames.
+        global_frames: frames to keep the large global set.
+        global_temper: log-likelihoods are multiplied by this while the global set is kept
+            (a flatter likelihood keeps more hypotheses alive while evidence accumulates).
+        global_likelihood: likelihood settings that differ in the global phase (e.g. the
+            ``evidence`` aggregate, which rewards poses that explain more of the model); the
+            tracking likelihood takes over after the thinning.
+        global_motion_scale: motion noise multiplier in the global phase (roughening).
+        global_thin: the global phase scores every ``global_thin``-th model sample only
+            (cheaper per particle, so more particles fit the same time).
+        init_std: (4,) tracking init noise: x, y, z (metres), yaw (degrees).
+        motion_std: (3,) per-frame motion noise: horizontal (metres), z (metres), yaw
+            (degrees).
+        motion_rel: (2,) extra noise as a fraction of the frame's odometry translation and
+            yaw change.
+        resample_ess: resample when ESS < this fraction of the particle count.
+        free_space_slack: how far (metres) beyond the free boxes and z range a particle may be
+            before the free-space prior applies.
+        outside_log_penalty: log-weight subtracted from particles outside (metres beyond the
+            slack scale it up: penalty * (1 + excess / 0.1)).
+        recovery: inject random particles on likelihood collapse.
+        recovery_fast, recovery_slow: smoothing factors of the short and long averages of the
+            best score per frame.
+        recovery_threshold: inject when the fast average is below this fraction of the slow...
+        recovery_patience: ...for this many frames in a row (a brief occlusion is no collapse).
+        recovery_max_fraction: most particles replaced in one frame.
+        recovery_log_penalty: injected particles start with this much less log-weight, so
+            one lucky frame cannot hand the estimate to a far-away guess; they take over only
+            when they keep fitting better for several frames.
+        recovery_local_std: (4,) noise of the half of the injected particles drawn around the
+            current estimate (x, y, z metres, yaw degrees); the other half is uniform.
+    """
+
+    num_particles: int = 500
+    global_particles: int = 5000
+    global_frames: int = 3
+    global_temper: float = 1.0
+    global_likelihood: Mapping = field(default_factory=dict)
+    global_motion_scale: float = 1.0
+    global_thin: int = 1
+    init_std: Sequence[float] = (0.1, 0.1, 0.05, 3.0)
+    motion_std: Sequence[float] = (0.01, 0.005, 0.5)
+    motion_rel: Sequence[float] = (0.1, 0.1)
+    resample_ess: float = 0.5
+    free_space_slack: float = 0.25
+    outside_log_penalty: float = 10.0
+    recovery: bool = True
+    recovery_fast: float = 0.3
+    recovery_slow: float = 0.02
+    recovery_threshold: float = 0.5
+    recovery_patience: int = 5
+    recovery_max_fraction: float = 0.2
+    recovery_log_penalty: float = 5.0
+    recovery_local_std: Sequence[float] = field(default=(0.5, 0.5, 0.2, 20.0))
+
+    def __post_init__(self) -> None:
+        if self.num_particles < 1 or self.global_particles < 1:
+            raise ValueError(f"filter.num_particles ({self.num_particles}) and "
+                             f"filter.global_particles ({self.global_particles}) must be >= 1")
+        if not 0.0 < self.resample_ess <= 1.0:
+            raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
+        for key, n in (("init_std", 4), ("motion_std", 3), ("motion_rel", 2),
+                       ("recovery_local_std", 4)):
+            if len(getattr(self, key)) != n:
+                raise ValueError(f"filter.{key} needs {n} values, got {list(getattr(self, key))}")
+
+    @classmethod
+    def from_cfg(cls, cfg: Mapping) -> FilterParams:
+        """Build from a config mapping; unknown keys raise with the list of known ones."""
+        names = {f.name for f in fields(cls)}
+        unknown = set(cfg) - names
+        if unknown:
+            raise ValueError(f"unknown filter settings {sorted(unknown)}; known: {sorted(names)}")
+        return cls(**{k: (tuple(v) if isinstance(v, Sequence) and not isinstance(v, str)
+                          else dict(v) if isinstance(v, Mapping) else v)
+                      for k, v in cfg.items()})
+
+
+# --- the three model functions ---------------------------------------------------------------
+
+
+def init_tracking(rng: np.random.Generator, start: np.ndarray, n: int,
+                  std: Sequence[float]) -> np.ndarray:
+    """Particles around a known start.
+
+    Args:
+        rng: random generator.
+        start: (4,) x, y, z (metres), yaw (radians).
+        n: number of particles.
+        std: (4,) x, y, z (metres), yaw (degrees).
+
+    Returns:
+        (n, 4) float64.
+    """
+    s = np.array([std[0], std[1], std[2], np.deg2rad(std[3])], dtype=np.float64)
+    p = np.asarray(start, dtype=np.float64)[None] + rng.normal(0.0, 1.0, (n, 4)) * s
+    p[:, 3] = wrap_angle(p[:, 3])
+    return p
+
+
+def init_global(rng: np.random.Generator, free_boxes: np.ndarray, z_range: np.ndarray,
+                n: int) -> np.ndarray:
+    """Particles uniform over the free space: boxes (by area) x z range x yaw.
+
+    Args:
+        rng: random generator.
+        free_boxes: (B, 4) [xmin, ymin, xmax, ymax], metres.
+        z_range: (2,) heights, metres.
+        n: number of particles.
+
+    Returns:
+        (n, 4) float64.
+    """
+    boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
+    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+    if len(boxes) == 0 or not (area > 0).any():
+        raise ValueError("the world has no free space to draw particles from (free_boxes)")
+    pick = rng.choice(len(boxes), size=n, p=np.maximum(area, 0) / np.maximum(area, 0).sum())
+    b = boxes[pick]
+    xy = b[:, :2] + rng.random((n, 2)) * (b[:, 2:] - b[:, :2])
+    z = rng.uniform(z_range[0], z_range[1], n)
+    yaw = rng.uniform(-np.pi, np.pi, n)
+    return np.column_stack([xy, z, yaw])
+
+
+def odometry_increment(prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
+    """Motion between two odometry poses in the earlier pose's heading frame.
+
+    Args:
+        prev, cur: (4, 4) world_from_body.
+
+    Returns:
+        (4,) forward, left, up (metres), yaw change (radians).
+    """
+    a, b = xyzyaw_from_pose(np.stack([prev, cur]))
+    c, s = np.cos(a[3]), np.sin(a[3])
+    d = b[:3] - a[:3]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2], wrap_angle(b[3] - a[3])])
+
+
+def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
+         std: Sequence[float], rel: Sequence[float]) -> np.ndarray:
+    """Apply an odometry increment with noise to every particle.
+
+    Args:
+        rng: random generator.
+        particles: (N, 4).
+        delta: (4,) increment from ``odometry_increment``.
+        std: (3,) noise per frame: horizontal (m), vertical (m), yaw (degrees).
+        rel: (2,) extra noise per unit of translation and of yaw change.
+
+    Returns:
+        (N, 4) moved particles.
+    """
+    N = len(particles)
+    step = float(np.hypot(delta[0], delta[1]))
+    s_xy = std[0] + rel[0] * step
+    s_z = std[1] + rel[0] * abs(delta[2])
+    s_yaw = np.deg2rad(std[2]) + rel[1] * abs(delta[3])
+    noise = rng.normal(0.0, 1.0, (N, 4)) * np.array([s_xy, s_xy, s_z, s_yaw])
+    dx, dy = delta[0] + noise[:, 0], delta[1] + noise[:, 1]
+    yaw = particles[:, 3]
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty_like(particles)
+    out[:, 0] = particles[:, 0] + c * dx - s * dy
+    out[:, 1] = particles[:, 1] + s * dx + c * dy
+    out[:, 2] = particles[:, 2] + delta[2] + noise[:, 2]
+    out[:, 3] = wrap_angle(yaw + delta[3] + noise[:, 3])
+    return out
+
+
+def free_space_log_prior(particles: np.ndarray, free_boxes: np.ndarray, z_range: np.ndarray,
+                         slack: float, penalty: float) -> np.ndarray:
+    """Log prior (N,): 0 inside the free space (grown by ``slack``), negative outside.
+
+    The penalty grows with the distance beyond the slack: ``-penalty * (1 + excess / 0.1)``.
+    """
+    boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
+    x, y, z = particles[:, 0:1], particles[:, 1:2], particles[:, 2]
+    dx = np.maximum(np.maximum(boxes[None, :, 0] - x, x - boxes[None, :, 2]), 0.0)
+    dy = np.maximum(np.maximum(boxes[None, :, 1] - y, y - boxes[None, :, 3]), 0.0)
+    d_xy = np.hypot(dx, dy).min(axis=1)
+    d_z = np.maximum(np.maximum(z_range[0] - z, z - z_range[1]), 0.0)
+    excess = np.maximum(np.maximum(d_xy, d_z) - slack, 0.0)
+    return np.where(excess > 0, -penalty * (1.0 + excess / 0.1), 0.0)
+
+
+# --- weights ---------------------------------------------------------------------------------
+
+
+def normalize_log_weights(logw: np.ndarray) -> np.ndarray:
+    """Log-weights shifted so that the weights sum to one."""
+    return logw - logsumexp(logw)
+
+
+def effective_sample_size(logw: np.ndarray) -> float:
+    """ESS = 1 / sum(w^2) of normalized weights, from log-weights (N,)."""
+    lw = normalize_log_weights(logw)
+    return float(np.exp(-logsumexp(2.0 * lw)))
+
+
+def systematic_resample(rng: np.random.Generator, logw: np.ndarray, n: int) -> np.ndarray:
+    """Systematic (low-variance) resampling.
+
+    Args:
+        rng: random generator.
+        logw: (N,) log-weights (any scale).
+        n: number of indices to draw.
+
+    Returns:
+        (n,) int64 indices into the particles.
+    """
+    w = np.exp(normalize_log_weights(logw))
+    cdf = np.cumsum(w)
+    cdf[-1] = 1.0
+    u = (rng.random() + np.arange(n)) / n
+    return np.minimum(np.searchsorted(cdf, u, side="right"), len(w) - 1)
+
+
+def estimate(particles: np.ndarray, logw: np.ndarray) -> np.ndarray:
+    """Weighted mean pose (4,): mean x, y, z; circular mean yaw."""
+    w = np.exp(normalize_log_weights(logw))
+    xyz = w @ particles[:, :3]
+    yaw = np.arctan2(w @ np.sin(particles[:, 3]), w @ np.cos(particles[:, 3]))
+    return np.concatenate([xyz, [yaw]])
+
+
+def spread(particles: np.ndarray, logw: np.ndarray) -> tuple[float, float]:
+    """Weighted horizontal position std (metres) and circular yaw std (radians)."""
+    w = np.exp(normalize_log_weights(logw))
+    m = w @ particles[:, :2]
+    pos = float(np.sqrt(w @ ((particles[:, :2] - m) ** 2).sum(axis=1)))
+    r = np.hypot(w @ np.sin(particles[:, 3]), w @ np.cos(particles[:, 3]))
+    return pos, float(np.sqrt(max(-2.0 * np.log(max(r, 1e-12)), 0.0)))
+
+
+# --- the filter ------------------------------------------------------------------------------
+
+#: log_likelihood(states (N, 4)) -> (log_w (N,), score (N,))
+LogLikelihood = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class StepInfo:
+    """Diagnostics of one filter step."""
+
+    estimate: np.ndarray
+    ess: float
+    best_score: float  # quality of the most likely particle
+    resampled: bool
+    injected: int
+    num_particles: int
+
+
+class ParticleFilter:
+    """The particle filter's state and its per-frame step.
+
+    Args:
+        params: settings.
+        free_boxes, z_range: the world's free space (init_global, prior, recovery).
+        rng: random generator (the only source of randomness).
+    """
+
+    def __init__(self, params: FilterParams, free_boxes: np.ndarray, z_range: np.ndarray,
+                 rng: np.random.Generator):
+        self.params, self.rng = params, rng
+        self.free_boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
+        self.z_range = np.asarray(z_range, dtype=np.float64)
+        self.particles = np.zeros((0, 4))
+        self.logw = np.zeros(0)
+        self.frame = 0
+        self._fast = self._slow = None
+        self._low = 0
+        self._thin_at = 0
+
+    def init_tracking(self, start: np.ndarray) -> None:
+        """Start around a known pose (4,) x, y, z, yaw."""
+        p = self.params
+        self.particles = init_tracking(self.rng, start, p.num_particles, p.init_std)
+        self.logw = np.full(p.num_particles, -np.log(p.num_particles))
+        self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
+
+    def init_global(self) -> None:
+        """Start uniform over the free space, with ``global_particles`` particles."""
+        p = self.params
+        n = max(p.global_particles, p.num_particles)
+        self.particles = init_global(self.rng, self.free_boxes, self.z_range, n)
+        self.logw = np.full(n, -np.log(n))
+        self.frame, self._fast, self._slow, self._low = 0, None, None, 0
+        self._thin_at = p.global_frames
+
+    @property
+    def in_global_phase(self) -> bool:
+        """True while the large global set is kept (before thinning)."""
+        return self._thin_at > 0 and self.frame < self._thin_at
+
+    def predict(self, delta: np.ndarray) -> None:
+        """Move the particles by an odometry increment (4,)."""
+        p = self.params
+        scale = p.global_motion_scale if self.in_global_phase else 1.0
+        std = tuple(scale * np.asarray(p.motion_std, dtype=np.float64))
+        self.particles = move(self.rng, self.particles, delta, std, p.motion_rel)
+
+    def update(self, log_likelihood: LogLikelihood) -> StepInfo:
+        """Weight by the measurement, resample if needed, inject on collapse.
+
+        Args:
+            log_likelihood: maps (N, 4) states to (log_w (N,), quality (N,)); the quality of
+                the most likely particle drives recovery.
+
+        Returns:
+            Diagnostics, with the estimate computed before resampling.
+        """
+        p = self.params
+        loglik, score = log_likelihood(self.particles)
+        if self.in_global_phase:
+            loglik = loglik * p.global_temper
+        prior = free_space_log_prior(self.particles, self.free_boxes, self.z_range,
+                                     p.free_space_slack, p.outside_log_penalty)
+        self.logw = normalize_log_weights(self.logw + loglik + prior)
+        est = estimate(self.particles, self.logw)
+        ess = effective_sample_size(self.logw)
+        best = float(score[np.argmax(loglik + prior)]) if len(score) else float("nan")
+        inject_frac = self._collapse(best)
+        self.frame += 1
+        N = len(self.particles)
+        large = self._thin_at > 0 and self.frame < self._thin_at  # keep the global set
+        thin = self._thin_at > 0 and not large
+        resampled = thin or ess < p.resample_ess * N or inject_frac > 0
+        injected = 0
+        if resampled:
+            n = N if large else p.num_particles
+            idx = systematic_resample(self.rng, self.logw, n)
+            self.particles = self.particles[idx]
+            injected = int(round(inject_frac * n))
+            self.logw = np.zeros(n)
+            if injected:
+                slots = self._inject(injected, est)
+                self.logw[slots] = -p.recovery_log_penalty
+            self.logw = normalize_log_weights(self.logw)
+            if thin:
+                self._thin_at = 0
+        return StepInfo(est, ess, best, resampled, injected, len(self.particles))
+
+    def _collapse(self, best: float) -> float:
+        """Fraction of particles to inject: 1 - fast / slow average of the best score, when that
+        ratio is below ``recovery_threshold``."""
+        p = self.params
+        if not np.isfinite(best):  # too little seen to judge (e.g. view blocked by people)
+            return 0.0
+        if self._fast is None:
+            self._fast = self._slow = best
+            return 0.0
+        self._fast += p.recovery_fast * (best - self._fast)
+        self._slow += p.recovery_slow * (best - self._slow)
+        if not p.recovery or self._slow <= 0.05:
+            return 0.0
+        ratio = self._fast / self._slow
+        self._low = self._low + 1 if ratio < p.recovery_threshold else 0
+        if self._low < p.recovery_patience:
+            return 0.0
+        self._low, self._fast = 0, self._slow  # re-arm: at most once per patience window
+        return float(min(1.0 - ratio, p.recovery_max_fraction))
+
+    def _inject(self, n: int, around: np.ndarray) -> np.ndarray:
+        """Replace n random particles: half near ``around``, half uniform over free space.
+
+        Returns:
+            (n,) indices of the replaced particles.
+        """
+        p = self.params
+        slots = self.rng.choice(len(self.particles), size=n, replace=False)
+        n_local = n // 2
+        local = init_tracking(self.rng, around, n_local, p.recovery_local_std)
+        uniform = init_global(self.rng, self.free_boxes, self.z_range, n - n_local)
+        self.particles[slots] = np.concatenate([local, uniform])
+        return slots
+
+    def estimate(self) -> np.ndarray:
+        """Weighted mean pose (4,)."""
+        return estimate(self.particles, self.logw)

@@ -1,0 +1,467 @@
+"""metrics.json, report.md and the plots, from the run records under ``<report>/runs``.
+
+The report can be rebuilt at any time from the run records alone (``write_report``), so a
+resumed evaluation ends with the same report as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections import defaultdict
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from datagen.atomic import atomic_write, atomic_write_json, atomic_write_text, read_png  # noqa: E402
+from datagen.classes import colorize  # noqa: E402
+from localize.metrics import convergence_frame, error_stats, timing_stats  # noqa: E402
+
+log = logging.getLogger(__name__)
+
+MODE_COLORS = {"none": "tab:red", "cnn": "tab:blue", "oracle": "tab:green"}
+MODE_LABELS = {"none": "none (Canny + Hough)", "cnn": "cnn (segnet.onnx)",
+               "oracle": "oracle (true labels)"}
+TIMING_STAGES = ("acquisition", "segmentation", "preprocessing", "filter", "total")
+
+
+def load_records(out_dir: Path) -> list[dict]:
+    """All run records (``runs/<flight>/*.json``), sorted by path."""
+    return [json.loads(p.read_text()) for p in sorted((Path(out_dir) / "runs").glob("*/*.json"))]
+
+
+def _main(records: list[dict]) -> list[dict]:
+    return [r for r in records if r["likelihood"] == "vectorized"]
+
+
+def summarize(records: list[dict], cfg) -> dict:
+    """metrics.json content from the run records.
+
+    Per flight and mode: the tracking runs' error statistics over all frames of all seeds,
+    the failure rate (share of frames with an error above ``failure_threshold_m``), the mean
+    error of each seed, and for global init the convergence frame of each seed and the share
+    converged within ``converge_within_frames``.
+    """
+    mc = cfg.metrics
+    flights: dict = defaultdict(dict)
+    groups: dict = defaultdict(list)
+    for r in _main(records):
+        groups[(r["flight"], r["mode"], r["init"])].append(r)
+    for (flight, mode, init), runs in sorted(groups.items()):
+        entry = flights[flight].setdefault(mode, {})
+        pos = np.concatenate([r["position_error_m"] for r in runs])
+        yaw = np.concatenate([r["yaw_error_deg"] for r in runs])
+        fail = float(np.mean(pos > mc.failure_threshold_m))
+        if init == "tracking":
+            entry.update(error_stats(pos, yaw))
+            entry["failure_rate"] = fail
+            entry["seeds"] = [int(r["seed"]) for r in runs]
+            entry["per_seed_mean_m"] = [float(np.mean(r["position_error_m"])) for r in runs]
+            entry["num_frames"] = int(runs[0]["num_frames"])
+            entry["num_particles"] = int(runs[0]["filter_particles"])
+        else:
+            conv = [convergence_frame(np.array(r["position_error_m"]),
+                                      mc.converge_threshold_m) for r in runs]
+            within = [c is not None and c <= mc.converge_within_frames for c in conv]
+            after = [np.array(r["position_error_m"])[c:] for r, c in zip(runs, conv,
+                                                                         strict=True)
+                     if c is not None]
+            entry[init] = {
+                "convergence_frames": conv,
+                "converged_within_frames": int(mc.converge_within_frames),
+                "converged_within_rate": float(np.mean(within)),
+                "threshold_m": float(mc.converge_threshold_m),
+                "mean_error_after_convergence_m": (float(np.mean(np.concatenate(after)))
+                                                   if after else None),
+                "failure_rate": fail,
+                "seeds": [int(r["seed"]) for r in runs],
+            }
+    timing_by_mode = {}
+    for mode in {r["mode"] for r in _main(records)}:
+        runs = [r for r in _main(records) if r["mode"] == mode and r["init"] == "tracking"]
+        if runs:
+            timing_by_mode[mode] = {s: timing_stats(np.concatenate([r["timing_ms"][s]
+                                                                    for r in runs]))
+                                    for s in TIMING_STAGES}
+    main_mode = "cnn" if "cnn" in timing_by_mode else next(iter(sorted(timing_by_mode)), None)
+    out = {
+        "flights": {f: dict(sorted(m.items())) for f, m in sorted(flights.items())},
+        "timing_ms": timing_by_mode.get(main_mode, {}),
+        "timing_mode": main_mode,
+        "timing_ms_by_mode": timing_by_mode,
+        "dataset": str(cfg.dataset),
+        "paper": {"mean_position_error_m": float(cfg.report.paper_error_m),
+                  "total_ms": float(cfg.report.paper_time_ms),
+                  "lidar_error_m": float(cfg.report.lidar_error_m)},
+    }
+    pf = paper_faithful_summary(records)
+    if pf:
+        out["paper_faithful"] = pf
+    out["targets"] = targets(out, cfg)
+    return out
+
+
+def paper_faithful_summary(records: list[dict]) -> dict:
+    """Accuracy and filter time of the vectorized vs the paper-faithful likelihood."""
+    rows = {}
+    for r in records:
+        lik = r["likelihood"]
+        if lik == "vectorized":
+            continue
+        kind = "paper_faithful" if lik.startswith("paper_faithful") else "vectorized"
+        d = rows.setdefault(kind, {"errors": [], "filter_ms": [], "flight": r["flight"],
+                                   "mode": r["mode"], "num_particles": r["filter_particles"],
+                                   "num_frames": r["num_frames"]})
+        d["errors"].append(np.array(r["position_error_m"]))
+        d["filter_ms"].append(np.array(r["timing_ms"]["filter"]))
+    out = {}
+    for kind, d in rows.items():
+        out[kind] = {
+            "flight": d["flight"], "mode": d["mode"], "num_particles": d["num_particles"],
+            "num_frames": d["num_frames"],
+            **error_stats(np.concatenate(d["errors"])),
+            "filter_ms": timing_stats(np.concatenate(d["filter_ms"])),
+        }
+    if "paper_faithful" in out and "vectorized" in out:
+        out["speed_ratio"] = (out["paper_faithful"]["filter_ms"]["avg"]
+                              / max(out["vectorized"]["filter_ms"]["avg"], 1e-9))
+    return out
+
+
+def targets(m: dict, cfg) -> list[dict]:
+    """The issue's targets, each with the measured value and whether it is met."""
+    out = []
+    fl = m["flights"]
+
+    def add(name, value, ok, goal):
+        out.append({"target": name, "goal": goal, "value": value,
+                    "met": None if ok is None else bool(ok)})
+
+    paper = fl.get("paper", {})
+    if "cnn" in paper and "mean_position_error_m" in paper["cnn"]:
+        v = paper["cnn"]["mean_position_error_m"]
+        add("paper flight, cnn, tracking: mean position error", v, v <= 0.10, "<= 0.10 m")
+    clut = fl.get("cluttered", {})
+    if all(k in clut and "mean_position_error_m" in clut[k] for k in ("cnn", "none")):
+        ratio = clut["none"]["mean_position_error_m"] / max(
+            clut["cnn"]["mean_position_error_m"], 1e-9)
+        add("cluttered flight: none / cnn mean error", ratio, ratio >= 2.0, ">= 2")
+    if all(k in clut and "mean_position_error_m" in clut[k] for k in ("cnn", "oracle")):
+        ratio = clut["cnn"]["mean_position_error_m"] / max(
+            clut["oracle"]["mean_position_error_m"], 1e-9)
+        add("cluttered flight: cnn / oracle mean error", ratio, ratio <= 1.25, "<= 1.25")
+    for mode in ("cnn", "oracle", "none"):
+        g = paper.get(mode, {}).get("global")
+        if g:
+            add(f"paper flight, {mode}, global init: converged within "
+                f"{g['converged_within_frames']} frames", g["converged_within_rate"],
+                g["converged_within_rate"] >= 0.9, ">= 90% of seeds")
+    tm = m.get("timing_ms", {})
+    if tm:
+        f = tm["filter"]["avg"]
+        add(f"filter update ({m['timing_mode']} mode, {cfg.filter.num_particles} particles), "
+            "avg per frame", f, f <= 20.0, "<= 20 ms")
+        seg_filter = tm["segmentation"]["avg"] + tm["preprocessing"]["avg"] + f
+        add(f"segmentation + edges + filter ({m['timing_mode']}), avg per frame", seg_filter,
+            seg_filter <= 50.0, "<= 50 ms")
+    pf = m.get("paper_faithful", {})
+    if "speed_ratio" in pf:
+        add("vectorized likelihood speed-up over paper_faithful (same particles)",
+            pf["speed_ratio"], None, "report")
+    return out
+
+
+# --- plots ---------------------------------------------------------------------------------
+
+
+def _tracking_seed0(records: list[dict], flight: str) -> dict[str, dict]:
+    out = {}
+    for r in _main(records):
+        if r["flight"] == flight and r["init"] == "tracking":
+            if r["mode"] not in out or r["seed"] < out[r["mode"]]["seed"]:
+                out[r["mode"]] = r
+    return dict(sorted(out.items(), key=lambda kv: list(MODE_COLORS).index(kv[0])
+                       if kv[0] in MODE_COLORS else 9))
+
+
+def _save(fig, path: Path) -> None:
+    atomic_write(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight"))
+    plt.close(fig)
+
+
+def plot_xy(records: list[dict], flight: str, path: Path) -> None:
+    """X and Y over time, estimate vs ground truth per mode (the paper's Fig. 3 and 4)."""
+    runs = _tracking_seed0(records, flight)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for ax, k, name in zip(axes, (0, 1), ("X", "Y"), strict=True):
+        any_run = next(iter(runs.values()))
+        t = np.array(any_run["timestamps"])
+        ax.plot(t, np.array(any_run["truth"])[:, k], "k-", lw=2, label="ground truth")
+        for mode, r in runs.items():
+            ax.plot(np.array(r["timestamps"]), np.array(r["estimate"])[:, k], "--",
+                    color=MODE_COLORS.get(mode), label=MODE_LABELS.get(mode, mode))
+        ax.set_ylabel(f"{name} (m)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=8)
+    axes[1].set_xlabel("time (s)")
+    axes[0].set_title(f"{flight}: position over time (tracking init, seed 0)")
+    _save(fig, path)
+
+
+def corridor_outline(world) -> np.ndarray:
+    """Floor edges of the model (K, 2, 2) in XY: the corridor plan."""
+    seg = np.asarray(world.segments)
+    floor = (np.abs(seg[:, :, 2]).max(axis=1) < 1e-6) & (np.asarray(world.segment_classes)
+                                                         .min(axis=1) <= 1)
+    return seg[floor][:, :, :2]
+
+
+def plot_topdown(records: list[dict], flight: str, world, path: Path) -> None:
+    """Top-down trajectories over the corridor plan."""
+    runs = _tracking_seed0(records, flight)
+    fig, ax = plt.subplots(figsize=(5, 9))
+    for s in corridor_outline(world):
+        ax.plot(s[:, 0], s[:, 1], color="0.4", lw=1)
+    for b in np.asarray(world.free_boxes).reshape(-1, 4):
+        ax.add_patch(plt.Rectangle(b[:2], b[2] - b[0], b[3] - b[1], fill=False, ls=":",
+                                   ec="0.7"))
+    any_run = next(iter(runs.values()))
+    gt = np.array(any_run["truth"])
+    ax.plot(gt[:, 0], gt[:, 1], "k-", lw=2, label="ground truth")
+    for mode, r in runs.items():
+        e = np.array(r["estimate"])
+        ax.plot(e[:, 0], e[:, 1], "--", color=MODE_COLORS.get(mode),
+                label=MODE_LABELS.get(mode, mode))
+    ax.set_aspect("equal")
+    ax.set_xlabel("X (m)")
+    ax.set_ylabel("Y (m)")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(f"{flight}: top view")
+    _save(fig, path)
+
+
+def plot_errors(records: list[dict], flight: str, path: Path, threshold: float) -> None:
+    """Position error over time per mode: tracking (mean and range over seeds) and global."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4))
+    for ax, init in zip(axes, ("tracking", "global"), strict=True):
+        by_mode = defaultdict(list)
+        for r in _main(records):
+            if r["flight"] == flight and r["init"] == init:
+                by_mode[r["mode"]].append(r)
+        for mode, runs in sorted(by_mode.items()):
+            E = np.array([r["position_error_m"] for r in runs])
+            t = np.array(runs[0]["timestamps"])
+            c = MODE_COLORS.get(mode)
+            if init == "tracking":
+                ax.plot(t, E.mean(axis=0), color=c, label=MODE_LABELS.get(mode, mode))
+                ax.fill_between(t, E.min(axis=0), E.max(axis=0), color=c, alpha=0.2)
+            else:
+                for i, e in enumerate(E):
+                    ax.plot(np.arange(len(e)), e, color=c, alpha=0.6, lw=1,
+                            label=MODE_LABELS.get(mode, mode) if i == 0 else None)
+        if init == "global":
+            ax.axhline(threshold, color="k", ls=":", lw=1)
+            ax.set_xlabel("frame")
+            ax.set_yscale("log")
+            ax.set_title("global init: error per seed")
+        else:
+            ax.set_xlabel("time (s)")
+            ax.set_title("tracking init: mean over seeds (band: min-max)")
+        ax.set_ylabel("position error (m)")
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    fig.suptitle(flight)
+    _save(fig, path)
+
+
+def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
+    """One frame: model edges at the estimate over the image, segmentation, edge map (Fig. 2)."""
+    from localize.edges import EdgeExtractor
+    from localize.projection import (
+        cam_from_world,
+        camera_centres,
+        pixel_index,
+        projection_matrices,
+        tilt_from_pose,
+    )
+
+    runs = _tracking_seed0(records, flight_name)
+    mode = "cnn" if "cnn" in runs else next(iter(runs))
+    r = runs[mode]
+    flight = ctx.dataset.flight(flight_name)
+    t = int(round(float(ctx.cfg.report.figure_frame) * (r["num_frames"] - 1)))
+    rgb = read_png(flight.rgb[t])
+    if mode == "cnn" and ctx.segmenter is not None:
+        labels = EdgeExtractor("cnn", {}, ctx.segmenter).segment(rgb)
+        seg_title = "SegNet segmentation"
+    else:
+        labels = read_png(flight.label[t], rgb=False)
+        seg_title = "true labels"
+    from omegaconf import OmegaConf
+
+    ex = EdgeExtractor(mode, OmegaConf.to_container(ctx.cfg.edges, resolve=True),
+                       ctx.segmenter)
+    edge = ex.edges(rgb, None if mode == "none" else labels)
+    samples, vis = ctx.model_for(mode)
+    state = np.array(r["estimate"][t])[None]
+    tilt = tilt_from_pose(flight.odometry[t])
+    cam = ctx.camera
+    P = projection_matrices(cam_from_world(state, cam.body_from_cam, tilt), cam.K)
+    idx, valid, _ = pixel_index(P, samples.points_h, cam.width, cam.height)
+    valid &= vis.lookup(camera_centres(state, cam.body_from_cam, tilt))
+    v, u = np.divmod(idx[0][valid[0]], cam.width)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    axes[0].imshow(rgb)
+    axes[0].scatter(u, v, s=2, c="lime")
+    axes[0].set_title(f"model edges at the {mode} estimate (frame {t})")
+    axes[1].imshow(colorize(labels))
+    axes[1].scatter(u, v, s=1, c="white")
+    axes[1].set_title(seg_title)
+    shown = np.zeros(edge.edges.shape + (3,), dtype=np.uint8)
+    shown[~edge.known] = (90, 0, 0)
+    shown[edge.edges] = 255
+    axes[2].imshow(shown)
+    axes[2].set_title(f"{mode} edges (dark red: unknown)")
+    for ax in axes:
+        ax.axis("off")
+    _save(fig, path)
+
+
+# --- report ----------------------------------------------------------------------------------
+
+
+def _fmt(v, digits: int = 3) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
+    """report.md text."""
+    paper_err, paper_ms = cfg.report.paper_error_m, cfg.report.paper_time_ms
+    f = cfg.filter
+    lines = [
+        f"# Localization report: {cfg.name}",
+        "",
+        f"Dataset `{m['dataset']}`. Filter: {f.num_particles} particles, likelihood "
+        f"`{f.likelihood.aggregate}` with k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
+        f"of a {f.likelihood.search_px}-pixel search reach. Seeds: {list(cfg.seeds)}.",
+        f"Paper (Buyval et al. 2017): mean error {paper_err} m, {paper_ms} ms per frame on a "
+        f"GTX 1050; a LIDAR method ~{cfg.report.lidar_error_m} m.",
+        "",
+        "## Accuracy, tracking init",
+        "",
+        "| flight | mode | mean (m) | median (m) | RMSE (m) | p95 (m) | yaw (deg) | failures "
+        f"| vs paper {paper_err} m |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for flight, modes in m["flights"].items():
+        for mode, s in modes.items():
+            if "mean_position_error_m" not in s:
+                continue
+            lines.append(
+                f"| {flight} | {mode} | {_fmt(s['mean_position_error_m'])} | "
+                f"{_fmt(s['median_m'])} | {_fmt(s['rmse_m'])} | {_fmt(s['p95_m'])} | "
+                f"{_fmt(s['mean_yaw_error_deg'], 2)} | {_fmt(100 * s['failure_rate'], 1)}% | "
+                f"{paper_err / max(s['mean_position_error_m'], 1e-9):.1f}x better |")
+    lines += ["", f"Failures: frames with an error above {cfg.metrics.failure_threshold_m} m.",
+              ""]
+    glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()
+            for mode, s in modes.items() if "global" in s]
+    if glob:
+        n = cfg.metrics.converge_within_frames
+        lines += ["## Global localization (uniform start)", "",
+                  f"Converged: error below {cfg.metrics.converge_threshold_m} m from that frame "
+                  "to the end of the flight.", "",
+                  f"| flight | mode | converged within {n} frames | convergence frame per seed "
+                  "| mean error after convergence (m) |", "|---|---|---|---|---|"]
+        for fl, mode, g in glob:
+            lines.append(f"| {fl} | {mode} | {100 * g['converged_within_rate']:.0f}% | "
+                         f"{', '.join(_fmt(c) for c in g['convergence_frames'])} | "
+                         f"{_fmt(g['mean_error_after_convergence_m'])} |")
+        lines.append("")
+    tbm = m.get("timing_ms_by_mode", {})
+    if tbm:
+        modes = sorted(tbm)
+        lines += ["## Time per frame (ms, min / avg / max), as the paper's Table 1", "",
+                  "| stage | " + " | ".join(modes) + " | paper (GPU) |",
+                  "|---|" + "---|" * (len(modes) + 1)]
+        paper_col = {"segmentation": "167", "total": str(paper_ms)}
+        for stage in TIMING_STAGES:
+            cells = [f"{tbm[mo][stage]['min']:.1f} / {tbm[mo][stage]['avg']:.1f} / "
+                     f"{tbm[mo][stage]['max']:.1f}" for mo in modes]
+            lines.append(f"| {stage} | " + " | ".join(cells) +
+                         f" | {paper_col.get(stage, '-')} |")
+        lines += ["", "Acquisition: reading the frame (PNG) from disk; segmentation: SegNet "
+                  "through onnxruntime (cnn only); preprocessing: edge map and distance "
+                  "transforms; filter: motion, likelihood, resampling for one filter. Measured on "
+                  "a 2-core CPU shared with other jobs, so these may be pessimistic; "
+                  "`benchmarks/localize_speed.py` measures the stages alone.", ""]
+    pf = m.get("paper_faithful")
+    if pf and "vectorized" in pf and "paper_faithful" in pf:
+        v, p = pf["vectorized"], pf["paper_faithful"]
+        lines += ["## Vectorized vs paper-faithful likelihood", "",
+                  f"Same flight ({v['flight']}, first {v['num_frames']} frames), mode "
+                  f"{v['mode']}, {v['num_particles']} particles, tracking init.", "",
+                  "| likelihood | mean error (m) | filter ms/frame (avg) |", "|---|---|---|",
+                  f"| vectorized | {_fmt(v['mean_position_error_m'])} | "
+                  f"{v['filter_ms']['avg']:.1f} |",
+                  f"| paper_faithful (render + contours + Hough per particle) | "
+                  f"{_fmt(p['mean_position_error_m'])} | {p['filter_ms']['avg']:.1f} |", "",
+                  f"Speed-up of the vectorized likelihood: {pf['speed_ratio']:.0f}x.", ""]
+    if m.get("targets"):
+        lines += ["## Targets", "", "| target | goal | measured | met |", "|---|---|---|---|"]
+        for t in m["targets"]:
+            met = {True: "yes", False: "**no**", None: "-"}[t["met"]]
+            lines.append(f"| {t['target']} | {t['goal']} | {_fmt(t['value'])} | {met} |")
+        lines.append("")
+    lines += ["## Plots", ""]
+    for flight, files in plots.items():
+        lines.append(f"### {flight}")
+        lines.append("")
+        for fpath in files:
+            lines.append(f"![{Path(fpath).stem}]({fpath})")
+            lines.append("")
+    lines += ["Trajectories (TUM, world_from_body): `trajectories/<flight>/<mode>_seed<k>.txt` "
+              "(tracking) and `<mode>_global_seed<k>.txt`; per-frame records: `runs/`.", ""]
+    return "\n".join(lines)
+
+
+def write_report(ctx) -> Path:
+    """Write metrics.json, the plots and report.md under the report folder.
+
+    Returns:
+        Path of report.md.
+    """
+    out = ctx.out_dir
+    records = load_records(out)
+    if not records:
+        raise RuntimeError(f"no run records under {out / 'runs'}; nothing to report")
+    metrics = summarize(records, ctx.cfg)
+    atomic_write_json(out / "metrics.json", metrics)
+    plots: dict[str, list[str]] = {}
+    for flight in sorted({r["flight"] for r in _main(records)}):
+        files = []
+        if _tracking_seed0(records, flight):
+            plot_xy(records, flight, out / "plots" / f"{flight}_xy.png")
+            plot_topdown(records, flight, ctx.world, out / "plots" / f"{flight}_topdown.png")
+            try:
+                plot_frame(ctx, records, flight, out / "plots" / f"{flight}_frame.png")
+                files.append(f"plots/{flight}_frame.png")
+            except (FileNotFoundError, ValueError) as err:  # a missing frame must not stop it
+                log.warning("frame figure for %s skipped: %s", flight, err)
+            files = [f"plots/{flight}_xy.png", f"plots/{flight}_topdown.png"] + files
+        plot_errors(records, flight, out / "plots" / f"{flight}_error.png",
+                    float(ctx.cfg.metrics.converge_threshold_m))
+        files.append(f"plots/{flight}_error.png")
+        plots[flight] = files
+    report = out / "report.md"
+    atomic_write_text(report, render_markdown(metrics, ctx.cfg, plots))
+    return report

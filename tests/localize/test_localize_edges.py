@@ -1,0 +1,120 @@
+"""Edge maps of the three modes, the segmenter's class check."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from datagen import classes as C
+from localize.edges import (
+    EdgeExtractor,
+    EdgeImage,
+    canny_edges,
+    check_classes,
+    label_edges,
+    load_segmenter,
+)
+from tests.localize.conftest import palette_segnet
+
+EDGES_CFG = {"canny": {"low": 50.0, "high": 150.0, "blur": 3},
+             "hough": {"enabled": False, "threshold": 10, "min_length": 8, "max_gap": 2},
+             "labels": {"dilate_px": 1, "median": 0}}
+
+
+def two_walls() -> np.ndarray:
+    """(20, 30) labels: ceiling above row 5, wall left of column 15, door right of it, a person
+    blob, floor below row 15."""
+    lab = np.full((20, 30), C.WALL, dtype=np.uint8)
+    lab[:5] = C.CEILING
+    lab[5:15, 15:] = C.DOOR
+    lab[15:] = C.FLOOR
+    lab[8:12, 22:26] = C.PERSON
+    return lab
+
+
+class TestLabelEdges:
+    def test_boundaries_between_structural_classes(self):
+        e = label_edges(two_walls(), dilate_px=0)
+        assert e.edges[4, 3] and e.edges[5, 3]  # ceiling | wall, both sides marked
+        assert e.edges[8, 14] and e.edges[8, 15]  # wall | door
+        assert not e.edges[10, 5]  # inside the wall
+        assert not e.known[9, 23] and e.known[9, 20]  # the person is unknown
+        assert not e.edges[7, 23]  # door | person is not a model edge
+
+    def test_dilation_grows_unknown(self):
+        a = label_edges(two_walls(), dilate_px=0)
+        b = label_edges(two_walls(), dilate_px=2)
+        assert (~b.known).sum() > (~a.known).sum()
+        assert not (b.edges & ~b.known).any()
+
+    def test_all_clutter(self):
+        e = label_edges(np.full((10, 10), C.CLUTTER, np.uint8))
+        assert not e.edges.any() and not e.known.any()
+
+    def test_bad_shape(self):
+        with pytest.raises(ValueError, match=r"\(H, W\)"):
+            label_edges(np.zeros((4, 4, 3), np.uint8))
+
+
+class TestCanny:
+    def test_finds_the_step(self):
+        img = np.zeros((40, 40, 3), np.uint8)
+        img[:, 20:] = 200
+        e = canny_edges(img, blur=0)
+        assert e.edges[:, 19:21].any(axis=1).mean() > 0.9
+        assert not e.edges[:, :15].any() and e.known.all()
+
+    def test_hough_keeps_lines(self):
+        img = np.zeros((40, 40, 3), np.uint8)
+        img[:, 20:] = 200
+        e = canny_edges(img, blur=0, hough={"threshold": 10, "min_length": 10, "max_gap": 2})
+        assert e.edges[:, 18:22].sum() >= 30
+
+    def test_black_image_has_no_edges(self):
+        e = canny_edges(np.zeros((24, 32, 3), np.uint8))
+        assert not e.edges.any()
+
+    def test_bad_input(self):
+        with pytest.raises(ValueError, match="uint8"):
+            canny_edges(np.zeros((8, 8, 3), np.float32))
+
+    def test_edge_image_shape_check(self):
+        with pytest.raises(ValueError, match="same"):
+            EdgeImage(np.zeros((4, 4), bool), np.zeros((4, 5), bool))
+
+
+class TestSegmenter:
+    def test_palette_segnet_is_exact(self, tmp_path):
+        lab = two_walls()
+        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
+        ex = EdgeExtractor("cnn", EDGES_CFG, seg)
+        np.testing.assert_array_equal(ex.segment(C.colorize(lab)), lab)
+        e = ex.edges(C.colorize(lab), ex.segment(C.colorize(lab)))
+        ref = label_edges(lab, dilate_px=1)
+        np.testing.assert_array_equal(e.edges, ref.edges)
+
+    def test_missing_model(self, tmp_path):
+        with pytest.raises(FileNotFoundError, match="python -m train"):
+            load_segmenter(tmp_path / "nope.onnx", C.as_json())
+
+    def test_classes_must_match(self, tmp_path):
+        other = C.as_json()
+        other[6]["name"] = "furniture"
+        path = palette_segnet(tmp_path / "s.onnx", 20, 30, classes=other)
+        with pytest.raises(ValueError, match="do not match"):
+            load_segmenter(path, C.as_json())
+        with pytest.raises(ValueError, match="do not match"):
+            check_classes(C.as_json()[:5], C.as_json(), "x.onnx")
+        assert json.loads(json.dumps(C.as_json())) == C.as_json()
+
+    def test_modes(self):
+        with pytest.raises(ValueError, match="unknown edge mode"):
+            EdgeExtractor("sobel", EDGES_CFG)
+        with pytest.raises(ValueError, match="needs a segmenter"):
+            EdgeExtractor("cnn", EDGES_CFG)
+        with pytest.raises(ValueError, match="needs a label map"):
+            EdgeExtractor("oracle", EDGES_CFG).edges(np.zeros((20, 30, 3), np.uint8))
+        e = EdgeExtractor("oracle", EDGES_CFG).edges(None, two_walls())
+        assert e.edges.any()

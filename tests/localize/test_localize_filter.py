@@ -1,0 +1,189 @@
+"""The particle filter: draws, motion, weights, resampling, recovery, a live filter on bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datagen.poses import pose_from_xyz_rpy, pose_from_xyzyaw, wrap_angle, xyzyaw_from_pose
+from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
+from localize.particle_filter import (
+    FilterParams,
+    ParticleFilter,
+    effective_sample_size,
+    estimate,
+    free_space_log_prior,
+    init_global,
+    init_tracking,
+    move,
+    odometry_increment,
+    systematic_resample,
+)
+
+BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
+Z = np.array([0.5, 2.2])
+
+
+class TestDraws:
+    def test_init_global_inside_free_space(self):
+        p = init_global(np.random.default_rng(0), BOXES, Z, 5000)
+        assert p.shape == (5000, 4)
+        inside = ((p[:, None, 0] >= BOXES[:, 0]) & (p[:, None, 0] <= BOXES[:, 2])
+                  & (p[:, None, 1] >= BOXES[:, 1]) & (p[:, None, 1] <= BOXES[:, 3])).any(1)
+        assert inside.all() and (p[:, 2] >= Z[0]).all() and (p[:, 2] <= Z[1]).all()
+        assert abs(np.mean(p[:, 0] < -0.7) - 2.0 / (2.0 + 13.16)) < 0.03  # by area
+        assert np.abs(p[:, 3]).max() <= np.pi
+
+    def test_init_tracking_spread(self):
+        p = init_tracking(np.random.default_rng(0), np.array([0, 1, 1, 3.1]), 4000,
+                          (0.1, 0.2, 0.05, 3.0))
+        np.testing.assert_allclose(p[:, :3].std(0), [0.1, 0.2, 0.05], rtol=0.1)
+        np.testing.assert_allclose(np.degrees(np.abs(wrap_angle(p[:, 3] - 3.1))).mean(),
+                                   3.0 * np.sqrt(2 / np.pi), rtol=0.1)
+
+    def test_no_free_space(self):
+        with pytest.raises(ValueError, match="free space"):
+            init_global(np.random.default_rng(0), np.zeros((0, 4)), Z, 10)
+
+
+class TestMotion:
+    def test_noise_free_odometry_is_reproduced(self):
+        rng = np.random.default_rng(0)
+        xyz = np.cumsum(rng.normal(0, 0.05, (20, 3)), 0) + [0, 1, 1]
+        rpy = np.column_stack([rng.normal(0, 0.05, 20), rng.normal(0, 0.05, 20),
+                               np.cumsum(rng.normal(0, 0.1, 20))])
+        odo = pose_from_xyz_rpy(xyz, rpy)
+        state = xyzyaw_from_pose(odo[:1])
+        for t in range(1, 20):
+            state = move(rng, state, odometry_increment(odo[t - 1], odo[t]), (0, 0, 0), (0, 0))
+        np.testing.assert_allclose(state[0], xyzyaw_from_pose(odo[-1:])[0], atol=1e-9)
+
+    def test_noise_scales_with_step(self):
+        rng = np.random.default_rng(1)
+        p = np.zeros((5000, 4))
+        a = move(rng, p, np.array([0.0, 0, 0, 0]), (0.01, 0.0, 0.0), (0.1, 0.1))
+        b = move(rng, p, np.array([0.5, 0, 0, 0]), (0.01, 0.0, 0.0), (0.1, 0.1))
+        assert b[:, 1].std() == pytest.approx(0.01 + 0.05, rel=0.1)
+        assert a[:, 1].std() == pytest.approx(0.01, rel=0.1)
+        assert b[:, 0].mean() == pytest.approx(0.5, abs=0.01)
+
+    def test_free_space_prior(self):
+        p = np.array([[0, 5, 1, 0], [0.9, 5, 1, 0], [1.5, 5, 1, 0], [0, 5, 3.0, 0]])
+        lp = free_space_log_prior(p, BOXES, Z, slack=0.25, penalty=10.0)
+        assert lp[0] == 0 and lp[1] == 0 and lp[2] < -10 and lp[3] < -10
+
+
+class TestWeights:
+    def test_ess(self):
+        assert effective_sample_size(np.zeros(100)) == pytest.approx(100)
+        lw = np.full(100, -1e3)
+        lw[3] = 0.0
+        assert effective_sample_size(lw) == pytest.approx(1.0)
+
+    def test_systematic_resample(self):
+        rng = np.random.default_rng(0)
+        w = np.array([0.1, 0.2, 0.3, 0.4])
+        idx = systematic_resample(rng, np.log(w), 1000)
+        np.testing.assert_allclose(np.bincount(idx, minlength=4) / 1000, w, atol=0.002)
+        idx = systematic_resample(rng, np.array([0.0, -np.inf, -np.inf]), 7)
+        assert (idx == 0).all()
+
+    def test_estimate_circular_yaw(self):
+        p = np.array([[0, 0, 1, np.pi - 0.1], [2, 0, 1, -np.pi + 0.1]])
+        e = estimate(p, np.log([0.5, 0.5]))
+        np.testing.assert_allclose(e[:3], [1, 0, 1])
+        assert abs(abs(e[3]) - np.pi) < 1e-9
+
+    def test_params(self):
+        with pytest.raises(ValueError, match="init_std"):
+            FilterParams(init_std=(0.1, 0.1))
+        with pytest.raises(ValueError, match="unknown filter settings"):
+            FilterParams.from_cfg({"particles": 3})
+        assert FilterParams.from_cfg({"motion_std": [0.1, 0.1, 1.0]}).motion_std == (0.1, 0.1,
+                                                                                      1.0)
+
+
+def bowl(target: np.ndarray, k: float = 50.0):
+    """A log-likelihood peaked at target (x, y, z, yaw)."""
+    def f(states):
+        d2 = ((states[:, :3] - target[:3]) ** 2).sum(1) + wrap_angle(states[:, 3] - target[3]) ** 2
+        return -k * d2, np.exp(-d2)
+    return f
+
+
+class TestParticleFilter:
+    def test_tracking_follows_the_target(self):
+        params = FilterParams(num_particles=300, recovery=False)
+        pf = ParticleFilter(params, BOXES, Z, np.random.default_rng(0))
+        truth = np.array([0.0, 1.0, 1.0, 1.5])
+        pf.init_tracking(truth)
+        for _ in range(20):
+            delta = np.array([0.05, 0.0, 0.0, 0.02])
+            pose = pose_from_xyzyaw(truth[None])[0]
+            new = move(np.random.default_rng(1), truth[None], delta, (0, 0, 0), (0, 0))[0]
+            pf.predict(odometry_increment(pose, pose_from_xyzyaw(new[None])[0]))
+            truth = new
+            info = pf.update(bowl(truth))
+        assert np.linalg.norm(info.estimate[:3] - truth[:3]) < 0.05
+        assert len(pf.particles) == 300
+
+    def test_global_set_is_thinned(self):
+        params = FilterParams(num_particles=100, global_particles=1000, global_frames=2)
+        pf = ParticleFilter(params, BOXES, Z, np.random.default_rng(0))
+        pf.init_global()
+        assert len(pf.particles) == 1000 and pf.in_global_phase
+        pf.update(bowl(np.array([0, 5, 1, 0])))
+        assert len(pf.particles) == 1000
+        pf.update(bowl(np.array([0, 5, 1, 0])))
+        assert len(pf.particles) == 100 and not pf.in_global_phase
+
+    def test_recovery_injects_on_collapse(self):
+        params = FilterParams(num_particles=200, recovery_patience=2, recovery_threshold=0.5)
+        pf = ParticleFilter(params, BOXES, Z, np.random.default_rng(0))
+        pf.init_tracking(np.array([0, 2, 1, 0]))
+        good = lambda s: (np.zeros(len(s)), np.full(len(s), 0.9))  # noqa: E731
+        bad = lambda s: (np.zeros(len(s)), np.full(len(s), 0.05))  # noqa: E731
+        for _ in range(10):
+            assert pf.update(good).injected == 0
+        injected = [pf.update(bad).injected for _ in range(6)]
+        assert sum(injected) > 0
+        assert np.isfinite(pf.logw).all() and len(pf.particles) == 200
+
+    @pytest.mark.parametrize("case", ["nan_quality", "flat", "huge"])
+    def test_degenerate_likelihood_keeps_the_filter_alive(self, case):
+        pf = ParticleFilter(FilterParams(num_particles=100), BOXES, Z, np.random.default_rng(0))
+        pf.init_tracking(np.array([0, 2, 1, 0]))
+        for _ in range(5):
+            def f(s):
+                n = len(s)
+                if case == "nan_quality":
+                    return np.zeros(n), np.full(n, np.nan)
+                if case == "flat":
+                    return np.full(n, 3.0), np.zeros(n)
+                return np.full(n, 1e6), np.ones(n)
+            pf.predict(np.zeros(4))
+            info = pf.update(f)
+            assert np.isfinite(info.estimate).all() and np.isfinite(pf.logw).all()
+        assert len(pf.particles) == 100
+
+
+class TestMetrics:
+    def test_error_stats(self):
+        s = error_stats(np.array([0.1, 0.2, 0.3, 0.4]), np.array([1.0, 3.0]))
+        assert s["mean_position_error_m"] == pytest.approx(0.25)
+        assert s["rmse_m"] == pytest.approx(np.sqrt(0.075))
+        assert s["mean_yaw_error_deg"] == pytest.approx(2.0)
+        with pytest.raises(ValueError):
+            error_stats(np.array([]))
+
+    def test_convergence(self):
+        e = np.array([3, 2, 0.2, 0.5, 0.1, 0.1, 0.2])
+        assert convergence_frame(e, 0.3) == 4
+        assert convergence_frame(np.array([0.1, 0.1]), 0.3) == 0
+        assert convergence_frame(np.array([0.1, 0.5]), 0.3) is None
+
+    def test_yaw_and_timing(self):
+        est = np.array([[0, 0, 0, np.pi - 0.01]])
+        tru = np.array([[0, 0, 0, -np.pi + 0.01]])
+        np.testing.assert_allclose(yaw_errors_deg(est, tru), np.degrees(0.02))
+        assert timing_stats([1.0, 2.0, 6.0]) == {"min": 1.0, "avg": 3.0, "max": 6.0}

@@ -1,0 +1,159 @@
+"""The nearest-edge likelihood: score maps, aggregates, the peak at the true pose, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datagen import classes as C
+from localize.edges import EdgeImage, label_edges
+from localize.likelihood import EdgeLikelihood, LikelihoodParams, edge_normal_angle, observe
+from localize.projection import cam_from_world, sample_segments
+from localize.visibility import build_visibility_grid
+
+TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
+OFFSETS = np.array([[0.1, 0, 0, 0], [-0.1, 0, 0, 0], [0, 0.2, 0, 0], [0, -0.2, 0, 0],
+                    [0, 0, 0.1, 0], [0, 0, -0.1, 0], [0, 0, 0, np.deg2rad(3)],
+                    [0, 0, 0, -np.deg2rad(3)]])
+
+
+@pytest.fixture(scope="module")
+def model(small_world):
+    s = sample_segments(small_world.segments, 0.05)
+    keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
+    s, _ = s.select(keep)
+    return s, build_visibility_grid(small_world, s.points, cell_xy=0.2, cell_z=0.3)
+
+
+@pytest.fixture(scope="module")
+def rendered(renderer, camera):
+    T = cam_from_world(TRUE[None], camera.body_from_cam)[0]
+    labels, _ = renderer.render(np.linalg.inv(T))
+    return labels
+
+
+class TestObserve:
+    def test_score_map_values(self):
+        edges = np.zeros((20, 40), bool)
+        edges[:, 10] = True
+        known = np.ones_like(edges)
+        known[:, 30:] = False
+        p = LikelihoodParams(sigma=0.3, search_px=10)
+        obs = observe(EdgeImage(edges, known), p)
+        g = obs.g[:-1].reshape(20, 40)
+        np.testing.assert_allclose(g[:, 10], 1.0)
+        np.testing.assert_allclose(g[5, 13], np.exp(-0.3 ** 2 / (2 * 0.3 ** 2)), rtol=1e-5)
+        np.testing.assert_allclose(g[:, 35], obs.g0[0])  # unknown: chance
+        assert obs.g[-1] == 0 and obs.e[-1] == 0
+        assert 0 < obs.chance < 1
+        e = obs.e[:-1].reshape(20, 40)
+        assert (e[:, 30:] == 0).all() and (e[:, :30] != 0).all()
+
+    def test_no_edges_is_flat(self):
+        obs = observe(EdgeImage(np.zeros((8, 8), bool), np.ones((8, 8), bool)),
+                      LikelihoodParams())
+        np.testing.assert_allclose(obs.g[:-1], obs.g[0])
+        assert np.isfinite(obs.g).all()
+
+    def test_orientation_bins_split_edges(self):
+        edges = np.zeros((40, 40), bool)
+        edges[:, 10] = True  # vertical line: normal along x (angle 0)
+        edges[30, :] = True  # horizontal line: normal along y (angle pi/2)
+        theta = edge_normal_angle(edges)
+        assert min(theta[15, 10], np.pi - theta[15, 10]) < 0.2
+        assert abs(theta[30, 25] - np.pi / 2) < 0.2
+        obs = observe(EdgeImage(edges, np.ones_like(edges)), LikelihoodParams(orientation_bins=4))
+        g = obs.g[:-1].reshape(4, 40, 40)
+        assert g[0, 15, 10] == pytest.approx(1.0) and g[2, 15, 10] < 0.5
+        assert g[2, 30, 25] == pytest.approx(1.0) and g[0, 30, 25] < 0.5
+
+    def test_bad_params(self):
+        with pytest.raises(ValueError, match="aggregate"):
+            LikelihoodParams(aggregate="max")
+        with pytest.raises(ValueError, match="unknown likelihood settings"):
+            LikelihoodParams.from_cfg({"kappa": 1})
+
+
+@pytest.mark.parametrize("aggregate", ["lines", "samples", "evidence"])
+@pytest.mark.parametrize("bins", [0, 4])
+def test_peaks_at_true_pose(model, camera, rendered, aggregate, bins):
+    s, vis = model
+    lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate=aggregate, orientation_bins=bins,
+                                                     min_lines=1, chunk=3), vis)
+    obs = lik.observe(label_edges(rendered, dilate_px=0))
+    states = np.vstack([TRUE, TRUE + OFFSETS])
+    score, quality = lik.scores(states, obs)
+    assert np.argmax(score) == 0
+    assert (score[0] > score[1:] + 1e-3).all()
+    assert quality[0] > 0.9
+    logw, q = lik.log_likelihood(states, obs)
+    np.testing.assert_allclose(logw, np.log(1.0) + 3.0 * score)
+
+
+def test_peaks_on_a_really_rendered_frame(tiny_dataset):
+    """Oracle edges of a flight frame of the tiny dataset: the true pose beats its neighbours."""
+    from datagen.atomic import read_png
+    from datagen.dataset import Dataset
+    from datagen.poses import xyzyaw_from_pose
+    from localize.projection import tilt_from_pose
+
+    ds = Dataset(tiny_dataset)
+    world, cam = ds.world(), ds.camera
+    fl = ds.flight("paper")
+    s = sample_segments(world.segments, 0.1)
+    keep = world.segment_classes[:, 0] != world.segment_classes[:, 1]
+    s, _ = s.select(keep)
+    vis = build_visibility_grid(world, s.points, cell_xy=0.4, cell_z=0.5)
+    lik = EdgeLikelihood(s, cam, LikelihoodParams(aggregate="evidence"), vis)
+    wins = 0
+    for t in (5, 15, 25):
+        obs = lik.observe(label_edges(read_png(fl.label[t], rgb=False)))
+        truth = xyzyaw_from_pose(fl.groundtruth[t])[0]
+        score, _ = lik.scores(np.vstack([truth, truth + OFFSETS]), obs,
+                              tilt_from_pose(fl.odometry[t]))
+        wins += int(np.argmax(score) == 0)
+    assert wins >= 2
+
+
+class TestDegenerate:
+    """Black image, no edges, everything clutter: finite, equal scores."""
+
+    @pytest.mark.parametrize("aggregate", ["lines", "samples", "evidence"])
+    @pytest.mark.parametrize("case", ["no_edges", "all_unknown", "black_canny"])
+    def test_finite_and_flat(self, model, camera, aggregate, case):
+        from localize.edges import canny_edges
+
+        s, vis = model
+        H, W = camera.height, camera.width
+        if case == "no_edges":
+            edge = EdgeImage(np.zeros((H, W), bool), np.ones((H, W), bool))
+        elif case == "all_unknown":
+            edge = label_edges(np.full((H, W), C.CLUTTER, np.uint8))
+        else:
+            edge = canny_edges(np.zeros((H, W, 3), np.uint8))
+        lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate=aggregate), vis)
+        obs = lik.observe(edge)
+        states = np.vstack([TRUE, TRUE + OFFSETS])
+        logw, quality = lik.log_likelihood(states, obs)
+        assert np.isfinite(logw).all()
+        np.testing.assert_allclose(logw, logw[0], atol=1e-6)
+
+    def test_nothing_in_view(self, model, camera):
+        s, vis = model
+        lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate="lines"), vis)
+        edges = np.zeros((camera.height, camera.width), bool)
+        edges[60] = True
+        obs = lik.observe(EdgeImage(edges, np.ones_like(edges)))
+        far = np.array([[100.0, 100.0, 50.0, 0.0]])  # far outside, looking away
+        score, quality = lik.scores(far, obs)
+        assert score[0] == pytest.approx(obs.chance) and np.isnan(quality[0])
+
+    def test_shape_checks(self, model, camera):
+        s, vis = model
+        lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
+        with pytest.raises(ValueError, match="does not match the camera"):
+            lik.observe(EdgeImage(np.zeros((4, 4), bool), np.ones((4, 4), bool)))
+        obs = lik.observe(EdgeImage(np.zeros((camera.height, camera.width), bool),
+                                    np.ones((camera.height, camera.width), bool)))
+        with pytest.raises(ValueError, match=r"\(N, 4\)"):
+            lik.scores(np.zeros((3, 3)), obs)

@@ -1,0 +1,183 @@
+"""Model edge samples, their projection into many cameras, and occlusion, against renders."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datagen.camera import project
+from localize.projection import (
+    ModelSamples,
+    cam_from_world,
+    camera_centres,
+    image_directions,
+    pixel_index,
+    project_samples,
+    projection_matrices,
+    sample_segments,
+    tilt_from_pose,
+)
+from localize.visibility import build_visibility_grid, grid_layout, load_or_build, occluded
+from tests.localize.conftest import BODY_FROM_CAM
+
+#: A pose inside the small corridor looking along +Y past the side opening, slightly tilted.
+STATE = np.array([[0.3, 0.6, 1.3, np.deg2rad(95.0)]])
+
+
+def tilt(roll_deg: float = 2.0, pitch_deg: float = -3.0) -> np.ndarray:
+    from datagen.poses import pose_from_xyz_rpy
+
+    return tilt_from_pose(pose_from_xyz_rpy(np.zeros((1, 3)),
+                                            np.deg2rad([[roll_deg, pitch_deg, 40.0]]))[0])
+
+
+class TestSampleSegments:
+    def test_spacing_and_ids(self):
+        seg = np.array([[[0, 0, 0], [1, 0, 0]], [[0, 0, 0], [0, 0.05, 0]],
+                        [[1, 1, 1], [1, 1, 1]]], dtype=float)
+        s = sample_segments(seg, 0.1)
+        assert isinstance(s, ModelSamples)
+        assert len(s) == 12  # 10 + min 2, the zero-length segment skipped
+        np.testing.assert_array_equal(s.starts, [0, 10])
+        np.testing.assert_allclose(s.points[:10, 0], np.arange(10) * 0.1 + 0.05, atol=1e-6)
+        np.testing.assert_allclose(s.dirs[:10], [[1, 0, 0]] * 10)
+        assert s.points_h.shape == (4, 12)
+
+    def test_bad_input(self):
+        with pytest.raises(ValueError, match=r"\(M, 2, 3\)"):
+            sample_segments(np.zeros((3, 3)), 0.1)
+        with pytest.raises(ValueError, match="spacing"):
+            sample_segments(np.zeros((1, 2, 3)) + [[0, 0, 0], [1, 0, 0]], 0.0)
+
+    def test_select_and_thin(self, small_world):
+        s = sample_segments(small_world.segments, 0.1)
+        keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
+        sub, cols = s.select(keep)
+        np.testing.assert_array_equal(sub.points, s.points[cols])
+        assert keep[sub.segment].all() and len(sub) < len(s)
+        thin, cols = s.thin(3)
+        assert set(np.unique(thin.segment)) == set(np.unique(s.segment))  # every segment kept
+        assert len(s) / 4 < len(thin) < len(s) / 2
+        np.testing.assert_array_equal(thin.points, s.points[cols])
+
+
+class TestProjection:
+    def test_matches_datagen_project(self, camera):
+        rng = np.random.default_rng(0)
+        states = np.column_stack([rng.uniform(-1, 1, (5, 3)), rng.uniform(-np.pi, np.pi, 5)])
+        pts = rng.uniform(-5, 5, (50, 3))
+        T = cam_from_world(states, BODY_FROM_CAM, tilt())
+        uv, depth = project(camera.K, T, np.broadcast_to(pts, (5, 50, 3)))
+        pr = project_samples(camera.K, camera.width, camera.height, T, pts)
+        np.testing.assert_allclose(pr.depth, depth, rtol=1e-5, atol=1e-5)
+        ok = depth > 0.1
+        np.testing.assert_allclose(pr.u[ok], uv[..., 0][ok], rtol=1e-4, atol=1e-3)
+        idx, valid, _ = pixel_index(projection_matrices(T, camera.K), np.vstack(
+            [pts.T, np.ones(50)]).astype(np.float32), camera.width, camera.height)
+        inside = ok & (uv[..., 0] > 0) & (uv[..., 0] < camera.width - 1) & (uv[..., 1] > 0) & (
+            uv[..., 1] < camera.height - 1)
+        np.testing.assert_array_equal(valid[inside], True)
+        np.testing.assert_array_equal(valid[~ok], False)
+        v, u = np.divmod(idx[inside], camera.width)
+        np.testing.assert_array_equal(u, np.rint(uv[..., 0][inside]))
+        np.testing.assert_array_equal(v, np.rint(uv[..., 1][inside]))
+
+    def test_camera_pose(self):
+        T = cam_from_world(STATE, BODY_FROM_CAM)
+        world_from_cam = np.linalg.inv(T[0])
+        # the camera looks along the body x axis (yaw 95 deg: mostly +Y)
+        np.testing.assert_allclose(world_from_cam[:3, 2], [np.cos(np.deg2rad(95)),
+                                                           np.sin(np.deg2rad(95)), 0], atol=1e-9)
+        np.testing.assert_allclose(world_from_cam[:3, 3], camera_centres(STATE, BODY_FROM_CAM)[0])
+
+    def test_image_directions_finite_difference(self, camera):
+        rng = np.random.default_rng(1)
+        pts = rng.uniform([-1, 2, 0], [1, 4, 2], (20, 3))
+        dirs = rng.normal(size=(20, 3))
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        T = cam_from_world(STATE, BODY_FROM_CAM, tilt())
+        P = projection_matrices(T, camera.K)
+        ph = np.vstack([pts.T, np.ones(20)]).astype(np.float32)
+        _, _, xh = pixel_index(P, ph, camera.width, camera.height)
+        du, dv = image_directions(P, dirs, xh)
+        a = project_samples(camera.K, 160, 120, T, pts)
+        b = project_samples(camera.K, 160, 120, T, pts + 1e-3 * dirs)
+        fd = np.stack([b.u - a.u, b.v - a.v], -1)[0]
+        an = np.stack([du, dv], -1)[0]
+        cos = (fd * an).sum(-1) / np.linalg.norm(fd, axis=-1) / np.linalg.norm(an, axis=-1)
+        np.testing.assert_allclose(cos, 1.0, atol=1e-3)
+
+
+@pytest.fixture(scope="module")
+def scene(small_world, camera, renderer):
+    """Samples, the rendered labels and depth at STATE, direct occlusion, the projection."""
+    s = sample_segments(small_world.segments, 0.05)
+    keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
+    s, _ = s.select(keep)
+    R = tilt()
+    T = cam_from_world(STATE, BODY_FROM_CAM, R)
+    labels, depth = renderer.render(np.linalg.inv(T[0]))
+    hidden = occluded(small_world, camera_centres(STATE, BODY_FROM_CAM, R), s.points)[0]
+    pr = project_samples(camera.K, camera.width, camera.height, T, s.points)
+    return s, labels, depth, hidden, pr
+
+
+class TestAgainstRender:
+    """Projected, visible edge samples land on the rendered class boundaries and depths."""
+
+    def test_render_sees_the_corridor(self, scene):
+        _, labels, depth, _, _ = scene
+        assert set(np.unique(labels)) >= {1, 2, 3}
+        assert (depth > 0).all()  # closed model: every pixel hits it
+
+    def test_visible_samples_on_rendered_boundaries(self, scene):
+        from localize.edges import label_edges
+        from localize.likelihood import distance_to
+
+        s, labels, depth, hidden, pr = scene
+        vis = pr.in_view[0] & ~hidden
+        assert vis.sum() > 100
+        d = distance_to(label_edges(labels, dilate_px=0).edges)
+        u, v = np.rint(pr.u[0][vis]).astype(int), np.rint(pr.v[0][vis]).astype(int)
+        assert np.median(d[v, u]) <= 1.0
+        assert np.mean(d[v, u] <= 2.0) > 0.9
+
+    def test_visible_depth_matches_hidden_is_behind(self, scene):
+        s, labels, depth, hidden, pr = scene
+        u, v = np.rint(pr.u[0]).astype(int), np.rint(pr.v[0]).astype(int)
+        iv = pr.in_view[0]
+        # the nearest rendered depth in a 3x3 window (samples sit on depth edges)
+        pad = np.pad(depth, 1, mode="edge")
+        win = np.stack([pad[1 + dy:1 + dy + depth.shape[0], 1 + dx:1 + dx + depth.shape[1]]
+                        for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
+        near, far = win.min(axis=0), win.max(axis=0)
+        z = pr.depth[0]
+        vis, hid = iv & ~hidden, iv & hidden
+        assert hid.sum() > 10, "the pose must see something hidden (the side opening)"
+        ok_vis = (near[v[vis], u[vis]] <= z[vis] + 0.05) & (far[v[vis], u[vis]] >= z[vis] - 0.05)
+        assert ok_vis.mean() > 0.95
+        assert (near[v[hid], u[hid]] < z[hid] - 0.05).mean() > 0.9
+
+    def test_grid_lookup_agrees_with_direct_rays(self, small_world, scene):
+        s = scene[0]
+        grid = build_visibility_grid(small_world, s.points, cell_xy=0.3, cell_z=0.4)
+        centres = grid.centres()
+        pick = np.random.default_rng(0).choice(len(centres), 20, replace=False)
+        direct = ~occluded(small_world, centres[pick], s.points)
+        np.testing.assert_array_equal(grid.lookup(centres[pick]), direct)
+        np.testing.assert_array_equal(grid.cell_index(centres[pick]), pick)
+
+    def test_cache_round_trip(self, small_world, scene, tmp_path):
+        s = scene[0]
+        a = load_or_build(small_world, s.points, tmp_path, cell_xy=0.5, cell_z=0.5)
+        assert len(list(tmp_path.glob("visibility_*.npz"))) == 1
+        b = load_or_build(small_world, s.points, tmp_path, cell_xy=0.5, cell_z=0.5)
+        np.testing.assert_array_equal(a.visible, b.visible)
+        np.testing.assert_allclose(a.origin, b.origin)
+
+    def test_grid_covers_free_space(self, small_world):
+        origin, cell, shape = grid_layout(small_world, 0.2, 0.25, 0.3)
+        hi = origin + cell * (shape - 1)
+        boxes = small_world.free_boxes
+        assert origin[0] <= boxes[:, 0].min() and hi[0] >= boxes[:, 2].max()
+        assert origin[2] <= small_world.z_range[0] and hi[2] >= small_world.z_range[1]

@@ -1,0 +1,156 @@
+"""``python -m localize`` end to end on the tiny dataset: every mode converges, the report's
+shape, resuming, the paper-faithful comparison, and clear errors for bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from datagen.poses import read_tum
+from localize.runner import RunSpec, run
+from tests.localize.conftest import QUICK, localize_cfg
+
+
+@pytest.fixture(scope="module")
+def report(flat_dataset, flat_segnet, tmp_path_factory):
+    """All three modes, tracking and global init, on the flat-shaded tiny flights."""
+    out = tmp_path_factory.mktemp("reports")
+    cfg = localize_cfg([*QUICK, f"dataset={flat_dataset}", f"onnx_model={flat_segnet}",
+                        f"out_root={out}", "name=t", "modes=[none,cnn,oracle]",
+                        "inits=[tracking,global]",
+                        "filter.global_particles=6000", "filter.global_frames=8"])
+    path = run(cfg)
+    return cfg, path
+
+
+@pytest.mark.slow
+class TestEndToEnd:
+    def test_each_mode_converges_tracking(self, report):
+        # The tiny `paper` flight starts with a person filling the 128x96 view, so tracking
+        # there is a matter of luck; the tiny `cluttered` flight has a clear start. Label modes
+        # must track tightly; `none` (Canny on flat-shaded images with distractors) only has
+        # to stay near the truth.
+        cfg, path = report
+        m = json.loads((path.parent / "metrics.json").read_text())
+        for mode, bound in (("none", 0.4), ("cnn", 0.1), ("oracle", 0.1)):
+            rec = json.loads(RunSpec("cluttered", mode, "tracking", 0).paths(path.parent)[1]
+                             .read_text())
+            last = np.mean(rec["position_error_m"][-10:])
+            assert last < bound, (mode, last)
+            assert m["flights"]["cluttered"][mode]["mean_position_error_m"] < bound
+        for flight in ("paper", "cluttered"):
+            for mode in ("none", "cnn", "oracle"):
+                assert m["flights"][flight][mode]["failure_rate"] < 0.5, (flight, mode)
+
+    def test_oracle_global_converges(self, report):
+        cfg, path = report
+        m = json.loads((path.parent / "metrics.json").read_text())
+        conv = [m["flights"][f]["oracle"]["global"]["convergence_frames"][0]
+                for f in ("paper", "cluttered")]
+        assert any(c is not None and c <= 25 for c in conv), conv
+
+    def test_metrics_shape(self, report, flat_dataset):
+        cfg, path = report
+        m = json.loads((path.parent / "metrics.json").read_text())
+        assert set(m) >= {"flights", "timing_ms", "dataset"}
+        assert m["dataset"] == str(flat_dataset)
+        entry = m["flights"]["paper"]["cnn"]
+        for key in ("mean_position_error_m", "median_m", "rmse_m", "p95_m",
+                    "mean_yaw_error_deg"):
+            assert isinstance(entry[key], float)
+        assert set(m["timing_ms"]) == {"acquisition", "segmentation", "preprocessing",
+                                       "filter", "total"}
+        for v in m["timing_ms"].values():
+            assert v["min"] <= v["avg"] <= v["max"]
+        assert m["timing_mode"] == "cnn"
+        assert {t["target"].split(":")[0] for t in m["targets"]}
+
+    def test_files(self, report):
+        cfg, path = report
+        d = path.parent
+        text = path.read_text()
+        assert "0.32" in text and "177" in text
+        for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
+            assert (d / "plots" / f"{png}.png").stat().st_size > 1000
+            assert f"plots/{png}.png" in text
+        t, poses = read_tum(d / "trajectories" / "paper" / "cnn_seed0.txt")
+        assert poses.shape == (30, 4, 4) and np.isfinite(poses).all()
+        assert (d / "trajectories" / "paper" / "oracle_global_seed0.txt").is_file()
+
+    def test_resume_skips_finished_runs(self, report):
+        cfg, path = report
+        traj = path.parent / "trajectories" / "paper" / "none_seed0.txt"
+        before = traj.stat().st_mtime_ns
+        again = run(cfg)
+        assert again == path and traj.stat().st_mtime_ns == before
+        assert RunSpec("paper", "none", "tracking", 0).done(path.parent)
+
+
+@pytest.mark.slow
+def test_paper_faithful_comparison(tiny_dataset, tmp_path):
+    cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}", "name=pf",
+                        "modes=[oracle]", "inits=[tracking]", "flight_names=[paper]",
+                        "max_frames=4", "paper_faithful.enabled=true",
+                        "paper_faithful.frames=3", "paper_faithful.num_particles=8",
+                        "paper_faithful.hough.min_length=8"])
+    path = run(cfg)
+    m = json.loads((path.parent / "metrics.json").read_text())
+    pf = m["paper_faithful"]
+    assert pf["paper_faithful"]["num_particles"] == pf["vectorized"]["num_particles"] == 8
+    assert pf["speed_ratio"] > 1.0
+    assert np.isfinite(pf["paper_faithful"]["mean_position_error_m"])
+    assert "paper-faithful" in path.read_text()
+
+
+class TestBadInput:
+    def test_missing_dataset(self, tmp_path):
+        cfg = localize_cfg([*QUICK, f"dataset={tmp_path / 'nope'}", f"out_root={tmp_path}"])
+        with pytest.raises(FileNotFoundError, match="python -m datagen"):
+            run(cfg)
+
+    def test_dataset_without_flights(self, tiny_dataset, tmp_path):
+        ds = tmp_path / "ds"
+        shutil.copytree(tiny_dataset, ds, ignore=shutil.ignore_patterns("flights"))
+        cfg = localize_cfg([*QUICK, f"dataset={ds}", f"out_root={tmp_path}",
+                            "modes=[oracle]"])
+        with pytest.raises(ValueError, match="has no flights"):
+            run(cfg)
+
+    def test_unknown_flight_and_mode(self, tiny_dataset, tmp_path):
+        cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",
+                            "modes=[oracle]", "flight_names=[loop]"])
+        with pytest.raises(ValueError, match="available"):
+            run(cfg)
+        cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",
+                            "modes=[sobel]"])
+        with pytest.raises(ValueError, match="unknown edge mode"):
+            run(cfg)
+
+    def test_missing_model(self, tiny_dataset, tmp_path):
+        cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",
+                            "modes=[cnn]", f"onnx_model={tmp_path / 'segnet.onnx'}"])
+        with pytest.raises(FileNotFoundError, match="segmentation model not found"):
+            run(cfg)
+
+    def test_model_classes_mismatch(self, tiny_dataset, tmp_path):
+        from datagen import classes as C
+        from tests.localize.conftest import palette_segnet
+
+        other = C.as_json()  # same count, one class renamed: a model of another dataset
+        other[6] = {**other[6], "name": "furniture"}
+        onnx_path = palette_segnet(tmp_path / "segnet.onnx", 96, 128, classes=other)
+        cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",
+                            "modes=[cnn]", f"onnx_model={onnx_path}"])
+        with pytest.raises(ValueError, match="do not match the dataset"):
+            run(cfg)
+
+    def test_missing_world(self, tiny_dataset, tmp_path):
+        ds = tmp_path / "ds"
+        shutil.copytree(tiny_dataset, ds)
+        (ds / "world" / "edges.npz").unlink()
+        cfg = localize_cfg([*QUICK, f"dataset={ds}", f"out_root={tmp_path}", "modes=[oracle]"])
+        with pytest.raises(FileNotFoundError, match="edges.npz"):
+            run(cfg)

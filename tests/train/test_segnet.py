@@ -1,0 +1,178 @@
+"""SegNet model: topology, shapes, padding, unpooling, bad input."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from torch import nn
+
+from train.segnet import (
+    SegNet,
+    WindowMaxPool,
+    WindowMaxUnpool,
+    build_segnet,
+    code_to_plane_index,
+    pad_to_multiple,
+    plane_index_to_code,
+    vgg_stages,
+)
+
+
+def _tiny(**kw) -> SegNet:
+    args = dict(
+        num_classes=5,
+        width=0.125,
+        stages=3,
+        convs_per_stage=[1, 1, 2],
+        generator=torch.Generator().manual_seed(0),
+    )
+    args.update(kw)
+    return SegNet(**args).eval()
+
+
+class TestTopology:
+    def test_full_model_is_vgg16_bn(self) -> None:
+        m = SegNet(num_classes=8)
+        convs = [x for x in m.encoder.modules() if isinstance(x, nn.Conv2d)]
+        bns = [x for x in m.encoder.modules() if isinstance(x, nn.BatchNorm2d)]
+        assert len(convs) == 13 and len(bns) == 13
+        assert [c.out_channels for c in convs] == [
+            v for v in (64, 64, 128, 128, 256, 256, 256, 512, 512, 512, 512, 512, 512)
+        ]
+        assert m.multiple == 32
+        # Decoder mirrors the encoder: 13 - 1 convs (the last becomes the classifier).
+        dec = [x for x in m.decoder.modules() if isinstance(x, nn.Conv2d)]
+        assert len(dec) == 12
+        assert m.classifier.out_channels == 8
+
+    def test_vgg_stages(self) -> None:
+        assert vgg_stages("D") == [[64, 64], [128, 128], [256] * 3, [512] * 3, [512] * 3]
+        with pytest.raises(ValueError, match="VGG config"):
+            vgg_stages("Z")
+
+    def test_compact_config(self) -> None:
+        m = build_segnet({"width": 0.125, "stages": 5, "convs_per_stage": [1, 1, 2, 2, 2]}, 8)
+        assert m.channels == [8, 16, 32, 64, 64]
+        assert m.convs_per_stage == [1, 1, 2, 2, 2]
+
+    @pytest.mark.parametrize(
+        "bad",
+        [
+            dict(stages=6),
+            dict(stages=0),
+            dict(width=0.0),
+            dict(convs_per_stage=[1, 1]),
+            dict(num_classes=1),
+        ],
+    )
+    def test_bad_config(self, bad: dict) -> None:
+        with pytest.raises(ValueError):
+            _tiny(**bad)
+
+
+class TestForward:
+    @pytest.mark.parametrize("size", [(32, 48), (48, 64), (30, 50), (17, 9)])
+    def test_output_shape(self, size: tuple[int, int]) -> None:
+        m = _tiny()
+        x = torch.rand(2, 3, *size)
+        with torch.no_grad():
+            y = m(x)
+        assert y.shape == (2, 5, *size)
+        assert y.dtype == torch.float32
+
+    def test_padding_matches_explicit_pad(self) -> None:
+        m = _tiny()
+        x = torch.rand(1, 3, 30, 50)
+        xp, (h, w) = pad_to_multiple(x, m.multiple)
+        assert xp.shape[-2:] == (32, 56) and (h, w) == (30, 50)
+        with torch.no_grad():
+            torch.testing.assert_close(m(x), m(xp)[..., :30, :50])
+
+    def test_no_auto_pad_raises_with_advice(self) -> None:
+        m = _tiny(auto_pad=False)
+        with pytest.raises(ValueError, match="divisible by 8.*pad_to_multiple"):
+            m(torch.rand(1, 3, 30, 48))
+        assert m(torch.rand(1, 3, 32, 48)).shape == (1, 5, 32, 48)
+
+    @pytest.mark.parametrize(
+        "x",
+        [
+            torch.rand(3, 32, 32),
+            torch.rand(1, 1, 32, 32),
+            torch.zeros(1, 3, 32, 32, dtype=torch.uint8),
+        ],
+    )
+    def test_bad_input(self, x: torch.Tensor) -> None:
+        with pytest.raises(ValueError, match="SegNet expects"):
+            _tiny()(x)
+
+    def test_seeded_init(self) -> None:
+        a, b = _tiny(), _tiny()
+        for pa, pb in zip(a.parameters(), b.parameters(), strict=True):
+            torch.testing.assert_close(pa, pb, rtol=0, atol=0)
+
+    def test_imposed_own_indices_reproduce_output(self) -> None:
+        m = _tiny()
+        x = torch.rand(2, 3, 32, 40)
+        with torch.no_grad():
+            y, idx = m.forward_with_indices(x)
+            y2, idx2 = m.forward_with_indices(x, idx)
+        torch.testing.assert_close(y, y2, rtol=0, atol=0)
+        assert all(torch.equal(a, b) for a, b in zip(idx, idx2, strict=True))
+
+
+class TestUnpooling:
+    def test_round_trip(self) -> None:
+        """Unpooling puts each maximum back where it was and zeros elsewhere."""
+        g = torch.Generator().manual_seed(1)
+        x = torch.rand(2, 3, 8, 10, generator=g) + 0.1  # positive: zeros never win
+        pool, unpool = nn.MaxPool2d(2, 2, return_indices=True), nn.MaxUnpool2d(2, 2)
+        y, idx = pool(x)
+        z = unpool(y, idx, output_size=x.shape[-2:])
+        assert z.shape == x.shape
+        keep = z != 0
+        assert int(keep.sum()) == y.numel()  # one survivor per window (no ties)
+        torch.testing.assert_close(z[keep], x[keep])
+        torch.testing.assert_close(pool(z)[0], y)
+
+    def test_hand_made_window(self) -> None:
+        x = torch.tensor([[[[1.0, 5.0, 2.0, 0.0], [3.0, 4.0, 7.0, 6.0]]]])
+        y, idx = nn.MaxPool2d(2, 2, return_indices=True)(x)
+        assert y.flatten().tolist() == [5.0, 7.0]
+        assert idx.flatten().tolist() == [1, 6]
+        z = nn.MaxUnpool2d(2, 2)(y * 10, idx)
+        assert z.tolist() == [[[[0.0, 50.0, 0.0, 0.0], [0.0, 0.0, 70.0, 0.0]]]]
+
+
+class TestWindowPooling:
+    """WindowMaxPool/Unpool compute exactly what MaxPool2d/MaxUnpool2d compute."""
+
+    @staticmethod
+    def _with_ties() -> torch.Tensor:
+        g = torch.Generator().manual_seed(4)
+        x = torch.randint(0, 3, (2, 3, 8, 12), generator=g).float()  # many exact ties
+        return torch.where(x == 0, 0.0, x - 1.5)  # zeros, negatives and positives
+
+    def test_matches_torch_pooling_with_ties(self) -> None:
+        x = self._with_ties()
+        y, idx = nn.MaxPool2d(2, 2, return_indices=True)(x)
+        yw, code = WindowMaxPool()(x)
+        torch.testing.assert_close(yw, y, rtol=0, atol=0)
+        assert torch.equal(code_to_plane_index(code), idx)
+        assert torch.equal(plane_index_to_code(idx), code)
+        v = torch.randn(y.shape, generator=torch.Generator().manual_seed(5))
+        torch.testing.assert_close(
+            WindowMaxUnpool()(v, code), nn.MaxUnpool2d(2, 2)(v, idx), rtol=0, atol=0
+        )
+
+    def test_model_modes_agree(self) -> None:
+        m = _tiny()
+        x = torch.rand(2, 3, 30, 44, generator=torch.Generator().manual_seed(6))
+        x[:, :, :10] = 0.5  # flat region: exact ties after every layer
+        with torch.no_grad():
+            a, ia = m.forward_with_indices(x)
+            b, ib = m.set_pooling("window").forward_with_indices(x)
+        torch.testing.assert_close(a, b, rtol=0, atol=0)
+        assert all(torch.equal(p, q) for p, q in zip(ia, ib, strict=True))
+        with pytest.raises(ValueError, match="pooling"):
+            m.set_pooling("avg")

@@ -1,0 +1,118 @@
+"""Loading splits (with bad-input errors) and joint image/label augmentation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from datagen import classes as C
+from datagen.atomic import write_png
+from datagen.dataset import Dataset
+from train.data import AugmentConfig, augment_batch, batches, check_classes, load_split
+
+GEOMETRY_ONLY = dict(
+    brightness=0.0, contrast=0.0, saturation=0.0, hue=0.0, blur_prob=0.0, noise_std=0.0
+)
+
+
+def _palette_batch(n: int = 4) -> tuple[torch.Tensor, torch.Tensor]:
+    """Images whose colour is exactly the class colour of their label."""
+    rng = np.random.default_rng(0)
+    labels = np.zeros((n, 48, 64), dtype=np.uint8)
+    for i in range(n):
+        labels[i, :, :] = C.WALL
+        labels[i, :12] = C.CEILING
+        labels[i, 36:] = C.FLOOR
+        x0 = int(rng.integers(0, 40))
+        labels[i, 10:40, x0 : x0 + 14] = C.DOOR
+    rgb = C.palette()[labels]
+    return torch.from_numpy(rgb).permute(0, 3, 1, 2).contiguous(), torch.from_numpy(labels)
+
+
+class TestAugment:
+    def test_geometry_keeps_image_and_label_aligned(self) -> None:
+        images, labels = _palette_batch()
+        cfg = AugmentConfig(crop=(32, 48), scale=(0.8, 1.5), hflip=0.5, **GEOMETRY_ONLY)
+        x, y = augment_batch(images, labels, cfg, torch.Generator().manual_seed(3))
+        assert x.shape == (4, 3, 32, 48) and y.shape == (4, 32, 48)
+        assert x.dtype == torch.float32 and y.dtype == torch.int64
+        colour = torch.from_numpy(C.palette()[: C.NUM_CLASSES]).float() / 255.0  # (K, 3)
+        dist = ((x.permute(0, 2, 3, 1)[..., None, :] - colour) ** 2).sum(-1)  # (B, h, w, K)
+        agree = (dist.argmin(-1) == y).float().mean()
+        assert agree > 0.97  # only bilinear-blended boundary pixels may differ
+
+    def test_photometric_leaves_labels(self) -> None:
+        images, labels = _palette_batch()
+        cfg = AugmentConfig(crop=None, scale=(1.0, 1.0), hflip=0.0)
+        x, y = augment_batch(images, labels, cfg, torch.Generator().manual_seed(0))
+        assert torch.equal(y, labels.long())
+        assert not torch.allclose(x, images.float() / 255.0)
+        assert float(x.min()) >= 0.0 and float(x.max()) <= 1.0
+
+    def test_seeded(self) -> None:
+        images, labels = _palette_batch()
+        cfg = AugmentConfig(crop=(32, 32))
+        a = augment_batch(images, labels, cfg, torch.Generator().manual_seed(5))
+        b = augment_batch(images, labels, cfg, torch.Generator().manual_seed(5))
+        c = augment_batch(images, labels, cfg, torch.Generator().manual_seed(6))
+        assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])
+        assert not torch.equal(a[0], c[0])
+
+    def test_bad_shapes(self) -> None:
+        with pytest.raises(ValueError, match="expected images"):
+            augment_batch(
+                torch.zeros(2, 3, 8, 8, dtype=torch.uint8),
+                torch.zeros(2, 8, 9, dtype=torch.uint8),
+                AugmentConfig(),
+                torch.Generator(),
+            )
+
+    def test_unknown_key(self) -> None:
+        with pytest.raises(ValueError, match="unknown data.augment keys"):
+            AugmentConfig.from_dict({"rotate": 3})
+
+
+def test_batches() -> None:
+    assert [b.tolist() for b in batches(5, 2)] == [[0, 1], [2, 3], [4]]
+    assert [b.tolist() for b in batches(5, 2, drop_last=True)] == [[0, 1], [2, 3]]
+    shuffled = torch.cat(list(batches(7, 3, torch.Generator().manual_seed(0))))
+    assert sorted(shuffled.tolist()) == list(range(7))
+
+
+class TestLoad:
+    def test_load(self, synthetic_dataset: Path) -> None:
+        data = load_split(Dataset(synthetic_dataset), "val", 8)
+        assert data.images.shape == (6, 3, 48, 64) and data.images.dtype == torch.uint8
+        assert data.labels.shape == (6, 48, 64)
+        assert len(data) == 6 and data.paths[0].name == "000000.png"
+
+    def test_missing_dataset(self, tmp_path: Path) -> None:
+        with pytest.raises(FileNotFoundError, match="python -m datagen"):
+            Dataset(tmp_path / "nope")
+
+    def test_wrong_image_size(self, tmp_path: Path, make_dataset) -> None:
+        root = make_dataset(tmp_path / "ds", {"train": 2, "val": 1, "test": 1})
+        write_png(root / "train" / "rgb" / "000001.png", np.zeros((40, 64, 3), np.uint8))
+        with pytest.raises(ValueError, match=r"000001.png.*does not match the dataset camera"):
+            load_split(Dataset(root), "train", 8)
+
+    def test_unknown_label_id(self, tmp_path: Path, make_dataset) -> None:
+        root = make_dataset(tmp_path / "ds", {"train": 2, "val": 1, "test": 1})
+        lab = np.full((48, 64), 9, np.uint8)
+        write_png(root / "train" / "label" / "000000.png", lab)
+        with pytest.raises(ValueError, match=r"label ids \[9\] are not among the 8 classes"):
+            load_split(Dataset(root), "train", 8)
+
+    def test_empty_split(self, tmp_path: Path, make_dataset) -> None:
+        root = make_dataset(tmp_path / "ds", {"train": 1, "val": 0, "test": 0})
+        with pytest.raises(FileNotFoundError, match="split 'val'.*no images"):
+            load_split(Dataset(root), "val", 8)
+
+    def test_class_count_mismatch(self) -> None:
+        assert check_classes(C.as_json(), None, "x/dataset.json") == 8
+        assert check_classes(C.as_json(), 8, "x/dataset.json") == 8
+        with pytest.raises(ValueError, match="class-count mismatch: model.num_classes=5"):
+            check_classes(C.as_json(), 5, "x/dataset.json")

@@ -1,0 +1,44 @@
+"""Median-frequency class balancing and the weighted loss."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from train.losses import class_pixel_counts, median_frequency_weights, segmentation_loss
+
+
+def test_pixel_counts_hand_made() -> None:
+    labels = torch.tensor([[[0, 0], [1, 255]], [[1, 1], [1, 2]]], dtype=torch.uint8)
+    counts, image_pixels = class_pixel_counts(labels, 4)
+    assert counts.tolist() == [2, 4, 1, 0]
+    # class 0 only in image 0 (3 valid px), class 1 in both (3 + 4), class 2 in image 1 (4)
+    assert image_pixels.tolist() == [3, 7, 4, 0]
+
+
+def test_median_frequency_hand_made() -> None:
+    labels = torch.tensor([[[0, 0], [1, 255]], [[1, 1], [1, 2]]], dtype=torch.uint8)
+    w = median_frequency_weights(labels, 4)
+    freq = torch.tensor([2 / 3, 4 / 7, 1 / 4])
+    median = 4 / 7
+    torch.testing.assert_close(w[:3], median / freq)
+    assert w[3] == 0.0  # absent class
+    clipped = median_frequency_weights(labels, 4, max_weight=2.0)
+    assert float(clipped.max()) == pytest.approx(2.0)
+
+
+def test_all_ignore_raises() -> None:
+    with pytest.raises(ValueError, match="ignore"):
+        median_frequency_weights(torch.full((1, 2, 2), 255, dtype=torch.uint8), 3)
+
+
+def test_loss_ignores_255() -> None:
+    logits = torch.randn(1, 3, 2, 2, generator=torch.Generator().manual_seed(0))
+    target = torch.tensor([[[0, 1], [2, 255]]])
+    full = segmentation_loss(logits, target)
+    manual = -torch.log_softmax(logits, 1)[0, [0, 1, 2], [0, 0, 1], [0, 1, 0]].mean()
+    torch.testing.assert_close(full, manual)
+    w = torch.tensor([1.0, 2.0, 0.0])
+    weighted = segmentation_loss(logits, target, w)
+    terms = -torch.log_softmax(logits, 1)[0, [0, 1], [0, 0], [0, 1]]
+    torch.testing.assert_close(weighted, (terms * torch.tensor([1.0, 2.0])).sum() / 3.0)

@@ -1,0 +1,68 @@
+"""Confusion matrix and SegNet-paper scores against hand-computed values."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
+
+
+class TestConfusionMatrix:
+    def test_hand_made(self) -> None:
+        target = torch.tensor([[0, 0, 1, 1], [2, 2, 255, 1]])
+        pred = torch.tensor([[0, 1, 1, 1], [2, 0, 2, 0]])
+        cm = confusion_matrix(pred, target, 3)
+        expected = [
+            [1, 1, 0],  # true 0: one right, one as 1
+            [1, 2, 0],  # true 1: two right, one as 0 (the 255 pixel is skipped)
+            [1, 0, 1],
+        ]  # true 2: one right, one as 0
+        assert cm.tolist() == expected
+
+    def test_shape_mismatch(self) -> None:
+        with pytest.raises(ValueError, match="differ"):
+            confusion_matrix(torch.zeros(2, 2), torch.zeros(2, 3), 3)
+
+    def test_out_of_range(self) -> None:
+        with pytest.raises(ValueError, match="outside"):
+            confusion_matrix(torch.tensor([3]), torch.tensor([0]), 3)
+
+
+class TestScores:
+    def test_hand_computed(self) -> None:
+        cm = np.array([[1, 1, 0], [1, 2, 0], [1, 0, 1]])
+        s = scores(cm)
+        assert s["pixel_accuracy"] == pytest.approx(4 / 7)
+        # recalls 1/2, 2/3, 1/2
+        assert s["class_accuracy"] == pytest.approx((1 / 2 + 2 / 3 + 1 / 2) / 3)
+        # IoU = tp / (gt + pred - tp): 1/(2+3-1), 2/(3+3-2), 1/(2+1-1)
+        np.testing.assert_allclose(s["iou"], [1 / 4, 2 / 4, 1 / 2])
+        assert s["mean_iou"] == pytest.approx((1 / 4 + 1 / 2 + 1 / 2) / 3)
+
+    def test_absent_class_excluded(self) -> None:
+        # class 2 never in the truth, predicted once (a false positive for class 0's pixel)
+        cm = np.array([[3, 0, 1], [0, 4, 0], [0, 0, 0]])
+        s = scores(cm)
+        assert math.isnan(s["iou"][2]) and not s["present"][2]
+        assert s["mean_iou"] == pytest.approx((3 / 4 + 1.0) / 2)
+        assert s["class_accuracy"] == pytest.approx((3 / 4 + 1.0) / 2)
+        assert s["pixel_accuracy"] == pytest.approx(7 / 8)
+
+    def test_perfect(self) -> None:
+        s = scores(np.diag([5, 0, 2]))
+        assert s["pixel_accuracy"] == s["class_accuracy"] == s["mean_iou"] == 1.0
+
+    def test_metrics_json_and_plot(self, tmp_path) -> None:
+        cm = np.array([[3, 0, 1], [0, 4, 0], [0, 0, 0]])
+        d = metrics_json(cm, ["a", "b", "c"])
+        json.dumps(d)  # serializable
+        assert d["per_class_iou"] == {"a": 0.75, "b": 1.0, "c": None}
+        for k in ("pixel_accuracy", "class_accuracy", "mean_iou"):
+            assert 0.0 <= d[k] <= 1.0
+        plot_confusion(cm, ["a", "b", "c"], tmp_path / "cm.png", title="t")
+        assert (tmp_path / "cm.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

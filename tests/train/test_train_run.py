@@ -1,0 +1,155 @@
+"""End-to-end training runs on the tiny synthetic dataset: outputs, resume, bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+import train.train as tt
+from datagen.dataset import Dataset
+from train.data import load_split, to_float
+from train.losses import median_frequency_weights, segmentation_loss
+from train.runtime import read_metadata
+from train.segnet import SegNet
+
+
+@pytest.fixture(scope="module")
+def trained(synthetic_dataset: Path, compose_train, tmp_path_factory) -> tuple[Path, dict]:
+    """One uninterrupted 2-epoch run."""
+    out_root = tmp_path_factory.mktemp("models")
+    metrics = tt.run(compose_train(synthetic_dataset, out_root))
+    return out_root / "demo", metrics
+
+
+def test_loss_falls(synthetic_dataset: Path) -> None:
+    data = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
+    model = SegNet(
+        8,
+        width=0.125,
+        stages=3,
+        convs_per_stage=[1, 1, 1],
+        generator=torch.Generator().manual_seed(0),
+    )
+    weights = median_frequency_weights(data.labels, 8, max_weight=10.0)
+    opt = torch.optim.AdamW(model.parameters(), lr=1e-2)
+    x, y = to_float(data.images), data.labels.long()
+    losses = []
+    for _ in range(12):
+        loss = segmentation_loss(model(x), y, weights)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(loss.item())
+    assert losses[-1] < 0.7 * losses[0], losses
+
+
+@pytest.mark.slow
+class TestRun:
+    def test_outputs(self, trained, capsys) -> None:
+        out, metrics = trained
+        for f in (
+            "config.json",
+            "checkpoint_last.pt",
+            "checkpoint_best.pt",
+            "segnet.onnx",
+            "metrics.json",
+            "confusion.png",
+            "train_log.csv",
+        ):
+            assert (out / f).is_file(), f
+        on_disk = json.loads((out / "metrics.json").read_text())
+        assert on_disk == json.loads(json.dumps(metrics))
+        test = on_disk["test"]
+        for k in ("pixel_accuracy", "class_accuracy", "mean_iou"):
+            assert 0.0 <= test[k] <= 1.0
+        assert set(test["per_class_iou"]) == {
+            c["name"]
+            for c in Dataset(json.loads((out / "config.json").read_text())["dataset"]).classes
+        }
+        assert 0.0 <= on_disk["onnx_max_abs_diff"] <= 1e-4
+        assert on_disk["train_seconds"] > 0.0
+        rows = list(csv.DictReader((out / "train_log.csv").open()))
+        assert [int(r["epoch"]) for r in rows] == [1, 2]
+        meta = read_metadata(out / "segnet.onnx")
+        assert (
+            meta["config_hash"]
+            == on_disk["config_hash"]
+            == json.loads((out / "config.json").read_text())["config_hash"]
+        )
+        assert (meta["input_height"], meta["input_width"]) == (48, 64)
+
+    def test_rerun_same_config_reuses_checkpoint(
+        self, trained, synthetic_dataset, compose_train
+    ) -> None:
+        out, metrics = trained
+        again = tt.run(compose_train(synthetic_dataset, out.parent))
+        assert again["epochs_done"] == 2
+        assert again["train_seconds"] == metrics["train_seconds"]  # nothing trained again
+        assert again["test"]["mean_iou"] == pytest.approx(metrics["test"]["mean_iou"])
+
+    def test_other_config_refused_then_overwritten(
+        self, synthetic_dataset, compose_train, tmp_path
+    ) -> None:
+        tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1"))
+        with pytest.raises(RuntimeError, match=r"another config.*seed.*overwrite=true"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1", "seed=1"))
+        m = tt.run(
+            compose_train(synthetic_dataset, tmp_path, "epochs=1", "seed=1", "overwrite=true")
+        )
+        assert m["epochs_done"] == 1
+
+    def test_resume_after_interruption(
+        self, trained, synthetic_dataset, compose_train, tmp_path, monkeypatch
+    ) -> None:
+        """Crash during epoch 2, re-run: the weights equal the uninterrupted run's."""
+        real = tt.train_one_epoch
+        calls = {"n": 0}
+
+        def crash_on_second(*args, **kwargs):
+            calls["n"] += 1
+            if calls["n"] == 2:
+                raise KeyboardInterrupt
+            return real(*args, **kwargs)
+
+        cfg = compose_train(synthetic_dataset, tmp_path)
+        monkeypatch.setattr(tt, "train_one_epoch", crash_on_second)
+        with pytest.raises(KeyboardInterrupt):
+            tt.run(cfg)
+        assert (
+            torch.load(tmp_path / "demo" / "checkpoint_last.pt", weights_only=False)["epoch"] == 1
+        )
+        monkeypatch.setattr(tt, "train_one_epoch", real)
+        tt.run(cfg)
+        resumed = torch.load(tmp_path / "demo" / "checkpoint_last.pt", weights_only=False)
+        reference = torch.load(trained[0] / "checkpoint_last.pt", weights_only=False)
+        assert resumed["epoch"] == 2
+        for k, v in reference["model"].items():
+            torch.testing.assert_close(resumed["model"][k], v, rtol=1e-5, atol=1e-6)
+
+
+class TestBadInput:
+    def test_missing_dataset(self, compose_train, tmp_path) -> None:
+        with pytest.raises(FileNotFoundError, match="dataset not found"):
+            tt.run(compose_train(tmp_path / "nope", tmp_path))
+
+    def test_class_count_mismatch(self, synthetic_dataset, compose_train, tmp_path) -> None:
+        with pytest.raises(ValueError, match="class-count mismatch"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "model.num_classes=5"))
+
+    def test_wrong_image_size(self, make_dataset, compose_train, tmp_path) -> None:
+        from datagen.atomic import write_png
+
+        root = make_dataset(tmp_path / "ds", {"train": 2, "val": 1, "test": 1})
+        write_png(
+            root / "val" / "rgb" / "000000.png", torch.zeros(48, 60, 3, dtype=torch.uint8).numpy()
+        )
+        with pytest.raises(ValueError, match="does not match the dataset camera"):
+            tt.run(compose_train(root, tmp_path))
+
+    def test_zero_budget(self, synthetic_dataset, compose_train, tmp_path) -> None:
+        with pytest.raises(RuntimeError, match="time budget"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "max_minutes=0"))

@@ -1,0 +1,1 @@
+"""train: SegNet on CPU, metrics, ONNX export (see docs/train.md)."""

@@ -1,0 +1,282 @@
+"""Dataset splits in memory and joint image/label augmentation on batches.
+
+A split is read once through ``datagen.dataset.Dataset`` into uint8 tensors (the demo dataset
+is a few hundred MB at most), so an epoch is pure tensor work. Augmentation runs on a whole
+batch at once with kornia functions and draws every random number from an explicit
+``torch.Generator``, so a resumed run sees the same batches as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from kornia.enhance import adjust_brightness, adjust_contrast, adjust_hue, adjust_saturation
+from kornia.filters import gaussian_blur2d
+from kornia.geometry.transform import crop_and_resize
+from tqdm import tqdm
+
+from datagen.atomic import read_png
+from datagen.dataset import Dataset
+
+IGNORE = 255
+
+
+@dataclass(frozen=True)
+class SplitData:
+    """One split held in memory.
+
+    Attributes:
+        images: (N, 3, H, W) uint8 RGB.
+        labels: (N, H, W) uint8 class ids, 255 = ignore.
+        paths: the N rgb image paths, in order.
+    """
+
+    images: torch.Tensor
+    labels: torch.Tensor
+    paths: list[Path]
+
+    def __len__(self) -> int:
+        return int(self.images.shape[0])
+
+
+def check_classes(classes: Sequence[dict], num_classes: int | None, source: str) -> int:
+    """Number of classes of a dataset, checked against a configured count.
+
+    Args:
+        classes: the ``classes`` list of dataset.json (dicts with id, name, color, structural).
+        num_classes: ``model.num_classes`` from the config, or None to take the dataset's.
+        source: the dataset.json path, for error messages.
+
+    Returns:
+        The number of classes C; ids must be exactly 0..C-1.
+    """
+    ids = [int(c["id"]) for c in classes]
+    if ids != list(range(len(ids))):
+        raise ValueError(f"{source}: class ids must be 0..{len(ids) - 1} in order, got {ids}")
+    if num_classes is not None and int(num_classes) != len(ids):
+        raise ValueError(
+            f"class-count mismatch: model.num_classes={num_classes} but {source} lists "
+            f"{len(ids)} classes ({[c['name'] for c in classes]}). Set model.num_classes=null to "
+            f"take the dataset's classes, or train on a dataset with {num_classes} classes."
+        )
+    return len(ids)
+
+
+def load_split(
+    dataset: Dataset,
+    split: str,
+    num_classes: int,
+    limit: int | None = None,
+    progress: bool = False,
+) -> SplitData:
+    """Read a split's rgb and label PNGs into memory, checking sizes and label ids.
+
+    Args:
+        dataset: the dataset to read.
+        split: "train", "val" or "test".
+        num_classes: C; every label value must be < C or 255.
+        limit: read only the first ``limit`` frames (None = all).
+        progress: show a progress bar.
+
+    Returns:
+        The split as uint8 tensors. Raises FileNotFoundError if the split is empty and
+        ValueError naming the file if an image has the wrong size or a label an unknown id.
+    """
+    rgb_paths, label_paths = dataset.split(split)
+    if limit is not None:
+        rgb_paths, label_paths = rgb_paths[:limit], label_paths[:limit]
+    if not rgb_paths:
+        raise FileNotFoundError(
+            f"split {split!r} of dataset {dataset.root} has no images in "
+            f"{dataset.root / split / 'rgb'}; finish the dataset with `python -m datagen`."
+        )
+    cam = dataset.camera
+    n = len(rgb_paths)
+    images = np.empty((n, cam.height, cam.width, 3), dtype=np.uint8)
+    labels = np.empty((n, cam.height, cam.width), dtype=np.uint8)
+    pairs = zip(rgb_paths, label_paths, strict=True)
+    for i, (rp, lp) in enumerate(tqdm(pairs, total=n, desc=f"load {split}", disable=not progress)):
+        rgb = read_png(rp)
+        lab = read_png(lp, rgb=False)
+        for path, arr, want in ((rp, rgb, 3), (lp, lab, 2)):
+            if arr.ndim != want or arr.shape[:2] != (cam.height, cam.width):
+                raise ValueError(
+                    f"{path}: image shape {arr.shape} does not match the dataset camera "
+                    f"{cam.height}x{cam.width} in {dataset.root / 'dataset.json'} "
+                    f"({'RGB' if want == 3 else 'single-channel label'} expected); "
+                    f"regenerate the dataset or fix camera.width/height."
+                )
+        images[i] = rgb
+        labels[i] = lab
+    bad = np.unique(labels[(labels >= num_classes) & (labels != IGNORE)])
+    if bad.size:
+        frames = np.flatnonzero(((labels >= num_classes) & (labels != IGNORE)).any(axis=(1, 2)))
+        raise ValueError(
+            f"{label_paths[frames[0]]}: label ids {bad.tolist()} are not among the "
+            f"{num_classes} classes of {dataset.root / 'dataset.json'} (255 = ignore); the "
+            f"labels and the class list disagree, regenerate the dataset."
+        )
+    return SplitData(
+        images=torch.from_numpy(images).permute(0, 3, 1, 2).contiguous(),
+        labels=torch.from_numpy(labels),
+        paths=list(rgb_paths),
+    )
+
+
+def to_float(images: torch.Tensor) -> torch.Tensor:
+    """(B, 3, H, W) uint8 -> float32 in [0, 1]."""
+    return images.float().div_(255.0)
+
+
+def batches(
+    n: int, batch_size: int, generator: torch.Generator | None = None, drop_last: bool = False
+) -> Iterator[torch.Tensor]:
+    """Index batches over n items, shuffled if a generator is given.
+
+    Args:
+        n: number of items.
+        batch_size: items per batch.
+        generator: draws the permutation; None keeps the order.
+        drop_last: skip a final batch smaller than ``batch_size`` (unless it is the only one).
+
+    Yields:
+        (b,) int64 index tensors.
+    """
+    order = torch.randperm(n, generator=generator) if generator is not None else torch.arange(n)
+    stop = n - n % batch_size if drop_last and n >= batch_size else n
+    for i in range(0, stop, batch_size):
+        yield order[i : i + batch_size]
+
+
+def num_batches(n: int, batch_size: int, drop_last: bool = False) -> int:
+    if drop_last and n >= batch_size:
+        return n // batch_size
+    return -(-n // batch_size)
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Augmentation parameters (``data.augment`` in conf/train.yaml).
+
+    Attributes:
+        crop: output (height, width) of a training sample; None keeps the image size.
+        scale: range of the zoom factor (output pixels per image pixel; 1.0 = native
+            resolution, 2.0 = magnified twice). The crop box (output size / zoom) is kept
+            inside the image, so zooms below ``max(crop_h / H, crop_w / W)`` are raised to it.
+        hflip: probability of a horizontal flip.
+        brightness: additive brightness shift drawn from [-b, b].
+        contrast: contrast factor drawn from [1 - c, 1 + c].
+        saturation: saturation factor drawn from [1 - s, 1 + s].
+        hue: hue shift drawn from [-h, h] (fraction of a full turn).
+        blur_prob: probability of a Gaussian blur.
+        blur_sigma: range of the blur sigma in pixels.
+        noise_std: standard deviation of additive Gaussian noise, drawn per image from
+            [0, noise_std].
+    """
+
+    crop: tuple[int, int] | None = None
+    scale: tuple[float, float] = (1.0, 1.6)
+    hflip: float = 0.5
+    brightness: float = 0.2
+    contrast: float = 0.3
+    saturation: float = 0.3
+    hue: float = 0.03
+    blur_prob: float = 0.3
+    blur_sigma: tuple[float, float] = (0.3, 1.5)
+    noise_std: float = 0.03
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> AugmentConfig:
+        d = dict(d or {})
+        for k in ("crop", "scale", "blur_sigma"):
+            if d.get(k) is not None:
+                d[k] = tuple(d[k])
+        unknown = set(d) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(
+                f"unknown data.augment keys {sorted(unknown)}; "
+                f"known: {sorted(cls.__dataclass_fields__)}"
+            )
+        return cls(**d)
+
+
+def _uniform(gen: torch.Generator, n: int, lo: float, hi: float) -> torch.Tensor:
+    return lo + (hi - lo) * torch.rand(n, generator=gen)
+
+
+def augment_batch(
+    images: torch.Tensor, labels: torch.Tensor, cfg: AugmentConfig, gen: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Random scale/crop, flip, colour jitter, blur and noise on a batch, labels kept aligned.
+
+    Geometric changes are applied to images (bilinear) and labels (nearest) with the same
+    parameters; photometric ones to images only.
+
+    Args:
+        images: (B, 3, H, W) uint8 RGB.
+        labels: (B, H, W) uint8 class ids.
+        cfg: augmentation parameters.
+        gen: source of all random numbers.
+
+    Returns:
+        images (B, 3, h, w) float32 in [0, 1] and labels (B, h, w) int64, where (h, w) is
+        ``cfg.crop`` or (H, W).
+    """
+    if (
+        images.ndim != 4
+        or images.shape[1] != 3
+        or labels.shape != (images.shape[0], *images.shape[2:])
+    ):
+        raise ValueError(
+            f"expected images (B, 3, H, W) and labels (B, H, W), got "
+            f"{tuple(images.shape)} and {tuple(labels.shape)}"
+        )
+    b, _, h, w = images.shape
+    oh, ow = cfg.crop if cfg.crop is not None else (h, w)
+    x = to_float(images)
+    y = labels.float().unsqueeze(1)
+
+    # Scale / crop: a box of size output / zoom, kept inside the image.
+    zoom = _uniform(gen, b, *cfg.scale).clamp(min=max(oh / h, ow / w))
+    bw, bh = ow / zoom, oh / zoom
+    x0 = torch.rand(b, generator=gen) * (w - bw)
+    y0 = torch.rand(b, generator=gen) * (h - bh)
+    x1, y1 = x0 + bw - 1.0, y0 + bh - 1.0
+    boxes = torch.stack(
+        [
+            torch.stack([x0, y0], -1),
+            torch.stack([x1, y0], -1),
+            torch.stack([x1, y1], -1),
+            torch.stack([x0, y1], -1),
+        ],
+        dim=1,
+    )
+    x = crop_and_resize(x, boxes, (oh, ow), mode="bilinear", align_corners=True)
+    y = crop_and_resize(y, boxes, (oh, ow), mode="nearest", align_corners=True)
+
+    flip = (torch.rand(b, generator=gen) < cfg.hflip).view(b, 1, 1, 1)
+    x = torch.where(flip, x.flip(-1), x)
+    y = torch.where(flip, y.flip(-1), y)
+
+    if cfg.brightness > 0:
+        x = adjust_brightness(x, _uniform(gen, b, -cfg.brightness, cfg.brightness))
+    if cfg.contrast > 0:
+        x = adjust_contrast(x, _uniform(gen, b, 1 - cfg.contrast, 1 + cfg.contrast))
+    if cfg.saturation > 0:
+        x = adjust_saturation(x, _uniform(gen, b, 1 - cfg.saturation, 1 + cfg.saturation))
+    if cfg.hue > 0:
+        x = adjust_hue(x, _uniform(gen, b, -cfg.hue, cfg.hue) * 2 * torch.pi)
+    if cfg.blur_prob > 0:
+        sigma = _uniform(gen, b, *cfg.blur_sigma)
+        blur = (torch.rand(b, generator=gen) < cfg.blur_prob).view(b, 1, 1, 1)
+        ksize = 2 * int(np.ceil(3 * cfg.blur_sigma[1])) + 1
+        blurred = gaussian_blur2d(x, ksize, torch.stack([sigma, sigma], -1))
+        x = torch.where(blur, blurred, x)
+    if cfg.noise_std > 0:
+        std = _uniform(gen, b, 0.0, cfg.noise_std).view(b, 1, 1, 1)
+        x = x + std * torch.randn(x.shape, generator=gen)
+    return x.clamp_(0.0, 1.0), y.squeeze(1).round().long()

@@ -1,0 +1,85 @@
+"""Class-balanced cross-entropy (median frequency balancing, as in SegNet)."""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+
+IGNORE = 255
+
+
+def class_pixel_counts(labels: torch.Tensor, num_classes: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Pixels of each class, and valid pixels of the images each class appears in.
+
+    Args:
+        labels: (N, H, W) integer class ids, 255 = ignore.
+        num_classes: C.
+
+    Returns:
+        counts (C,) int64: pixels of class c over all images;
+        image_pixels (C,) int64: valid (non-ignore) pixels summed over the images that contain
+        class c.
+    """
+    if labels.ndim != 3:
+        raise ValueError(f"labels must be (N, H, W), got {tuple(labels.shape)}")
+    n = labels.shape[0]
+    flat = labels.reshape(n, -1).long()
+    # Ignore pixels go to an extra bin C, dropped afterwards.
+    flat = torch.where(flat == IGNORE, num_classes, flat).clamp_(max=num_classes)
+    offset = torch.arange(n).unsqueeze(1) * (num_classes + 1)
+    per_image = torch.bincount((flat + offset).reshape(-1), minlength=n * (num_classes + 1))
+    per_image = per_image.view(n, num_classes + 1)[:, :num_classes]
+    valid = per_image.sum(1, keepdim=True)
+    counts = per_image.sum(0)
+    image_pixels = (valid * (per_image > 0)).sum(0)
+    return counts, image_pixels
+
+
+def median_frequency_weights(
+    labels: torch.Tensor, num_classes: int, max_weight: float | None = None
+) -> torch.Tensor:
+    """SegNet's class weights: w_c = median_freq / freq_c.
+
+    freq_c is the pixel count of class c divided by the (valid) pixel count of the images
+    where c is present; the median is taken over the classes present. Classes absent from
+    the labels get weight 0 (they cannot be learned and never appear as targets).
+
+    Args:
+        labels: (N, H, W) integer class ids, 255 = ignore.
+        num_classes: C.
+        max_weight: clip weights to at most this value (None = no clipping).
+
+    Returns:
+        (C,) float32 weights.
+    """
+    counts, image_pixels = class_pixel_counts(labels, num_classes)
+    present = counts > 0
+    if not present.any():
+        raise ValueError("no labelled pixels: every label is 255 (ignore)")
+    freq = torch.zeros(num_classes, dtype=torch.float64)
+    freq[present] = counts[present].double() / image_pixels[present].double()
+    # torch.median returns the lower middle value for even counts; use the mean of the two.
+    sorted_freq = freq[present].sort().values
+    m = sorted_freq.numel()
+    median = 0.5 * (sorted_freq[(m - 1) // 2] + sorted_freq[m // 2])
+    weights = torch.zeros(num_classes, dtype=torch.float64)
+    weights[present] = median / freq[present]
+    if max_weight is not None:
+        weights = weights.clamp(max=max_weight)
+    return weights.float()
+
+
+def segmentation_loss(
+    logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Weighted per-pixel cross-entropy ignoring 255.
+
+    Args:
+        logits: (B, C, H, W) float.
+        target: (B, H, W) int64 class ids, 255 = ignore.
+        weight: (C,) class weights or None.
+
+    Returns:
+        Scalar loss (weighted mean over valid pixels).
+    """
+    return F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE)

@@ -1,0 +1,144 @@
+"""Segmentation scores as the SegNet paper reports them, from one confusion matrix.
+
+Rows of the confusion matrix are the true class, columns the predicted class. Pixels whose
+label is 255 (ignore) are not counted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from datagen.atomic import atomic_write
+
+IGNORE = 255
+
+
+def confusion_matrix(pred: torch.Tensor, target: torch.Tensor, num_classes: int) -> torch.Tensor:
+    """Confusion matrix by one bincount.
+
+    Args:
+        pred: (...) integer predicted class ids in [0, C).
+        target: (...) integer true class ids in [0, C) or 255 (ignored), same shape.
+        num_classes: C.
+
+    Returns:
+        (C, C) int64, entry [t, p] = number of pixels of true class t predicted as p.
+    """
+    if pred.shape != target.shape:
+        raise ValueError(f"pred {tuple(pred.shape)} and target {tuple(target.shape)} differ")
+    t = target.reshape(-1).long()
+    p = pred.reshape(-1).long()
+    keep = t != IGNORE
+    t, p = t[keep], p[keep]
+    if t.numel() and (
+        int(t.max()) >= num_classes
+        or int(p.max()) >= num_classes
+        or int(t.min()) < 0
+        or int(p.min()) < 0
+    ):
+        raise ValueError(f"class ids outside [0, {num_classes}) in pred or target")
+    return torch.bincount(t * num_classes + p, minlength=num_classes**2).view(
+        num_classes, num_classes
+    )
+
+
+def scores(cm: np.ndarray | torch.Tensor) -> dict:
+    """Global accuracy, class-average accuracy, per-class and mean IoU.
+
+    Averages run over the classes present in the ground truth (row sum > 0); absent classes
+    get NaN in the per-class arrays.
+
+    Args:
+        cm: (C, C) confusion matrix, rows = truth.
+
+    Returns:
+        dict with pixel_accuracy, class_accuracy, mean_iou (floats in [0, 1]),
+        per_class_accuracy (C,), iou (C,) float64 arrays, present (C,) bool.
+    """
+    cm = np.asarray(cm, dtype=np.float64)
+    if cm.ndim != 2 or cm.shape[0] != cm.shape[1]:
+        raise ValueError(f"confusion matrix must be (C, C), got {cm.shape}")
+    tp = np.diag(cm)
+    gt = cm.sum(1)
+    pred = cm.sum(0)
+    total = cm.sum()
+    present = gt > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        acc = np.where(present, tp / gt, np.nan)
+        iou = np.where(present, tp / (gt + pred - tp), np.nan)
+    return {
+        "pixel_accuracy": float(tp.sum() / total) if total else float("nan"),
+        "class_accuracy": float(np.nanmean(acc)) if present.any() else float("nan"),
+        "mean_iou": float(np.nanmean(iou)) if present.any() else float("nan"),
+        "per_class_accuracy": acc,
+        "iou": iou,
+        "present": present,
+    }
+
+
+def metrics_json(cm: np.ndarray | torch.Tensor, class_names: Sequence[str]) -> dict:
+    """The ``test`` block of metrics.json: fractions, per-class IoU by name (null if absent)."""
+    s = scores(cm)
+    return {
+        "pixel_accuracy": s["pixel_accuracy"],
+        "class_accuracy": s["class_accuracy"],
+        "mean_iou": s["mean_iou"],
+        "per_class_iou": {
+            n: (None if np.isnan(v) else float(v))
+            for n, v in zip(class_names, s["iou"], strict=True)
+        },
+        "per_class_accuracy": {
+            n: (None if np.isnan(v) else float(v))
+            for n, v in zip(class_names, s["per_class_accuracy"], strict=True)
+        },
+        "confusion_matrix": np.asarray(cm, dtype=np.int64).tolist(),
+    }
+
+
+def plot_confusion(
+    cm: np.ndarray | torch.Tensor, class_names: Sequence[str], path: str | Path, title: str = ""
+) -> None:
+    """Write a row-normalized confusion matrix as PNG (atomically).
+
+    Args:
+        cm: (C, C) confusion matrix, rows = truth.
+        class_names: C names.
+        path: output PNG path.
+        title: plot title.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cm = np.asarray(cm, dtype=np.float64)
+    rows = cm.sum(1, keepdims=True)
+    norm = np.divide(cm, rows, out=np.zeros_like(cm), where=rows > 0)
+    c = len(class_names)
+    fig, ax = plt.subplots(figsize=(1.0 + 0.75 * c, 0.8 + 0.7 * c), dpi=100)
+    ax.imshow(norm, cmap="Blues", vmin=0.0, vmax=1.0)
+    for i in range(c):
+        for j in range(c):
+            if rows[i, 0] > 0:
+                ax.text(
+                    j,
+                    i,
+                    f"{100 * norm[i, j]:.0f}",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="white" if norm[i, j] > 0.5 else "black",
+                )
+    ax.set_xticks(range(c), class_names, rotation=45, ha="right")
+    ax.set_yticks(range(c), class_names)
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true (row %)")
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    atomic_write(path, lambda p: fig.savefig(p, format="png"))
+    plt.close(fig)

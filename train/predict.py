@@ -1,0 +1,170 @@
+"""Segment images with an exported segnet.onnx (onnxruntime only, no torch needed at run time).
+
+API::
+
+    seg = OnnxSegmenter("outputs/models/demo/segnet.onnx", threads=2)
+    labels, probs = seg.predict(rgb)        # rgb (H, W, 3) uint8 -> (H, W) uint8, (C, H, W)
+    labels, probs = seg.predict(batch)      # (N, H, W, 3) uint8 -> (N, H, W), (N, C, H, W)
+
+Command line (writes a coloured label overlay)::
+
+    python -m train.predict image.png [--model outputs/models/demo/segnet.onnx] [--out x.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import onnx
+
+from datagen.atomic import read_png, write_png
+from train.runtime import INPUT_NAME, OUTPUT_NAME, ort_session, read_metadata
+
+DEFAULT_MODEL = Path("outputs/models/demo/segnet.onnx")
+
+
+class OnnxSegmenter:
+    """Per-pixel classes from segnet.onnx.
+
+    The graph normalizes and pads internally, so this class only converts uint8 (H, W, 3)
+    images to float32 (N, 3, H, W) in [0, 1]. Images must have the size recorded in the
+    file's metadata (``input_height`` x ``input_width``, the dataset camera's size); other
+    sizes raise ValueError (resize them first, e.g. ``cv2.resize(..., INTER_AREA)``).
+
+    Args:
+        path: segnet.onnx written by ``python -m train``.
+        threads: onnxruntime intra-op threads.
+
+    Attributes:
+        classes: the class list (dicts with id, name, color, structural).
+        num_classes: C.
+        structural_ids: (S,) int ids of the structural classes.
+        input_size: (H, W) the graph expects.
+        metadata: all decoded metadata.
+    """
+
+    def __init__(self, path: str | Path, threads: int = 2) -> None:
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"ONNX model not found: {path}. Train and export one with `python -m train`."
+            )
+        proto = onnx.load(str(path), load_external_data=False)
+        self.metadata = read_metadata(proto)
+        for key in ("classes", "input_height", "input_width"):
+            if key not in self.metadata:
+                raise ValueError(
+                    f"{path}: metadata key {key!r} missing; re-export the model "
+                    f"with `python -m train`"
+                )
+        self.path = path
+        self.classes: list[dict] = list(self.metadata["classes"])
+        self.num_classes = len(self.classes)
+        self.structural_ids = np.array(
+            [c["id"] for c in self.classes if c.get("structural")], dtype=np.int64
+        )
+        self.input_size = (int(self.metadata["input_height"]), int(self.metadata["input_width"]))
+        self.session = ort_session(proto.SerializeToString(), threads)
+        out_shape = self.session.get_outputs()[0].shape
+        if isinstance(out_shape[1], int) and out_shape[1] != self.num_classes:
+            raise ValueError(
+                f"{path}: graph outputs {out_shape[1]} classes but the metadata "
+                f"lists {self.num_classes}; re-export the model"
+            )
+        self._palette = np.full((256, 3), 255, dtype=np.uint8)
+        for c in self.classes:
+            self._palette[int(c["id"])] = c["color"]
+
+    def _to_input(self, rgb: np.ndarray) -> tuple[np.ndarray, bool]:
+        single = rgb.ndim == 3
+        batch = rgb[None] if single else rgb
+        if batch.ndim != 4 or batch.shape[-1] != 3:
+            raise ValueError(
+                f"expected an (H, W, 3) image or (N, H, W, 3) batch, got shape {rgb.shape}"
+            )
+        if batch.dtype != np.uint8:
+            raise ValueError(f"expected uint8 RGB, got {batch.dtype}")
+        if batch.shape[1:3] != self.input_size:
+            h, w = self.input_size
+            raise ValueError(
+                f"image size {batch.shape[2]}x{batch.shape[1]} (WxH) differs from the model's "
+                f"input {w}x{h} ({self.path}); resize the image to {w}x{h} first."
+            )
+        x = np.ascontiguousarray(batch.transpose(0, 3, 1, 2), dtype=np.float32)
+        x *= np.float32(1.0 / 255.0)
+        return x, single
+
+    def logits(self, rgb: np.ndarray) -> np.ndarray:
+        """Raw logits.
+
+        Args:
+            rgb: (H, W, 3) or (N, H, W, 3) uint8 RGB.
+
+        Returns:
+            (C, H, W) or (N, C, H, W) float32.
+        """
+        x, single = self._to_input(rgb)
+        out = self.session.run([OUTPUT_NAME], {INPUT_NAME: x})[0]
+        return out[0] if single else out
+
+    def predict(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Class labels and softmax probabilities.
+
+        Args:
+            rgb: (H, W, 3) or (N, H, W, 3) uint8 RGB.
+
+        Returns:
+            labels (H, W) or (N, H, W) uint8 and probs (C, H, W) or (N, C, H, W) float32.
+        """
+        z = self.logits(rgb)
+        axis = 0 if z.ndim == 3 else 1
+        labels = z.argmax(axis).astype(np.uint8)
+        z = z - z.max(axis, keepdims=True)
+        np.exp(z, out=z)
+        z /= z.sum(axis, keepdims=True)
+        return labels, z
+
+    def colorize(self, labels: np.ndarray) -> np.ndarray:
+        """(..., H, W) uint8 labels -> (..., H, W, 3) uint8 colours of the metadata's classes."""
+        return self._palette[labels]
+
+    def overlay(self, rgb: np.ndarray, labels: np.ndarray, alpha: float = 0.5) -> np.ndarray:
+        """Blend class colours over an image: (H, W, 3) uint8."""
+        blend = (1.0 - alpha) * rgb.astype(np.float32) + alpha * self.colorize(labels)
+        return np.clip(blend + 0.5, 0, 255).astype(np.uint8)
+
+
+def main(argv: list[str] | None = None) -> Path:
+    """``python -m train.predict image.png``: write a coloured label overlay next to it."""
+    ap = argparse.ArgumentParser(prog="python -m train.predict", description=__doc__.split("\n")[0])
+    ap.add_argument("image", type=Path, help="RGB image (PNG/JPEG) of the model's input size")
+    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL, help="segnet.onnx")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="overlay PNG (default: outputs/predict/<image stem>_overlay.png)",
+    )
+    ap.add_argument("--labels", type=Path, default=None, help="also write the label map here")
+    ap.add_argument("--alpha", type=float, default=0.5, help="overlay opacity of the colours")
+    ap.add_argument("--threads", type=int, default=2)
+    args = ap.parse_args(argv)
+    seg = OnnxSegmenter(args.model, threads=args.threads)
+    rgb = read_png(args.image)
+    labels, probs = seg.predict(rgb)
+    out = args.out or Path("outputs/predict") / f"{args.image.stem}_overlay.png"
+    write_png(out, seg.overlay(rgb, labels, args.alpha))
+    if args.labels is not None:
+        write_png(args.labels, labels)
+    counts = np.bincount(labels.ravel(), minlength=seg.num_classes) / labels.size
+    shares = {c["name"]: round(float(counts[c["id"]]), 3) for c in seg.classes}
+    print(f"overlay: {out}")
+    print(f"class shares: {json.dumps(shares)}")
+    return out
+
+
+if __name__ == "__main__":
+    main()

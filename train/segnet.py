@@ -1,0 +1,343 @@
+"""SegNet (Badrinarayanan et al., PAMI 2017): VGG16-BN encoder, decoder unpooling with indices.
+
+The encoder is torchvision's VGG16-BN layer configuration (``cfgs["D"]``: 13 convolutions in 5
+stages, each stage ending in a 2x2 max-pool). The decoder mirrors it: every stage starts with a
+``MaxUnpool2d`` that puts values back at the positions the encoder's pool picked, followed by
+convolutions; a 3x3 convolution gives per-pixel class logits.
+
+A width multiplier scales every channel count and ``stages`` / ``convs_per_stage`` shorten the
+network, which gives the compact CPU model (``conf/model/segnet_small.yaml``).
+
+The model takes images in [0, 1] and normalizes them itself (mean/std are buffers), so the
+exported ONNX graph takes [0, 1] input too. Spatial size must be divisible by
+``2 ** stages`` (32 for the full model); with ``auto_pad=True`` (the default) other sizes are
+reflect-padded bottom/right to the next multiple inside the forward pass and the logits are
+cropped back, so callers always get logits at the input resolution.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+from torchvision.models.vgg import cfgs
+
+#: ImageNet statistics, the usual normalization for a VGG encoder.
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+
+
+def vgg_stages(cfg: str = "D") -> list[list[int]]:
+    """Channel counts per stage of a torchvision VGG configuration.
+
+    Args:
+        cfg: key of ``torchvision.models.vgg.cfgs`` ("A" VGG11, "B" VGG13, "D" VGG16, "E" VGG19).
+
+    Returns:
+        One list of output channels per conv for each stage, e.g. VGG16:
+        ``[[64, 64], [128, 128], [256, 256, 256], [512, 512, 512], [512, 512, 512]]``.
+    """
+    if cfg not in cfgs:
+        raise ValueError(
+            f"model.vgg={cfg!r} is not a torchvision VGG config; use one of {list(cfgs)}"
+        )
+    stages: list[list[int]] = [[]]
+    for v in cfgs[cfg]:
+        if v == "M":
+            stages.append([])
+        else:
+            stages[-1].append(int(v))
+    return [s for s in stages if s]
+
+
+def pad_to_multiple(x: torch.Tensor, multiple: int) -> tuple[torch.Tensor, tuple[int, int]]:
+    """Reflect-pad an image batch bottom/right so H and W are multiples of ``multiple``.
+
+    Args:
+        x: (B, C, H, W) float tensor.
+        multiple: required divisor of the padded size, e.g. 32.
+
+    Returns:
+        The padded (B, C, H', W') tensor and the original (H, W).
+    """
+    h, w = x.shape[-2], x.shape[-1]
+    ph, pw = (-h) % multiple, (-w) % multiple
+    if ph or pw:
+        mode = "reflect" if ph < h and pw < w else "replicate"
+        x = F.pad(x, (0, pw, 0, ph), mode=mode)
+    return x, (h, w)
+
+
+def _conv_bn_relu(cin: int, cout: int) -> nn.Sequential:
+    return nn.Sequential(
+        nn.Conv2d(cin, cout, 3, padding=1, bias=False),
+        nn.BatchNorm2d(cout),
+        nn.ReLU(inplace=True),
+    )
+
+
+class WindowMaxPool(nn.Module):
+    """2x2 / stride-2 max pooling that returns, per window, where the maximum was.
+
+    Same values and the same choice as ``nn.MaxPool2d(2, 2, return_indices=True)`` (the first
+    maximum in row-major order wins a tie), but the position is a window-local code
+    0..3 = 2 * dy + dx instead of an index into the H*W plane. Exported to ONNX this is a
+    plain MaxPool (fast NCHWc kernel in onnxruntime) and three comparisons, about twice as
+    fast as MaxPool-with-indices + ScatterND.
+
+    Shapes: (B, C, H, W) with even H, W -> values (B, C, H/2, W/2), codes (B, C, H/2, W/2) uint8.
+    """
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        y = F.max_pool2d(x, 2, 2)
+        a, b, c = x[..., 0::2, 0::2], x[..., 0::2, 1::2], x[..., 1::2, 0::2]
+        code = torch.where(a == y, 0, torch.where(b == y, 1, torch.where(c == y, 2, 3)))
+        return y, code.to(torch.uint8)
+
+
+class WindowMaxUnpool(nn.Module):
+    """Inverse of ``WindowMaxPool``: each value goes to its window's code position, zeros
+    elsewhere; equals ``nn.MaxUnpool2d(2, 2)`` with the corresponding plane indices.
+
+    Shapes: values (B, C, h, w), codes (B, C, h, w) -> (B, C, 2h, 2w).
+    """
+
+    def forward(
+        self, y: torch.Tensor, code: torch.Tensor, output_size: Sequence[int] | None = None
+    ) -> torch.Tensor:
+        zero = torch.zeros((), dtype=y.dtype)
+        parts = torch.stack([torch.where(code == k, y, zero) for k in range(4)], dim=2)
+        b, c, h, w = y.shape
+        return F.pixel_shuffle(parts.reshape(b, c * 4, h, w), 2)
+
+
+def code_to_plane_index(code: torch.Tensor) -> torch.Tensor:
+    """Window codes (B, C, h, w) -> ``nn.MaxPool2d`` indices into the (2h, 2w) plane, int64."""
+    h, w = code.shape[-2:]
+    rows = torch.arange(h, device=code.device).view(h, 1) * 2
+    cols = torch.arange(w, device=code.device).view(1, w) * 2
+    c = code.long()
+    return (rows + c // 2) * (2 * w) + cols + c % 2
+
+
+def plane_index_to_code(index: torch.Tensor) -> torch.Tensor:
+    """``nn.MaxPool2d`` indices (B, C, h, w) into the (2h, 2w) plane -> window codes, uint8."""
+    w2 = 2 * index.shape[-1]
+    return ((index // w2) % 2 * 2 + index % w2 % 2).to(torch.uint8)
+
+
+class SegNet(nn.Module):
+    """SegNet encoder-decoder with pooling-index upsampling.
+
+    Args:
+        num_classes: number of output classes C.
+        width: channel multiplier applied to the VGG widths (1.0 = the paper's SegNet).
+        stages: number of encoder stages used (1..5); the input size must be divisible by
+            ``2 ** stages``.
+        convs_per_stage: convolutions in each stage (mirrored in the decoder); ``None`` keeps
+            the VGG counts (2, 2, 3, 3, 3). Values above the VGG count are allowed.
+        vgg: torchvision VGG configuration key ("D" = VGG16).
+        min_channels: lower bound on any scaled channel count.
+        mean, std: per-channel normalization applied to the [0, 1] input inside the model.
+        auto_pad: pad inputs whose size is not a multiple of ``2 ** stages`` (reflect,
+            bottom/right) and crop the logits back; if False such inputs raise ValueError.
+        pooling: "indices" (``nn.MaxPool2d`` / ``nn.MaxUnpool2d``, fastest in torch) or
+            "window" (``WindowMaxPool`` / ``WindowMaxUnpool``, the same function, fastest in
+            onnxruntime); switch with ``set_pooling`` (no weights involved).
+        generator: draws the initial weights (He-normal convolutions); None = global RNG.
+
+    Shapes:
+        input (B, 3, H, W) float32 in [0, 1]; output (B, C, H, W) logits.
+    """
+
+    def __init__(
+        self,
+        num_classes: int,
+        width: float = 1.0,
+        stages: int = 5,
+        convs_per_stage: Sequence[int] | None = None,
+        vgg: str = "D",
+        min_channels: int = 4,
+        mean: Sequence[float] = IMAGENET_MEAN,
+        std: Sequence[float] = IMAGENET_STD,
+        auto_pad: bool = True,
+        pooling: str = "indices",
+        generator: torch.Generator | None = None,
+    ) -> None:
+        super().__init__()
+        base = vgg_stages(vgg)
+        if not 1 <= stages <= len(base):
+            raise ValueError(f"model.stages must be in 1..{len(base)}, got {stages}")
+        if num_classes < 2:
+            raise ValueError(f"num_classes must be >= 2, got {num_classes}")
+        if width <= 0:
+            raise ValueError(f"model.width must be positive, got {width}")
+        base = base[:stages]
+        if convs_per_stage is None:
+            convs_per_stage = [len(s) for s in base]
+        convs_per_stage = [int(n) for n in convs_per_stage]
+        if len(convs_per_stage) != stages or min(convs_per_stage) < 1:
+            raise ValueError(
+                f"model.convs_per_stage={convs_per_stage} must have {stages} entries >= 1 "
+                f"(one per stage)"
+            )
+        chans = [max(min_channels, round(s[0] * width)) for s in base]
+        self.num_classes = int(num_classes)
+        self.stages = int(stages)
+        self.multiple = 2**self.stages
+        self.auto_pad = bool(auto_pad)
+        self.channels = chans
+        self.convs_per_stage = convs_per_stage
+        self.register_buffer("mean", torch.tensor(mean, dtype=torch.float32).view(1, 3, 1, 1))
+        self.register_buffer("std", torch.tensor(std, dtype=torch.float32).view(1, 3, 1, 1))
+
+        self.encoder = nn.ModuleList()
+        cin = 3
+        for c, n in zip(chans, convs_per_stage, strict=True):
+            layers = [_conv_bn_relu(cin if i == 0 else c, c) for i in range(n)]
+            self.encoder.append(nn.Sequential(*layers))
+            cin = c
+        self.set_pooling(pooling)
+
+        # Decoder stage k mirrors encoder stage k: n convs, the last one maps c_k -> c_{k-1}.
+        # The first stage's decoder keeps c_1 and is followed by the classifier.
+        self.decoder = nn.ModuleList()
+        for k in range(stages - 1, -1, -1):
+            c, n = chans[k], convs_per_stage[k]
+            cout = chans[k - 1] if k > 0 else c
+            n_dec = n if k > 0 else max(n - 1, 1)
+            layers = [_conv_bn_relu(c, c) for _ in range(n_dec - 1)]
+            layers.append(_conv_bn_relu(c, cout))
+            self.decoder.append(nn.Sequential(*layers))
+        self.classifier = nn.Conv2d(chans[0], num_classes, 3, padding=1)
+        self._init_weights(generator)
+
+    def set_pooling(self, pooling: str) -> SegNet:
+        """Use "indices" (nn.MaxPool2d/MaxUnpool2d) or "window" pooling; returns self."""
+        if pooling == "indices":
+            self.pool: nn.Module = nn.MaxPool2d(2, 2, return_indices=True)
+            self.unpool: nn.Module = nn.MaxUnpool2d(2, 2)
+        elif pooling == "window":
+            self.pool, self.unpool = WindowMaxPool(), WindowMaxUnpool()
+        else:
+            raise ValueError(f"pooling={pooling!r}: use 'indices' or 'window'")
+        self.pooling = pooling
+        return self
+
+    def _init_weights(self, generator: torch.Generator | None) -> None:
+        for m in self.modules():
+            if isinstance(m, nn.Conv2d):
+                nn.init.kaiming_normal_(
+                    m.weight, mode="fan_out", nonlinearity="relu", generator=generator
+                )
+                if m.bias is not None:
+                    nn.init.zeros_(m.bias)
+            elif isinstance(m, nn.BatchNorm2d):
+                nn.init.ones_(m.weight)
+                nn.init.zeros_(m.bias)
+
+    def check_input(self, x: torch.Tensor) -> None:
+        """Raise ValueError unless x is (B, 3, H, W) floating point with a usable size."""
+        if x.ndim != 4 or x.shape[1] != 3:
+            raise ValueError(f"SegNet expects (B, 3, H, W) images, got shape {tuple(x.shape)}")
+        if not x.is_floating_point():
+            raise ValueError(f"SegNet expects float images in [0, 1], got dtype {x.dtype}")
+        h, w = x.shape[-2], x.shape[-1]
+        if not self.auto_pad and (h % self.multiple or w % self.multiple):
+            raise ValueError(
+                f"SegNet with {self.stages} stages needs H and W divisible by {self.multiple}, "
+                f"got {h}x{w}. Pad bottom/right with train.segnet.pad_to_multiple(x, "
+                f"{self.multiple}) and crop the logits back, resize the image, or build the "
+                f"model with auto_pad=True."
+            )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Logits for a batch of images.
+
+        Args:
+            x: (B, 3, H, W) float32 RGB in [0, 1].
+
+        Returns:
+            (B, C, H, W) float32 class logits.
+        """
+        return self.forward_with_indices(x)[0]
+
+    def forward_with_indices(
+        self, x: torch.Tensor, indices: Sequence[torch.Tensor] | None = None
+    ) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """Logits and the encoder's max-pooling indices, optionally imposing given indices.
+
+        Imposing indices lets an export check compare torch and onnxruntime with the same
+        pooling choices: where two values in a 2x2 window differ by float rounding only, the
+        two runtimes may pick different maxima, which moves a value in the decoder by one pixel.
+
+        Args:
+            x: (B, 3, H, W) float32 RGB in [0, 1].
+            indices: one (B, C_k, H_k, W_k) int64 tensor per stage, as returned here (indices
+                into each H*W plane before pooling, as ``nn.MaxPool2d`` gives them); None
+                computes them.
+
+        Returns:
+            (B, C, H, W) logits and the list of per-stage indices.
+        """
+        self.check_input(x)
+        x, (h, w) = pad_to_multiple(x, self.multiple)
+        x = (x - self.mean) / self.std
+        window = self.pooling == "window"
+        pooled_idx: list[torch.Tensor] = []  # what self.unpool takes (indices or codes)
+        sizes: list[torch.Size] = []
+        for k, stage in enumerate(self.encoder):
+            x = stage(x)
+            sizes.append(x.shape)
+            if indices is None:
+                x, idx = self.pool(x)
+            else:
+                flat = indices[k]
+                x = x.flatten(2).gather(2, flat.flatten(2)).view(flat.shape)
+                idx = plane_index_to_code(flat) if window else flat
+            pooled_idx.append(idx)
+        for stage, idx, size in zip(
+            self.decoder, reversed(pooled_idx), reversed(sizes), strict=True
+        ):
+            x = self.unpool(x, idx, output_size=size[-2:])
+            x = stage(x)
+        x = self.classifier(x)
+        if window:
+            pooled_idx = [code_to_plane_index(c) for c in pooled_idx]
+        return x[..., :h, :w], pooled_idx
+
+    def extra_repr(self) -> str:
+        return (
+            f"num_classes={self.num_classes}, stages={self.stages}, channels={self.channels}, "
+            f"convs_per_stage={self.convs_per_stage}, auto_pad={self.auto_pad}, "
+            f"pooling={self.pooling}"
+        )
+
+
+def build_segnet(
+    model_cfg: dict, num_classes: int, generator: torch.Generator | None = None
+) -> SegNet:
+    """Build a SegNet from the ``model`` config group (keys as in ``conf/model/segnet.yaml``).
+
+    Args:
+        model_cfg: mapping with width, stages, convs_per_stage, vgg, min_channels, mean, std.
+        num_classes: number of classes of the dataset.
+        generator: draws the initial weights.
+    """
+    return SegNet(num_classes=num_classes, generator=generator, **model_kwargs(model_cfg))
+
+
+def model_kwargs(model_cfg: dict) -> dict:
+    """The SegNet constructor arguments held in a ``model`` config (without num_classes)."""
+    keys = ("width", "stages", "convs_per_stage", "vgg", "min_channels", "mean", "std")
+    out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
+    for k in ("convs_per_stage", "mean", "std"):
+        if k in out:
+            out[k] = list(out[k])
+    return out
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,553 @@
+"""The training run behind ``python -m train``: train, validate, test, export, report.
+
+Output folder ``<out_root>/<name>/``:
+
+- ``config.json``: the training config and its hash (config + dataset.json digest);
+- ``checkpoint_last.pt``: everything needed to resume (weights, optimizer, schedule, history);
+- ``checkpoint_best.pt``: weights of the epoch with the best validation score;
+- ``train_log.csv``: one row per epoch;
+- ``metrics.json``, ``confusion.png``: test-split scores of the best checkpoint;
+- ``segnet.onnx``: the best checkpoint exported and checked with onnxruntime.
+
+Re-running with the same config resumes from ``checkpoint_last.pt``; a folder made with
+another config is refused unless ``overwrite=true``.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import logging
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
+
+from datagen.atomic import atomic_write, atomic_write_json, atomic_write_text
+from datagen.dataset import Dataset
+from train.data import (
+    AugmentConfig,
+    SplitData,
+    augment_batch,
+    batches,
+    check_classes,
+    load_split,
+    num_batches,
+    to_float,
+)
+from train.export import ParityError, export_checked, onnx_metadata
+from train.losses import median_frequency_weights, segmentation_loss
+from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
+from train.segnet import SegNet, build_segnet, count_parameters, model_kwargs
+
+log = logging.getLogger(__name__)
+
+#: Config keys that do not change what is trained (left out of the config hash).
+HASH_EXCLUDE = (
+    "name",
+    "out_root",
+    "threads",
+    "max_minutes",
+    "overwrite",
+    "progress",
+    "eval.batch_size",
+    "export",
+)
+#: Files of an output folder that ``overwrite=true`` removes.
+OUTPUT_FILES = (
+    "config.json",
+    "checkpoint_last.pt",
+    "checkpoint_best.pt",
+    "train_log.csv",
+    "metrics.json",
+    "confusion.png",
+    "segnet.onnx",
+)
+
+
+# ----------------------------------------------------------------------------- config, resume
+
+
+def _drop(d: dict, dotted: str) -> None:
+    head, _, rest = dotted.partition(".")
+    if rest:
+        if isinstance(d.get(head), dict):
+            _drop(d[head], rest)
+    else:
+        d.pop(head, None)
+
+
+def training_config(cfg: DictConfig) -> dict:
+    """The part of the config that determines the trained weights (resolved, plain dict)."""
+    d = OmegaConf.to_container(cfg, resolve=True)
+    d.pop("hydra", None)
+    for key in HASH_EXCLUDE:
+        _drop(d, key)
+    return d
+
+
+def config_hash(train_cfg: dict, dataset_json: bytes) -> str:
+    """16 hex digits of sha256 over the training config and the dataset's dataset.json."""
+    h = hashlib.sha256(json.dumps(train_cfg, sort_keys=True).encode())
+    h.update(hashlib.sha256(dataset_json).digest())
+    return h.hexdigest()[:16]
+
+
+def _flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def prepare_output(out_dir: Path, info: dict, overwrite: bool) -> None:
+    """Make sure ``out_dir`` belongs to this config; clear it if ``overwrite``.
+
+    Args:
+        out_dir: the model folder.
+        info: {"config_hash", "config", "dataset_digest"} of this run.
+        overwrite: remove the files of a folder made with another config instead of failing.
+    """
+    stored_path = out_dir / "config.json"
+    if stored_path.is_file():
+        stored = json.loads(stored_path.read_text())
+        if stored.get("config_hash") != info["config_hash"]:
+            if not overwrite:
+                a, b = _flatten(stored.get("config", {})), _flatten(info["config"])
+                diff = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+                if stored.get("dataset_digest") != info["dataset_digest"]:
+                    diff.append("<dataset.json contents>")
+                raise RuntimeError(
+                    f"{out_dir} was made with another config (hash {stored.get('config_hash')} "
+                    f"vs {info['config_hash']}; differing: {', '.join(diff) or 'unknown'}). "
+                    f"Pick another name=..., or pass overwrite=true to discard it."
+                )
+            log.warning("overwrite=true: removing the previous run in %s", out_dir)
+            for f in OUTPUT_FILES:
+                (out_dir / f).unlink(missing_ok=True)
+    elif (out_dir / "checkpoint_last.pt").is_file() and not overwrite:
+        raise RuntimeError(
+            f"{out_dir} has a checkpoint but no config.json; pass overwrite=true "
+            f"to discard it or pick another name=..."
+        )
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(stored_path, info)
+
+
+def save_torch(path: Path, obj: dict) -> None:
+    """torch.save through a temporary file (atomic)."""
+    atomic_write(path, lambda p: torch.save(obj, p))
+
+
+# ----------------------------------------------------------------------------- loops
+
+
+@dataclass
+class EpochResult:
+    loss: float
+    steps: int
+    stopped: bool
+
+
+def train_one_epoch(
+    model: SegNet,
+    data: SplitData,
+    class_weights: torch.Tensor | None,
+    optimizer: torch.optim.Optimizer,
+    scheduler: torch.optim.lr_scheduler.LRScheduler,
+    augment: AugmentConfig,
+    generator: torch.Generator,
+    batch_size: int,
+    deadline: float = math.inf,
+    progress: bool = False,
+    desc: str = "train",
+) -> EpochResult:
+    """One pass over the training split with augmentation.
+
+    Args:
+        model: network in train mode after the call.
+        data: the training split in memory.
+        class_weights: (C,) cross-entropy weights or None.
+        optimizer, scheduler: stepped every batch.
+        augment: augmentation parameters.
+        generator: shuffling and augmentation randomness.
+        batch_size: images per step.
+        deadline: ``time.monotonic()`` value after which the epoch stops early.
+        progress: show a progress bar.
+        desc: progress bar label.
+
+    Returns:
+        Mean loss, number of steps done, and whether the deadline stopped the epoch.
+    """
+    model.train()
+    total, steps, stopped = 0.0, 0, False
+    n_steps = num_batches(len(data), batch_size, drop_last=True)
+    bar = tqdm(
+        batches(len(data), batch_size, generator, drop_last=True),
+        total=n_steps,
+        desc=desc,
+        disable=not progress,
+        leave=False,
+    )
+    for idx in bar:
+        if time.monotonic() > deadline:
+            stopped = True
+            break
+        x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
+        loss = segmentation_loss(model(x), y, class_weights)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        scheduler.step()
+        total += float(loss.detach())
+        steps += 1
+        bar.set_postfix(loss=f"{total / steps:.3f}")
+    bar.close()
+    return EpochResult(total / max(steps, 1), steps, stopped)
+
+
+@torch.inference_mode()
+def evaluate(
+    model: SegNet,
+    data: SplitData,
+    num_classes: int,
+    batch_size: int = 8,
+    progress: bool = False,
+    desc: str = "eval",
+) -> torch.Tensor:
+    """Confusion matrix of the model on a split (full images, no augmentation).
+
+    Returns:
+        (C, C) int64, rows = truth.
+    """
+    model.eval()
+    cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
+    bar = tqdm(
+        batches(len(data), batch_size),
+        total=num_batches(len(data), batch_size),
+        desc=desc,
+        disable=not progress,
+        leave=False,
+    )
+    for idx in bar:
+        pred = model(to_float(data.images[idx])).argmax(1)
+        cm += confusion_matrix(pred, data.labels[idx], num_classes)
+    return cm
+
+
+def make_optimizer(
+    model: SegNet, optim_cfg: dict, total_steps: int
+) -> tuple[torch.optim.Optimizer, torch.optim.lr_scheduler.LRScheduler]:
+    """AdamW or SGD with a one-cycle schedule over ``total_steps`` batches."""
+    name = optim_cfg["name"]
+    if name == "adamw":
+        opt = torch.optim.AdamW(
+            model.parameters(), lr=optim_cfg["lr"], weight_decay=optim_cfg["weight_decay"]
+        )
+    elif name == "sgd":
+        opt = torch.optim.SGD(
+            model.parameters(),
+            lr=optim_cfg["lr"],
+            momentum=optim_cfg["momentum"],
+            weight_decay=optim_cfg["weight_decay"],
+            nesterov=True,
+        )
+    else:
+        raise ValueError(f"optim.name={name!r} is not known; use adamw or sgd (conf/optim/)")
+    sched = torch.optim.lr_scheduler.OneCycleLR(
+        opt,
+        max_lr=optim_cfg["lr"],
+        total_steps=max(total_steps, 1),
+        pct_start=optim_cfg.get("warmup", 0.1),
+        cycle_momentum=name == "sgd",
+        div_factor=25.0,
+        final_div_factor=1e3,
+    )
+    return opt, sched
+
+
+def _write_log(path: Path, history: list[dict]) -> None:
+    if not history:
+        return
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(history[0]))
+    writer.writeheader()
+    writer.writerows(history)
+    atomic_write_text(path, buf.getvalue())
+
+
+# ----------------------------------------------------------------------------- the run
+
+
+def run(cfg: DictConfig) -> dict:
+    """Train (or resume), evaluate the best checkpoint on the test split, export ONNX.
+
+    Args:
+        cfg: the composed ``conf/train.yaml``.
+
+    Returns:
+        The metrics.json contents.
+    """
+    t_start = time.monotonic()
+    torch.set_num_threads(int(cfg.threads))
+    progress = bool(cfg.progress)
+    dataset = Dataset(cfg.dataset)
+    ds_json = (dataset.root / "dataset.json").read_bytes()
+    classes = dataset.classes
+    names = [c["name"] for c in classes]
+    num_classes = check_classes(
+        classes, cfg.model.get("num_classes"), str(dataset.root / "dataset.json")
+    )
+    train_cfg = training_config(cfg)
+    info = {
+        "config_hash": config_hash(train_cfg, ds_json),
+        "dataset_digest": hashlib.sha256(ds_json).hexdigest()[:16],
+        "dataset": str(dataset.root),
+        "config": train_cfg,
+    }
+    out_dir = Path(cfg.out_root) / cfg.name
+    prepare_output(out_dir, info, bool(cfg.overwrite))
+    last_path, best_path = out_dir / "checkpoint_last.pt", out_dir / "checkpoint_best.pt"
+
+    limit = cfg.data.get("limit")
+    train_data = load_split(dataset, "train", num_classes, limit, progress)
+    val_data = load_split(dataset, "val", num_classes, limit, progress)
+    augment = AugmentConfig.from_dict(OmegaConf.to_container(cfg.data.augment, resolve=True))
+
+    weights = None
+    if cfg.loss.class_weighting == "median_frequency":
+        weights = median_frequency_weights(train_data.labels, num_classes, cfg.loss.max_weight)
+    elif cfg.loss.class_weighting != "none":
+        raise ValueError(
+            f"loss.class_weighting={cfg.loss.class_weighting!r}: use median_frequency or none"
+        )
+    if weights is not None:
+        log.info(
+            "class weights: %s",
+            {n: round(float(w), 3) for n, w in zip(names, weights, strict=True)},
+        )
+
+    mcfg = OmegaConf.to_container(cfg.model, resolve=True)
+    model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
+    batch_size = min(int(cfg.batch_size), len(train_data))
+    steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
+    epochs = int(cfg.epochs)
+    optimizer, scheduler = make_optimizer(
+        model, OmegaConf.to_container(cfg.optim, resolve=True), epochs * steps_per_epoch
+    )
+    log.info(
+        "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch",
+        mcfg.get("name", "segnet"),
+        count_parameters(model),
+        model.channels,
+        len(train_data),
+        len(val_data),
+        steps_per_epoch,
+    )
+
+    state = {
+        "epoch": 0,
+        "best_score": -math.inf,
+        "best_epoch": -1,
+        "history": [],
+        "train_seconds": 0.0,
+        "stopped_by_budget": False,
+    }
+    if last_path.is_file():
+        ckpt = torch.load(last_path, map_location="cpu", weights_only=False)
+        model.load_state_dict(ckpt["model"])
+        optimizer.load_state_dict(ckpt["optimizer"])
+        scheduler.load_state_dict(ckpt["scheduler"])
+        state.update({k: ckpt[k] for k in state})
+        log.info(
+            "resuming %s after epoch %d (%.0f s trained)",
+            last_path,
+            state["epoch"],
+            state["train_seconds"],
+        )
+
+    budget = float(cfg.max_minutes) * 60.0 if cfg.max_minutes is not None else math.inf
+    while state["epoch"] < epochs and not state["stopped_by_budget"]:
+        epoch = state["epoch"]
+        t0 = time.monotonic()
+        deadline = t0 + budget - state["train_seconds"]
+        if deadline <= t0:
+            state["stopped_by_budget"] = True
+            break
+        gen = torch.Generator().manual_seed(int(cfg.seed) * 100_003 + epoch)
+        res = train_one_epoch(
+            model,
+            train_data,
+            weights,
+            optimizer,
+            scheduler,
+            augment,
+            gen,
+            batch_size,
+            deadline,
+            progress,
+            desc=f"epoch {epoch + 1}/{epochs}",
+        )
+        cm = evaluate(model, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
+        val = scores(cm)
+        dt = time.monotonic() - t0
+        state["train_seconds"] += dt
+        state["epoch"] = epoch + 1
+        state["stopped_by_budget"] = res.stopped
+        score = val[cfg.eval.select]
+        row = {
+            "epoch": epoch + 1,
+            "steps": res.steps,
+            "train_loss": round(res.loss, 5),
+            "lr": scheduler.get_last_lr()[0],
+            "val_pixel_accuracy": round(val["pixel_accuracy"], 5),
+            "val_class_accuracy": round(val["class_accuracy"], 5),
+            "val_mean_iou": round(val["mean_iou"], 5),
+            "seconds": round(dt, 1),
+        }
+        state["history"].append(row)
+        improved = score > state["best_score"]
+        if improved:
+            state["best_score"], state["best_epoch"] = score, epoch + 1
+            save_torch(
+                best_path,
+                {
+                    "model": model.state_dict(),
+                    "model_kwargs": model_kwargs(mcfg),
+                    "num_classes": num_classes,
+                    "classes": classes,
+                    "epoch": epoch + 1,
+                    "val": {k: row[k] for k in row if k.startswith("val_")},
+                    "config_hash": info["config_hash"],
+                },
+            )
+        save_torch(
+            last_path,
+            {
+                "model": model.state_dict(),
+                "optimizer": optimizer.state_dict(),
+                "scheduler": scheduler.state_dict(),
+                "config_hash": info["config_hash"],
+                **state,
+            },
+        )
+        _write_log(out_dir / "train_log.csv", state["history"])
+        log.info(
+            "epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f%s (%.0f s)%s",
+            epoch + 1,
+            epochs,
+            res.loss,
+            val["pixel_accuracy"],
+            val["mean_iou"],
+            " *" if improved else "",
+            dt,
+            "; time budget used up, stopping" if res.stopped else "",
+        )
+
+    if not best_path.is_file():
+        raise RuntimeError(
+            f"no checkpoint in {out_dir}: the time budget max_minutes="
+            f"{cfg.max_minutes} ended before the first epoch; raise it"
+        )
+    best = torch.load(best_path, map_location="cpu", weights_only=False)
+    model.load_state_dict(best["model"])
+    model.eval()
+    n_train = len(train_data)
+    del train_data
+    test_data = load_split(dataset, "test", num_classes, limit, progress)
+    cm = evaluate(model, test_data, num_classes, int(cfg.eval.batch_size), progress, "test")
+    test = metrics_json(cm, names)
+    plot_confusion(
+        cm,
+        names,
+        out_dir / "confusion.png",
+        title=f"{cfg.name}: test, pixel acc {test['pixel_accuracy']:.3f}, "
+        f"mIoU {test['mean_iou']:.3f}",
+    )
+
+    metrics = {
+        "test": test,
+        "onnx_max_abs_diff": None,
+        "train_seconds": round(state["train_seconds"], 1),
+        "epochs_done": state["epoch"],
+        "epochs": epochs,
+        "stopped_by_budget": state["stopped_by_budget"],
+        "best_epoch": state["best_epoch"],
+        "val_best": best.get("val"),
+        "model": {
+            "name": mcfg.get("name"),
+            "parameters": count_parameters(model),
+            "channels": model.channels,
+            "convs_per_stage": model.convs_per_stage,
+        },
+        "images": {"train": n_train, "val": len(val_data), "test": len(test_data)},
+        "config_hash": info["config_hash"],
+        "threads": int(cfg.threads),
+    }
+    onnx_path = out_dir / "segnet.onnx"
+    n_par = min(int(cfg.export.parity_images), len(test_data))
+    parity_images = to_float(test_data.images[:n_par])
+    pooling = str(cfg.export.pooling)
+    meta = onnx_metadata(
+        model,
+        classes,
+        parity_images.shape[2],
+        parity_images.shape[3],
+        info["config_hash"],
+        pooling=pooling,
+        extra={
+            "test_metrics": {k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")}
+        },
+    )
+    try:
+        report = export_checked(
+            model,
+            onnx_path,
+            parity_images,
+            meta,
+            tolerance=float(cfg.export.tolerance),
+            threads=int(cfg.threads),
+            batch_size=int(cfg.export.batch_size),
+            opset=int(cfg.export.opset),
+            pooling=pooling,
+        )
+    except ParityError as err:
+        metrics["onnx_max_abs_diff"] = err.report.max_abs_diff
+        metrics["onnx_parity"] = err.report.as_dict()
+        metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
+        atomic_write_json(out_dir / "metrics.json", metrics)
+        raise
+    metrics["onnx_max_abs_diff"] = report.max_abs_diff
+    metrics["onnx_parity"] = report.as_dict()
+    metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
+    atomic_write_json(out_dir / "metrics.json", metrics)
+    log.info(
+        "test: pixel acc %.4f, class acc %.4f, mIoU %.4f; onnx max |diff| %.2e",
+        test["pixel_accuracy"],
+        test["class_accuracy"],
+        test["mean_iou"],
+        report.max_abs_diff,
+    )
+    print(f"metrics: {out_dir / 'metrics.json'}")
+    print(f"onnx:    {onnx_path}")
+    return metrics
+
+
+def load_checkpoint(path: str | Path) -> SegNet:
+    """A SegNet with the weights of checkpoint_best.pt (eval mode)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint not found: {path}; train with `python -m train`")
+    ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    model = SegNet(num_classes=ckpt["num_classes"], **ckpt["model_kwargs"])
+    model.load_state_dict(ckpt["model"])
+    return model.eval()
