@@ -145,7 +145,9 @@ def prepare(cfg: Mapping) -> Job:
         n = int(cfg["splits"].get(split, 0))
         rngs = [rng_for(cfg["seed"], SPLIT_STREAM[split], i, 0) for i in range(n)]
         poses = np.stack([trajectories.sample_training_poses(
-            r, 1, w.free_boxes, w.z_range, cfg["training"]["max_roll_pitch_deg"])[0]
+            r, 1, w.free_boxes, w.z_range, cfg["training"]["max_roll_pitch_deg"],
+            float(cfg["training"].get("yaw_along_corridor", 0.0)),
+            float(cfg["training"].get("yaw_spread_deg", 50.0)))[0]
             for r in rngs]) if n else np.zeros((0, 4, 4))
         _check_inside(model, camera, poses, f"splits.{split}")
         split_poses[split] = poses

@@ -7,7 +7,9 @@ distractor positions and colours. That re-uses Dr.Jit's compiled kernels.
 RGB: path tracer (spp, max_depth), Gaussian pixel filter, then (optionally) the albedo-
 demodulation denoiser of ``datagen.denoise``, sRGB 8-bit output.
 Labels: ``aov`` integrator (``shape_index``) through a second sensor with a box filter and one
-un-jittered sample at each pixel centre, mapped to class ids; 0 (void) where nothing is hit.
+un-jittered sample at each pixel centre, mapped to class ids; 255 (ignore) where nothing is hit:
+the world is closed, so such a ray slipped through a crack between triangles (isolated pixels
+that would otherwise be labelled void and count as a class of their own in the metrics).
 """
 
 from __future__ import annotations
@@ -31,6 +33,21 @@ HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor flo
 #: panel exactly (None).
 TEXTURE_EXTENT = {"floor": (2.0, 2.0), "ceiling": (2.0, 2.0), "wall": (4.0, 2.8),
                   "frame": (0.5, 0.5), "door": None, "window": None}
+
+
+def shape_index(mi, shape, pos: int) -> int:
+    """The value the ``aov`` integrator's ``shape_index`` gives for a shape of a loaded scene.
+
+    Args:
+        mi: the mitsuba module (variant set).
+        shape: a shape of ``scene.shapes()``.
+        pos: its position in ``scene.shapes()``.
+    """
+    if hasattr(mi, "ShapePtr"):  # JIT variants: the shape's registry id
+        import drjit as dr
+
+        return int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+    return pos + 1  # scalar: position in scene.shapes(), counted from 1
 
 
 @dataclass
@@ -218,16 +235,11 @@ class CorridorRenderer:
     def _class_lookup(self) -> np.ndarray:
         """Map aov ``shape_index`` values to class ids (built right after loading)."""
         mi = self.mi
-        import drjit as dr
-
         shapes = list(self.scene.shapes())
         lut = np.zeros(len(shapes) + 2, dtype=np.uint8)
         light = np.zeros(len(shapes) + 2, dtype=bool)
         for pos, shape in enumerate(shapes):
-            if hasattr(mi, "ShapePtr"):  # JIT variants: the shape's registry id
-                index = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-            else:  # scalar: position in scene.shapes(), counted from 1
-                index = pos + 1
+            index = shape_index(mi, shape, pos)
             if index >= len(lut):
                 lut = np.concatenate([lut, np.zeros(index + 1 - len(lut), dtype=np.uint8)])
                 light = np.concatenate([light, np.zeros(index + 1 - len(light), dtype=bool)])
@@ -301,7 +313,8 @@ class CorridorRenderer:
             denoise_sigma_px: shading blur of the denoiser, pixels; 0 switches it off.
 
         Returns:
-            rgb (H, W, 3) uint8 sRGB; label (H, W) uint8 class ids (void where nothing is hit);
+            rgb (H, W, 3) uint8 sRGB; label (H, W) uint8 class ids (255 = ignore where nothing
+            is hit);
             depth (H, W) float32 z in metres (0 where nothing is hit).
         """
         self.params.update()
@@ -311,7 +324,7 @@ class CorridorRenderer:
         index = np.where((index >= 0) & (index < len(self._lut)), index, 0)
         t = aux[..., 1]
         label = self._lut[index]
-        label[t <= 0] = C.VOID
+        label[t <= 0] = C.IGNORE
         rgb = np.asarray(self.mi.render(self.scene, sensor=0, spp=int(spp), seed=int(seed)))
         rgb = rgb[..., :3]
         if denoise_sigma_px > 0:

@@ -82,7 +82,9 @@ def _check(boxes: np.ndarray, z_range: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
-                          z_range: np.ndarray, max_roll_pitch_deg: float = 5.0) -> np.ndarray:
+                          z_range: np.ndarray, max_roll_pitch_deg: float = 5.0,
+                          along_fraction: float = 0.0,
+                          along_spread_deg: float = 50.0) -> np.ndarray:
     """Camera body poses spread over the free space, for training images.
 
     Args:
@@ -92,15 +94,26 @@ def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
             their union, area-weighted.
         z_range: (2,) heights (m), uniform.
         max_roll_pitch_deg: roll and pitch are uniform in +/- this.
+        along_fraction: share of poses whose yaw is drawn around the corridor axis (+Y or -Y,
+            uniform within +/- ``along_spread_deg``), as a copter flying the corridor looks;
+            the others have a uniform yaw. In a 2 m corridor a uniform yaw mostly faces a
+            wall from less than a metre, a close-up that a flight rarely sees.
+        along_spread_deg: half-width of the along-corridor yaw range, degrees.
 
     Returns:
-        (n, 4, 4) world_from_body; yaw uniform in [-pi, pi).
+        (n, 4, 4) world_from_body.
     """
+    if not 0.0 <= along_fraction <= 1.0:
+        raise ValueError(f"training.yaw_along_corridor must be in [0, 1], got {along_fraction}")
     boxes, z = _check(boxes, z_range)
     xy = sample_in_boxes(rng, n, boxes)
     height = rng.uniform(z[0], z[1], n)
     tilt = np.deg2rad(max_roll_pitch_deg) * rng.uniform(-1, 1, (n, 2))
     yaw = rng.uniform(-np.pi, np.pi, n)
+    along = rng.random(n) < along_fraction
+    axis = np.where(rng.random(n) < 0.5, np.pi / 2, -np.pi / 2)
+    yaw_along = axis + np.deg2rad(along_spread_deg) * rng.uniform(-1, 1, n)
+    yaw = np.where(along, np.arctan2(np.sin(yaw_along), np.cos(yaw_along)), yaw)
     return pose_from_xyz_rpy(np.column_stack([xy, height]), np.column_stack([tilt, yaw]))
 
 

@@ -29,8 +29,9 @@ class ModelRenderer:
         from datagen.variant import choose_variant
 
         choose_variant(variant)
-        import drjit as dr
         import mitsuba as mi
+
+        from datagen.render import shape_index
 
         self.mi, self.camera = mi, camera
         K = camera.K
@@ -65,10 +66,7 @@ class ModelRenderer:
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth"})
         lut = np.zeros(1, dtype=np.uint8)
         for pos, shape in enumerate(self.scene.shapes()):
-            if hasattr(mi, "ShapePtr"):  # JIT variants: the shape's registry id
-                index = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-            else:  # scalar: position in scene.shapes(), counted from 1
-                index = pos + 1
+            index = shape_index(mi, shape, pos)
             if index >= len(lut):
                 lut = np.concatenate([lut, np.zeros(index + 1 - len(lut), dtype=np.uint8)])
             lut[index] = class_of[shape.id()]

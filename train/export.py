@@ -33,7 +33,7 @@ from torch import nn
 
 from datagen.atomic import atomic_write
 from train.runtime import INPUT_NAME, OUTPUT_NAME, ort_session
-from train.segnet import SegNet, pad_to_multiple
+from train.segnet import SegNet
 
 OPSET = 20
 
@@ -195,6 +195,7 @@ def onnx_metadata(
             "convs_per_stage": model.convs_per_stage,
             "num_classes": model.num_classes,
             "pooling": pooling,
+            "downsample": model.downsample,
         },
         "config_hash": config_hash,
     }
@@ -315,8 +316,7 @@ def _stage_features(
     model: SegNet, x: torch.Tensor, imposed: list[torch.Tensor], k: int
 ) -> torch.Tensor:
     """Encoder features of stage k before pooling, with given indices for stages < k."""
-    x, _ = pad_to_multiple(x, model.multiple)
-    x = (x - model.mean) / model.std
+    x, _ = model.preprocess(x)
     for j, stage in enumerate(model.encoder):
         x = stage(x)
         if j == k:

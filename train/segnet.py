@@ -146,6 +146,9 @@ class SegNet(nn.Module):
         pooling: "indices" (``nn.MaxPool2d`` / ``nn.MaxUnpool2d``, fastest in torch) or
             "window" (``WindowMaxPool`` / ``WindowMaxUnpool``, the same function, fastest in
             onnxruntime); switch with ``set_pooling`` (no weights involved).
+        downsample: the network runs at 1/downsample of the input resolution (2x2 box average
+            per factor 2 first, bilinear upsampling of the logits last); 2 makes training and
+            inference about 4x cheaper, which on a CPU buys many more training steps.
         generator: draws the initial weights (He-normal convolutions); None = global RNG.
 
     Shapes:
@@ -164,6 +167,7 @@ class SegNet(nn.Module):
         std: Sequence[float] = IMAGENET_STD,
         auto_pad: bool = True,
         pooling: str = "indices",
+        downsample: int = 1,
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
@@ -174,6 +178,9 @@ class SegNet(nn.Module):
             raise ValueError(f"num_classes must be >= 2, got {num_classes}")
         if width <= 0:
             raise ValueError(f"model.width must be positive, got {width}")
+        downsample = int(downsample)
+        if downsample < 1 or downsample & (downsample - 1):
+            raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -186,7 +193,8 @@ class SegNet(nn.Module):
         chans = [max(min_channels, round(s[0] * width)) for s in base]
         self.num_classes = int(num_classes)
         self.stages = int(stages)
-        self.multiple = 2**self.stages
+        self.downsample = downsample
+        self.multiple = downsample * 2**self.stages
         self.auto_pad = bool(auto_pad)
         self.channels = chans
         self.convs_per_stage = convs_per_stage
@@ -253,6 +261,21 @@ class SegNet(nn.Module):
                 f"model with auto_pad=True."
             )
 
+    def preprocess(self, x: torch.Tensor) -> tuple[torch.Tensor, tuple[int, int]]:
+        """Check, pad to ``multiple``, downsample and normalize a batch.
+
+        Args:
+            x: (B, 3, H, W) float32 RGB in [0, 1].
+
+        Returns:
+            The network input (B, 3, H' / downsample, W' / downsample) and the original (H, W).
+        """
+        self.check_input(x)
+        x, size = pad_to_multiple(x, self.multiple)
+        if self.downsample > 1:
+            x = F.avg_pool2d(x, self.downsample)
+        return (x - self.mean) / self.std, size
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Logits for a batch of images.
 
@@ -282,9 +305,7 @@ class SegNet(nn.Module):
         Returns:
             (B, C, H, W) logits and the list of per-stage indices.
         """
-        self.check_input(x)
-        x, (h, w) = pad_to_multiple(x, self.multiple)
-        x = (x - self.mean) / self.std
+        x, (h, w) = self.preprocess(x)
         window = self.pooling == "window"
         pooled_idx: list[torch.Tensor] = []  # what self.unpool takes (indices or codes)
         sizes: list[torch.Size] = []
@@ -304,6 +325,8 @@ class SegNet(nn.Module):
             x = self.unpool(x, idx, output_size=size[-2:])
             x = stage(x)
         x = self.classifier(x)
+        if self.downsample > 1:
+            x = F.interpolate(x, scale_factor=self.downsample, mode="bilinear", align_corners=False)
         if window:
             pooled_idx = [code_to_plane_index(c) for c in pooled_idx]
         return x[..., :h, :w], pooled_idx
@@ -312,7 +335,7 @@ class SegNet(nn.Module):
         return (
             f"num_classes={self.num_classes}, stages={self.stages}, channels={self.channels}, "
             f"convs_per_stage={self.convs_per_stage}, auto_pad={self.auto_pad}, "
-            f"pooling={self.pooling}"
+            f"pooling={self.pooling}, downsample={self.downsample}"
         )
 
 
@@ -331,7 +354,16 @@ def build_segnet(
 
 def model_kwargs(model_cfg: dict) -> dict:
     """The SegNet constructor arguments held in a ``model`` config (without num_classes)."""
-    keys = ("width", "stages", "convs_per_stage", "vgg", "min_channels", "mean", "std")
+    keys = (
+        "width",
+        "stages",
+        "convs_per_stage",
+        "vgg",
+        "min_channels",
+        "mean",
+        "std",
+        "downsample",
+    )
     out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
     for k in ("convs_per_stage", "mean", "std"):
         if k in out:

@@ -325,7 +325,9 @@ def run(cfg: DictConfig) -> dict:
 
     weights = None
     if cfg.loss.class_weighting == "median_frequency":
-        weights = median_frequency_weights(train_data.labels, num_classes, cfg.loss.max_weight)
+        weights = median_frequency_weights(
+            train_data.labels, num_classes, cfg.loss.max_weight, cfg.loss.get("power", 1.0)
+        )
     elif cfg.loss.class_weighting != "none":
         raise ValueError(
             f"loss.class_weighting={cfg.loss.class_weighting!r}: use median_frequency or none"

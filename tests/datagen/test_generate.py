@@ -38,7 +38,7 @@ class TestLayout:
         assert len(rgb) == 12 and all(p.is_file() for p in lab)
         labels = np.stack([read_png(p, rgb=False) for p in lab])
         assert labels.shape == (12, 96, 128) and labels.dtype == np.uint8
-        assert set(np.unique(labels)) <= set(range(C.NUM_CLASSES))
+        assert set(np.unique(labels)) <= set(range(C.NUM_CLASSES)) | {C.IGNORE}
         assert {C.FLOOR, C.WALL, C.CEILING, C.DOOR} <= set(np.unique(labels))
         assert read_png(rgb[0]).shape == (96, 128, 3)
         assert ds.split_poses("train").shape == (12, 4, 4)

@@ -53,6 +53,18 @@ class TestTrainingPoses:
         in_opening = (p[:, 0] < -0.7).mean()
         assert in_opening == pytest.approx(area[1] / area.sum(), abs=0.02)
 
+    def test_along_corridor_share(self):
+        T = TR.sample_training_poses(np.random.default_rng(1), 4000, BOXES, Z, 5.0,
+                                     along_fraction=0.75, along_spread_deg=30.0)
+        yaw = rpy(T)[:, 2]
+        off_axis = np.abs(np.abs(yaw) - np.pi / 2)  # angle from the nearest of +Y, -Y
+        near = off_axis <= np.deg2rad(30.0) + 1e-9
+        # 75 % along the axis plus the uniform quarter's share of that range (1/3)
+        assert near.mean() == pytest.approx(0.75 + 0.25 / 3, abs=0.03)
+        assert (yaw > 0).mean() == pytest.approx(0.5, abs=0.04)  # both directions
+        with pytest.raises(ValueError, match="yaw_along_corridor"):
+            TR.sample_training_poses(np.random.default_rng(0), 3, BOXES, Z, along_fraction=1.5)
+
     def test_deterministic(self):
         a = TR.sample_training_poses(np.random.default_rng(4), 10, BOXES, Z)
         b = TR.sample_training_poses(np.random.default_rng(4), 10, BOXES, Z)

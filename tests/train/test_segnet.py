@@ -106,6 +106,30 @@ class TestForward:
         with pytest.raises(ValueError, match="SegNet expects"):
             _tiny()(x)
 
+    @pytest.mark.parametrize("size", [(32, 48), (30, 50)])
+    def test_downsample_output_shape(self, size: tuple[int, int]) -> None:
+        m = _tiny(downsample=2)
+        assert m.multiple == 16
+        with torch.no_grad():
+            assert m(torch.rand(2, 3, *size)).shape == (2, 5, *size)
+
+    def test_downsample_is_box_average_then_bilinear(self) -> None:
+        """downsample=2 equals the same weights at 1 on a 2x2-averaged image, upsampled."""
+        full = _tiny(downsample=2).eval()
+        half = _tiny().eval()
+        half.load_state_dict(full.state_dict())
+        x = torch.rand(1, 3, 32, 48)
+        with torch.no_grad():
+            ref = torch.nn.functional.interpolate(
+                half(torch.nn.functional.avg_pool2d(x, 2)), scale_factor=2, mode="bilinear"
+            )
+            torch.testing.assert_close(full(x), ref)
+
+    @pytest.mark.parametrize("bad", [0, 3])
+    def test_bad_downsample(self, bad: int) -> None:
+        with pytest.raises(ValueError, match="downsample"):
+            _tiny(downsample=bad)
+
     def test_seeded_init(self) -> None:
         a, b = _tiny(), _tiny()
         for pa, pb in zip(a.parameters(), b.parameters(), strict=True):

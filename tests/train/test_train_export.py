@@ -101,6 +101,17 @@ class TestExport:
         graph = onnx.load(str(path)).graph
         assert any(n.op_type in ("MaxUnpool", "ScatterND", "ScatterElements") for n in graph.node)
 
+    def test_downsampled_model_parity(self, images: torch.Tensor, tmp_path: Path) -> None:
+        m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=2,
+                   generator=torch.Generator().manual_seed(3)).eval()
+        path = tmp_path / "ds.onnx"
+        meta = onnx_metadata(m, as_json(), H, W, "ds")
+        report = export_checked(m, path, images, meta, tolerance=1e-4, threads=1, batch_size=5)
+        assert report.max_abs_diff <= 1e-4
+        assert OnnxSegmenter(path, threads=1).logits(
+            (images[:1].permute(0, 2, 3, 1).numpy() * 255).astype(np.uint8)
+        ).shape == (1, 8, H, W)
+
     def test_fails_above_tolerance(
         self, model: SegNet, images: torch.Tensor, tmp_path: Path
     ) -> None:

@@ -42,3 +42,10 @@ def test_loss_ignores_255() -> None:
     weighted = segmentation_loss(logits, target, w)
     terms = -torch.log_softmax(logits, 1)[0, [0, 1], [0, 0], [0, 1]]
     torch.testing.assert_close(weighted, (terms * torch.tensor([1.0, 2.0])).sum() / 3.0)
+
+
+def test_median_frequency_power_softens():
+    labels = torch.tensor([[[0, 0, 0, 1]]]).expand(2, 4, 4).clone()
+    full = median_frequency_weights(labels, 2)
+    soft = median_frequency_weights(labels, 2, power=0.5)
+    torch.testing.assert_close(soft, full.sqrt())

@@ -1,0 +1,167 @@
+"""Localizer speed per frame: filter update, whole frame, vectorized vs paper-faithful likelihood.
+
+Usage::
+
+    python -m datagen && python -m train          # a dataset and outputs/models/demo/segnet.onnx
+    python benchmarks/localize_speed.py            # conf/localize.yaml defaults
+    python benchmarks/localize_speed.py filter.num_particles=1000 --frames 100
+
+Runs one tracking filter over the first ``--frames`` frames of a flight (default: paper) and
+times each stage on its own, as the paper's Table 1 does:
+
+- segmentation: ``segnet.onnx`` through onnxruntime (uint8 frame in, labels out);
+- preprocessing: edge map (label boundaries or Canny + Hough) and the score maps;
+- filter: motion + likelihood + resampling with ``filter.num_particles`` particles;
+- frame: segmentation + preprocessing + filter (the cnn mode's whole frame, disk read excluded).
+
+Then the paper-faithful likelihood (a Mitsuba render, contours and Hough lines per particle)
+and the vectorized one score the same ``--pf-particles`` particles on ``--pf-frames`` frames,
+and the ratio of their times is printed. Targets (issue "localize"): filter update with 500
+particles <= 20 ms, whole frame <= 50 ms on a 2-core CPU (the paper: 177 ms with a GPU).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+from threadpoolctl import threadpool_limits
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from datagen.atomic import read_png  # noqa: E402
+from datagen.poses import xyzyaw_from_pose  # noqa: E402
+from localize.edges import EdgeExtractor  # noqa: E402
+from localize.likelihood import EdgeLikelihood  # noqa: E402
+from localize.particle_filter import ParticleFilter, odometry_increment  # noqa: E402
+from localize.projection import tilt_from_pose  # noqa: E402
+from localize.runner import prepare  # noqa: E402
+
+TARGET_FILTER_MS = 20.0
+TARGET_FRAME_MS = 50.0
+
+
+def stats(ms: list[float]) -> dict:
+    a = np.asarray(ms, dtype=np.float64)
+    return {"median": float(np.median(a)), "mean": float(a.mean()), "p90": float(
+        np.percentile(a, 90)), "max": float(a.max())}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("overrides", nargs="*", help="conf/localize.yaml overrides (key=value)")
+    ap.add_argument("--flight", default="paper")
+    ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--mode", default="cnn", choices=["none", "cnn", "oracle"],
+                    help="edge mode of the whole-frame timing (cnn includes the SegNet)")
+    ap.add_argument("--pf-particles", type=int, default=100)
+    ap.add_argument("--pf-frames", type=int, default=3)
+    args = ap.parse_args()
+
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("localize", overrides=["progress=false", "name=speed",
+                                             "out_root=outputs/benchmarks",
+                                             f"modes=[{args.mode}]", *args.overrides])
+    onnx_path = Path(cfg.onnx_model)
+    if args.mode == "cnn" and not onnx_path.is_file():
+        print(f"{onnx_path} not found: train first (python -m train) or pass --mode oracle",
+              file=sys.stderr)
+        return 2
+    ctx = prepare(cfg)
+    flight = ctx.dataset.flight(args.flight)
+    T = min(args.frames, len(flight.timestamps))
+    samples, vis = ctx.model_for(args.mode)
+    lik = EdgeLikelihood(samples, ctx.camera, ctx.likelihood_params, vis)
+    extractor = EdgeExtractor(args.mode, OmegaConf.to_container(cfg.edges, resolve=True),
+                              ctx.segmenter)
+    pf = ParticleFilter(ctx.filter_params, ctx.world.free_boxes, ctx.world.z_range,
+                        np.random.default_rng(0))
+    pf.init_tracking(xyzyaw_from_pose(flight.groundtruth[:1])[0])
+    frames = [read_png(flight.rgb[t]) for t in range(T)]
+    labels = [read_png(flight.label[t], rgb=False) for t in range(T)]
+    t_seg, t_pre, t_filter, t_frame = [], [], [], []
+    edges = []
+    load0 = os.getloadavg()[0]
+    for t in range(T):
+        a = time.perf_counter()
+        lab = extractor.segment(frames[t]) if args.mode == "cnn" else labels[t]
+        b = time.perf_counter()
+        edge = extractor.edges(frames[t], lab)
+        obs = lik.observe(edge)
+        c = time.perf_counter()
+        tilt = tilt_from_pose(flight.odometry[t])
+        with threadpool_limits(limits=1, user_api="blas"):
+            if t:
+                pf.predict(odometry_increment(flight.odometry[t - 1], flight.odometry[t]))
+            pf.update(lambda s, obs=obs, tilt=tilt: lik.log_likelihood(s, obs, tilt))
+        d = time.perf_counter()
+        edges.append((edge, obs, tilt))
+        if t == 0:
+            continue  # warm-up (onnxruntime and numpy first calls)
+        t_seg.append((b - a) * 1e3)
+        t_pre.append((c - b) * 1e3)
+        t_filter.append((d - c) * 1e3)
+        t_frame.append((d - a) * 1e3)
+
+    # Vectorized vs paper-faithful likelihood on the same particles.
+    from localize.paper_faithful import PaperFaithfulLikelihood
+
+    pc = cfg.paper_faithful
+    pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.likelihood_params,
+                                  hough=dict(pc.hough), samples_per_line=int(pc.samples_per_line),
+                                  search_px=float(pc.search_px), variant=str(pc.render_variant))
+    rng = np.random.default_rng(1)
+    truth = xyzyaw_from_pose(flight.groundtruth[:T])
+    t_vec, t_pf = [], []
+    for t in range(min(args.pf_frames, T)):
+        edge, obs, tilt = edges[t]
+        states = truth[t] + rng.normal(0, 1, (args.pf_particles, 4)) * [0.1, 0.1, 0.05, 0.05]
+        pfl.log_likelihood(states[:2], edge, tilt)  # warm-up (kernel compilation)
+        a = time.perf_counter()
+        with threadpool_limits(limits=1, user_api="blas"):
+            lik.log_likelihood(states, obs, tilt)
+        b = time.perf_counter()
+        pfl.log_likelihood(states, edge, tilt)
+        c = time.perf_counter()
+        t_vec.append((b - a) * 1e3)
+        t_pf.append((c - b) * 1e3)
+    load1 = os.getloadavg()[0]
+
+    n = ctx.filter_params.num_particles
+    res = {
+        "flight": args.flight, "mode": args.mode, "frames": T - 1, "particles": n,
+        "segmentation_ms": stats(t_seg), "preprocessing_ms": stats(t_pre),
+        "filter_ms": stats(t_filter), "frame_ms": stats(t_frame),
+        "likelihood_ms": {"particles": args.pf_particles, "vectorized": stats(t_vec),
+                          "paper_faithful": stats(t_pf),
+                          "speedup": float(np.median(t_pf) / np.median(t_vec))},
+        "load": [load0, load1],
+    }
+    print(f"localize speed: flight {args.flight}, mode {args.mode}, {T - 1} frames, "
+          f"{n} particles, 320x240; load average {load0:.2f} -> {load1:.2f}")
+    print(f"  {'stage':<16}{'median ms':>10}{'mean ms':>9}{'p90 ms':>9}{'max ms':>9}  target")
+    for key, target in (("segmentation_ms", ""), ("preprocessing_ms", ""),
+                        ("filter_ms", f"<= {TARGET_FILTER_MS:.0f}"),
+                        ("frame_ms", f"<= {TARGET_FRAME_MS:.0f}")):
+        s = res[key]
+        ok = "" if not target else (" PASS" if s["mean"] <= float(target[3:]) else " MISS")
+        print(f"  {key[:-3]:<16}{s['median']:>10.1f}{s['mean']:>9.1f}{s['p90']:>9.1f}"
+              f"{s['max']:>9.1f}  {target}{ok}")
+    lk = res["likelihood_ms"]
+    print(f"  likelihood of {args.pf_particles} particles: vectorized "
+          f"{lk['vectorized']['median']:.2f} ms, paper-faithful "
+          f"{lk['paper_faithful']['median']:.0f} ms -> {lk['speedup']:.0f}x faster")
+    print(json.dumps(res))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
