@@ -92,9 +92,9 @@ def main() -> int:
     load0 = os.getloadavg()[0]
     for t in range(T):
         a = time.perf_counter()
-        lab = extractor.segment(frames[t]) if args.mode == "cnn" else labels[t]
+        lab, conf = (extractor.segment(frames[t]) if args.mode == "cnn" else (labels[t], None))
         b = time.perf_counter()
-        edge = extractor.edges(frames[t], lab)
+        edge = extractor.edges(frames[t], lab, conf)
         obs = lik.observe(edge)
         c = time.perf_counter()
         tilt = tilt_from_pose(flight.odometry[t])

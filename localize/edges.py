@@ -174,10 +174,10 @@ class EdgeExtractor:
         segmenter: an ``OnnxSegmenter`` (cnn mode only).
     """
 
-    def __init__(self, mode: str, cfg: dict, segmenter=None):
+    def __init__(self, mode: str, cfg: dict, segmenter=None, check: bool = True):
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {MODES}")
-        if mode == "cnn" and segmenter is None:
+        if check and mode == "cnn" and segmenter is None:
             raise ValueError("edge mode 'cnn' needs a segmenter (see load_segmenter)")
         self.mode, self.cfg, self.segmenter = mode, cfg, segmenter
 
@@ -186,23 +186,29 @@ class EdgeExtractor:
         """Whether the mode reads the true label image."""
         return self.mode == "oracle"
 
-    def segment(self, rgb: np.ndarray) -> np.ndarray:
-        """Predicted labels (H, W) uint8 of an RGB frame (cnn mode)."""
+    def segment(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted labels (H, W) uint8 and their confidence (H, W) float32, the largest
+        softmax probability, of an RGB frame (cnn mode)."""
         _check_rgb(rgb)
         out = self.segmenter.predict(rgb)
-        labels = out[0] if isinstance(out, tuple) else out
+        labels, probs = out if isinstance(out, tuple) else (out, None)
         labels = np.asarray(labels)
         if labels.shape != rgb.shape[:2]:
             raise ValueError(f"segmenter returned labels {labels.shape} for an image "
                              f"{rgb.shape[:2]}")
-        return labels.astype(np.uint8, copy=False)
+        conf = (np.ones(labels.shape, np.float32) if probs is None
+                else np.asarray(probs).max(axis=0))
+        return labels.astype(np.uint8, copy=False), conf
 
-    def edges(self, rgb: np.ndarray, labels: np.ndarray | None = None) -> EdgeImage:
+    def edges(self, rgb: np.ndarray, labels: np.ndarray | None = None,
+              confidence: np.ndarray | None = None) -> EdgeImage:
         """Edge image of a frame.
 
         Args:
-            rgb: (H, W, 3) uint8 (used by mode none).
+            rgb: (H, W, 3) uint8 (used by mode none, and by cnn with ``cnn.refine: canny``).
             labels: (H, W) uint8 class ids (true labels for oracle, predicted for cnn).
+            confidence: (H, W) float32 largest softmax probability (cnn only; pixels below
+                ``cnn.min_confidence`` become unknown).
         """
         if self.mode == "none":
             c = self.cfg["canny"]
@@ -211,5 +217,43 @@ class EdgeExtractor:
         if labels is None:
             raise ValueError(f"edge mode {self.mode!r} needs a label map")
         lc = self.cfg["labels"]
-        median = lc["median"] if self.mode == "cnn" else 0
-        return label_edges(labels, C.STRUCTURAL, int(lc["dilate_px"]), int(median))
+        if self.mode == "oracle":
+            return label_edges(labels, C.STRUCTURAL, int(lc["dilate_px"]), 0)
+        cc = self.cfg.get("cnn", {})
+        out = label_edges(labels, C.STRUCTURAL, int(lc["dilate_px"]), int(lc["median"]))
+        known = out.known
+        threshold = float(cc.get("min_confidence", 0.0))
+        if confidence is not None and threshold > 0:
+            known = known & ~_dilate(confidence < threshold, int(lc["dilate_px"]))
+        refine = cc.get("refine", "none")
+        if refine == "none":
+            return EdgeImage(out.edges & known, known)
+        c = self.cfg["canny"]
+        if refine == "canny":
+            fine = canny_edges(rgb, c["low"], c["high"], c["blur"]).edges
+            near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
+            return EdgeImage(fine & near & known, known)
+        if refine == "mask":
+            hough = dict(self.cfg["hough"]) if self.cfg["hough"].get("enabled", False) else None
+            fine = canny_edges(rgb, c["low"], c["high"], c["blur"], hough).edges
+            return EdgeImage(fine & known, known)
+        raise ValueError(f"edges.cnn.refine={refine!r}: use none, canny or mask")
+
+    @property
+    def class_boundaries_only(self) -> bool:
+        """Whether the edges show only class boundaries (then only the model segments whose
+        two sides differ in class can match them)."""
+        if self.mode == "none":
+            return False
+        if self.mode == "cnn":
+            return self.cfg.get("cnn", {}).get("refine", "none") != "mask"
+        return True
+
+
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    """A bool mask (H, W) grown by a disk of ``radius`` pixels."""
+    if radius <= 0 or not mask.any():
+        return mask
+    k = 2 * int(radius) + 1
+    return cv2.dilate(mask.astype(np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0

@@ -296,17 +296,18 @@ def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     flight = ctx.dataset.flight(flight_name)
     t = int(round(float(ctx.cfg.report.figure_frame) * (r["num_frames"] - 1)))
     rgb = read_png(flight.rgb[t])
-    if mode == "cnn" and ctx.segmenter is not None:
-        labels = EdgeExtractor("cnn", {}, ctx.segmenter).segment(rgb)
-        seg_title = "SegNet segmentation"
-    else:
-        labels = read_png(flight.label[t], rgb=False)
-        seg_title = "true labels"
     from omegaconf import OmegaConf
 
     ex = EdgeExtractor(mode, OmegaConf.to_container(ctx.cfg.edges, resolve=True),
                        ctx.segmenter)
-    edge = ex.edges(rgb, None if mode == "none" else labels)
+    conf = None
+    if mode == "cnn" and ctx.segmenter is not None:
+        labels, conf = ex.segment(rgb)
+        seg_title = "SegNet segmentation"
+    else:
+        labels = read_png(flight.label[t], rgb=False)
+        seg_title = "true labels"
+    edge = ex.edges(rgb, None if mode == "none" else labels, conf)
     samples, vis = ctx.model_for(mode)
     state = np.array(r["estimate"][t])[None]
     tilt = tilt_from_pose(flight.odometry[t])

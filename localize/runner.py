@@ -93,8 +93,10 @@ class Context:
 
     def model_for(self, mode: str) -> tuple[ModelSamples, VisibilityGrid]:
         """Edge samples (and their visibility) a mode scores against."""
-        return self.samples["class_change" if mode in ("cnn", "oracle")
-                            and "class_change" in self.samples else "all"]
+        ex = EdgeExtractor(mode, OmegaConf.to_container(self.cfg.edges, resolve=True),
+                           self.segmenter if mode == "cnn" else None, check=False)
+        key = "class_change" if ex.class_boundaries_only else "all"
+        return self.samples[key if key in self.samples else "all"]
 
 
 def filter_settings(cfg: DictConfig) -> tuple[FilterParams, LikelihoodParams]:
@@ -210,16 +212,16 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
                                       if runs[0].likelihood != "vectorized" else "")
     for t in tqdm(range(T), desc=desc, disable=not cfg.progress, leave=False, mininterval=2.0):
         t0 = time.perf_counter()
-        rgb = labels = None
+        rgb = labels = conf = None
         if mode in ("none", "cnn"):
             rgb = read_png(flight.rgb[t])
         if mode == "oracle":
             labels = read_png(flight.label[t], rgb=False)
         t1 = time.perf_counter()
         if mode == "cnn":
-            labels = extractor.segment(rgb)
+            labels, conf = extractor.segment(rgb)
         t2 = time.perf_counter()
-        edge = extractor.edges(rgb, labels)
+        edge = extractor.edges(rgb, labels, conf)
         obs = lik.observe(edge)
         t3 = time.perf_counter()
         t_stage["acquisition"][t] = (t1 - t0) * 1e3

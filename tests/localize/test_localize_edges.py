@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -90,10 +91,38 @@ class TestSegmenter:
         lab = two_walls()
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
         ex = EdgeExtractor("cnn", EDGES_CFG, seg)
-        np.testing.assert_array_equal(ex.segment(C.colorize(lab)), lab)
-        e = ex.edges(C.colorize(lab), ex.segment(C.colorize(lab)))
+        labels, conf = ex.segment(C.colorize(lab))
+        np.testing.assert_array_equal(labels, lab)
+        assert conf.shape == lab.shape and np.all((conf > 0.125) & (conf <= 1.0))
+        e = ex.edges(C.colorize(lab), labels, conf)
         ref = label_edges(lab, dilate_px=1)
         np.testing.assert_array_equal(e.edges, ref.edges)
+
+    def test_low_confidence_is_unknown(self, tmp_path):
+        lab = two_walls()
+        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
+        cfg = {**EDGES_CFG, "cnn": {"min_confidence": 0.5}}
+        ex = EdgeExtractor("cnn", cfg, seg)
+        conf = np.ones(lab.shape, np.float32)
+        conf[:, :5] = 0.2
+        e = ex.edges(C.colorize(lab), lab, conf)
+        assert not e.known[:, :5].any() and e.known[:, 10:20].all()
+        assert not e.edges[:, :5].any()
+
+    def test_canny_refinement_keeps_only_edges_near_boundaries(self, tmp_path):
+        lab = two_walls()
+        rgb = C.colorize(lab)
+        rgb[9:11, 2:8] = 255  # a texture stripe inside the wall: Canny sees it
+        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
+        plain = EdgeExtractor("cnn", EDGES_CFG, seg).edges(rgb, lab)
+        cfg = {**EDGES_CFG, "cnn": {"refine": "canny", "refine_px": 2}}
+        fine = EdgeExtractor("cnn", cfg, seg).edges(rgb, lab)
+        canny = canny_edges(rgb, **{k: EDGES_CFG["canny"][k] for k in ("low", "high", "blur")})
+        assert canny.edges[8:12, 2:8].any()           # the stripe makes Canny edges...
+        assert not fine.edges[8:12, 2:8].any()        # ...that refinement drops
+        assert fine.edges.any()
+        dist = cv2.distanceTransform((~plain.edges).astype(np.uint8), cv2.DIST_L2, 3)
+        assert dist[fine.edges].max() <= 2.0
 
     def test_missing_model(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m train"):
@@ -118,3 +147,26 @@ class TestSegmenter:
             EdgeExtractor("oracle", EDGES_CFG).edges(np.zeros((20, 30, 3), np.uint8))
         e = EdgeExtractor("oracle", EDGES_CFG).edges(None, two_walls())
         assert e.edges.any()
+
+
+class TestRefineChoice:
+    def test_which_model_segments_a_mode_needs(self):
+        seg = object()
+        assert not EdgeExtractor("none", EDGES_CFG).class_boundaries_only
+        assert EdgeExtractor("oracle", EDGES_CFG).class_boundaries_only
+        for refine, only in (("none", True), ("canny", True), ("mask", False)):
+            cfg = {**EDGES_CFG, "cnn": {"refine": refine}}
+            assert EdgeExtractor("cnn", cfg, seg).class_boundaries_only is only
+
+    def test_mask_drops_edges_on_objects(self):
+        lab = two_walls()
+        rgb = C.colorize(lab)
+        cfg = {**EDGES_CFG, "cnn": {"refine": "mask"}}
+        e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
+        assert not e.known[8:12, 22:26].any() and not e.edges[8:12, 22:26].any()
+        assert e.edges.any()
+
+    def test_unknown_refine_raises(self):
+        cfg = {**EDGES_CFG, "cnn": {"refine": "sobel"}}
+        with pytest.raises(ValueError, match="edges.cnn.refine"):
+            EdgeExtractor("cnn", cfg, object()).edges(C.colorize(two_walls()), two_walls())
