@@ -113,7 +113,7 @@ def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
     along = rng.random(n) < along_fraction
     axis = np.where(rng.random(n) < 0.5, np.pi / 2, -np.pi / 2)
     yaw_along = axis + np.deg2rad(along_spread_deg) * rng.uniform(-1, 1, n)
-    yaw = np.where(along, np.arctan2(np.sin(yaw_along), np.cos(yaw_along)), yaw)
+    yaw = np.where(along, wrap_angle(yaw_along), yaw)
     return pose_from_xyz_rpy(np.column_stack([xy, height]), np.column_stack([tilt, yaw]))
 
 

@@ -78,6 +78,15 @@ def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: i
     return EdgeImage(edges > 0, np.ones(edges.shape, dtype=bool))
 
 
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    """A bool mask (H, W) grown by a disk of ``radius`` pixels."""
+    if radius <= 0 or not mask.any():
+        return mask
+    k = 2 * int(radius) + 1
+    return cv2.dilate(mask.astype(np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
+
+
 def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
                 dilate_px: int = 3, median: int = 0) -> EdgeImage:
     """Boundaries between different structural classes, and the mask of unknown pixels.
@@ -117,11 +126,7 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
         else:
             edges[:, :-1] |= diff
             edges[:, 1:] |= diff
-    unknown = ~struct
-    if dilate_px > 0 and unknown.any():
-        k = 2 * int(dilate_px) + 1
-        unknown = cv2.dilate(unknown.astype(np.uint8),
-                             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
+    unknown = _dilate(~struct, int(dilate_px))
     return EdgeImage(edges & ~unknown, ~unknown)
 
 
@@ -174,10 +179,10 @@ class EdgeExtractor:
         segmenter: an ``OnnxSegmenter`` (cnn mode only).
     """
 
-    def __init__(self, mode: str, cfg: dict, segmenter=None, check: bool = True):
+    def __init__(self, mode: str, cfg: dict, segmenter=None):
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {MODES}")
-        if check and mode == "cnn" and segmenter is None:
+        if mode == "cnn" and segmenter is None:
             raise ValueError("edge mode 'cnn' needs a segmenter (see load_segmenter)")
         self.mode, self.cfg, self.segmenter = mode, cfg, segmenter
 
@@ -211,9 +216,7 @@ class EdgeExtractor:
                 ``cnn.min_confidence`` become unknown).
         """
         if self.mode == "none":
-            c = self.cfg["canny"]
-            hough = dict(self.cfg["hough"]) if self.cfg["hough"].get("enabled", False) else None
-            return canny_edges(rgb, c["low"], c["high"], c["blur"], hough)
+            return EdgeImage(self._canny(rgb, hough=True), np.ones(rgb.shape[:2], dtype=bool))
         if labels is None:
             raise ValueError(f"edge mode {self.mode!r} needs a label map")
         lc = self.cfg["labels"]
@@ -228,32 +231,36 @@ class EdgeExtractor:
         refine = cc.get("refine", "none")
         if refine == "none":
             return EdgeImage(out.edges & known, known)
-        c = self.cfg["canny"]
         if refine == "canny":
-            fine = canny_edges(rgb, c["low"], c["high"], c["blur"]).edges
             near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
-            return EdgeImage(fine & near & known, known)
+            return EdgeImage(self._canny(rgb, hough=False) & near & known, known)
         if refine == "mask":
-            hough = dict(self.cfg["hough"]) if self.cfg["hough"].get("enabled", False) else None
-            fine = canny_edges(rgb, c["low"], c["high"], c["blur"], hough).edges
-            return EdgeImage(fine & known, known)
+            return EdgeImage(self._canny(rgb, hough=True) & known, known)
         raise ValueError(f"edges.cnn.refine={refine!r}: use none, canny or mask")
 
     @property
     def class_boundaries_only(self) -> bool:
-        """Whether the edges show only class boundaries (then only the model segments whose
-        two sides differ in class can match them)."""
-        if self.mode == "none":
-            return False
-        if self.mode == "cnn":
-            return self.cfg.get("cnn", {}).get("refine", "none") != "mask"
-        return True
+        """See ``class_boundaries_only``."""
+        return class_boundaries_only(self.mode, self.cfg)
+
+    def _canny(self, rgb: np.ndarray, hough: bool) -> np.ndarray:
+        """Canny edges (H, W) bool of a frame, reduced to Hough segments if ``hough`` and
+        ``hough.enabled``."""
+        c, h = self.cfg["canny"], self.cfg["hough"]
+        lines = dict(h) if hough and h.get("enabled", False) else None
+        return canny_edges(rgb, c["low"], c["high"], c["blur"], lines).edges
 
 
-def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
-    """A bool mask (H, W) grown by a disk of ``radius`` pixels."""
-    if radius <= 0 or not mask.any():
-        return mask
-    k = 2 * int(radius) + 1
-    return cv2.dilate(mask.astype(np.uint8),
-                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
+def class_boundaries_only(mode: str, cfg: dict) -> bool:
+    """Whether a mode's edges show only class boundaries, so that only the model segments whose
+    two sides differ in class can match them.
+
+    Args:
+        mode: ``none`` | ``cnn`` | ``oracle``.
+        cfg: the ``edges`` config (``cnn.refine: mask`` keeps every Canny edge).
+    """
+    if mode == "none":
+        return False
+    if mode == "cnn":
+        return cfg.get("cnn", {}).get("refine", "none") != "mask"
+    return True

@@ -31,7 +31,7 @@ from tqdm import tqdm
 from datagen.atomic import atomic_write_json, read_png
 from datagen.dataset import Camera, Dataset, Flight, World
 from datagen.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.edges import EdgeExtractor, load_segmenter
+from localize.edges import EdgeExtractor, class_boundaries_only, load_segmenter
 from localize.likelihood import EdgeLikelihood, LikelihoodParams
 from localize.metrics import position_errors, yaw_errors_deg
 from localize.particle_filter import FilterParams, ParticleFilter, odometry_increment
@@ -93,9 +93,8 @@ class Context:
 
     def model_for(self, mode: str) -> tuple[ModelSamples, VisibilityGrid]:
         """Edge samples (and their visibility) a mode scores against."""
-        ex = EdgeExtractor(mode, OmegaConf.to_container(self.cfg.edges, resolve=True),
-                           self.segmenter if mode == "cnn" else None, check=False)
-        key = "class_change" if ex.class_boundaries_only else "all"
+        edges_cfg = OmegaConf.to_container(self.cfg.edges, resolve=True)
+        key = "class_change" if class_boundaries_only(mode, edges_cfg) else "all"
         return self.samples[key if key in self.samples else "all"]
 
 
