@@ -9,11 +9,12 @@ batch at once with kornia functions and draws every random number from an explic
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from kornia.enhance import adjust_brightness, adjust_contrast, adjust_hue, adjust_saturation
 from kornia.filters import gaussian_blur2d
 from kornia.geometry.transform import crop_and_resize
@@ -127,6 +128,26 @@ def load_split(
     )
 
 
+def downsample_split(data: SplitData, factor: int) -> SplitData:
+    """The split at 1/factor resolution, as a SegNet with ``downsample=factor`` sees it.
+
+    Images are averaged over factor x factor blocks (what ``SegNet.preprocess`` does) and
+    rounded back to uint8; labels keep each block's top-left pixel (nearest). H and W must be
+    multiples of ``factor``.
+
+    Returns:
+        images (N, 3, H / factor, W / factor) uint8 and labels (N, H / factor, W / factor).
+    """
+    if factor == 1:
+        return data
+    h, w = data.images.shape[-2:]
+    if h % factor or w % factor:
+        raise ValueError(f"image size {h}x{w} is not a multiple of model.downsample={factor}")
+    images = F.avg_pool2d(data.images.float(), factor).round_().to(torch.uint8)
+    labels = data.labels[:, ::factor, ::factor].contiguous()
+    return SplitData(images=images, labels=labels, paths=data.paths)
+
+
 def to_float(images: torch.Tensor) -> torch.Tensor:
     """(B, 3, H, W) uint8 -> float32 in [0, 1]."""
     return images.float().div_(255.0)
@@ -173,9 +194,12 @@ class AugmentConfig:
         saturation: saturation factor drawn from [1 - s, 1 + s].
         hue: hue shift drawn from [-h, h] (fraction of a full turn).
         blur_prob: probability of a Gaussian blur.
-        blur_sigma: range of the blur sigma in pixels.
-        noise_std: standard deviation of additive Gaussian noise, drawn per image from
-            [0, noise_std].
+        blur_sigma: range of the blur sigma in pixels of the input image.
+        noise_std: standard deviation of additive Gaussian noise per input-image pixel,
+            drawn per image from [0, noise_std].
+
+    Sizes are in input-image pixels; ``at_resolution`` converts them for training at the
+    network's lower resolution.
     """
 
     crop: tuple[int, int] | None = None
@@ -202,6 +226,21 @@ class AugmentConfig:
                 f"known: {sorted(cls.__dataclass_fields__)}"
             )
         return cls(**d)
+
+    def at_resolution(self, factor: int) -> AugmentConfig:
+        """The same augmentation for images box-averaged by ``factor``: crop and blur sigma
+        shrink by ``factor``; noise std shrinks by ``factor`` too (averaging factor^2
+        independent pixels), so the network sees the noise it would see at full size."""
+        if factor == 1:
+            return self
+        f = float(factor)
+        crop = None if self.crop is None else (int(self.crop[0] // f), int(self.crop[1] // f))
+        return replace(
+            self,
+            crop=crop,
+            blur_sigma=(self.blur_sigma[0] / f, self.blur_sigma[1] / f),
+            noise_std=self.noise_std / f,
+        )
 
 
 def _uniform(gen: torch.Generator, n: int, lo: float, hi: float) -> torch.Tensor:

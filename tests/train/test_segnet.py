@@ -125,6 +125,26 @@ class TestForward:
             )
             torch.testing.assert_close(full(x), ref)
 
+    def test_network_resolution_matches_forward_before_upsampling(self) -> None:
+        """Training's low-resolution path gives forward's logits before the upsampling."""
+        m = _tiny(downsample=2, skip="add").eval()
+        x = torch.rand(2, 3, 32, 48)
+        with torch.no_grad():
+            low = m.forward_network_resolution(torch.nn.functional.avg_pool2d(x, 2))
+            up = torch.nn.functional.interpolate(low, scale_factor=2, mode="bilinear")
+            assert low.shape == (2, 5, 16, 24)
+            torch.testing.assert_close(m(x), up)
+
+    def test_skip_add_uses_encoder_features(self) -> None:
+        """skip="add" changes the output of the same weights; "none" is plain SegNet."""
+        plain, added = _tiny(), _tiny(skip="add")
+        added.load_state_dict(plain.state_dict())
+        x = torch.rand(1, 3, 32, 32)
+        with torch.no_grad():
+            assert not torch.allclose(plain(x), added(x))
+        with pytest.raises(ValueError, match="model.skip"):
+            _tiny(skip="concat")
+
     @pytest.mark.parametrize("bad", [0, 3])
     def test_bad_downsample(self, bad: int) -> None:
         with pytest.raises(ValueError, match="downsample"):

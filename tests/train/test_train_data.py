@@ -11,7 +11,15 @@ import torch
 from datagen import classes as C
 from datagen.atomic import write_png
 from datagen.dataset import Dataset
-from train.data import AugmentConfig, augment_batch, batches, check_classes, load_split
+from train.data import (
+    AugmentConfig,
+    SplitData,
+    augment_batch,
+    batches,
+    check_classes,
+    downsample_split,
+    load_split,
+)
 
 GEOMETRY_ONLY = dict(
     brightness=0.0, contrast=0.0, saturation=0.0, hue=0.0, blur_prob=0.0, noise_std=0.0
@@ -80,6 +88,20 @@ def test_batches() -> None:
     assert [b.tolist() for b in batches(5, 2, drop_last=True)] == [[0, 1], [2, 3]]
     shuffled = torch.cat(list(batches(7, 3, torch.Generator().manual_seed(0))))
     assert sorted(shuffled.tolist()) == list(range(7))
+
+
+def test_downsample_split() -> None:
+    """Box-averaged images and top-left labels; the palette images stay the class colours."""
+    images, labels = _palette_batch()
+    half = downsample_split(SplitData(images, labels, []), 2)
+    assert half.images.shape == (4, 3, 24, 32) and half.labels.shape == (4, 24, 32)
+    assert half.images.dtype == torch.uint8
+    torch.testing.assert_close(half.labels, labels[:, ::2, ::2])
+    ref = torch.nn.functional.avg_pool2d(images.float(), 2)
+    assert (half.images.float() - ref).abs().max() <= 0.5
+    assert downsample_split(SplitData(images, labels, []), 1).images is images
+    with pytest.raises(ValueError, match="multiple of model.downsample"):
+        downsample_split(SplitData(images[..., :47, :], labels[:, :47], []), 2)
 
 
 class TestLoad:
