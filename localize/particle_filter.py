@@ -38,6 +38,8 @@ class FilterParams:
         global_likelihood: likelihood settings that differ in the global phase (e.g. the
             ``evidence`` aggregate, which rewards poses that explain more of the model); the
             tracking likelihood takes over after the thinning.
+        mode_likelihood: likelihood settings that differ per edge mode, ``{mode: {key: value}}``
+            (e.g. directional matching for the label modes, whose edges are clean enough).
         global_motion_scale: motion noise multiplier in the global phase (roughening).
         global_thin: the global phase scores every ``global_thin``-th model sample only
             (cheaper per particle, so more particles fit the same time).
@@ -69,6 +71,7 @@ class FilterParams:
     global_frames: int = 3
     global_temper: float = 1.0
     global_likelihood: Mapping = field(default_factory=dict)
+    mode_likelihood: Mapping = field(default_factory=dict)
     global_motion_scale: float = 1.0
     global_thin: int = 1
     init_std: Sequence[float] = (0.1, 0.1, 0.05, 3.0)
@@ -92,6 +95,10 @@ class FilterParams:
                              f"filter.global_particles ({self.global_particles}) must be >= 1")
         if not 0.0 < self.resample_ess <= 1.0:
             raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
+        bad_modes = set(self.mode_likelihood) - {"none", "cnn", "oracle"}
+        if bad_modes:
+            raise ValueError(f"filter.mode_likelihood: unknown edge modes {sorted(bad_modes)}; "
+                             "use none, cnn, oracle")
         for key, n in (("init_std", 4), ("motion_std", 3), ("motion_rel", 2),
                        ("recovery_local_std", 4)):
             if len(getattr(self, key)) != n:

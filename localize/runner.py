@@ -15,6 +15,7 @@ file exist, so a stopped job resumes where it was (``overwrite=true`` re-runs ev
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import time
@@ -181,8 +182,10 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
         fparams = replace(fparams, num_particles=int(num_particles),
                           global_particles=max(int(num_particles), fparams.global_particles))
     samples, vis = ctx.model_for(mode)
-    lik = EdgeLikelihood(samples, ctx.camera, ctx.likelihood_params, vis)
     lp = ctx.likelihood_params
+    if mode in fparams.mode_likelihood:
+        lp = LikelihoodParams.from_cfg({**asdict(lp), **dict(fparams.mode_likelihood[mode])})
+    lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
     wide = None  # the global phase's likelihood: thinned samples, its own settings
     if any(r.init == "global" for r in runs) and (fparams.global_likelihood
                                                    or fparams.global_thin > 1):
@@ -323,7 +326,8 @@ def run(cfg: DictConfig) -> Path:
     ctx = prepare(cfg)
     out = ctx.out_dir
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "config.json", OmegaConf.to_container(cfg, resolve=True))
+    stored = check_resume(out, cfg)
+    atomic_write_json(out / "config.json", stored)
     for name in select_flights(ctx.dataset, cfg.flight_names):
         flight = ctx.dataset.flight(name)
         for mode in cfg.modes:
@@ -336,6 +340,39 @@ def run(cfg: DictConfig) -> Path:
             run_pass(ctx, flight, mode, todo)
     paper_faithful_runs(ctx)
     return write_report(ctx)
+
+
+# Settings a finished run's trajectory depends on; the others (modes, seeds, inits, flights)
+# only choose which runs exist, so they may change between resumes.
+RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_edges",
+               "visibility")
+
+
+def check_resume(out: Path, cfg: DictConfig) -> dict:
+    """The config to store in ``out/config.json``, after checking that the runs already in
+    ``out`` were made with the same result-affecting settings and the same segnet.onnx bytes.
+
+    With ``overwrite=true`` a mismatch only warns (every run is re-done anyway); otherwise it
+    raises naming the differing keys.
+    """
+    conf = OmegaConf.to_container(cfg, resolve=True)
+    onnx_path = Path(str(cfg.onnx_model))
+    conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
+                           if "cnn" in cfg.modes and onnx_path.is_file() else None)
+    path = out / "config.json"
+    if not path.is_file() or not (out / "runs").is_dir():
+        return conf
+    old = json.loads(path.read_text())
+    keys = [*RESULT_KEYS, "onnx_sha256"] if conf["onnx_sha256"] and old.get("onnx_sha256") \
+        else list(RESULT_KEYS)
+    diff = [k for k in keys if old.get(k) != conf.get(k)]
+    if diff and not cfg.overwrite:
+        raise RuntimeError(f"{out} holds runs made with other settings ({', '.join(diff)} differ "
+                           f"from {path}); pass overwrite=true to re-run them, or pick another "
+                           f"name=...")
+    if not conf["onnx_sha256"]:
+        conf["onnx_sha256"] = old.get("onnx_sha256")
+    return conf
 
 
 def load_runs(out_dir: Path) -> list[dict]:

@@ -8,6 +8,7 @@ import shutil
 
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
 from datagen.poses import read_tum
 from localize.runner import RunSpec, run
@@ -90,6 +91,15 @@ class TestEndToEnd:
         again = run(cfg)
         assert again == path and traj.stat().st_mtime_ns == before
         assert RunSpec("paper", "none", "tracking", 0).done(path.parent)
+
+    def test_resume_refuses_other_settings(self, report):
+        """Finished runs made with other filter settings are not mixed into a new report."""
+        cfg, path = report
+        stored = (path.parent / "config.json").read_text()
+        other = OmegaConf.merge(cfg, {"filter": {"likelihood": {"k": 7.0}}})
+        with pytest.raises(RuntimeError, match=r"filter differ.*overwrite=true"):
+            run(other)
+        assert (path.parent / "config.json").read_text() == stored
 
 
 @pytest.mark.slow
