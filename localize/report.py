@@ -353,7 +353,10 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
         "",
         f"Dataset `{m['dataset']}`. Filter: {f.num_particles} particles, likelihood "
         f"`{f.likelihood.aggregate}` with k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
-        f"of a {f.likelihood.search_px}-pixel search reach. Seeds: {list(cfg.seeds)}.",
+        f"of a {f.likelihood.search_px}-pixel search reach"
+        + "".join(f"; mode {mode}: " + ", ".join(f"{k} = {v}" for k, v in over.items())
+                  for mode, over in f.get("mode_likelihood", {}).items())
+        + f". Seeds: {list(cfg.seeds)}.",
         f"Paper (Buyval et al. 2017): mean error {paper_err} m, {paper_ms} ms per frame on a "
         f"GTX 1050; a LIDAR method ~{cfg.report.lidar_error_m} m.",
         "",
