@@ -106,6 +106,19 @@ def filter_settings(cfg: DictConfig) -> tuple[FilterParams, LikelihoodParams]:
     return FilterParams.from_cfg(f), LikelihoodParams.from_cfg(lik)
 
 
+def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
+                           mode: str) -> LikelihoodParams:
+    """The likelihood settings of one edge mode: ``lp`` updated by
+    ``filter.mode_likelihood[mode]`` (unknown keys raise)."""
+    over = fparams.mode_likelihood.get(mode)
+    if not over:
+        return lp
+    try:
+        return LikelihoodParams.from_cfg({**asdict(lp), **dict(over)})
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"filter.mode_likelihood.{mode}: {err}") from err
+
+
 def select_flights(dataset: Dataset, wanted) -> list[str]:
     """Flight names to run; errors name the dataset and what exists."""
     names = dataset.flight_names()
@@ -136,6 +149,8 @@ def prepare(cfg: DictConfig) -> Context:
     camera = dataset.camera
     out_dir = Path(cfg.out_root) / str(cfg.name)
     fparams, lparams = filter_settings(cfg)
+    for mode in cfg.modes:  # fail before any run on a bad per-mode setting
+        mode_likelihood_params(lparams, fparams, mode)
     samples = sample_segments(world.segments, float(cfg.model_edges.spacing))
     v = cfg.visibility
     vis = load_or_build(world, samples.points, out_dir / "cache", float(v.cell_xy),
@@ -182,9 +197,7 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
         fparams = replace(fparams, num_particles=int(num_particles),
                           global_particles=max(int(num_particles), fparams.global_particles))
     samples, vis = ctx.model_for(mode)
-    lp = ctx.likelihood_params
-    if mode in fparams.mode_likelihood:
-        lp = LikelihoodParams.from_cfg({**asdict(lp), **dict(fparams.mode_likelihood[mode])})
+    lp = mode_likelihood_params(ctx.likelihood_params, fparams, mode)
     lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
     wide = None  # the global phase's likelihood: thinned samples, its own settings
     if any(r.init == "global" for r in runs) and (fparams.global_likelihood

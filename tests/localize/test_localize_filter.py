@@ -101,6 +101,10 @@ class TestWeights:
             FilterParams.from_cfg({"particles": 3})
         assert FilterParams.from_cfg({"motion_std": [0.1, 0.1, 1.0]}).motion_std == (0.1, 0.1,
                                                                                       1.0)
+        with pytest.raises(ValueError, match="mode_likelihood: unknown edge modes"):
+            FilterParams(mode_likelihood={"segnet": {"k": 5.0}})
+        per_mode = FilterParams.from_cfg({"mode_likelihood": {"cnn": {"k": 5.0}}})
+        assert per_mode.mode_likelihood == {"cnn": {"k": 5.0}}
 
 
 def bowl(target: np.ndarray, k: float = 50.0):

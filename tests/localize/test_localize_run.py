@@ -11,7 +11,9 @@ import pytest
 from omegaconf import OmegaConf
 
 from datagen.poses import read_tum
-from localize.runner import RunSpec, run
+from localize.likelihood import LikelihoodParams
+from localize.particle_filter import FilterParams
+from localize.runner import RunSpec, mode_likelihood_params, run
 from tests.localize.conftest import QUICK, localize_cfg
 
 
@@ -77,6 +79,7 @@ class TestEndToEnd:
         d = path.parent
         text = path.read_text()
         assert "0.32" in text and "177" in text
+        assert "mode cnn: k = 5.0" in text  # conf/filter/default.yaml's mode_likelihood
         for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
             assert (d / "plots" / f"{png}.png").stat().st_size > 1000
             assert f"plots/{png}.png" in text
@@ -100,6 +103,16 @@ class TestEndToEnd:
         with pytest.raises(RuntimeError, match=r"filter differ.*overwrite=true"):
             run(other)
         assert (path.parent / "config.json").read_text() == stored
+
+
+def test_mode_likelihood_params():
+    lp = LikelihoodParams(k=25.0)
+    fp = FilterParams(mode_likelihood={"cnn": {"k": 5.0, "orientation_bins": 8}})
+    cnn = mode_likelihood_params(lp, fp, "cnn")
+    assert (cnn.k, cnn.orientation_bins, cnn.sigma) == (5.0, 8, lp.sigma)
+    assert mode_likelihood_params(lp, fp, "oracle") is lp
+    with pytest.raises(ValueError, match=r"filter.mode_likelihood.cnn: unknown likelihood"):
+        mode_likelihood_params(lp, FilterParams(mode_likelihood={"cnn": {"kk": 1}}), "cnn")
 
 
 @pytest.mark.slow
