@@ -193,10 +193,15 @@ class EdgeExtractor:
 
     def segment(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted labels (H, W) uint8 and their confidence (H, W) float32, the largest
-        softmax probability, of an RGB frame (cnn mode)."""
+        softmax probability, of an RGB frame (cnn mode). The confidence is all ones when
+        ``cnn.min_confidence`` is 0 (it is not used then, and the softmax is skipped)."""
         _check_rgb(rgb)
-        out = self.segmenter.predict(rgb)
-        labels, probs = out if isinstance(out, tuple) else (out, None)
+        if self.cfg.get("cnn", {}).get("min_confidence", 0.0) <= 0 and hasattr(
+                self.segmenter, "labels"):
+            labels, probs = self.segmenter.labels(rgb), None  # confidence unused: no softmax
+        else:
+            out = self.segmenter.predict(rgb)
+            labels, probs = out if isinstance(out, tuple) else (out, None)
         labels = np.asarray(labels)
         if labels.shape != rgb.shape[:2]:
             raise ValueError(f"segmenter returned labels {labels.shape} for an image "

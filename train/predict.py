@@ -110,6 +110,12 @@ class OnnxSegmenter:
         out = self.session.run([OUTPUT_NAME], {INPUT_NAME: x})[0]
         return out[0] if single else out
 
+    def labels(self, rgb: np.ndarray) -> np.ndarray:
+        """Class labels only (no softmax): (H, W, 3) or (N, H, W, 3) uint8 RGB ->
+        (H, W) or (N, H, W) uint8."""
+        z = self.logits(rgb)
+        return z.argmax(0 if z.ndim == 3 else 1).astype(np.uint8)
+
     def predict(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Class labels and softmax probabilities.
 

@@ -149,6 +149,8 @@ class TestPredictor:
         one, one_probs = seg.predict(rgb[0])
         assert one.shape == (H, W) and one_probs.shape == (8, H, W)
         np.testing.assert_array_equal(one, labels[0])
+        np.testing.assert_array_equal(seg.labels(rgb), labels)
+        np.testing.assert_array_equal(seg.labels(rgb[0]), labels[0])
 
     def test_bad_input(self, exported) -> None:
         seg = OnnxSegmenter(exported[0], threads=1)
