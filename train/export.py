@@ -196,6 +196,7 @@ def onnx_metadata(
             "num_classes": model.num_classes,
             "pooling": pooling,
             "downsample": model.downsample,
+            "skip": model.skip,  # add: SegNet-EncoderAddition
         },
         "config_hash": config_hash,
     }
