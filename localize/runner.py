@@ -376,13 +376,16 @@ def check_resume(out: Path, cfg: DictConfig) -> dict:
     if not path.is_file() or not (out / "runs").is_dir():
         return conf
     old = json.loads(path.read_text())
-    keys = [*RESULT_KEYS, "onnx_sha256"] if conf["onnx_sha256"] and old.get("onnx_sha256") \
-        else list(RESULT_KEYS)
+    both_hashed = conf["onnx_sha256"] and old.get("onnx_sha256")
+    keys = [*RESULT_KEYS, "onnx_sha256"] if both_hashed else list(RESULT_KEYS)
     diff = [k for k in keys if old.get(k) != conf.get(k)]
     if diff and not cfg.overwrite:
         raise RuntimeError(f"{out} holds runs made with other settings ({', '.join(diff)} differ "
                            f"from {path}); pass overwrite=true to re-run them, or pick another "
                            f"name=...")
+    if diff:
+        log.warning("overwrite=true: %s differ from %s; re-running the runs of this config",
+                    ", ".join(diff), path)
     if not conf["onnx_sha256"]:
         conf["onnx_sha256"] = old.get("onnx_sha256")
     return conf
