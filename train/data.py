@@ -132,8 +132,9 @@ def downsample_split(data: SplitData, factor: int) -> SplitData:
     """The split at 1/factor resolution, as a SegNet with ``downsample=factor`` sees it.
 
     Images are averaged over factor x factor blocks (what ``SegNet.preprocess`` does) and
-    rounded back to uint8; labels keep each block's top-left pixel (nearest). H and W must be
-    multiples of ``factor``.
+    rounded back to uint8; labels take each block's majority class (``block_majority``), so a
+    low-resolution label describes the same block, centred at the same point, as its pixel.
+    H and W must be multiples of ``factor``.
 
     Returns:
         images (N, 3, H / factor, W / factor) uint8 and labels (N, H / factor, W / factor).
@@ -144,8 +145,36 @@ def downsample_split(data: SplitData, factor: int) -> SplitData:
     if h % factor or w % factor:
         raise ValueError(f"image size {h}x{w} is not a multiple of model.downsample={factor}")
     images = F.avg_pool2d(data.images.float(), factor).round_().to(torch.uint8)
-    labels = data.labels[:, ::factor, ::factor].contiguous()
-    return SplitData(images=images, labels=labels, paths=data.paths)
+    return SplitData(images=images, labels=block_majority(data.labels, factor), paths=data.paths)
+
+
+def block_majority(labels: torch.Tensor, factor: int, chunk: int = 256) -> torch.Tensor:
+    """The most frequent class of each factor x factor block of a label batch.
+
+    Ignored pixels (255) do not vote; a block with no other pixel stays 255; ties go to the
+    lower class id. (Keeping one pixel per block instead, e.g. the top-left, would move every
+    boundary by (factor - 1) / 2 input pixels relative to the box-averaged image.)
+
+    Args:
+        labels: (N, H, W) uint8 class ids, H and W multiples of ``factor``.
+        factor: block size.
+        chunk: images per step (bounds the memory of the per-class counts).
+
+    Returns:
+        (N, H / factor, W / factor) uint8.
+    """
+    ids = [int(c) for c in torch.unique(labels) if int(c) != IGNORE]
+    n, h, w = labels.shape
+    out = torch.full((n, h // factor, w // factor), IGNORE, dtype=torch.uint8)
+    if not ids:
+        return out
+    table = torch.tensor(ids, dtype=torch.uint8)
+    for s in range(0, n, chunk):
+        lab = labels[s : s + chunk, None]
+        counts = torch.cat([F.avg_pool2d((lab == c).float(), factor) for c in ids], dim=1)
+        best, arg = counts.max(dim=1)
+        out[s : s + chunk] = torch.where(best > 0, table[arg], IGNORE)
+    return out
 
 
 def to_float(images: torch.Tensor) -> torch.Tensor:

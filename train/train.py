@@ -100,6 +100,21 @@ def config_hash(train_cfg: dict, dataset_json: bytes) -> str:
     return h.hexdigest()[:16]
 
 
+def resolve_precision(precision: str) -> bool:
+    """Whether to train in bfloat16 autocast for ``precision`` (the ``precision`` key).
+
+    "bf16" uses bfloat16 convolutions (oneDNN; about 1.5-2.5x faster where the CPU has
+    AVX512-BF16 or AMX, emulated and slow elsewhere), "fp32" never does, "auto" does where the
+    CPU supports bfloat16 natively. Weights, optimizer state, validation, the test metrics and
+    the ONNX export stay float32.
+    """
+    if precision not in ("auto", "bf16", "fp32"):
+        raise ValueError(f"precision={precision!r}: use auto, bf16 or fp32")
+    if precision == "auto":
+        return bool(torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported())
+    return precision == "bf16"
+
+
 def _flatten(d: dict, prefix: str = "") -> dict:
     out = {}
     for k, v in d.items():
@@ -171,6 +186,7 @@ def train_one_epoch(
     deadline: float = math.inf,
     progress: bool = False,
     desc: str = "train",
+    bf16: bool = False,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution.
 
@@ -186,6 +202,7 @@ def train_one_epoch(
         deadline: ``time.monotonic()`` value after which the epoch stops early.
         progress: show a progress bar.
         desc: progress bar label.
+        bf16: run the forward pass in bfloat16 autocast (the loss is taken in float32).
 
     Returns:
         Mean loss, number of steps done, and whether the deadline stopped the epoch.
@@ -206,7 +223,9 @@ def train_one_epoch(
             break
         x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
         x = x.contiguous(memory_format=torch.channels_last)
-        loss = segmentation_loss(model.forward_network_resolution(x), y, class_weights)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            logits = model.forward_network_resolution(x)
+        loss = segmentation_loss(logits.float(), y, class_weights)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -354,14 +373,16 @@ def run(cfg: DictConfig) -> dict:
     optimizer, scheduler = make_optimizer(
         model, OmegaConf.to_container(cfg.optim, resolve=True), epochs * steps_per_epoch
     )
+    bf16 = resolve_precision(str(cfg.precision))
     log.info(
-        "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch",
+        "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch, %s",
         mcfg.get("name", "segnet"),
         count_parameters(model),
         model.channels,
         len(train_data),
         len(val_data),
         steps_per_epoch,
+        "bfloat16 autocast" if bf16 else "float32",
     )
 
     state = {
@@ -406,6 +427,7 @@ def run(cfg: DictConfig) -> dict:
             deadline,
             progress,
             desc=f"epoch {epoch + 1}/{epochs}",
+            bf16=bf16,
         )
         cm = evaluate(model, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
         val = scores(cm)

@@ -16,6 +16,7 @@ from train.data import (
     SplitData,
     augment_batch,
     batches,
+    block_majority,
     check_classes,
     downsample_split,
     load_split,
@@ -90,13 +91,37 @@ def test_batches() -> None:
     assert sorted(shuffled.tolist()) == list(range(7))
 
 
+def test_block_majority_hand_made() -> None:
+    lab = torch.zeros(1, 4, 8, dtype=torch.uint8)
+    lab[0, :, :5] = 1  # a boundary one pixel into the second block: it belongs to class 0
+    lab[0, 0, 0] = 255
+    assert block_majority(lab, 4).tolist() == [[[1, 0]]]
+    lab[0, :, 5:] = 255  # the second block: one class-1 column and ignored pixels
+    assert block_majority(lab, 4).tolist() == [[[1, 1]]]
+    lab[0, :, 4:] = 255
+    assert block_majority(lab, 4).tolist() == [[[1, 255]]]
+    tie = torch.tensor([[[3, 3], [2, 2]]], dtype=torch.uint8)
+    assert block_majority(tie, 2).tolist() == [[[2]]]
+
+
+def test_block_majority_keeps_boundaries_in_place() -> None:
+    """Labels downsampled and upsampled back (as the SegNet's logits are) stay centred."""
+    lab = torch.zeros(1, 64, 64, dtype=torch.uint8)
+    lab[0, 21:, :] = 1  # a horizontal boundary between rows 20 and 21
+    small = block_majority(lab, 4)
+    onehot = torch.nn.functional.one_hot(small.long(), 2).permute(0, 3, 1, 2).float()
+    up = torch.nn.functional.interpolate(onehot, scale_factor=4, mode="bilinear").argmax(1)
+    rows = (up[0] != lab[0]).any(dim=1).nonzero().flatten().tolist()
+    assert all(abs(r - 20.5) <= 2 for r in rows), rows
+
+
 def test_downsample_split() -> None:
-    """Box-averaged images and top-left labels; the palette images stay the class colours."""
+    """Box-averaged images and block-majority labels."""
     images, labels = _palette_batch()
     half = downsample_split(SplitData(images, labels, []), 2)
     assert half.images.shape == (4, 3, 24, 32) and half.labels.shape == (4, 24, 32)
     assert half.images.dtype == torch.uint8
-    torch.testing.assert_close(half.labels, labels[:, ::2, ::2])
+    torch.testing.assert_close(half.labels, block_majority(labels, 2))
     ref = torch.nn.functional.avg_pool2d(images.float(), 2)
     assert (half.images.float() - ref).abs().max() <= 0.5
     assert downsample_split(SplitData(images, labels, []), 1).images is images

@@ -25,7 +25,8 @@ def trained(synthetic_dataset: Path, compose_train, tmp_path_factory) -> tuple[P
     return out_root / "demo", metrics
 
 
-def test_loss_falls(synthetic_dataset: Path) -> None:
+@pytest.mark.parametrize("bf16", [False, True], ids=["fp32", "bf16"])
+def test_loss_falls(synthetic_dataset: Path, bf16: bool) -> None:
     data = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
     model = SegNet(
         8,
@@ -39,12 +40,22 @@ def test_loss_falls(synthetic_dataset: Path) -> None:
     x, y = to_float(data.images), data.labels.long()
     losses = []
     for _ in range(12):
-        loss = segmentation_loss(model(x), y, weights)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            logits = model(x)
+        loss = segmentation_loss(logits.float(), y, weights)
         opt.zero_grad()
         loss.backward()
         opt.step()
         losses.append(loss.item())
     assert losses[-1] < 0.7 * losses[0], losses
+
+
+def test_resolve_precision() -> None:
+    assert tt.resolve_precision("bf16") is True
+    assert tt.resolve_precision("fp32") is False
+    assert isinstance(tt.resolve_precision("auto"), bool)
+    with pytest.raises(ValueError, match="precision='half'"):
+        tt.resolve_precision("half")
 
 
 @pytest.mark.slow
