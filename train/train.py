@@ -58,6 +58,7 @@ HASH_EXCLUDE = (
     "overwrite",
     "progress",
     "eval.batch_size",
+    "eval.flip_average",
     "export",
 )
 #: Files of an output folder that ``overwrite=true`` removes.
@@ -494,6 +495,8 @@ def run(cfg: DictConfig) -> dict:
     model = model.to(memory_format=torch.contiguous_format)
     model.load_state_dict(best["model"])
     model.eval()
+    flip = bool(cfg.eval.get("flip_average", False))
+    model.set_flip_average(flip)  # the test metrics describe the exported graph
     n_train = len(train_data)
     del train_data
     test_data = load_split(dataset, "test", num_classes, limit, progress)
@@ -525,6 +528,7 @@ def run(cfg: DictConfig) -> dict:
         "images": {"train": n_train, "val": len(val_data), "test": len(test_data)},
         "config_hash": info["config_hash"],
         "threads": int(cfg.threads),
+        "flip_average": flip,
     }
     onnx_path = out_dir / "segnet.onnx"
     n_par = min(int(cfg.export.parity_images), len(test_data))
@@ -538,7 +542,8 @@ def run(cfg: DictConfig) -> dict:
         info["config_hash"],
         pooling=pooling,
         extra={
-            "test_metrics": {k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")}
+            "test_metrics": {k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")},
+            "flip_average": flip,
         },
     )
     try:
