@@ -33,6 +33,7 @@ from omegaconf import OmegaConf
 from datagen.classes import as_json
 from train.export import onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter
+from train.runtime import read_metadata
 from train.segnet import SegNet, build_segnet, count_parameters
 from train.train import load_checkpoint
 
@@ -62,7 +63,10 @@ def build_model(args: argparse.Namespace, tmp: Path) -> tuple[SegNet, Path, str]
     """The model to time and its ONNX file: a trained model folder or a fresh export."""
     mdir = Path(args.model_dir) if args.model_dir else None
     if mdir and (mdir / "checkpoint_best.pt").is_file() and (mdir / "segnet.onnx").is_file():
-        return load_checkpoint(mdir / "checkpoint_best.pt"), mdir / "segnet.onnx", str(mdir)
+        path = mdir / "segnet.onnx"
+        model = load_checkpoint(mdir / "checkpoint_best.pt")
+        model.set_flip_average(bool(read_metadata(path).get("flip_average", False)))  # as the graph
+        return model, path, str(mdir)
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose("train", overrides=[f"model={args.model}"])
     mcfg = OmegaConf.to_container(cfg.model, resolve=True)
