@@ -322,6 +322,7 @@ def run(cfg: DictConfig) -> dict:
     """
     t_start = time.monotonic()
     torch.set_num_threads(int(cfg.threads))
+    bf16 = resolve_precision(str(cfg.precision))  # a bad value fails before any loading
     progress = bool(cfg.progress)
     dataset = Dataset(cfg.dataset)
     ds_json = (dataset.root / "dataset.json").read_bytes()
@@ -374,7 +375,6 @@ def run(cfg: DictConfig) -> dict:
     optimizer, scheduler = make_optimizer(
         model, OmegaConf.to_container(cfg.optim, resolve=True), epochs * steps_per_epoch
     )
-    bf16 = resolve_precision(str(cfg.precision))
     log.info(
         "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch, %s",
         mcfg.get("name", "segnet"),

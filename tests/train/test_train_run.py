@@ -164,3 +164,8 @@ class TestBadInput:
     def test_zero_budget(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(RuntimeError, match="time budget"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "max_minutes=0"))
+
+    def test_bad_precision(self, synthetic_dataset, compose_train, tmp_path) -> None:
+        with pytest.raises(ValueError, match="precision='half': use auto, bf16 or fp32"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "precision=half"))
+        assert not (tmp_path / "demo").exists()  # failed before writing anything
