@@ -43,7 +43,7 @@ from localize.edges import EdgeExtractor  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.particle_filter import ParticleFilter, odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
-from localize.runner import prepare  # noqa: E402
+from localize.runner import mode_likelihood_params, prepare  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0
@@ -79,7 +79,8 @@ def main() -> int:
     flight = ctx.dataset.flight(args.flight)
     T = min(args.frames, len(flight.timestamps))
     samples, vis = ctx.model_for(args.mode)
-    lik = EdgeLikelihood(samples, ctx.camera, ctx.likelihood_params, vis)
+    lp = mode_likelihood_params(ctx.likelihood_params, ctx.filter_params, args.mode)  # as runs do
+    lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
     extractor = EdgeExtractor(args.mode, OmegaConf.to_container(cfg.edges, resolve=True),
                               ctx.segmenter)
     pf = ParticleFilter(ctx.filter_params, ctx.world.free_boxes, ctx.world.z_range,
