@@ -25,6 +25,9 @@ def ort_session(model: str | Path | bytes, threads: int = 2) -> ort.InferenceSes
     so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
     so.log_severity_level = 3
+    # Idle worker threads would otherwise spin for a while after each run, taking the cores from
+    # the caller's next step (the localizer's edge maps and filter).
+    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
     src = model if isinstance(model, bytes) else str(model)
     return ort.InferenceSession(src, so, providers=["CPUExecutionProvider"])
 
