@@ -213,7 +213,7 @@ def observe(edge: EdgeImage, params: LikelihoodParams) -> Observation:
         dn = np.minimum(d, params.search_px) / np.float32(params.search_px)
         gb = np.exp(-dn * dn / np.float32(s2))
         g0[b] = gb[known].mean() if known.any() else g_far
-        # masked writes with copyto/out=: several times faster than boolean indexing
+        # masked writes in place (copyto/out=) instead of boolean-indexed copies
         np.maximum(gb, g0[b], out=gb, where=(d > dist_unknown) & known)  # hidden by unknown
         np.copyto(gb, g0[b], where=unknown)
         g[b] = gb

@@ -317,9 +317,7 @@ def _stage_features(
     model: SegNet, x: torch.Tensor, imposed: list[torch.Tensor], k: int
 ) -> torch.Tensor:
     """Encoder features of stage k before pooling, with given indices for stages < k."""
-    if model.flip_average:  # the network's batch: the images, then their mirror images
-        x = torch.cat([x, x.flip(-1)])
-    x, _ = model.preprocess(x)
+    x, _ = model.preprocess(model.with_mirror(x))
     for j, stage in enumerate(model.encoder):
         x = stage(x)
         if j == k:

@@ -242,6 +242,10 @@ class SegNet(nn.Module):
         self.flip_average = bool(on)
         return self
 
+    def with_mirror(self, x: torch.Tensor) -> torch.Tensor:
+        """The batch the network runs on: x, then (with ``flip_average``) its mirror images."""
+        return torch.cat([x, x.flip(-1)]) if self.flip_average else x
+
     def set_pooling(self, pooling: str) -> SegNet:
         """Use "indices" (nn.MaxPool2d/MaxUnpool2d) or "window" pooling; returns self."""
         if pooling == "indices":
@@ -327,9 +331,7 @@ class SegNet(nn.Module):
             (B, C, H, W) logits and the list of per-stage indices.
         """
         n = x.shape[0]
-        if self.flip_average:  # indices, if given, are those of this batch of 2n
-            x = torch.cat([x, x.flip(-1)])
-        x, (h, w) = self.preprocess(x)
+        x, (h, w) = self.preprocess(self.with_mirror(x))  # indices, if given, are for this batch
         x, pooled_idx = self._network(x, indices)
         if self.downsample > 1:
             x = F.interpolate(x, scale_factor=self.downsample, mode="bilinear", align_corners=False)
