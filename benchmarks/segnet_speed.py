@@ -11,6 +11,8 @@ otherwise a randomly initialised model of the given config is exported to a temp
 (speed does not depend on the weights). Prints the median and 90th percentile wall time per
 frame over ``--runs`` runs after warm-up, and the process CPU time per frame, which is less
 sensitive to other jobs on a shared machine. Timings are for batch 1 unless --batch is given.
+``onnxruntime_refined`` adds the guided refinement (train/refine.py) that ``train.predict``
+applies; the localizer uses the network alone.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from omegaconf import OmegaConf
 from datagen.classes import as_json
 from train.export import onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter
+from train.refine import GuidedRefine
 from train.runtime import read_metadata
 from train.segnet import SegNet, build_segnet, count_parameters
 from train.train import load_checkpoint
@@ -107,7 +110,9 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         model, onnx_path, source = build_model(args, Path(tmp))
-        seg = OnnxSegmenter(onnx_path, threads=args.threads)
+        seg = OnnxSegmenter(onnx_path, threads=args.threads, refine=False)  # the network
+        refined = OnnxSegmenter(onnx_path, threads=args.threads)  # + the model's refinement
+        refined.refine = refined.refine or GuidedRefine()  # (default settings if it has none)
         h, w = seg.input_size
         rng = np.random.default_rng(0)
         rgb = rng.integers(0, 256, (args.batch, h, w, 3), dtype=np.uint8)
@@ -119,7 +124,8 @@ def main() -> None:
             results["torch"] = timed(lambda: model(x), args.runs)
         results["onnxruntime"] = timed(lambda: seg.logits(rgb), args.runs)
         results["onnxruntime_predict"] = timed(lambda: seg.predict(rgb), args.runs)
-        seg1 = OnnxSegmenter(onnx_path, threads=1)
+        results["onnxruntime_refined"] = timed(lambda: refined.labels(rgb), args.runs)
+        seg1 = OnnxSegmenter(onnx_path, threads=1, refine=False)
         results["onnxruntime_1thread"] = timed(lambda: seg1.logits(rgb), args.runs)
         load1 = os.getloadavg()[0]
 

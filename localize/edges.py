@@ -148,8 +148,13 @@ def check_classes(model_classes: list[dict], dataset_classes: list[dict], where:
             "(python -m train dataset=...) or localize with the dataset it was trained on.")
 
 
-def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int = 2):
+def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int = 2,
+                   refine: bool = False):
     """Open ``segnet.onnx`` with ``train.predict.OnnxSegmenter`` and check its class list.
+
+    Args:
+        refine: apply the model's guided refinement (``train.refine``); off by default, the
+            network's boundaries track better (``edges.cnn.guided_refine``, docs/localize.md).
 
     Raises:
         FileNotFoundError: the model file is missing (says how to make it).
@@ -162,7 +167,7 @@ def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int =
             "(or set localize's `model=` to an existing segnet.onnx, or drop `cnn` from modes).")
     from train.predict import OnnxSegmenter
 
-    seg = OnnxSegmenter(str(path), threads=threads)
+    seg = OnnxSegmenter(str(path), threads=threads, refine=refine)
     classes = seg.classes
     if isinstance(classes, str):
         classes = json.loads(classes)

@@ -164,7 +164,8 @@ def prepare(cfg: DictConfig) -> Context:
             models["class_change"] = (sub, vis.select(cols))
     segmenter = None
     if "cnn" in cfg.modes:
-        segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads))
+        segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads),
+                                   bool(cfg.edges.get("cnn", {}).get("guided_refine", False)))
     return Context(cfg, dataset, camera, world, models, fparams, lparams, out_dir, segmenter)
 
 

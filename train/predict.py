@@ -1,4 +1,8 @@
-"""Segment images with an exported segnet.onnx (onnxruntime only, no torch needed at run time).
+"""Segment images with an exported segnet.onnx (onnxruntime runs the network).
+
+When the model was trained with the guided refinement on (``eval.refine``, recorded in the
+file's metadata), the class probabilities are then guided-filtered with the image
+(``train.refine``, kornia: torch is imported then); ``refine=False`` gives the network alone.
 
 API::
 
@@ -21,6 +25,7 @@ import numpy as np
 import onnx
 
 from datagen.atomic import read_png, write_png
+from train.refine import GuidedRefine, refine_logits_np
 from train.runtime import INPUT_NAME, OUTPUT_NAME, ort_session, read_metadata
 
 DEFAULT_MODEL = Path("outputs/models/demo/segnet.onnx")
@@ -37,6 +42,8 @@ class OnnxSegmenter:
     Args:
         path: segnet.onnx written by ``python -m train``.
         threads: onnxruntime intra-op threads.
+        refine: apply the model's guided refinement (its metadata key ``refine``), if it has
+            one. False: the network's own output.
 
     Attributes:
         classes: the class list (dicts with id, name, color, structural).
@@ -46,7 +53,7 @@ class OnnxSegmenter:
         metadata: all decoded metadata.
     """
 
-    def __init__(self, path: str | Path, threads: int = 2) -> None:
+    def __init__(self, path: str | Path, threads: int = 2, refine: bool = True) -> None:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(
@@ -67,6 +74,8 @@ class OnnxSegmenter:
             [c["id"] for c in self.classes if c.get("structural")], dtype=np.int64
         )
         self.input_size = (int(self.metadata["input_height"]), int(self.metadata["input_width"]))
+        settings = self.metadata.get("refine")
+        self.refine = GuidedRefine(**settings) if refine and settings else None
         self.session = ort_session(proto.SerializeToString(), threads)
         out_shape = self.session.get_outputs()[0].shape
         if isinstance(out_shape[1], int) and out_shape[1] != self.num_classes:
@@ -98,7 +107,7 @@ class OnnxSegmenter:
         return x, single
 
     def logits(self, rgb: np.ndarray) -> np.ndarray:
-        """Raw logits.
+        """Logits: the network's, or with ``refine``, the log of the refined probabilities.
 
         Args:
             rgb: (H, W, 3) or (N, H, W, 3) uint8 RGB.
@@ -108,6 +117,8 @@ class OnnxSegmenter:
         """
         x, single = self._to_input(rgb)
         out = self.session.run([OUTPUT_NAME], {INPUT_NAME: x})[0]
+        if self.refine is not None:
+            out = refine_logits_np(rgb[None] if single else rgb, out, self.refine)
         return out[0] if single else out
 
     def labels(self, rgb: np.ndarray) -> np.ndarray:
@@ -157,8 +168,10 @@ def main(argv: list[str] | None = None) -> Path:
     ap.add_argument("--labels", type=Path, default=None, help="also write the label map here")
     ap.add_argument("--alpha", type=float, default=0.5, help="overlay opacity of the colours")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--no-refine", action="store_true",
+                    help="skip the model's guided refinement (the network's output alone)")
     args = ap.parse_args(argv)
-    seg = OnnxSegmenter(args.model, threads=args.threads)
+    seg = OnnxSegmenter(args.model, threads=args.threads, refine=not args.no_refine)
     rgb = read_png(args.image)
     labels, probs = seg.predict(rgb)
     out = args.out or Path("outputs/predict") / f"{args.image.stem}_overlay.png"

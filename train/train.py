@@ -45,6 +45,7 @@ from train.data import (
 from train.export import ParityError, export_checked, onnx_metadata
 from train.losses import median_frequency_weights, segmentation_loss
 from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
+from train.refine import GuidedRefine, refine_logits
 from train.segnet import SegNet, build_segnet, count_parameters, model_kwargs
 
 log = logging.getLogger(__name__)
@@ -59,6 +60,7 @@ HASH_EXCLUDE = (
     "progress",
     "eval.batch_size",
     "eval.flip_average",
+    "eval.refine",
     "export",
 )
 #: Files of an output folder that ``overwrite=true`` removes.
@@ -246,8 +248,12 @@ def evaluate(
     batch_size: int = 8,
     progress: bool = False,
     desc: str = "eval",
+    refine: GuidedRefine | None = None,
 ) -> torch.Tensor:
     """Confusion matrix of the model on a split (full images, no augmentation).
+
+    Args:
+        refine: when set, the logits are guided-filtered with the image (train.refine) first.
 
     Returns:
         (C, C) int64, rows = truth.
@@ -262,7 +268,11 @@ def evaluate(
         leave=False,
     )
     for idx in bar:
-        pred = model(to_float(data.images[idx])).argmax(1)
+        x = to_float(data.images[idx])
+        logits = model(x)
+        if refine is not None:
+            logits = refine_logits(x, logits, refine)
+        pred = logits.argmax(1)
         cm += confusion_matrix(pred, data.labels[idx], num_classes)
     return cm
 
@@ -500,7 +510,11 @@ def run(cfg: DictConfig) -> dict:
     n_train = len(train_data)
     del train_data
     test_data = load_split(dataset, "test", num_classes, limit, progress)
-    cm = evaluate(model, test_data, num_classes, int(cfg.eval.batch_size), progress, "test")
+    refine = GuidedRefine.from_cfg(cfg.eval.get("refine"))
+    bs = int(cfg.eval.batch_size)
+    cm_net = evaluate(model, test_data, num_classes, bs, progress, "test")
+    cm = cm_net if refine is None else evaluate(
+        model, test_data, num_classes, bs, progress, "test refined", refine)
     test = metrics_json(cm, names)
     plot_confusion(
         cm,
@@ -511,7 +525,9 @@ def run(cfg: DictConfig) -> dict:
     )
 
     metrics = {
-        "test": test,
+        "test": test,  # the segmenter as shipped: network, then the guided refinement if on
+        "test_network": metrics_json(cm_net, names),  # the network alone (segnet.onnx logits)
+        "refine": None if refine is None else refine.as_dict(),
         "onnx_max_abs_diff": None,
         "train_seconds": round(state["train_seconds"], 1),
         "epochs_done": state["epoch"],
@@ -544,6 +560,7 @@ def run(cfg: DictConfig) -> dict:
         extra={
             "test_metrics": {k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")},
             "flip_average": flip,
+            "refine": None if refine is None else refine.as_dict(),
         },
     )
     try:
@@ -568,11 +585,16 @@ def run(cfg: DictConfig) -> dict:
     metrics["onnx_parity"] = report.as_dict()
     metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
     atomic_write_json(out_dir / "metrics.json", metrics)
+    net = metrics["test_network"]
     log.info(
-        "test: pixel acc %.4f, class acc %.4f, mIoU %.4f; onnx max |diff| %.2e",
+        "test: pixel acc %.4f, class acc %.4f, mIoU %.4f (network alone: %.4f / %.4f / %.4f); "
+        "onnx max |diff| %.2e",
         test["pixel_accuracy"],
         test["class_accuracy"],
         test["mean_iou"],
+        net["pixel_accuracy"],
+        net["class_accuracy"],
+        net["mean_iou"],
         report.max_abs_diff,
     )
     print(f"metrics: {out_dir / 'metrics.json'}")

@@ -82,6 +82,9 @@ class TestRun:
             for c in Dataset(json.loads((out / "config.json").read_text())["dataset"]).classes
         }
         assert 0.0 <= on_disk["onnx_max_abs_diff"] <= 1e-4
+        # Test metrics of the shipped segmenter (refined) and of the network alone.
+        assert on_disk["refine"] == {"kernel_size": 45, "eps": 1e-5, "subsample": 4}
+        assert 0.0 <= on_disk["test_network"]["mean_iou"] <= 1.0
         assert on_disk["train_seconds"] > 0.0
         rows = list(csv.DictReader((out / "train_log.csv").open()))
         assert [int(r["epoch"]) for r in rows] == [1, 2]
@@ -92,6 +95,7 @@ class TestRun:
             == json.loads((out / "config.json").read_text())["config_hash"]
         )
         assert (meta["input_height"], meta["input_width"]) == (48, 64)
+        assert meta["refine"] == on_disk["refine"]
 
     def test_rerun_same_config_reuses_checkpoint(
         self, trained, synthetic_dataset, compose_train
