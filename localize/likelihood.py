@@ -49,6 +49,7 @@ from dataclasses import dataclass, fields
 import cv2
 import numpy as np
 
+from datagen.config import reject_unknown_keys
 from datagen.dataset import Camera
 from localize.edges import EdgeImage
 from localize.projection import (
@@ -111,11 +112,7 @@ class LikelihoodParams:
     @classmethod
     def from_cfg(cls, cfg: Mapping) -> LikelihoodParams:
         """Build from a config mapping; unknown keys raise with the list of known ones."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(cfg) - names
-        if unknown:
-            raise ValueError(f"unknown likelihood settings {sorted(unknown)}; known: "
-                             f"{sorted(names)}")
+        reject_unknown_keys(cfg, (f.name for f in fields(cls)), "likelihood settings")
         return cls(**{k: v for k, v in cfg.items()})
 
 

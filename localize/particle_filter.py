@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from scipy.special import logsumexp
 
+from datagen.config import reject_unknown_keys
 from datagen.poses import wrap_angle, xyzyaw_from_pose
 
 
@@ -107,10 +108,7 @@ class FilterParams:
     @classmethod
     def from_cfg(cls, cfg: Mapping) -> FilterParams:
         """Build from a config mapping; unknown keys raise with the list of known ones."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(cfg) - names
-        if unknown:
-            raise ValueError(f"unknown filter settings {sorted(unknown)}; known: {sorted(names)}")
+        reject_unknown_keys(cfg, (f.name for f in fields(cls)), "filter settings")
         return cls(**{k: (tuple(v) if isinstance(v, Sequence) and not isinstance(v, str)
                           else dict(v) if isinstance(v, Mapping) else v)
                       for k, v in cfg.items()})

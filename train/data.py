@@ -21,6 +21,7 @@ from kornia.geometry.transform import crop_and_resize
 from tqdm import tqdm
 
 from datagen.atomic import read_png
+from datagen.config import reject_unknown_keys
 from datagen.dataset import Dataset
 
 IGNORE = 255
@@ -248,12 +249,7 @@ class AugmentConfig:
         for k in ("crop", "scale", "blur_sigma"):
             if d.get(k) is not None:
                 d[k] = tuple(d[k])
-        unknown = set(d) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(
-                f"unknown data.augment keys {sorted(unknown)}; "
-                f"known: {sorted(cls.__dataclass_fields__)}"
-            )
+        reject_unknown_keys(d, cls.__dataclass_fields__, "data.augment keys")
         return cls(**d)
 
     def at_resolution(self, factor: int) -> AugmentConfig:

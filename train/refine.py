@@ -18,6 +18,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from datagen.config import reject_unknown_keys
+
 
 @dataclass(frozen=True)
 class GuidedRefine:
@@ -52,11 +54,7 @@ class GuidedRefine:
         d = dict(d)
         if not d.pop("enabled", True):
             return None
-        known = {"kernel_size", "eps", "subsample"}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"{where}: unknown keys {unknown}; expected enabled, "
-                             f"{', '.join(sorted(known))}")
+        reject_unknown_keys(d, ("kernel_size", "eps", "subsample"), f"{where} keys")
         return cls(**{k: (float(v) if k == "eps" else int(v)) for k, v in d.items()})
 
     def as_dict(self) -> dict:

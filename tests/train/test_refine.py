@@ -41,7 +41,7 @@ class TestSettings:
         assert GuidedRefine(**r.as_dict()) == r
 
     @pytest.mark.parametrize("bad, match", [
-        ({"kernel": 9}, r"eval.refine: unknown keys \['kernel'\]"),
+        ({"kernel": 9}, r"unknown eval.refine keys \['kernel'\]"),
         ({"kernel_size": 8}, "positive odd"),
         ({"eps": 0}, "eps must be > 0"),
         ({"subsample": 0}, "subsample must be >= 1"),
