@@ -27,6 +27,7 @@ from pathlib import Path
 
 import torch
 from omegaconf import DictConfig, OmegaConf
+from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
 from datagen.atomic import atomic_write, atomic_write_json, atomic_write_text
@@ -190,6 +191,7 @@ def train_one_epoch(
     progress: bool = False,
     desc: str = "train",
     bf16: bool = False,
+    ema: AveragedModel | None = None,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution.
 
@@ -206,6 +208,7 @@ def train_one_epoch(
         progress: show a progress bar.
         desc: progress bar label.
         bf16: run the forward pass in bfloat16 autocast (the loss is taken in float32).
+        ema: moving average of the weights, updated after every step (``make_ema``), or None.
 
     Returns:
         Mean loss, number of steps done, and whether the deadline stopped the epoch.
@@ -233,6 +236,8 @@ def train_one_epoch(
         loss.backward()
         optimizer.step()
         scheduler.step()
+        if ema is not None:
+            ema.update_parameters(model)
         total += float(loss.detach())
         steps += 1
         bar.set_postfix(loss=f"{total / steps:.3f}")
@@ -275,6 +280,30 @@ def evaluate(
         pred = logits.argmax(1)
         cm += confusion_matrix(pred, data.labels[idx], num_classes)
     return cm
+
+
+def make_ema(model: SegNet, decay: float) -> AveragedModel | None:
+    """Exponential moving average of the weights and BatchNorm statistics (None if decay is 0).
+
+    ``decay`` per step (warmed up as ``min(decay, (1 + n) / (10 + n))`` after n updates, so
+    short runs average their recent steps too): the average spans ~``1 / (1 - decay)`` steps.
+    """
+    if not decay:
+        return None
+    if not 0.0 < decay < 1.0:
+        raise ValueError(f"ema_decay={decay}: use 0 (off) or a value in (0, 1), e.g. 0.999")
+
+    @torch.no_grad()
+    def update(averages: list, currents: list, num_averaged: torch.Tensor) -> None:
+        # warm-up: early on the average must not hold on to the random initial weights
+        n = float(num_averaged)
+        d = min(decay, (1.0 + n) / (10.0 + n))
+        if averages[0].is_floating_point():
+            torch._foreach_lerp_(averages, currents, 1.0 - d)
+        else:  # integer buffers (BatchNorm's batch counter): the current value
+            torch._foreach_copy_(averages, currents)
+
+    return AveragedModel(model, multi_avg_fn=update, use_buffers=True)
 
 
 def make_optimizer(
@@ -385,6 +414,8 @@ def run(cfg: DictConfig) -> dict:
     optimizer, scheduler = make_optimizer(
         model, OmegaConf.to_container(cfg.optim, resolve=True), epochs * steps_per_epoch
     )
+    ema = make_ema(model, float(cfg.get("ema_decay") or 0.0))
+    net = model if ema is None else ema.module  # what is validated, kept and exported
     log.info(
         "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch, %s",
         mcfg.get("name", "segnet"),
@@ -409,6 +440,10 @@ def run(cfg: DictConfig) -> dict:
         model.load_state_dict(ckpt["model"])
         optimizer.load_state_dict(ckpt["optimizer"])
         scheduler.load_state_dict(ckpt["scheduler"])
+        if ema is not None:
+            if "ema" not in ckpt:
+                raise RuntimeError(f"{last_path} has no weight average; pass overwrite=true")
+            ema.load_state_dict(ckpt["ema"])
         state.update({k: ckpt[k] for k in state})
         log.info(
             "resuming %s after epoch %d (%.0f s trained)",
@@ -439,8 +474,9 @@ def run(cfg: DictConfig) -> dict:
             progress,
             desc=f"epoch {epoch + 1}/{epochs}",
             bf16=bf16,
+            ema=ema,
         )
-        cm = evaluate(model, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
+        cm = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
         val = scores(cm)
         dt = time.monotonic() - t0
         state["train_seconds"] += dt
@@ -464,7 +500,7 @@ def run(cfg: DictConfig) -> dict:
             save_torch(
                 best_path,
                 {
-                    "model": model.state_dict(),
+                    "model": net.state_dict(),
                     "model_kwargs": model_kwargs(mcfg),
                     "num_classes": num_classes,
                     "classes": classes,
@@ -479,6 +515,7 @@ def run(cfg: DictConfig) -> dict:
                 "model": model.state_dict(),
                 "optimizer": optimizer.state_dict(),
                 "scheduler": scheduler.state_dict(),
+                **({} if ema is None else {"ema": ema.state_dict()}),
                 "config_hash": info["config_hash"],
                 **state,
             },

@@ -50,6 +50,26 @@ def test_loss_falls(synthetic_dataset: Path, bf16: bool) -> None:
     assert losses[-1] < 0.7 * losses[0], losses
 
 
+def test_weight_average() -> None:
+    """make_ema: the first update copies, later ones move by 1 - decay (warmed up)."""
+    m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1],
+               generator=torch.Generator().manual_seed(0))
+    assert tt.make_ema(m, 0.0) is None
+    with pytest.raises(ValueError, match="ema_decay=1.5"):
+        tt.make_ema(m, 1.5)
+    ema = tt.make_ema(m, 0.99)
+    p, e = next(m.parameters()), next(ema.module.parameters())
+    rm, erm = m.encoder[0][0][1].running_mean, ema.module.encoder[0][0][1].running_mean
+    ema.update_parameters(m)
+    torch.testing.assert_close(e, p)
+    with torch.no_grad():
+        p.add_(1.0)
+        rm.add_(1.0)
+    ema.update_parameters(m)  # second update: decay min(0.99, 2 / 11)
+    torch.testing.assert_close(e, p - 2.0 / 11.0)
+    torch.testing.assert_close(erm, rm - 2.0 / 11.0)  # BatchNorm statistics too
+
+
 def test_resolve_precision() -> None:
     assert tt.resolve_precision("bf16") is True
     assert tt.resolve_precision("fp32") is False
