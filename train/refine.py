@@ -7,7 +7,7 @@ each window, the class probabilities as a linear function of the full-resolution
 where the image has an edge, the probabilities step there. The filter is
 ``kornia.filters.guided_blur``; this module holds its settings and the conversions around it.
 
-On the demo's test split it raises mean IoU from 0.850 to 0.872 (docs/train.md). The localizer
+On the demo's test split it raises mean IoU from 0.849 to 0.873 (docs/train.md). The localizer
 does not use it by default: its boundaries are closer to the truth on average, but the small,
 far structures that fix the position along the corridor come out worse (docs/localize.md).
 """
