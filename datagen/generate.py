@@ -3,7 +3,8 @@
 Every frame draws its randomness from its own stream, ``SeedSequence([seed, stream, index])``,
 so a frame's bytes do not depend on which shard renders it or on what was rendered before:
 a stopped run re-run with the same config skips finished frames and ends byte-identical to an
-uninterrupted run.
+uninterrupted run (up to rare one-level pixel differences from the LLVM variant's multithreaded
+kernels; docs/datagen.md).
 """
 
 from __future__ import annotations
