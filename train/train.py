@@ -254,17 +254,19 @@ def evaluate(
     progress: bool = False,
     desc: str = "eval",
     refine: GuidedRefine | None = None,
-) -> torch.Tensor:
-    """Confusion matrix of the model on a split (full images, no augmentation).
+) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Confusion matrices of the model on a split (full images, no augmentation).
 
     Args:
-        refine: when set, the logits are guided-filtered with the image (train.refine) first.
+        refine: when set, the same logits are also guided-filtered with the image
+            (train.refine) and scored.
 
     Returns:
-        (C, C) int64, rows = truth.
+        (C, C) int64 of the network, rows = truth; the same after the refinement, or None.
     """
     model.eval()
     cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
+    cm_refined = None if refine is None else torch.zeros_like(cm)
     bar = tqdm(
         batches(len(data), batch_size),
         total=num_batches(len(data), batch_size),
@@ -275,11 +277,11 @@ def evaluate(
     for idx in bar:
         x = to_float(data.images[idx])
         logits = model(x)
-        if refine is not None:
-            logits = refine_logits(x, logits, refine)
-        pred = logits.argmax(1)
-        cm += confusion_matrix(pred, data.labels[idx], num_classes)
-    return cm
+        cm += confusion_matrix(logits.argmax(1), data.labels[idx], num_classes)
+        if cm_refined is not None:
+            pred = refine_logits(x, logits, refine).argmax(1)
+            cm_refined += confusion_matrix(pred, data.labels[idx], num_classes)
+    return cm, cm_refined
 
 
 def make_ema(model: SegNet, decay: float) -> AveragedModel | None:
@@ -476,7 +478,7 @@ def run(cfg: DictConfig) -> dict:
             bf16=bf16,
             ema=ema,
         )
-        cm = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
+        cm, _ = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
         val = scores(cm)
         dt = time.monotonic() - t0
         state["train_seconds"] += dt
@@ -548,10 +550,10 @@ def run(cfg: DictConfig) -> dict:
     del train_data
     test_data = load_split(dataset, "test", num_classes, limit, progress)
     refine = GuidedRefine.from_cfg(cfg.eval.get("refine"))
-    bs = int(cfg.eval.batch_size)
-    cm_net = evaluate(model, test_data, num_classes, bs, progress, "test")
-    cm = cm_net if refine is None else evaluate(
-        model, test_data, num_classes, bs, progress, "test refined", refine)
+    refine_settings = None if refine is None else refine.as_dict()
+    cm_net, cm_refined = evaluate(model, test_data, num_classes, int(cfg.eval.batch_size),
+                                  progress, "test", refine)
+    cm = cm_net if cm_refined is None else cm_refined
     test = metrics_json(cm, names)
     plot_confusion(
         cm,
@@ -564,7 +566,7 @@ def run(cfg: DictConfig) -> dict:
     metrics = {
         "test": test,  # the segmenter as shipped: network, then the guided refinement if on
         "test_network": metrics_json(cm_net, names),  # the network alone (segnet.onnx logits)
-        "refine": None if refine is None else refine.as_dict(),
+        "refine": refine_settings,
         "onnx_max_abs_diff": None,
         "train_seconds": round(state["train_seconds"], 1),
         "epochs_done": state["epoch"],
@@ -597,7 +599,7 @@ def run(cfg: DictConfig) -> dict:
         extra={
             "test_metrics": {k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")},
             "flip_average": flip,
-            "refine": None if refine is None else refine.as_dict(),
+            "refine": refine_settings,
         },
     )
     try:
@@ -622,16 +624,16 @@ def run(cfg: DictConfig) -> dict:
     metrics["onnx_parity"] = report.as_dict()
     metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
     atomic_write_json(out_dir / "metrics.json", metrics)
-    net = metrics["test_network"]
+    alone = metrics["test_network"]
     log.info(
         "test: pixel acc %.4f, class acc %.4f, mIoU %.4f (network alone: %.4f / %.4f / %.4f); "
         "onnx max |diff| %.2e",
         test["pixel_accuracy"],
         test["class_accuracy"],
         test["mean_iou"],
-        net["pixel_accuracy"],
-        net["class_accuracy"],
-        net["mean_iou"],
+        alone["pixel_accuracy"],
+        alone["class_accuracy"],
+        alone["mean_iou"],
         report.max_abs_diff,
     )
     print(f"metrics: {out_dir / 'metrics.json'}")
