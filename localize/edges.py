@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +21,8 @@ import cv2
 import numpy as np
 
 from datagen import classes as C
+
+log = logging.getLogger(__name__)
 
 MODES = ("none", "cnn", "oracle")
 
@@ -175,6 +178,55 @@ def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int =
     return seg
 
 
+def structural_prior_labels(logits: np.ndarray, structural_ids: np.ndarray,
+                            log_prior: np.ndarray) -> np.ndarray:
+    """Class labels with the training's class-weight prior taken out of the structural choice.
+
+    A network trained with class-weighted cross-entropy (weight w_c) learns softmax scores
+    proportional to w_c p(c | x), not p(c | x): where the image is ambiguous it picks the
+    higher-weight class. For the SegNet that means door and window (weights ~1) win over wall
+    (~0.36) on their jambs and reveals, which are wall: predicted doors and windows come out
+    wider than they are, and their boundaries, which fix the pose along the corridor, move
+    outward. Subtracting log w_c from the logits gives back the decision by p(c | x).
+
+    Only the choice among structural classes is corrected: a pixel whose plain argmax is
+    structural takes the structural class with the largest ``z_c - log w_c``; other pixels
+    (clutter, person, void) keep their class, so the masks of unknown pixels do not change.
+
+    Args:
+        logits: (C, H, W) float class scores.
+        structural_ids: (S,) int ids of the structural classes.
+        log_prior: (C,) float log w_c (0 for a class without a weight).
+
+    Returns:
+        (H, W) uint8 labels.
+    """
+    ids = np.asarray(structural_ids, dtype=np.int64)
+    labels = logits.argmax(0)
+    corrected = ids[(logits[ids] - np.asarray(log_prior)[ids, None, None]).argmax(0)]
+    structural = np.zeros(logits.shape[0], dtype=bool)
+    structural[ids] = True
+    return np.where(structural[labels], corrected, labels).astype(np.uint8)
+
+
+def class_log_prior(segmenter) -> np.ndarray | None:
+    """log w_c (C,) of the class weights the segmenter was trained with (its ONNX metadata
+    ``class_weights``, by class name); None, with a warning, for a model without them (trained
+    before they were recorded, or without class weighting: nothing to correct). Classes with
+    weight 0 (absent from the training labels) get 0."""
+    weights = segmenter.metadata.get("class_weights")
+    if not weights:
+        log.warning("%s has no class_weights metadata (re-train with `python -m train` to "
+                    "record them); edges.cnn.prior_correction is off", segmenter.path)
+        return None
+    missing = [c["name"] for c in segmenter.classes if c["name"] not in weights]
+    if missing:
+        raise ValueError(f"{segmenter.path}: metadata class_weights lacks the classes {missing}; "
+                         "re-export the model with `python -m train`")
+    w = np.array([float(weights[c["name"]]) for c in segmenter.classes])
+    return np.log(np.where(w > 0, w, 1.0))
+
+
 class EdgeExtractor:
     """Edge images of flight frames in one mode.
 
@@ -190,6 +242,9 @@ class EdgeExtractor:
         if mode == "cnn" and segmenter is None:
             raise ValueError("edge mode 'cnn' needs a segmenter (see load_segmenter)")
         self.mode, self.cfg, self.segmenter = mode, cfg, segmenter
+        self.log_prior = None
+        if mode == "cnn" and cfg.get("cnn", {}).get("prior_correction", False):
+            self.log_prior = class_log_prior(segmenter)
 
     @property
     def needs_labels(self) -> bool:
@@ -198,21 +253,24 @@ class EdgeExtractor:
 
     def segment(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted labels (H, W) uint8 and their confidence (H, W) float32, the largest
-        softmax probability, of an RGB frame (cnn mode). The confidence is all ones when
-        ``cnn.min_confidence`` is 0 (it is not used then, and the softmax is skipped)."""
+        softmax probability, of an RGB frame (cnn mode). With ``cnn.prior_correction`` the
+        structural labels come from ``structural_prior_labels``. The confidence is all ones
+        when ``cnn.min_confidence`` is 0 (it is not used then, and the softmax is skipped)."""
         _check_rgb(rgb)
-        if self.cfg.get("cnn", {}).get("min_confidence", 0.0) <= 0 and hasattr(
-                self.segmenter, "labels"):
-            labels, probs = self.segmenter.labels(rgb), None  # confidence unused: no softmax
+        need_conf = self.cfg.get("cnn", {}).get("min_confidence", 0.0) > 0
+        if self.log_prior is None and not need_conf:
+            labels, conf = self.segmenter.labels(rgb), None  # argmax only: no softmax
         else:
-            out = self.segmenter.predict(rgb)
-            labels, probs = out if isinstance(out, tuple) else (out, None)
+            z = np.asarray(self.segmenter.logits(rgb))
+            labels = (z.argmax(0) if self.log_prior is None else
+                      structural_prior_labels(z, self.segmenter.structural_ids, self.log_prior))
+            # the largest softmax probability is 1 / sum_c exp(z_c - max z)
+            conf = 1.0 / np.exp(z - z.max(0, keepdims=True)).sum(0) if need_conf else None
         labels = np.asarray(labels)
         if labels.shape != rgb.shape[:2]:
             raise ValueError(f"segmenter returned labels {labels.shape} for an image "
                              f"{rgb.shape[:2]}")
-        conf = (np.ones(labels.shape, np.float32) if probs is None
-                else np.asarray(probs).max(axis=0))
+        conf = np.ones(labels.shape, np.float32) if conf is None else conf.astype(np.float32)
         return labels.astype(np.uint8, copy=False), conf
 
     def edges(self, rgb: np.ndarray, labels: np.ndarray | None = None,

@@ -555,6 +555,8 @@ def run(cfg: DictConfig) -> dict:
                                   progress, "test", refine)
     cm = cm_net if cm_refined is None else cm_refined
     test = metrics_json(cm, names)
+    class_weights = None if weights is None else {
+        n: round(float(w), 6) for n, w in zip(names, weights, strict=True)}
     plot_confusion(
         cm,
         names,
@@ -567,6 +569,9 @@ def run(cfg: DictConfig) -> dict:
         "test": test,  # the segmenter as shipped: network, then the guided refinement if on
         "test_network": metrics_json(cm_net, names),  # the network alone (segnet.onnx logits)
         "refine": refine_settings,
+        # The loss's class weights: localize takes this prior out of its structural decisions
+        # (localize.edges.structural_prior_labels); null without class weighting.
+        "class_weights": class_weights,
         "onnx_max_abs_diff": None,
         "train_seconds": round(state["train_seconds"], 1),
         "epochs_done": state["epoch"],
@@ -600,6 +605,7 @@ def run(cfg: DictConfig) -> dict:
             "test_metrics": {k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")},
             "flip_average": flip,
             "refine": refine_settings,
+            "class_weights": class_weights,
         },
     )
     try:

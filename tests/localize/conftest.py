@@ -53,7 +53,8 @@ def renderer(small_world, camera):
     return ModelRenderer(small_world, camera)
 
 
-def palette_segnet(path: Path, height: int, width: int, classes: list[dict] | None = None) -> Path:
+def palette_segnet(path: Path, height: int, width: int, classes: list[dict] | None = None,
+                   extra_metadata: dict | None = None) -> Path:
     """An ONNX "SegNet" that labels each pixel with the class of the nearest palette colour.
 
     ``logits_c = 2 x . p_c - |p_c|^2`` (a 1x1 convolution, x and p in [0, 1]) is largest for
@@ -73,7 +74,8 @@ def palette_segnet(path: Path, height: int, width: int, classes: list[dict] | No
          helper.make_tensor("b", TensorProto.FLOAT, b.shape, b)])
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
     model.ir_version = 8
-    meta = {"classes": classes, "input_height": height, "input_width": width}
+    meta = {"classes": classes, "input_height": height, "input_width": width,
+            **(extra_metadata or {})}
     for k, v in meta.items():
         model.metadata_props.add(key=k, value=json.dumps(v))
     onnx.save(model, str(path))

@@ -14,8 +14,10 @@ from localize.edges import (
     EdgeImage,
     canny_edges,
     check_classes,
+    class_log_prior,
     label_edges,
     load_segmenter,
+    structural_prior_labels,
 )
 from tests.localize.conftest import palette_segnet
 
@@ -86,6 +88,54 @@ class TestCanny:
             EdgeImage(np.zeros((4, 4), bool), np.zeros((4, 5), bool))
 
 
+class TestPriorCorrection:
+    def test_takes_the_class_weights_out_of_structural_choices(self):
+        z = np.zeros((C.NUM_CLASSES, 1, 3), np.float32)
+        z[C.DOOR, 0, 0], z[C.WALL, 0, 0] = 1.0, 0.5      # door wins only by its weight
+        z[C.DOOR, 0, 1], z[C.WALL, 0, 1] = 3.0, 0.5      # door wins clearly
+        z[C.PERSON, 0, 2], z[C.WALL, 0, 2] = 1.0, 0.9    # a person stays a person
+        log_w = np.zeros(C.NUM_CLASSES)
+        log_w[C.WALL], log_w[C.DOOR] = np.log(0.36), np.log(1.0)
+        out = structural_prior_labels(z, np.array(C.STRUCTURAL), log_w)
+        assert out.tolist() == [[C.WALL, C.DOOR, C.PERSON]] and out.dtype == np.uint8
+        same = structural_prior_labels(z, np.array(C.STRUCTURAL), np.zeros(C.NUM_CLASSES))
+        np.testing.assert_array_equal(same, z.argmax(0))
+
+    def test_extractor_reads_the_weights_from_the_model(self, tmp_path):
+        lab = two_walls()
+        cfg = {**EDGES_CFG, "cnn": {"prior_correction": True}}
+        weights = {c["name"]: 1.0 for c in C.as_json()}
+        seg = load_segmenter(palette_segnet(tmp_path / "a.onnx", 20, 30,
+                                            extra_metadata={"class_weights": weights}),
+                             C.as_json(), 1)
+        labels, _ = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
+        np.testing.assert_array_equal(labels, lab)  # equal weights: nothing to correct
+        weights["door"] = 1e-9  # the network "learned" door with a tiny weight: favour it
+        seg = load_segmenter(palette_segnet(tmp_path / "b.onnx", 20, 30,
+                                            extra_metadata={"class_weights": weights}),
+                             C.as_json(), 1)
+        labels, conf = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
+        structural = np.isin(lab, C.STRUCTURAL)
+        assert (labels[structural] == C.DOOR).all()
+        np.testing.assert_array_equal(labels[~structural], lab[~structural])  # masks unchanged
+        assert conf.shape == lab.shape
+
+    def test_model_without_weights_warns_and_skips(self, tmp_path, caplog):
+        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
+        with caplog.at_level("WARNING"):
+            assert class_log_prior(seg) is None
+        assert "class_weights" in caplog.text
+        lab = two_walls()
+        ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": True}}, seg)
+        np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
+
+    def test_weights_missing_a_class(self, tmp_path):
+        path = palette_segnet(tmp_path / "s.onnx", 20, 30,
+                              extra_metadata={"class_weights": {"wall": 0.4}})
+        with pytest.raises(ValueError, match="class_weights lacks"):
+            class_log_prior(load_segmenter(path, C.as_json(), 1))
+
+
 class TestSegmenter:
     def test_palette_segnet_is_exact(self, tmp_path):
         lab = two_walls()
@@ -103,6 +153,8 @@ class TestSegmenter:
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
         cfg = {**EDGES_CFG, "cnn": {"min_confidence": 0.5}}
         ex = EdgeExtractor("cnn", cfg, seg)
+        _, probs = seg.predict(C.colorize(lab))
+        np.testing.assert_allclose(ex.segment(C.colorize(lab))[1], probs.max(0), rtol=1e-5)
         conf = np.ones(lab.shape, np.float32)
         conf[:, :5] = 0.2
         e = ex.edges(C.colorize(lab), lab, conf)

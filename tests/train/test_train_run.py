@@ -116,6 +116,10 @@ class TestRun:
         )
         assert (meta["input_height"], meta["input_width"]) == (48, 64)
         assert meta["refine"] == on_disk["refine"]
+        # The loss's class weights, by class name, for localize's prior correction.
+        assert meta["class_weights"] == on_disk["class_weights"]
+        assert set(on_disk["class_weights"]) == set(test["per_class_iou"])
+        assert all(w >= 0.0 for w in on_disk["class_weights"].values())
 
     def test_rerun_same_config_reuses_checkpoint(
         self, trained, synthetic_dataset, compose_train
