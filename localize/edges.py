@@ -2,7 +2,8 @@
 
 - ``none``: Canny on the grey image, optionally reduced to its Hough line segments (the paper's
   pipeline without segmentation). Every pixel is "known".
-- ``cnn``: labels from the ONNX SegNet (``train.predict.OnnxSegmenter``); edges are the
+- ``cnn``: labels from the ONNX SegNet (``train.predict.OnnxSegmenter``), the structural ones
+  with the training's class weights taken out (``structural_prior_labels``); edges are the
   boundaries between two *different structural* classes (floor, wall, ceiling, door, window);
   pixels of clutter, person, void or ignore, dilated by a few pixels, are *unknown*: an object
   that is not in the model may hide a model edge, so a model line falling there is neither
@@ -184,10 +185,11 @@ def structural_prior_labels(logits: np.ndarray, structural_ids: np.ndarray,
 
     A network trained with class-weighted cross-entropy (weight w_c) learns softmax scores
     proportional to w_c p(c | x), not p(c | x): where the image is ambiguous it picks the
-    higher-weight class. For the SegNet that means door and window (weights ~1) win over wall
-    (~0.36) on their jambs and reveals, which are wall: predicted doors and windows come out
-    wider than they are, and their boundaries, which fix the pose along the corridor, move
-    outward. Subtracting log w_c from the logits gives back the decision by p(c | x).
+    higher-weight class. The demo's SegNet weighs wall 0.36 and floor, ceiling, door and window
+    0.65-1.05, so those classes spread into the wall and their boundaries with it move (doors
+    and windows over their wall-coloured jambs and reveals, for one). Subtracting log w_c from
+    the logits gives back the decision by p(c | x); a fraction of it
+    (``edges.cnn.prior_correction`` < 1) goes part of the way.
 
     Only the choice among structural classes is corrected: a pixel whose plain argmax is
     structural takes the structural class with the largest ``z_c - log w_c``; other pixels
@@ -196,7 +198,7 @@ def structural_prior_labels(logits: np.ndarray, structural_ids: np.ndarray,
     Args:
         logits: (C, H, W) float class scores.
         structural_ids: (S,) int ids of the structural classes.
-        log_prior: (C,) float log w_c (0 for a class without a weight).
+        log_prior: (C,) float log w_c (0 for a class without a weight), or a multiple of it.
 
     Returns:
         (H, W) uint8 labels.
@@ -243,8 +245,10 @@ class EdgeExtractor:
             raise ValueError("edge mode 'cnn' needs a segmenter (see load_segmenter)")
         self.mode, self.cfg, self.segmenter = mode, cfg, segmenter
         self.log_prior = None
-        if mode == "cnn" and cfg.get("cnn", {}).get("prior_correction", False):
-            self.log_prior = class_log_prior(segmenter)
+        strength = float(cfg.get("cnn", {}).get("prior_correction", 0.0))
+        if mode == "cnn" and strength > 0:
+            log_w = class_log_prior(segmenter)
+            self.log_prior = None if log_w is None else strength * log_w
 
     @property
     def needs_labels(self) -> bool:
@@ -253,9 +257,10 @@ class EdgeExtractor:
 
     def segment(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted labels (H, W) uint8 and their confidence (H, W) float32, the largest
-        softmax probability, of an RGB frame (cnn mode). With ``cnn.prior_correction`` the
-        structural labels come from ``structural_prior_labels``. The confidence is all ones
-        when ``cnn.min_confidence`` is 0 (it is not used then, and the softmax is skipped)."""
+        softmax probability, of an RGB frame (cnn mode). With ``cnn.prior_correction`` s > 0
+        the structural labels come from ``structural_prior_labels`` with s * log w_c. The
+        confidence is all ones when ``cnn.min_confidence`` is 0 (it is not used then, and the
+        softmax is skipped)."""
         _check_rgb(rgb)
         need_conf = self.cfg.get("cnn", {}).get("min_confidence", 0.0) > 0
         if self.log_prior is None and not need_conf:

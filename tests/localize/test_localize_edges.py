@@ -103,7 +103,7 @@ class TestPriorCorrection:
 
     def test_extractor_reads_the_weights_from_the_model(self, tmp_path):
         lab = two_walls()
-        cfg = {**EDGES_CFG, "cnn": {"prior_correction": True}}
+        cfg = {**EDGES_CFG, "cnn": {"prior_correction": 1.0}}
         weights = {c["name"]: 1.0 for c in C.as_json()}
         seg = load_segmenter(palette_segnet(tmp_path / "a.onnx", 20, 30,
                                             extra_metadata={"class_weights": weights}),
@@ -119,6 +119,9 @@ class TestPriorCorrection:
         assert (labels[structural] == C.DOOR).all()
         np.testing.assert_array_equal(labels[~structural], lab[~structural])  # masks unchanged
         assert conf.shape == lab.shape
+        ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": 0.0}}, seg)
+        assert ex.log_prior is None  # strength 0: off
+        np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
 
     def test_model_without_weights_warns_and_skips(self, tmp_path, caplog):
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
@@ -126,7 +129,7 @@ class TestPriorCorrection:
             assert class_log_prior(seg) is None
         assert "class_weights" in caplog.text
         lab = two_walls()
-        ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": True}}, seg)
+        ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": 1.0}}, seg)
         np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
 
     def test_weights_missing_a_class(self, tmp_path):
