@@ -216,10 +216,12 @@ def class_log_prior(segmenter) -> np.ndarray | None:
     ``class_weights``, by class name); None, with a warning, for a model without them (trained
     before they were recorded, or without class weighting: nothing to correct). Classes with
     weight 0 (absent from the training labels) get 0."""
-    weights = segmenter.metadata.get("class_weights")
-    if not weights:
+    if "class_weights" not in segmenter.metadata:
         log.warning("%s has no class_weights metadata (re-train with `python -m train` to "
                     "record them); edges.cnn.prior_correction is off", segmenter.path)
+        return None
+    weights = segmenter.metadata["class_weights"]
+    if weights is None:  # trained without class weighting: no prior to take out
         return None
     missing = [c["name"] for c in segmenter.classes if c["name"] not in weights]
     if missing:

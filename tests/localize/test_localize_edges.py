@@ -132,6 +132,12 @@ class TestPriorCorrection:
         ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": 1.0}}, seg)
         np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
 
+    def test_model_trained_without_weighting_needs_no_correction(self, tmp_path, caplog):
+        path = palette_segnet(tmp_path / "s.onnx", 20, 30, extra_metadata={"class_weights": None})
+        with caplog.at_level("WARNING"):
+            assert class_log_prior(load_segmenter(path, C.as_json(), 1)) is None
+        assert "class_weights" not in caplog.text
+
     def test_weights_missing_a_class(self, tmp_path):
         path = palette_segnet(tmp_path / "s.onnx", 20, 30,
                               extra_metadata={"class_weights": {"wall": 0.4}})
