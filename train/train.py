@@ -397,11 +397,11 @@ def run(cfg: DictConfig) -> dict:
         raise ValueError(
             f"loss.class_weighting={cfg.loss.class_weighting!r}: use median_frequency or none"
         )
-    if weights is not None:
-        log.info(
-            "class weights: %s",
-            {n: round(float(w), 3) for n, w in zip(names, weights, strict=True)},
-        )
+    # by class name: logged, and recorded in metrics.json and the ONNX metadata at the end
+    class_weights = None if weights is None else {
+        n: round(float(w), 6) for n, w in zip(names, weights, strict=True)}
+    if class_weights is not None:
+        log.info("class weights: %s", class_weights)
 
     mcfg = OmegaConf.to_container(cfg.model, resolve=True)
     model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
@@ -555,8 +555,6 @@ def run(cfg: DictConfig) -> dict:
                                   progress, "test", refine)
     cm = cm_net if cm_refined is None else cm_refined
     test = metrics_json(cm, names)
-    class_weights = None if weights is None else {
-        n: round(float(w), 6) for n, w in zip(names, weights, strict=True)}
     plot_confusion(
         cm,
         names,
