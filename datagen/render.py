@@ -25,7 +25,7 @@ from datagen import classes as C
 from datagen.camera import mitsuba_to_world
 from datagen.dataset import Camera
 from datagen.denoise import denoise, segment_ids
-from datagen.world import DOOR_RECESS, WINDOW_RECESS, CorridorModel
+from datagen.world import DOOR_RECESS, WINDOW_RECESS, CorridorModel, frame_axis
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor
 
@@ -88,13 +88,19 @@ def surfaces(model: CorridorModel) -> list[Surface]:
     lo = np.array([b.lo for b in model.boxes])[model.face_box]
     hi = np.array([b.hi for b in model.boxes])[model.face_box]
     in_recess = (kind == DOOR_RECESS) | (kind == WINDOW_RECESS)
+    # jambs, heads and sills: the recess faces other than its back (leaf, glass) and floor
+    frame = in_recess & (axis != frame_axis(model.boxes, model.face_box)) & (
+        w.face_class != C.FLOOR)
+    fc = w.face_class
     groups = {
-        "floor": (C.FLOOR, "floor", w.face_class == C.FLOOR),
-        "ceiling": (C.CEILING, "ceiling", w.face_class == C.CEILING),
-        "wall": (C.WALL, "wall", (w.face_class == C.WALL) & ~in_recess),
-        "frame": (C.WALL, "frame", (w.face_class == C.WALL) & in_recess),
-        "door": (C.DOOR, "door", w.face_class == C.DOOR),
-        "window": (C.WINDOW, "window", w.face_class == C.WINDOW),
+        "floor": (C.FLOOR, "floor", fc == C.FLOOR),
+        "ceiling": (C.CEILING, "ceiling", fc == C.CEILING),
+        "wall": (C.WALL, "wall", (fc == C.WALL) & ~frame),
+        "frame": (C.WALL, "frame", (fc == C.WALL) & frame),
+        "door_frame": (C.DOOR, "frame", (fc == C.DOOR) & frame),
+        "window_frame": (C.WINDOW, "frame", (fc == C.WINDOW) & frame),
+        "door": (C.DOOR, "door", (fc == C.DOOR) & ~frame),
+        "window": (C.WINDOW, "window", (fc == C.WINDOW) & ~frame),
     }
     out = []
     for name, (cls, tex, mask) in groups.items():

@@ -167,27 +167,46 @@ def boundary_mesh(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return vertices, faces, np.concatenate(box_list), np.concatenate(normal_list)
 
 
-def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray) -> np.ndarray:
+FRAME_CLASSES = ("opening", "wall")
+
+
+def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray,
+                   frames: str = "opening") -> np.ndarray:
     """Semantic class of each boundary face from its box kind and inward normal.
+
+    A door or window recess has a back face (the door leaf, the glass) and frame faces: the
+    jambs, the head and, for a window, the sill (a door recess's floor is floor).
 
     Args:
         face_box: (F,) box index; normal: (F, 2) [axis, sign] of the inward normal.
+        frames: class of the frame faces. ``opening``: the door's or window's class, so the
+            opening's boundary is the recess's outer edge, a crease seen from every side;
+            ``wall``: wall, so the boundary is the inner edge, where a jamb a few pixels wide
+            separates it from the wall's face (docs/datagen.md).
 
     Returns:
         (F,) uint8 class ids (floor, wall, ceiling, door, window).
     """
+    if frames not in FRAME_CLASSES:
+        raise ValueError(f"world.frames={frames!r}: use one of {', '.join(FRAME_CLASSES)}")
     kind = np.array([b.kind for b in boxes])[face_box]
-    inward = np.array([b.inward for b in boxes])[face_box]  # (F, 3)
     axis, sign = normal[:, 0], normal[:, 1]
     cls = np.full(len(face_box), C.WALL, dtype=np.uint8)
     up, down = (axis == 2) & (sign > 0), (axis == 2) & (sign < 0)
     recess = (kind == DOOR_RECESS) | (kind == WINDOW_RECESS)
     cls[up & ~(kind == WINDOW_RECESS)] = C.FLOOR
     cls[down & ~recess] = C.CEILING
-    back = inward[np.arange(len(axis)), axis] == sign
-    cls[back & (axis != 2) & (kind == DOOR_RECESS)] = C.DOOR
-    cls[back & (axis != 2) & (kind == WINDOW_RECESS)] = C.WINDOW
+    frame = recess & ~(up & (kind == DOOR_RECESS)) & (frames == "opening")
+    back = recess & (frame_axis(boxes, face_box) == axis)
+    for k, c in ((DOOR_RECESS, C.DOOR), (WINDOW_RECESS, C.WINDOW)):
+        cls[(kind == k) & (back | frame)] = c
     return cls
+
+
+def frame_axis(boxes: list[Box], face_box: np.ndarray) -> np.ndarray:
+    """(F,) axis of the wall each face's box is cut into (its ``inward`` normal; -1: none)."""
+    inward = np.array([b.inward for b in boxes])[face_box]  # (F, 3)
+    return np.where(inward.any(axis=1), np.abs(inward).argmax(axis=1), -1)
 
 
 def free_space(spec: Mapping, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:
@@ -233,7 +252,7 @@ def build_world(spec: Mapping) -> CorridorModel:
     """Build the corridor model from a world config (conf/world/*.yaml)."""
     boxes = corridor_boxes(spec)
     vertices, faces, face_box, normal = boundary_mesh(boxes)
-    face_class = classify_faces(boxes, face_box, normal)
+    face_class = classify_faces(boxes, face_box, normal, str(spec.get("frames", "opening")))
     segments, seg_classes, crease = extract_edges(vertices, faces, face_class,
                                                   float(spec.get("crease_deg", 20.0)))
     fboxes, z_range = free_space(spec, boxes)

@@ -57,11 +57,39 @@ class TestCorridor:
         normals = trimesh.Trimesh(w.vertices, w.faces, process=False).face_normals
         np.testing.assert_allclose(normals[w.face_class == C.FLOOR] - [0, 0, 1], 0, atol=1e-9)
         np.testing.assert_allclose(normals[w.face_class == C.CEILING] - [0, 0, -1], 0, atol=1e-9)
-        # one door panel area per door
+        # per door: the leaf, two jambs and the head (frames: opening)
+        area = trimesh.Trimesh(w.vertices, w.faces, process=False).area_faces
+        d = spec["door"]
+        leaf = d["width"] * d["height"]
+        frame = d["depth"] * (2 * d["height"] + d["width"])
+        np.testing.assert_allclose(area[w.face_class == C.DOOR].sum(),
+                                   len(spec["doors"]) * (leaf + frame))
+
+    def test_wall_frames_leave_only_the_leaf(self, spec):
+        w = build_world({**spec, "frames": "wall"}).world
         area = trimesh.Trimesh(w.vertices, w.faces, process=False).area_faces
         d = spec["door"]
         np.testing.assert_allclose(area[w.face_class == C.DOOR].sum(),
                                    len(spec["doors"]) * d["width"] * d["height"])
+        # the recess's outer edge is wall | wall there, its inner edge wall | door
+        pairs = {tuple(sorted(p)) for p in w.segment_classes.tolist()}
+        assert (C.WALL, C.DOOR) in pairs
+
+    def test_opening_frames_put_the_boundary_on_the_outer_edge(self, spec):
+        w = build_world(spec).world
+        d = spec["door"]
+        seg, pairs = w.segments, np.sort(w.segment_classes, axis=1)
+        is_wd = (pairs == [C.WALL, C.DOOR]).all(axis=1)
+        # a wall | door line lies in a corridor wall's plane (x = +-width/2 or y = 0), not
+        # d["depth"] behind it
+        x = np.abs(seg[is_wd][..., 0])
+        on_side = np.isclose(x, spec["width"] / 2).all(axis=1)
+        on_back = np.isclose(seg[is_wd][..., 1], 0.0).all(axis=1)
+        assert is_wd.any() and (on_side | on_back).all()
+
+    def test_bad_frames_value_names_the_key(self, spec):
+        with pytest.raises(ValueError, match="world.frames"):
+            build_world({**spec, "frames": "jamb"})
 
     def test_edges_are_model_edges(self, model):
         w = model.world
@@ -76,11 +104,17 @@ class TestCorridor:
         lengths = np.linalg.norm(d, axis=1)
         assert lengths.max() > 5.0
 
-    def test_door_outline(self, model, spec):
-        """Each door panel is bounded by door edges: top and two sides (class pairs with 4)."""
-        w = model.world
-        door = (w.segment_classes == C.DOOR).any(axis=1)
-        assert door.sum() == 4 * len(spec["doors"])
+    @pytest.mark.parametrize("frames,floor_lines", [("opening", 3), ("wall", 1)])
+    def test_door_outline(self, spec, frames, floor_lines):
+        """Each door is outlined by wall | door lines (top, two sides) and floor | door lines
+        (the leaf's bottom; with door-class frames the two jambs' bottoms too)."""
+        w = build_world({**spec, "frames": frames}).world
+        pairs = np.sort(w.segment_classes, axis=1)
+        n = len(spec["doors"])
+        assert (pairs == [C.WALL, C.DOOR]).all(axis=1).sum() == 3 * n
+        assert (pairs == [C.FLOOR, C.DOOR]).all(axis=1).sum() == floor_lines * n
+        windows = (pairs == [C.WALL, C.WINDOW]).all(axis=1).sum()
+        assert windows == 4 * len(spec["windows"])
 
     def test_free_space_inside_corridor(self, model, spec):
         b = model.world.free_boxes
