@@ -108,18 +108,29 @@ class TestProjection:
         np.testing.assert_allclose(cos, 1.0, atol=1e-3)
 
 
-@pytest.fixture(scope="module")
-def scene(small_world, camera, renderer):
-    """Samples, the rendered labels and depth at STATE, direct occlusion, the projection."""
+def _scene(small_world, camera, renderer, class_change_only: bool):
     s = sample_segments(small_world.segments, 0.05)
-    keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
-    s, _ = s.select(keep)
+    if class_change_only:
+        s, _ = s.select(small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1])
     R = tilt()
     T = cam_from_world(STATE, BODY_FROM_CAM, R)
     labels, depth = renderer.render(np.linalg.inv(T[0]))
     hidden = occluded(small_world, camera_centres(STATE, BODY_FROM_CAM, R), s.points)[0]
     pr = project_samples(camera.K, camera.width, camera.height, T, s.points)
     return s, labels, depth, hidden, pr
+
+
+@pytest.fixture(scope="module")
+def scene(small_world, camera, renderer):
+    """Class-change samples (what a label image shows), the rendered labels and depth at
+    STATE, direct occlusion, the projection."""
+    return _scene(small_world, camera, renderer, class_change_only=True)
+
+
+@pytest.fixture(scope="module")
+def scene_all(small_world, camera, renderer):
+    """The same with every model edge, creases inside one class too (door jamb | leaf)."""
+    return _scene(small_world, camera, renderer, class_change_only=False)
 
 
 class TestAgainstRender:
@@ -142,8 +153,8 @@ class TestAgainstRender:
         assert np.median(d[v, u]) <= 1.0
         assert np.mean(d[v, u] <= 2.0) > 0.9
 
-    def test_visible_depth_matches_hidden_is_behind(self, scene):
-        s, labels, depth, hidden, pr = scene
+    def test_visible_depth_matches_hidden_is_behind(self, scene_all):
+        s, labels, depth, hidden, pr = scene_all
         u, v = np.rint(pr.u[0]).astype(int), np.rint(pr.v[0]).astype(int)
         iv = pr.in_view[0]
         # the nearest rendered depth in a 3x3 window (samples sit on depth edges)
@@ -153,7 +164,7 @@ class TestAgainstRender:
         near, far = win.min(axis=0), win.max(axis=0)
         z = pr.depth[0]
         vis, hid = iv & ~hidden, iv & hidden
-        assert hid.sum() > 10, "the pose must see something hidden (the side opening)"
+        assert hid.sum() > 10, "the pose must see something hidden (jambs, the side opening)"
         ok_vis = (near[v[vis], u[vis]] <= z[vis] + 0.05) & (far[v[vis], u[vis]] >= z[vis] - 0.05)
         assert ok_vis.mean() > 0.95
         assert (near[v[hid], u[hid]] < z[hid] - 0.05).mean() > 0.9
