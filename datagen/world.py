@@ -171,7 +171,7 @@ FRAME_CLASSES = ("opening", "wall")
 
 
 def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray,
-                   frames: str = "opening") -> np.ndarray:
+                   frames: str = "wall") -> np.ndarray:
     """Semantic class of each boundary face from its box kind and inward normal.
 
     A door or window recess has a back face (the door leaf, the glass) and frame faces: the
@@ -252,7 +252,7 @@ def build_world(spec: Mapping) -> CorridorModel:
     """Build the corridor model from a world config (conf/world/*.yaml)."""
     boxes = corridor_boxes(spec)
     vertices, faces, face_box, normal = boundary_mesh(boxes)
-    face_class = classify_faces(boxes, face_box, normal, str(spec.get("frames", "opening")))
+    face_class = classify_faces(boxes, face_box, normal, str(spec.get("frames", "wall")))
     segments, seg_classes, crease = extract_edges(vertices, faces, face_class,
                                                   float(spec.get("crease_deg", 20.0)))
     fboxes, z_range = free_space(spec, boxes)

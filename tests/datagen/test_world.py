@@ -57,7 +57,9 @@ class TestCorridor:
         normals = trimesh.Trimesh(w.vertices, w.faces, process=False).face_normals
         np.testing.assert_allclose(normals[w.face_class == C.FLOOR] - [0, 0, 1], 0, atol=1e-9)
         np.testing.assert_allclose(normals[w.face_class == C.CEILING] - [0, 0, -1], 0, atol=1e-9)
-        # per door: the leaf, two jambs and the head (frames: opening)
+
+    def test_opening_frames_add_jambs_and_head_to_the_door(self, spec):
+        w = build_world({**spec, "frames": "opening"}).world
         area = trimesh.Trimesh(w.vertices, w.faces, process=False).area_faces
         d = spec["door"]
         leaf = d["width"] * d["height"]
@@ -76,7 +78,7 @@ class TestCorridor:
         assert (C.WALL, C.DOOR) in pairs
 
     def test_opening_frames_put_the_boundary_on_the_outer_edge(self, spec):
-        w = build_world(spec).world
+        w = build_world({**spec, "frames": "opening"}).world
         d = spec["door"]
         seg, pairs = w.segments, np.sort(w.segment_classes, axis=1)
         is_wd = (pairs == [C.WALL, C.DOOR]).all(axis=1)
@@ -133,3 +135,23 @@ class TestCorridor:
     def test_unknown_side(self, spec):
         with pytest.raises(ValueError, match="unknown wall side"):
             build_world({**spec, "doors": [{"side": "up", "at": 2.0}]})
+
+
+@pytest.mark.parametrize("frames", ["wall", "opening"])
+def test_render_surfaces_cover_every_face_once_with_its_class(spec, frames):
+    """Each face is in exactly one textured surface, whose class is the face's; the frames
+    keep the frame texture whatever their class."""
+    from datagen.render import surfaces
+
+    model = build_world({**spec, "frames": frames})
+    w = model.world
+    surf = surfaces(model)
+    assert sum(len(s.vertices) for s in surf) == 3 * len(w.faces)
+    tri = w.vertices[w.faces]
+    for s in surf:
+        # map each surface triangle back to its face by its vertices
+        v = s.vertices.reshape(-1, 3, 3)
+        idx = [int(np.flatnonzero(np.abs(tri - t).sum(axis=(1, 2)) < 1e-9)[0]) for t in v]
+        assert (w.face_class[idx] == s.class_id).all(), s.name
+    frames_by_class = {s.class_id for s in surf if s.texture == "frame"}
+    assert frames_by_class == ({C.WALL} if frames == "wall" else {C.DOOR, C.WINDOW})
