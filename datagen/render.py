@@ -25,7 +25,7 @@ from datagen import classes as C
 from datagen.camera import mitsuba_to_world
 from datagen.dataset import Camera
 from datagen.denoise import denoise, segment_ids
-from datagen.world import DOOR_RECESS, WINDOW_RECESS, CorridorModel, frame_axis
+from datagen.world import CorridorModel
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor
 
@@ -84,13 +84,9 @@ def surfaces(model: CorridorModel) -> list[Surface]:
     tri = w.vertices[w.faces]  # (F, 3, 3)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     axis = np.argmax(np.abs(n), axis=1)
-    kind = np.array([b.kind for b in model.boxes])[model.face_box]
     lo = np.array([b.lo for b in model.boxes])[model.face_box]
     hi = np.array([b.hi for b in model.boxes])[model.face_box]
-    in_recess = (kind == DOOR_RECESS) | (kind == WINDOW_RECESS)
-    # jambs, heads and sills: the recess faces other than its back (leaf, glass) and floor
-    frame = in_recess & (axis != frame_axis(model.boxes, model.face_box)) & (
-        w.face_class != C.FLOOR)
+    frame = model.frame  # jambs, heads and sills: textured as frames, whatever their class
     fc = w.face_class
     groups = {
         "floor": (C.FLOOR, "floor", fc == C.FLOOR),

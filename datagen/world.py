@@ -38,12 +38,14 @@ class CorridorModel:
     """A built corridor: the World the localizer uses plus what rendering needs.
 
     face_box: (F,) index into boxes of the free box each face bounds.
+    frame: (F,) bool, the frame faces of door and window recesses (``recess_faces``).
     lights: (L, 4) ceiling light rectangles [cx, cy, size_x, size_y] at z = height - 0.01.
     """
 
     world: World
     boxes: list[Box]
     face_box: np.ndarray
+    frame: np.ndarray
     lights: np.ndarray
     height: float
     spec: dict = field(default_factory=dict)
@@ -170,19 +172,37 @@ def boundary_mesh(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
 FRAME_CLASSES = ("opening", "wall")
 
 
+def recess_faces(boxes: list[Box], face_box: np.ndarray,
+                 normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The faces of door and window recesses, by part.
+
+    Args:
+        face_box: (F,) box index; normal: (F, 2) [axis, sign] of the inward normal.
+
+    Returns:
+        back (F,) bool: the recess's back (the door leaf, the glass);
+        frame (F,) bool: its jambs, head and, for a window, its sill (a door recess's floor is
+        floor, not frame).
+    """
+    kind = np.array([b.kind for b in boxes])[face_box]
+    inward = np.array([b.inward for b in boxes])[face_box]  # (F, 3)
+    axis, sign = normal[:, 0], normal[:, 1]
+    recess = (kind == DOOR_RECESS) | (kind == WINDOW_RECESS)
+    back = recess & (inward[np.arange(len(axis)), axis] == sign)
+    door_floor = (kind == DOOR_RECESS) & (axis == 2) & (sign > 0)
+    return back, recess & ~back & ~door_floor
+
+
 def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray,
                    frames: str = "wall") -> np.ndarray:
     """Semantic class of each boundary face from its box kind and inward normal.
 
-    A door or window recess has a back face (the door leaf, the glass) and frame faces: the
-    jambs, the head and, for a window, the sill (a door recess's floor is floor).
-
     Args:
         face_box: (F,) box index; normal: (F, 2) [axis, sign] of the inward normal.
-        frames: class of the frame faces. ``opening``: the door's or window's class, so the
-            opening's boundary is the recess's outer edge, a crease seen from every side;
-            ``wall``: wall, so the boundary is the inner edge, where a jamb a few pixels wide
-            separates it from the wall's face (docs/datagen.md).
+        frames: class of a recess's frame faces (``recess_faces``). ``opening``: the door's or
+            window's class, so the opening's boundary is the recess's outer edge, a crease seen
+            from every side; ``wall``: wall, so the boundary is the inner edge, where a jamb a
+            few pixels wide separates it from the wall's face (docs/datagen.md).
 
     Returns:
         (F,) uint8 class ids (floor, wall, ceiling, door, window).
@@ -196,17 +216,11 @@ def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray,
     recess = (kind == DOOR_RECESS) | (kind == WINDOW_RECESS)
     cls[up & ~(kind == WINDOW_RECESS)] = C.FLOOR
     cls[down & ~recess] = C.CEILING
-    frame = recess & ~(up & (kind == DOOR_RECESS)) & (frames == "opening")
-    back = recess & (frame_axis(boxes, face_box) == axis)
+    back, frame = recess_faces(boxes, face_box, normal)
+    opening = back | frame if frames == "opening" else back
     for k, c in ((DOOR_RECESS, C.DOOR), (WINDOW_RECESS, C.WINDOW)):
-        cls[(kind == k) & (back | frame)] = c
+        cls[(kind == k) & opening] = c
     return cls
-
-
-def frame_axis(boxes: list[Box], face_box: np.ndarray) -> np.ndarray:
-    """(F,) axis of the wall each face's box is cut into (its ``inward`` normal; -1: none)."""
-    inward = np.array([b.inward for b in boxes])[face_box]  # (F, 3)
-    return np.where(inward.any(axis=1), np.abs(inward).argmax(axis=1), -1)
 
 
 def free_space(spec: Mapping, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:
@@ -268,4 +282,6 @@ def build_world(spec: Mapping) -> CorridorModel:
     world = World(vertices=vertices, faces=faces, face_class=face_class, segments=segments,
                   segment_classes=seg_classes, crease_deg=crease, free_boxes=fboxes,
                   z_range=z_range, info=info)
-    return CorridorModel(world, boxes, face_box, lights, float(spec["height"]), dict(spec))
+    frame = recess_faces(boxes, face_box, normal)[1]
+    return CorridorModel(world, boxes, face_box, frame, lights, float(spec["height"]),
+                         dict(spec))

@@ -79,11 +79,10 @@ class TestCorridor:
 
     def test_opening_frames_put_the_boundary_on_the_outer_edge(self, spec):
         w = build_world({**spec, "frames": "opening"}).world
-        d = spec["door"]
         seg, pairs = w.segments, np.sort(w.segment_classes, axis=1)
         is_wd = (pairs == [C.WALL, C.DOOR]).all(axis=1)
         # a wall | door line lies in a corridor wall's plane (x = +-width/2 or y = 0), not
-        # d["depth"] behind it
+        # a recess's depth behind it
         x = np.abs(seg[is_wd][..., 0])
         on_side = np.isclose(x, spec["width"] / 2).all(axis=1)
         on_back = np.isclose(seg[is_wd][..., 1], 0.0).all(axis=1)
