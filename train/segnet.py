@@ -150,9 +150,13 @@ class SegNet(nn.Module):
             SegNet-EncoderAddition variant, Badrinarayanan et al. 2017 Table 1: the encoder's
             feature map of the same stage, before pooling, is added to the unpooled map; it
             learns several times faster and keeps boundaries sharper).
-        downsample: the network runs at 1/downsample of the input resolution (2x2 box average
-            per factor 2 first, bilinear upsampling of the logits last); 2 makes training and
-            inference about 4x cheaper, which on a CPU buys many more training steps.
+        downsample: the network runs at 1/downsample of the input resolution (bilinear
+            upsampling of the logits last); 2 makes training and inference about 4x cheaper,
+            which on a CPU buys many more training steps.
+        stem: how a downsampled network sees the image: "average" (each d x d block's mean
+            colour: 3 channels) or "unshuffle" (every pixel of the block, as 3 d^2 channels:
+            ``F.pixel_unshuffle``; the first convolution sees the full-resolution image, e.g.
+            where in its block a thin frame or an edge lies, for ~1.2x the compute).
         generator: draws the initial weights (He-normal convolutions); None = global RNG.
 
     Shapes:
@@ -173,6 +177,7 @@ class SegNet(nn.Module):
         pooling: str = "indices",
         downsample: int = 1,
         skip: str = "none",
+        stem: str = "average",
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
@@ -188,6 +193,8 @@ class SegNet(nn.Module):
             raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
         if skip not in ("none", "add"):
             raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
+        if stem not in ("average", "unshuffle"):
+            raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -202,6 +209,7 @@ class SegNet(nn.Module):
         self.stages = int(stages)
         self.downsample = downsample
         self.skip = skip
+        self.stem = stem if downsample > 1 else "average"  # at full resolution both are the same
         self.multiple = downsample * 2**self.stages
         self.auto_pad = bool(auto_pad)
         self.channels = chans
@@ -210,7 +218,7 @@ class SegNet(nn.Module):
         self.register_buffer("std", torch.tensor(std, dtype=torch.float32).view(1, 3, 1, 1))
 
         self.encoder = nn.ModuleList()
-        cin = 3
+        cin = 3 * downsample**2 if self.stem == "unshuffle" else 3
         for c, n in zip(chans, convs_per_stage, strict=True):
             layers = [_conv_bn_relu(cin if i == 0 else c, c) for i in range(n)]
             self.encoder.append(nn.Sequential(*layers))
@@ -292,13 +300,20 @@ class SegNet(nn.Module):
             x: (B, 3, H, W) float32 RGB in [0, 1].
 
         Returns:
-            The network input (B, 3, H' / downsample, W' / downsample) and the original (H, W).
+            The network input (B, 3 or 3 d^2, H' / d, W' / d) for downsample d (``stem``) and
+            the original (H, W).
         """
         self.check_input(x)
         x, size = pad_to_multiple(x, self.multiple)
+        return self._stem(x), size
+
+    def _stem(self, x: torch.Tensor) -> torch.Tensor:
+        """Padded (B, 3, H, W) [0, 1] images -> normalized network input at 1/downsample."""
+        if self.stem == "unshuffle":
+            return F.pixel_unshuffle((x - self.mean) / self.std, self.downsample)
         if self.downsample > 1:
             x = F.avg_pool2d(x, self.downsample)
-        return (x - self.mean) / self.std, size
+        return (x - self.mean) / self.std
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Logits for a batch of images.
@@ -340,21 +355,34 @@ class SegNet(nn.Module):
             x = 0.5 * (x[:n] + x[n:].flip(-1))
         return x, pooled_idx
 
-    def forward_network_resolution(self, x: torch.Tensor) -> torch.Tensor:
-        """Logits at the network's own resolution, for an input already box-averaged to it.
+    @property
+    def training_factor(self) -> int:
+        """How much smaller than the input the training images are: d with the ``average``
+        stem (box-averaged once, before augmentation), 1 with ``unshuffle`` (the stem needs
+        every pixel). See ``forward_network_resolution``."""
+        return self.downsample if self.stem == "average" else 1
 
-        Training uses this: with ``downsample`` d, an image averaged over d x d blocks once,
-        augmented and fed here gives the logits ``forward`` computes before its bilinear
-        upsampling, so augmentation and the loss cost 1/d^2 as much.
+    def forward_network_resolution(self, x: torch.Tensor) -> torch.Tensor:
+        """Logits at the network's own resolution, what ``forward`` computes before its
+        bilinear upsampling. Training takes the loss there.
+
+        With the ``average`` stem and ``downsample`` d the input is an image box-averaged over
+        d x d blocks once (``train.data.downsample_split``), so augmentation costs 1/d^2 as
+        much; with ``unshuffle`` it is the full-resolution image (``training_factor``).
 
         Args:
-            x: (B, 3, H / d, W / d) float32 RGB in [0, 1].
+            x: (B, 3, H / f, W / f) float32 RGB in [0, 1], f = ``training_factor``.
 
         Returns:
             (B, C, H / d, W / d) float32 class logits.
         """
         if x.ndim != 4 or x.shape[1] != 3 or not x.is_floating_point():
             raise ValueError(f"expected (B, 3, h, w) float images, got {tuple(x.shape)} {x.dtype}")
+        if self.stem == "unshuffle":
+            x, (h, w) = pad_to_multiple(x, self.multiple)
+            logits, _ = self._network(self._stem(x))
+            d = self.downsample
+            return logits[..., : -(-h // d), : -(-w // d)]
         x, (h, w) = pad_to_multiple(x, 2**self.stages)
         logits, _ = self._network((x - self.mean) / self.std)
         return logits[..., :h, :w]
@@ -392,7 +420,8 @@ class SegNet(nn.Module):
         return (
             f"num_classes={self.num_classes}, stages={self.stages}, channels={self.channels}, "
             f"convs_per_stage={self.convs_per_stage}, auto_pad={self.auto_pad}, "
-            f"pooling={self.pooling}, downsample={self.downsample}, skip={self.skip}"
+            f"pooling={self.pooling}, downsample={self.downsample}, skip={self.skip}, "
+            f"stem={self.stem}"
         )
 
 
@@ -421,6 +450,7 @@ def model_kwargs(model_cfg: dict) -> dict:
         "std",
         "downsample",
         "skip",
+        "stem",
     )
     out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
     for k in ("convs_per_stage", "mean", "std"):

@@ -37,6 +37,7 @@ from train.data import (
     SplitData,
     augment_batch,
     batches,
+    block_majority,
     check_classes,
     downsample_split,
     load_split,
@@ -94,6 +95,8 @@ def training_config(cfg: DictConfig) -> dict:
     d.pop("hydra", None)
     for key in HASH_EXCLUDE:
         _drop(d, key)
+    if d.get("model", {}).get("stem") == "average":  # added 2026-11-23 at the old behaviour:
+        del d["model"]["stem"]  # folders trained before it keep their hash and resume
     return d
 
 
@@ -228,6 +231,8 @@ def train_one_epoch(
             stopped = True
             break
         x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
+        if model.training_factor != model.downsample:  # full-resolution input, low-res logits
+            y = block_majority(y, model.downsample).long()
         x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             logits = model.forward_network_resolution(x)
@@ -408,8 +413,8 @@ def run(cfg: DictConfig) -> dict:
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)
-    train_data = downsample_split(train_data, model.downsample)
-    augment = augment.at_resolution(model.downsample)
+    train_data = downsample_split(train_data, model.training_factor)
+    augment = augment.at_resolution(model.training_factor)
     batch_size = min(int(cfg.batch_size), len(train_data))
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
     epochs = int(cfg.epochs)

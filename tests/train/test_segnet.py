@@ -135,6 +135,28 @@ class TestForward:
             assert low.shape == (2, 5, 16, 24)
             torch.testing.assert_close(m(x), up)
 
+    def test_unshuffle_stem(self) -> None:
+        """stem="unshuffle": the first convolution sees every pixel of each d x d block, the
+        training path takes full-resolution images and gives forward's low-resolution logits."""
+        m = _tiny(downsample=2, skip="add", stem="unshuffle").eval()
+        assert m.encoder[0][0][0].in_channels == 12 and m.training_factor == 1
+        x = torch.rand(2, 3, 32, 48)
+        with torch.no_grad():
+            low = m.forward_network_resolution(x)
+            up = torch.nn.functional.interpolate(low, scale_factor=2, mode="bilinear")
+            assert low.shape == (2, 5, 16, 24)
+            torch.testing.assert_close(m(x), up)
+            # a change inside one 2x2 block that keeps its average still changes the logits
+            y = x.clone()
+            y[:, :, 0, 0] += 0.1
+            y[:, :, 0, 1] -= 0.1
+            assert not torch.allclose(m(x), m(y))
+            assert torch.allclose(_tiny(downsample=2)(x), _tiny(downsample=2)(y), atol=1e-5)
+        assert _tiny(downsample=2).training_factor == 2
+        assert _tiny(stem="unshuffle").stem == "average"  # no blocks at full resolution
+        with pytest.raises(ValueError, match="model.stem"):
+            _tiny(downsample=2, stem="space")
+
     def test_skip_add_uses_encoder_features(self) -> None:
         """skip="add" changes the output of the same weights; "none" is plain SegNet."""
         plain, added = _tiny(), _tiny(skip="add")

@@ -101,8 +101,11 @@ class TestExport:
         graph = onnx.load(str(path)).graph
         assert any(n.op_type in ("MaxUnpool", "ScatterND", "ScatterElements") for n in graph.node)
 
-    def test_downsampled_model_parity(self, images: torch.Tensor, tmp_path: Path) -> None:
-        m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=2,
+    @pytest.mark.parametrize("stem", ["average", "unshuffle"])
+    def test_downsampled_model_parity(
+        self, images: torch.Tensor, tmp_path: Path, stem: str
+    ) -> None:
+        m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=2, stem=stem,
                    generator=torch.Generator().manual_seed(3)).eval()
         path = tmp_path / "ds.onnx"
         meta = onnx_metadata(m, as_json(), H, W, "ds")

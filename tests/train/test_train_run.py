@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 import pytest
 import torch
+from omegaconf import OmegaConf
 
 import train.train as tt
 from datagen.dataset import Dataset
-from train.data import load_split, to_float
+from train.data import AugmentConfig, downsample_split, load_split, to_float
 from train.losses import median_frequency_weights, segmentation_loss
 from train.runtime import read_metadata
 from train.segnet import SegNet
@@ -50,6 +52,24 @@ def test_loss_falls(synthetic_dataset: Path, bf16: bool) -> None:
     assert losses[-1] < 0.7 * losses[0], losses
 
 
+@pytest.mark.parametrize("stem", ["average", "unshuffle"])
+def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str) -> None:
+    """The training loop at a quarter resolution: images box-averaged once (average stem) or
+    kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle)."""
+    model = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=4, stem=stem,
+                   generator=torch.Generator().manual_seed(0))
+    full = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
+    data = downsample_split(full, model.training_factor)
+    assert data.images.shape[-1] * (1 if stem == "unshuffle" else 4) == full.images.shape[-1]
+    opt = torch.optim.AdamW(model.parameters(), lr=1e-2)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
+    gen = torch.Generator().manual_seed(0)
+    aug = AugmentConfig().at_resolution(model.training_factor)
+    losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4).loss
+              for _ in range(8)]
+    assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
+
+
 def test_weight_average() -> None:
     """make_ema: the first update copies, later ones move by 1 - decay (warmed up)."""
     m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1],
@@ -68,6 +88,17 @@ def test_weight_average() -> None:
     ema.update_parameters(m)  # second update: decay min(0.99, 2 / 11)
     torch.testing.assert_close(e, p - 2.0 / 11.0)
     torch.testing.assert_close(erm, rm - 2.0 / 11.0)  # BatchNorm statistics too
+
+
+def test_stem_in_config_hash() -> None:
+    """model.stem changes the hash only when it is not the old behaviour (average), so model
+    folders trained before the key existed still resume."""
+    def hashed(stem: str | None) -> dict:
+        model = {"width": 0.375} | ({} if stem is None else {"stem": stem})
+        return tt.training_config(OmegaConf.create({"seed": 0, "model": model}))
+
+    assert hashed("average") == hashed(None)
+    assert hashed("unshuffle")["model"]["stem"] == "unshuffle"
 
 
 def test_resolve_precision() -> None:
