@@ -75,7 +75,10 @@ def median_frequency_weights(
 
 
 def segmentation_loss(
-    logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor | None = None
+    logits: torch.Tensor,
+    target: torch.Tensor,
+    weight: torch.Tensor | None = None,
+    boundary_weight: float = 1.0,
 ) -> torch.Tensor:
     """Weighted per-pixel cross-entropy ignoring 255.
 
@@ -83,8 +86,25 @@ def segmentation_loss(
         logits: (B, C, H, W) float.
         target: (B, H, W) int64 class ids, 255 = ignore.
         weight: (C,) class weights or None.
+        boundary_weight: extra factor on the pixels next to a class change
+            (``boundary_mask``); 1 = plain cross-entropy.
 
     Returns:
         Scalar loss (weighted mean over valid pixels).
     """
-    return F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE)
+    if boundary_weight == 1.0:
+        return F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE)
+    ce = F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE, reduction="none")
+    valid = target != IGNORE
+    w_pix = torch.ones_like(ce) if weight is None else weight[target.clamp(max=len(weight) - 1)]
+    pw = torch.where(boundary_mask(target), float(boundary_weight), 1.0) * valid
+    return (ce * pw).sum() / (w_pix * pw).sum().clamp(min=1e-12)
+
+
+def boundary_mask(target: torch.Tensor) -> torch.Tensor:
+    """(B, H, W) bool: pixels whose 3x3 neighbourhood holds another class (ignored pixels
+    count as a class)."""
+    t = target.unsqueeze(1).float()
+    hi = F.max_pool2d(t, 3, 1, 1)
+    lo = -F.max_pool2d(-t, 3, 1, 1)
+    return (hi != lo).squeeze(1)

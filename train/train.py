@@ -65,6 +65,9 @@ HASH_EXCLUDE = (
     "eval.refine",
     "export",
 )
+#: Keys added after models were trained, with the value that gives the earlier behaviour: left
+#: out of the hash at that value, so folders trained before them keep their hash and resume.
+HASH_DEFAULTS = {"model.stem": "average", "loss.boundary_weight": 1.0}
 #: Files of an output folder that ``overwrite=true`` removes.
 OUTPUT_FILES = (
     "config.json",
@@ -95,8 +98,10 @@ def training_config(cfg: DictConfig) -> dict:
     d.pop("hydra", None)
     for key in HASH_EXCLUDE:
         _drop(d, key)
-    if d.get("model", {}).get("stem") == "average":  # added 2026-11-23 at the old behaviour:
-        del d["model"]["stem"]  # folders trained before it keep their hash and resume
+    for key, old in HASH_DEFAULTS.items():  # keys added later, at their old behaviour
+        group, _, name = key.partition(".")
+        if d.get(group, {}).get(name, old) == old:
+            d.get(group, {}).pop(name, None)
     return d
 
 
@@ -195,6 +200,7 @@ def train_one_epoch(
     desc: str = "train",
     bf16: bool = False,
     ema: AveragedModel | None = None,
+    boundary_weight: float = 1.0,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution.
 
@@ -212,6 +218,7 @@ def train_one_epoch(
         desc: progress bar label.
         bf16: run the forward pass in bfloat16 autocast (the loss is taken in float32).
         ema: moving average of the weights, updated after every step (``make_ema``), or None.
+        boundary_weight: loss factor on pixels next to a class change (``segmentation_loss``).
 
     Returns:
         Mean loss, number of steps done, and whether the deadline stopped the epoch.
@@ -236,7 +243,7 @@ def train_one_epoch(
         x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             logits = model.forward_network_resolution(x)
-        loss = segmentation_loss(logits.float(), y, class_weights)
+        loss = segmentation_loss(logits.float(), y, class_weights, boundary_weight)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -482,6 +489,7 @@ def run(cfg: DictConfig) -> dict:
             desc=f"epoch {epoch + 1}/{epochs}",
             bf16=bf16,
             ema=ema,
+            boundary_weight=float(cfg.loss.get("boundary_weight", 1.0)),
         )
         cm, _ = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
         val = scores(cm)

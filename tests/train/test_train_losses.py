@@ -5,7 +5,12 @@ from __future__ import annotations
 import pytest
 import torch
 
-from train.losses import class_pixel_counts, median_frequency_weights, segmentation_loss
+from train.losses import (
+    boundary_mask,
+    class_pixel_counts,
+    median_frequency_weights,
+    segmentation_loss,
+)
 
 
 def test_pixel_counts_hand_made() -> None:
@@ -49,3 +54,28 @@ def test_median_frequency_power_softens():
     full = median_frequency_weights(labels, 2)
     soft = median_frequency_weights(labels, 2, power=0.5)
     torch.testing.assert_close(soft, full.sqrt())
+
+
+def test_boundary_mask() -> None:
+    """Pixels with another class in their 3x3 neighbourhood: the two columns at a change."""
+    t = torch.zeros(1, 4, 6, dtype=torch.long)
+    t[..., 3:] = 2
+    m = boundary_mask(t)
+    assert m[0, :, 2:4].all() and not m[0, :, :2].any() and not m[0, :, 4:].any()
+
+
+def test_boundary_weighted_loss() -> None:
+    """boundary_weight 1 is the plain loss; above 1, errors at a class change weigh more, and
+    a weighted mean of equal per-pixel losses stays that loss."""
+    t = torch.zeros(1, 4, 6, dtype=torch.long)
+    t[..., 3:] = 1
+    t[0, 0, 0] = 255
+    w = torch.tensor([0.5, 2.0])
+    logits = torch.where(t.unsqueeze(1) == torch.arange(2).view(1, 2, 1, 1), 4.0, 0.0)
+    wrong = logits.clone()
+    wrong[..., 2:4] = wrong[..., 2:4].flip(1)  # wrong only at the boundary columns
+    plain = segmentation_loss(wrong, t, w)
+    torch.testing.assert_close(segmentation_loss(wrong, t, w, 1.0), plain)
+    assert segmentation_loss(wrong, t, w, 4.0) > plain
+    flat = torch.zeros(1, 2, 4, 6)  # every pixel costs log 2, whatever its weight
+    torch.testing.assert_close(segmentation_loss(flat, t, w, 4.0), torch.tensor(0.6931472))

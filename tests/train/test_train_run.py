@@ -91,14 +91,19 @@ def test_weight_average() -> None:
 
 
 def test_stem_in_config_hash() -> None:
-    """model.stem changes the hash only when it is not the old behaviour (average), so model
-    folders trained before the key existed still resume."""
+    """model.stem and loss.boundary_weight change the hash only away from the old behaviour
+    (average, 1), so model folders trained before the keys existed still resume."""
     def hashed(stem: str | None) -> dict:
         model = {"width": 0.375} | ({} if stem is None else {"stem": stem})
         return tt.training_config(OmegaConf.create({"seed": 0, "model": model}))
 
     assert hashed("average") == hashed(None)
     assert hashed("unshuffle")["model"]["stem"] == "unshuffle"
+    plain = tt.training_config(OmegaConf.create({"loss": {"power": 0.5}}))
+    assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "boundary_weight": 1.0}})
+                              ) == plain
+    assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "boundary_weight": 3.0}})
+                              ) != plain
 
 
 def test_resolve_precision() -> None:
