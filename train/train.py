@@ -101,7 +101,7 @@ def training_config(cfg: DictConfig) -> dict:
     for key, old in HASH_DEFAULTS.items():  # keys added later, at their old behaviour
         group, _, name = key.partition(".")
         if d.get(group, {}).get(name, old) == old:
-            d.get(group, {}).pop(name, None)
+            _drop(d, key)
     return d
 
 
