@@ -129,7 +129,7 @@ def load_split(
     )
 
 
-def downsample_split(data: SplitData, factor: int) -> SplitData:
+def downsample_split(data: SplitData, factor: int, keep_labels: bool = False) -> SplitData:
     """The split at 1/factor resolution, as a SegNet with ``downsample=factor`` sees it.
 
     Images are averaged over factor x factor blocks (what ``SegNet.preprocess`` does) and
@@ -137,8 +137,12 @@ def downsample_split(data: SplitData, factor: int) -> SplitData:
     low-resolution label describes the same block, centred at the same point, as its pixel.
     H and W must be multiples of ``factor``.
 
+    Args:
+        keep_labels: keep the full-resolution labels (for a loss on upsampled logits).
+
     Returns:
-        images (N, 3, H / factor, W / factor) uint8 and labels (N, H / factor, W / factor).
+        images (N, 3, H / factor, W / factor) uint8 and labels (N, H / factor, W / factor),
+        or (N, H, W) with ``keep_labels``.
     """
     if factor == 1:
         return data
@@ -146,7 +150,8 @@ def downsample_split(data: SplitData, factor: int) -> SplitData:
     if h % factor or w % factor:
         raise ValueError(f"image size {h}x{w} is not a multiple of model.downsample={factor}")
     images = F.avg_pool2d(data.images.float(), factor).round_().to(torch.uint8)
-    return SplitData(images=images, labels=block_majority(data.labels, factor), paths=data.paths)
+    labels = data.labels if keep_labels else block_majority(data.labels, factor)
+    return SplitData(images=images, labels=labels, paths=data.paths)
 
 
 def block_majority(labels: torch.Tensor, factor: int, chunk: int = 256) -> torch.Tensor:
@@ -272,31 +277,62 @@ def _uniform(gen: torch.Generator, n: int, lo: float, hi: float) -> torch.Tensor
     return lo + (hi - lo) * torch.rand(n, generator=gen)
 
 
+def _crop_labels_finer(
+    y: torch.Tensor, boxes: torch.Tensor, size: tuple[int, int], f: int
+) -> torch.Tensor:
+    """Labels (B, 1, f H, f W) float cropped (nearest) from the image boxes (B, 4, 2) that
+    ``crop_and_resize`` maps to an output of ``size`` (h, w) with ``align_corners=True``;
+    returns (B, 1, f h, f w), 255 outside the labels.
+
+    Output label pixel p sits at output image coordinate u = (p + 0.5) / f - 0.5, which the box
+    maps to image coordinate X, i.e. label coordinate f (X + 0.5) - 0.5: so the label box's
+    corners are those of the pixels p = 0 and f w - 1 (and likewise in y).
+    """
+    (oh, ow), lo, hi = size, 0.5 / f - 0.5, -0.5 / f - 0.5
+    p0, p1 = boxes[:, 0], boxes[:, 2]  # (B, 2) top-left, bottom-right (x, y)
+    extent = torch.tensor([ow, oh], dtype=boxes.dtype)
+    step = (p1 - p0) / (extent - 1).clamp(min=1)
+    q0 = f * (p0 + lo * step + 0.5) - 0.5
+    q1 = f * (p0 + (extent + hi) * step + 0.5) - 0.5
+    lboxes = torch.stack(
+        [q0, torch.stack([q1[:, 0], q0[:, 1]], -1), q1, torch.stack([q0[:, 0], q1[:, 1]], -1)],
+        dim=1,
+    )
+    # shifted by one so that the zero padding outside the labels comes out as -1 -> 255
+    out = crop_and_resize(y + 1, lboxes, (f * oh, f * ow), mode="nearest", align_corners=True)
+    return torch.where(out < 0.5, float(IGNORE), out - 1)
+
+
 def augment_batch(
     images: torch.Tensor, labels: torch.Tensor, cfg: AugmentConfig, gen: torch.Generator
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Random scale/crop, flip, colour jitter, blur and noise on a batch, labels kept aligned.
 
     Geometric changes are applied to images (bilinear) and labels (nearest) with the same
-    parameters; photometric ones to images only.
+    parameters; photometric ones to images only. The labels may have f times the images'
+    resolution (pixel i of the image covering label pixels f i .. f i + f - 1, as
+    ``downsample_split`` makes them); they are then cropped from the same box at their own
+    resolution, and label pixels that fall outside the image are 255 (ignore).
 
     Args:
         images: (B, 3, H, W) uint8 RGB.
-        labels: (B, H, W) uint8 class ids.
+        labels: (B, f H, f W) uint8 class ids, f a positive integer.
         cfg: augmentation parameters.
         gen: source of all random numbers.
 
     Returns:
-        images (B, 3, h, w) float32 in [0, 1] and labels (B, h, w) int64, where (h, w) is
+        images (B, 3, h, w) float32 in [0, 1] and labels (B, f h, f w) int64, where (h, w) is
         ``cfg.crop`` or (H, W).
     """
+    f = labels.shape[-1] // images.shape[-1] if images.ndim == 4 and images.shape[-1] else 0
     if (
         images.ndim != 4
         or images.shape[1] != 3
-        or labels.shape != (images.shape[0], *images.shape[2:])
+        or f < 1
+        or labels.shape != (images.shape[0], f * images.shape[2], f * images.shape[3])
     ):
         raise ValueError(
-            f"expected images (B, 3, H, W) and labels (B, H, W), got "
+            f"expected images (B, 3, H, W) and labels (B, f H, f W) for an integer f, got "
             f"{tuple(images.shape)} and {tuple(labels.shape)}"
         )
     b, _, h, w = images.shape
@@ -320,7 +356,10 @@ def augment_batch(
         dim=1,
     )
     x = crop_and_resize(x, boxes, (oh, ow), mode="bilinear", align_corners=True)
-    y = crop_and_resize(y, boxes, (oh, ow), mode="nearest", align_corners=True)
+    if f == 1:
+        y = crop_and_resize(y, boxes, (oh, ow), mode="nearest", align_corners=True)
+    else:
+        y = _crop_labels_finer(y, boxes, (oh, ow), f)
 
     flip = (torch.rand(b, generator=gen) < cfg.hflip).view(b, 1, 1, 1)
     x = torch.where(flip, x.flip(-1), x)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import torch
+import torch.nn.functional as F
 from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
@@ -67,7 +68,11 @@ HASH_EXCLUDE = (
 )
 #: Keys added after models were trained, with the value that gives the earlier behaviour: left
 #: out of the hash at that value, so folders trained before them keep their hash and resume.
-HASH_DEFAULTS = {"model.stem": "average", "loss.boundary_weight": 1.0}
+HASH_DEFAULTS = {
+    "model.stem": "average",
+    "loss.boundary_weight": 1.0,
+    "loss.resolution": "network",
+}
 #: Files of an output folder that ``overwrite=true`` removes.
 OUTPUT_FILES = (
     "config.json",
@@ -103,6 +108,15 @@ def training_config(cfg: DictConfig) -> dict:
         if d.get(group, {}).get(name, old) == old:
             _drop(d, key)
     return d
+
+
+def _loss_resolution(cfg: DictConfig) -> str:
+    """``loss.resolution``: network (block-majority labels at the logits' resolution) or
+    input (the logits upsampled to the full-resolution labels)."""
+    res = str(cfg.loss.get("resolution", "network"))
+    if res not in ("network", "input"):
+        raise ValueError(f"loss.resolution={res!r}: use network or input")
+    return res
 
 
 def config_hash(train_cfg: dict, dataset_json: bytes) -> str:
@@ -201,6 +215,7 @@ def train_one_epoch(
     bf16: bool = False,
     ema: AveragedModel | None = None,
     boundary_weight: float = 1.0,
+    full_labels: bool = False,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution.
 
@@ -219,6 +234,9 @@ def train_one_epoch(
         bf16: run the forward pass in bfloat16 autocast (the loss is taken in float32).
         ema: moving average of the weights, updated after every step (``make_ema``), or None.
         boundary_weight: loss factor on pixels next to a class change (``segmentation_loss``).
+        full_labels: ``data`` holds the input-resolution labels; the loss is taken on the
+            logits upsampled to them as at inference (``loss.resolution: input``) instead of
+            on block-majority labels at the network's resolution.
 
     Returns:
         Mean loss, number of steps done, and whether the deadline stopped the epoch.
@@ -238,12 +256,16 @@ def train_one_epoch(
             stopped = True
             break
         x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
-        if model.training_factor != model.downsample:  # full-resolution input, low-res logits
-            y = block_majority(y, model.downsample).long()
+        if not full_labels and model.training_factor != model.downsample:
+            y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
         x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             logits = model.forward_network_resolution(x)
-        loss = segmentation_loss(logits.float(), y, class_weights, boundary_weight)
+        logits = logits.float()
+        if full_labels:  # as at inference: bilinear to the input's resolution
+            logits = F.interpolate(logits, size=y.shape[-2:], mode="bilinear",
+                                   align_corners=False)
+        loss = segmentation_loss(logits, y, class_weights, boundary_weight)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -376,6 +398,7 @@ def run(cfg: DictConfig) -> dict:
     t_start = time.monotonic()
     torch.set_num_threads(int(cfg.threads))
     bf16 = resolve_precision(str(cfg.precision))  # a bad value fails before any loading
+    full_labels = _loss_resolution(cfg) == "input"
     progress = bool(cfg.progress)
     dataset = Dataset(cfg.dataset)
     ds_json = (dataset.root / "dataset.json").read_bytes()
@@ -420,7 +443,7 @@ def run(cfg: DictConfig) -> dict:
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)
-    train_data = downsample_split(train_data, model.training_factor)
+    train_data = downsample_split(train_data, model.training_factor, keep_labels=full_labels)
     augment = augment.at_resolution(model.training_factor)
     batch_size = min(int(cfg.batch_size), len(train_data))
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
@@ -490,6 +513,7 @@ def run(cfg: DictConfig) -> dict:
             bf16=bf16,
             ema=ema,
             boundary_weight=float(cfg.loss.get("boundary_weight", 1.0)),
+            full_labels=full_labels,
         )
         cm, _ = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
         val = scores(cm)

@@ -70,6 +70,28 @@ class TestAugment:
         assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1])
         assert not torch.equal(a[0], c[0])
 
+    @pytest.mark.parametrize("f", [2, 4])
+    def test_finer_labels_follow_the_image_box(self, f: int) -> None:
+        """Labels at f x the image resolution are cropped from the same box: each label pixel
+        holds its own column index, and the image a ramp of the image column, so the label
+        column of output pixel p must be where the image ramp puts it."""
+        b, h, w = 6, 12, 16
+        col = torch.arange(w, dtype=torch.float32)
+        images = (col * 10).to(torch.uint8).expand(b, 3, h, w).contiguous()
+        labels = torch.arange(f * w, dtype=torch.uint8).expand(b, f * h, f * w).contiguous()
+        cfg = AugmentConfig(crop=(8, 10), scale=(1.0, 1.5), hflip=0.5, **GEOMETRY_ONLY)
+        x, y = augment_batch(images, labels, cfg, torch.Generator().manual_seed(1))
+        assert x.shape == (b, 3, 8, 10) and y.shape == (b, 8 * f, 10 * f)
+        ramp = x[:, 0, 0] * 255 / 10  # (B, 10) image column at output columns 0..9
+        step = ramp[:, 1:2] - ramp[:, :1]
+        u = (torch.arange(10 * f) + 0.5) / f - 0.5  # output image coordinate of label pixels
+        expect = f * (ramp[:, :1] + u * step + 0.5) - 0.5  # (B, 10 f) label column
+        inside = (y[:, 0] != 255)
+        assert inside.float().mean() > 0.9
+        assert (y[:, 0][inside] - expect[inside]).abs().max() <= 0.5 + 0.05 * f
+        # outside the labels (a box at the border) only: the 255s sit at the row ends
+        assert ((y[:, 0] == 255) <= ((expect < -0.5) | (expect > f * w - 0.5))).all()
+
     def test_bad_shapes(self) -> None:
         with pytest.raises(ValueError, match="expected images"):
             augment_batch(

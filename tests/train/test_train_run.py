@@ -52,21 +52,25 @@ def test_loss_falls(synthetic_dataset: Path, bf16: bool) -> None:
     assert losses[-1] < 0.7 * losses[0], losses
 
 
-@pytest.mark.parametrize("stem", ["average", "unshuffle"])
-def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str) -> None:
+@pytest.mark.parametrize(("stem", "full_labels"),
+                         [("average", False), ("unshuffle", False), ("average", True)])
+def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
+                                     full_labels: bool) -> None:
     """The training loop at a quarter resolution: images box-averaged once (average stem) or
-    kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle)."""
+    kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle);
+    or the labels kept whole and the loss taken on upsampled logits (loss.resolution: input)."""
     model = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=4, stem=stem,
                    generator=torch.Generator().manual_seed(0))
     full = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
-    data = downsample_split(full, model.training_factor)
+    data = downsample_split(full, model.training_factor, keep_labels=full_labels)
     assert data.images.shape[-1] * (1 if stem == "unshuffle" else 4) == full.images.shape[-1]
+    assert data.labels.shape[-1] == data.images.shape[-1] * (4 if full_labels else 1)
     opt = torch.optim.AdamW(model.parameters(), lr=1e-2)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
     gen = torch.Generator().manual_seed(0)
     aug = AugmentConfig().at_resolution(model.training_factor)
-    losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4).loss
-              for _ in range(8)]
+    losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
+                                 full_labels=full_labels).loss for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
 
 
@@ -103,6 +107,10 @@ def test_stem_in_config_hash() -> None:
     assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "boundary_weight": 1.0}})
                               ) == plain
     assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "boundary_weight": 3.0}})
+                              ) != plain
+    assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "resolution": "network"}})
+                              ) == plain
+    assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "resolution": "input"}})
                               ) != plain
 
 
@@ -228,6 +236,10 @@ class TestBadInput:
     def test_zero_budget(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(RuntimeError, match="time budget"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "max_minutes=0"))
+
+    def test_bad_loss_resolution(self, synthetic_dataset, compose_train, tmp_path) -> None:
+        with pytest.raises(ValueError, match="loss.resolution='full': use network or input"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "loss.resolution=full"))
 
     def test_bad_precision(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(ValueError, match="precision='half': use auto, bf16 or fp32"):
