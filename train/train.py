@@ -217,7 +217,8 @@ def train_one_epoch(
     boundary_weight: float = 1.0,
     full_labels: bool = False,
 ) -> EpochResult:
-    """One pass over the training split with augmentation, at the network's resolution.
+    """One pass over the training split with augmentation, at the network's resolution (the
+    loss at the input's with ``full_labels``).
 
     Args:
         model: network in train mode after the call.
