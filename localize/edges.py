@@ -36,15 +36,35 @@ class EdgeImage:
         edges: (H, W) bool, True on an edge.
         known: (H, W) bool, False where the image cannot tell whether a model edge is there
             (masked objects that are not in the model).
+        pairs: None, or (H, W) uint8: at an edge pixel the ``pair_code`` of the two classes
+            the boundary separates, 0 elsewhere (label modes; the likelihood's
+            ``class_pairs`` matching reads it).
     """
 
     edges: np.ndarray
     known: np.ndarray
+    pairs: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.edges.shape != self.known.shape or self.edges.ndim != 2:
             raise ValueError(f"edges {self.edges.shape} and known {self.known.shape} must be "
                              "the same (H, W)")
+        if self.pairs is not None and self.pairs.shape != self.edges.shape:
+            raise ValueError(f"pairs {self.pairs.shape} must match edges {self.edges.shape}")
+
+
+def pair_code(a, b) -> np.ndarray:
+    """Code of the unordered class pair {a, b}: ``16 * min + max`` as uint8 (class ids < 16;
+    never 0 for two different classes).
+
+    Args:
+        a, b: class ids, scalars or arrays of one shape.
+    """
+    a = np.asarray(a, dtype=np.int64)
+    b = np.asarray(b, dtype=np.int64)
+    if (np.maximum(a, b) >= 16).any():
+        raise ValueError("class pair codes need class ids below 16")
+    return (16 * np.minimum(a, b) + np.maximum(a, b)).astype(np.uint8)
 
 
 def _check_rgb(rgb: np.ndarray) -> None:
@@ -107,7 +127,8 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
             removes speckle of a predicted segmentation.
 
     Returns:
-        The edge image.
+        The edge image, with the class pair of each edge pixel (``pairs``; a pixel where two
+        boundaries meet keeps one of their pairs).
     """
     if labels.ndim != 2:
         raise ValueError(f"expected an (H, W) label map, got {labels.shape}")
@@ -118,20 +139,27 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
     lut[list(structural)] = True
     struct = lut[labels]
     edges = np.zeros(labels.shape, dtype=bool)
+    pairs = np.zeros(labels.shape, dtype=np.uint8)
     for axis in (0, 1):
         a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
         b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
         sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
         sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
         diff = (a != b) & sa & sb
+        code = np.where(diff, pair_code(a, b), np.uint8(0))
         if axis == 0:
             edges[:-1] |= diff
             edges[1:] |= diff
+            np.copyto(pairs[1:], code, where=diff)
+            np.copyto(pairs[:-1], code, where=diff)
         else:
             edges[:, :-1] |= diff
             edges[:, 1:] |= diff
+            np.copyto(pairs[:, 1:], code, where=diff)
+            np.copyto(pairs[:, :-1], code, where=diff)
     unknown = _dilate(~struct, int(dilate_px))
-    return EdgeImage(edges & ~unknown, ~unknown)
+    edges &= ~unknown
+    return EdgeImage(edges, ~unknown, np.where(edges, pairs, np.uint8(0)))
 
 
 def check_classes(model_classes: list[dict], dataset_classes: list[dict], where: str) -> None:
@@ -305,7 +333,8 @@ class EdgeExtractor:
             known = known & ~_dilate(confidence < threshold, int(lc["dilate_px"]))
         refine = cc.get("refine", "none")
         if refine == "none":
-            return EdgeImage(out.edges & known, known)
+            edges = out.edges & known
+            return EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
         if refine == "canny":
             near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)

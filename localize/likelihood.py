@@ -16,6 +16,13 @@ where d is the distance from the pixel to the nearest image edge:
   gets its own distance transform; a sample reads the map of the bin matching its projected
   line's normal, so it only matches edges running roughly parallel to the model line, which is
   what a normal search finds first (directional chamfer matching).
+- **Class pairs** (``class_pairs``, label modes only). A model edge separates two classes
+  (wall | door, floor | wall, ...), and so does a label boundary in the image. With
+  ``class_pairs`` each pair the model has gets its own distance transforms (per orientation
+  bin), so a sample only matches image boundaries between the same two classes: a wall | window
+  line no longer fits a wall | door boundary. The chance level g0 stays that of all edges
+  together, so a model line with no boundary of its pair in reach still pays for it. Edge
+  images without classes (mode ``none``) are matched as without it.
 - **Unknown pixels** (masked objects that are not in the model) score the image's chance level
   g0, the mean score of a known pixel; so do known pixels whose nearest edge is farther than
   the mask (the true edge might be hidden), unless they already score more.
@@ -83,6 +90,8 @@ class LikelihoodParams:
         min_quality_samples: known visible samples needed to report a quality.
         orientation_bins: 0 for a plain distance transform, else the number of orientation
             bins (over 180 degrees) of the directional one.
+        class_pairs: match each model sample only to image edges between the same two classes
+            (edge images with ``pairs``; needs the samples' pair codes).
         near: samples closer to the camera than this are dropped, metres.
         chunk: particles processed per block (keeps the (chunk, P) arrays in cache).
     """
@@ -98,6 +107,7 @@ class LikelihoodParams:
     outlier: float = 0.05
     min_quality_samples: int = 30
     orientation_bins: int = 0
+    class_pairs: bool = False
     near: float = 0.1
     chunk: int = 64
 
@@ -121,14 +131,16 @@ class Observation:
     """Score maps of one frame.
 
     Attributes:
-        g: (B * H * W + 1,) float32 flattened score maps, one per orientation bin (B = 1
-            without), and a final 0 read by samples that are not visible.
-        e: (B * H * W + 1,) float32 per-sample evidence ``log(g + eps) - log(g0 + eps)``
+        g: (Q * B * H * W + 1,) float32 flattened score maps, one per class pair (Q = 1
+            without ``class_pairs``) and orientation bin (B = 1 without), pair-major, and a
+            final 0 read by samples that are not visible.
+        e: (Q * B * H * W + 1,) float32 per-sample evidence ``log(g + eps) - log(g0 + eps)``
             (eps = ``outlier``), exactly 0 on unknown pixels (and nudged off 0 elsewhere, so
             zeros count unknowns).
-        g0: (B,) chance score per bin (mean over known pixels).
+        g0: (B,) chance score per bin (mean over known pixels, all edges).
         width, height: image size.
         bins: B (0 for a plain distance transform, stored as 1 map).
+        pairs: Q, the number of class-pair map sets (0: not split by class pair, Q = 1).
     """
 
     g: np.ndarray
@@ -137,6 +149,7 @@ class Observation:
     width: int
     height: int
     bins: int
+    pairs: int = 0
 
     @property
     def chance(self) -> float:
@@ -171,12 +184,44 @@ def distance_to(mask: np.ndarray) -> np.ndarray:
     return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
 
 
-def observe(edge: EdgeImage, params: LikelihoodParams) -> Observation:
+def _bin_masks(edges: np.ndarray, bins: int) -> np.ndarray:
+    """Edge pixels split by the orientation of their normal.
+
+    Each edge pixel goes in the bins whose centre b * pi / B is closer than pi / B to its normal
+    angle (the two nearest); only edge pixels and their neighbouring bins are tested, as
+    (3, n_edge) arrays instead of (B, H, W).
+
+    Args:
+        edges: (H, W) bool.
+        bins: B; 0 keeps all edges in one mask.
+
+    Returns:
+        (max(B, 1), H, W) bool.
+    """
+    if bins <= 0:
+        return edges[None]
+    H, W = edges.shape
+    ys, xs = np.nonzero(edges)
+    theta = edge_normal_angle(edges)[ys, xs]
+    lower = np.floor(theta.astype(np.float64) * (bins / np.pi)).astype(np.intp)
+    masks = np.zeros((bins, H, W), dtype=bool)
+    for cand in ((lower - 1) % bins, lower % bins, (lower + 1) % bins):
+        diff = np.abs(theta - cand * np.pi / bins)
+        ok = np.minimum(diff, np.pi - diff) < np.pi / bins
+        masks[cand[ok], ys[ok], xs[ok]] = True
+    return masks
+
+
+def observe(edge: EdgeImage, params: LikelihoodParams,
+            pair_codes: np.ndarray | None = None) -> Observation:
     """Score maps g(d) of an edge image (see the module docstring).
 
     Args:
         edge: the frame's edges and known mask, (H, W).
-        params: sigma, search_px, orientation_bins.
+        params: sigma, search_px, orientation_bins, class_pairs.
+        pair_codes: (Q,) uint8 class-pair codes of the model (``edges.pair_code``), the order
+            of the pair map sets; used with ``params.class_pairs`` when the edge image has
+            ``pairs``.
 
     Returns:
         The observation.
@@ -185,43 +230,48 @@ def observe(edge: EdgeImage, params: LikelihoodParams) -> Observation:
     B = int(params.orientation_bins)
     edges = edge.edges & edge.known
     known = edge.known
-    if B > 0:
-        # Each edge pixel goes in the bins whose centre b * pi / B is closer than pi / B to its
-        # normal angle (the two nearest); only edge pixels and their neighbouring bins are
-        # tested, as (3, n_edge) arrays instead of (B, H, W).
-        ys, xs = np.nonzero(edges)
-        theta = edge_normal_angle(edges)[ys, xs]
-        lower = np.floor(theta.astype(np.float64) * (B / np.pi)).astype(np.intp)
-        masks = np.zeros((B, H, W), dtype=bool)
-        for cand in ((lower - 1) % B, lower % B, (lower + 1) % B):
-            diff = np.abs(theta - cand * np.pi / B)
-            ok = np.minimum(diff, np.pi - diff) < np.pi / B
-            masks[cand[ok], ys[ok], xs[ok]] = True
-    else:
-        masks = edges[None]
+    masks = _bin_masks(edges, B)
     s2 = 2.0 * float(params.sigma) ** 2
     g_far = np.float32(np.exp(-1.0 / s2))
     dist_unknown = distance_to(~known)
-    g = np.empty((len(masks), H, W), dtype=np.float32)
-    g0 = np.empty(len(masks), dtype=np.float32)
     unknown = ~known
-    for b, m in enumerate(masks):  # one distance transform per bin of a small image
+    g0 = np.array([0.0], np.float32)
+
+    def score(m: np.ndarray, g0b: np.float32 | None) -> tuple[np.ndarray, np.float32]:
         d = distance_to(m)
         dn = np.minimum(d, params.search_px) / np.float32(params.search_px)
         gb = np.exp(-dn * dn / np.float32(s2))
-        g0[b] = gb[known].mean() if known.any() else g_far
+        if g0b is None:
+            g0b = np.float32(gb[known].mean() if known.any() else g_far)
         # masked writes in place (copyto/out=) instead of boolean-indexed copies
-        np.maximum(gb, g0[b], out=gb, where=(d > dist_unknown) & known)  # hidden by unknown
-        np.copyto(gb, g0[b], where=unknown)
-        g[b] = gb
+        np.maximum(gb, g0b, out=gb, where=(d > dist_unknown) & known)  # hidden by unknown
+        np.copyto(gb, g0b, where=unknown)
+        return gb, g0b
+
+    paired = (params.class_pairs and edge.pairs is not None and pair_codes is not None
+              and len(pair_codes) > 0)
+    if paired:
+        # chance levels from all edges; one distance transform per (pair, bin)
+        g0 = np.array([score(m, None)[1] for m in masks], np.float32)
+        pair_masks = [edge.pairs == c for c in np.asarray(pair_codes, np.uint8)]
+        g = np.empty((len(pair_masks), len(masks), H, W), dtype=np.float32)
+        for q, pm in enumerate(pair_masks):
+            for b, m in enumerate(masks):
+                g[q, b] = score(m & pm, g0[b])[0]
+        g = g.reshape(-1, H, W)
+    else:
+        g = np.empty((len(masks), H, W), dtype=np.float32)
+        g0 = np.empty(len(masks), dtype=np.float32)
+        for b, m in enumerate(masks):  # one distance transform per bin of a small image
+            g[b], g0[b] = score(m, None)
     # one trailing 0 that invalid samples read
     zero = np.zeros(1, np.float32)
     eps = np.float32(params.outlier)
-    e = np.log(g + eps) - np.log(g0 + eps)[:, None, None]
+    e = np.log(g + eps) - np.log(np.tile(g0, len(g) // len(g0)) + eps)[:, None, None]
     np.copyto(e, np.float32(1e-7), where=(e == 0) & known[None])
     np.copyto(e, np.float32(0.0), where=unknown[None])
     return Observation(np.concatenate([g.reshape(-1), zero]), np.concatenate([e.reshape(-1), zero]),
-                       g0, W, H, B)
+                       g0, W, H, B, len(pair_codes) if paired else 0)
 
 
 class EdgeLikelihood:
@@ -232,10 +282,13 @@ class EdgeLikelihood:
         camera: K, image size and body_from_cam.
         params: likelihood settings.
         visibility: occlusion grid (None: every in-view sample counts as visible).
+        sample_pairs: (P,) uint8 ``edges.pair_code`` of the two classes each sample's segment
+            separates; needed with ``params.class_pairs``.
     """
 
     def __init__(self, samples: ModelSamples, camera: Camera, params: LikelihoodParams,
-                 visibility: VisibilityGrid | None = None):
+                 visibility: VisibilityGrid | None = None,
+                 sample_pairs: np.ndarray | None = None):
         if visibility is not None and visibility.visible.shape[1] != len(samples):
             raise ValueError(f"visibility grid has {visibility.visible.shape[1]} samples, the "
                              f"model {len(samples)}; rebuild it for these samples")
@@ -243,13 +296,23 @@ class EdgeLikelihood:
                                                                    visibility)
         # run starts of segments, for per-line sums along the sample axis
         self._starts = samples.starts
+        self.pair_codes = None  # (Q,) the model's class pairs, the order of the pair maps
+        self._pair_slot = None  # (P,) int32 index of each sample's pair in pair_codes
+        if params.class_pairs:
+            if sample_pairs is None or len(sample_pairs) != len(samples):
+                raise ValueError("likelihood.class_pairs needs the class pair of every model "
+                                 f"sample ({len(samples)}), got "
+                                 f"{None if sample_pairs is None else len(sample_pairs)}")
+            self.pair_codes, slot = np.unique(np.asarray(sample_pairs, np.uint8),
+                                              return_inverse=True)
+            self._pair_slot = slot.astype(np.int32)
 
     def observe(self, edge: EdgeImage) -> Observation:
         """Score maps of a frame (see ``observe``)."""
         if edge.edges.shape != (self.camera.height, self.camera.width):
             raise ValueError(f"edge image {edge.edges.shape} does not match the camera "
                              f"{self.camera.height}x{self.camera.width}")
-        return observe(edge, self.params)
+        return observe(edge, self.params, self.pair_codes)
 
     def scores(self, states: np.ndarray, obs: Observation,
                tilt: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -293,6 +356,11 @@ class EdgeLikelihood:
             b = np.rint(theta * np.float32(obs.bins / np.pi)).astype(np.int32) % obs.bins
             b *= np.int32(W * H)
             idx += b
+        if obs.pairs:
+            if self.pair_codes is None or obs.pairs != len(self.pair_codes):
+                raise ValueError(f"the observation has {obs.pairs} class-pair map sets, this "
+                                 "likelihood's model another count; make it with its observe()")
+            idx += self._pair_slot * np.int32(max(obs.bins, 1) * W * H)
         idx = np.where(valid, idx, np.int32(len(obs.g) - 1))  # the last entry reads 0
         chance = obs.chance
         ev = obs.e[idx]  # exactly 0 where not visible or unknown

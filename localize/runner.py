@@ -32,7 +32,7 @@ from tqdm import tqdm
 from datagen.atomic import atomic_write_json, read_png
 from datagen.dataset import Camera, Dataset, Flight, World
 from datagen.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.edges import EdgeExtractor, class_boundaries_only, load_segmenter
+from localize.edges import EdgeExtractor, class_boundaries_only, load_segmenter, pair_code
 from localize.likelihood import EdgeLikelihood, LikelihoodParams
 from localize.metrics import position_errors, yaw_errors_deg
 from localize.particle_filter import FilterParams, ParticleFilter, odometry_increment
@@ -91,6 +91,11 @@ class Context:
     likelihood_params: LikelihoodParams
     out_dir: Path
     segmenter: object | None = None
+
+    def sample_pairs(self, samples: ModelSamples) -> np.ndarray:
+        """(P,) uint8 ``pair_code`` of the two classes each sample's world segment separates."""
+        sc = np.asarray(self.world.segment_classes)[samples.segment]
+        return pair_code(sc[:, 0], sc[:, 1])
 
     def model_for(self, mode: str) -> tuple[ModelSamples, VisibilityGrid]:
         """Edge samples (and their visibility) a mode scores against."""
@@ -199,14 +204,15 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
                           global_particles=max(int(num_particles), fparams.global_particles))
     samples, vis = ctx.model_for(mode)
     lp = mode_likelihood_params(ctx.likelihood_params, fparams, mode)
-    lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
+    pairs = ctx.sample_pairs(samples)
+    lik = EdgeLikelihood(samples, ctx.camera, lp, vis, pairs)
     wide = None  # the global phase's likelihood: thinned samples, its own settings
     if any(r.init == "global" for r in runs) and (fparams.global_likelihood
                                                    or fparams.global_thin > 1):
         coarse, cols = samples.thin(fparams.global_thin)
         gp = LikelihoodParams.from_cfg({**asdict(lp), **dict(fparams.global_likelihood)})
         gp = replace(gp, evidence_norm=gp.evidence_norm / max(fparams.global_thin, 1))
-        wide = EdgeLikelihood(coarse, ctx.camera, gp, vis.select(cols))
+        wide = EdgeLikelihood(coarse, ctx.camera, gp, vis.select(cols), pairs[cols])
     extractor = EdgeExtractor(mode, OmegaConf.to_container(cfg.edges, resolve=True),
                               ctx.segmenter)
     truth = _truth_states(flight, T)
