@@ -17,6 +17,7 @@ from localize.edges import (
     class_log_prior,
     label_edges,
     load_segmenter,
+    pair_code,
     structural_prior_labels,
 )
 from tests.localize.conftest import palette_segnet
@@ -45,6 +46,17 @@ class TestLabelEdges:
         assert not e.edges[10, 5]  # inside the wall
         assert not e.known[9, 23] and e.known[9, 20]  # the person is unknown
         assert not e.edges[7, 23]  # door | person is not a model edge
+
+    def test_class_pair_of_each_edge_pixel(self):
+        e = label_edges(two_walls(), dilate_px=0)
+        assert e.pairs[4, 3] == e.pairs[5, 3] == pair_code(C.CEILING, C.WALL)
+        assert e.pairs[8, 14] == e.pairs[8, 15] == pair_code(C.DOOR, C.WALL)
+        assert e.pairs[14, 3] == pair_code(C.WALL, C.FLOOR)
+        assert (e.pairs[~e.edges] == 0).all() and (e.pairs[e.edges] > 0).all()
+        assert pair_code(C.WALL, C.DOOR) == pair_code(C.DOOR, C.WALL) != pair_code(C.WALL,
+                                                                                  C.WINDOW)
+        with pytest.raises(ValueError, match="below 16"):
+            pair_code(3, 16)
 
     def test_dilation_grows_unknown(self):
         a = label_edges(two_walls(), dilate_px=0)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from datagen import classes as C
-from localize.edges import EdgeImage, label_edges
+from localize.edges import EdgeImage, label_edges, pair_code
 from localize.likelihood import EdgeLikelihood, LikelihoodParams, edge_normal_angle, observe
 from localize.projection import cam_from_world, sample_segments
 from localize.visibility import build_visibility_grid
@@ -67,6 +67,27 @@ class TestObserve:
         assert g[0, 15, 10] == pytest.approx(1.0) and g[2, 15, 10] < 0.5
         assert g[2, 30, 25] == pytest.approx(1.0) and g[0, 30, 25] < 0.5
 
+    def test_class_pairs_split_edges(self):
+        """Two vertical boundaries, wall | door at column 10 and wall | window at 20: each pair
+        gets its own map; the chance level is that of all edges together."""
+        edges = np.zeros((20, 40), bool)
+        edges[:, 10] = edges[:, 20] = True
+        pairs = np.zeros((20, 40), np.uint8)
+        pairs[:, 10] = pair_code(C.WALL, C.DOOR)
+        pairs[:, 20] = pair_code(C.WALL, C.WINDOW)
+        known = np.ones_like(edges)
+        codes = np.array([pair_code(C.WALL, C.DOOR), pair_code(C.WALL, C.WINDOW)])
+        p = LikelihoodParams(class_pairs=True)
+        obs = observe(EdgeImage(edges, known, pairs), p, codes)
+        g = obs.g[:-1].reshape(2, 20, 40)
+        assert obs.pairs == 2
+        assert g[0, 5, 10] == pytest.approx(1.0) and g[0, 5, 20] < 0.01  # door map
+        assert g[1, 5, 20] == pytest.approx(1.0) and g[1, 5, 10] < 0.01  # window map
+        plain = observe(EdgeImage(edges, known, pairs), LikelihoodParams(), codes)
+        assert plain.pairs == 0 and plain.g0 == pytest.approx(obs.g0)
+        # without classes (mode none) the maps are not split
+        assert observe(EdgeImage(edges, known), p, codes).pairs == 0
+
     def test_bad_params(self):
         with pytest.raises(ValueError, match="aggregate"):
             LikelihoodParams(aggregate="max")
@@ -88,6 +109,25 @@ def test_peaks_at_true_pose(model, camera, rendered, aggregate, bins):
     assert quality[0] > 0.9
     logw, q = lik.log_likelihood(states, obs)
     np.testing.assert_allclose(logw, np.log(1.0) + 3.0 * score)
+
+
+def test_class_pairs_peak_and_need_sample_pairs(model, camera, rendered, small_world):
+    """Matching by class pair keeps the peak at the true pose, and a model line matched
+    against another pair's boundaries loses its score."""
+    s, vis = model
+    sc = small_world.segment_classes[s.segment]
+    pairs = pair_code(sc[:, 0], sc[:, 1])
+    p = LikelihoodParams(aggregate="evidence", orientation_bins=4, class_pairs=True)
+    lik = EdgeLikelihood(s, camera, p, vis, pairs)
+    edge = label_edges(rendered, dilate_px=0)
+    states = np.vstack([TRUE, TRUE + OFFSETS])
+    score, _ = lik.scores(states, lik.observe(edge))
+    assert np.argmax(score) == 0 and (score[0] > score[1:] + 1e-3).all()
+    # the same edges with every pair code swapped for one the model lacks: nothing matches
+    wrong = EdgeImage(edge.edges, edge.known, np.where(edge.edges, np.uint8(255), np.uint8(0)))
+    assert lik.scores(TRUE[None], lik.observe(wrong))[0][0] < 0 < score[0]
+    with pytest.raises(ValueError, match="class pair of every model sample"):
+        EdgeLikelihood(s, camera, p, vis)
 
 
 def test_peaks_on_a_really_rendered_frame(tiny_dataset):
