@@ -146,7 +146,7 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
         sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
         sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
         diff = (a != b) & sa & sb
-        code = np.where(diff, pair_code(a, b), np.uint8(0))
+        code = pair_code(np.where(diff, a, 0), np.where(diff, b, 0))  # 0 off the boundaries
         if axis == 0:
             edges[:-1] |= diff
             edges[1:] |= diff
