@@ -235,7 +235,6 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     g_far = np.float32(np.exp(-1.0 / s2))
     dist_unknown = distance_to(~known)
     unknown = ~known
-    g0 = np.array([0.0], np.float32)
 
     def score(m: np.ndarray, g0b: np.float32 | None) -> tuple[np.ndarray, np.float32]:
         d = distance_to(m)
