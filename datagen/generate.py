@@ -397,7 +397,9 @@ def write_stats(job: Job, variant: str, counts: dict[str, int], seconds: float) 
              "rendered": counts, "seconds": round(seconds, 3),
              "images_per_second": round(rendered / seconds, 3) if rendered else None}
     d = job.out / "stats"
-    atomic_write_json(d / f"shard-{cfg['shard']}-of-{cfg['num_shards']}.json", shard)
+    path = d / f"shard-{cfg['shard']}-of-{cfg['num_shards']}.json"
+    if rendered or not path.is_file():  # a resumed run with nothing left keeps the timed one
+        atomic_write_json(path, shard)
     runs = [json.loads(p.read_text()) for p in sorted(d.glob("shard-*.json"))]
     timed = [r for r in runs if r["images_per_second"]]
     r = cfg["render"]

@@ -65,6 +65,9 @@ class TestDeterminismAndResume:
     def test_same_seed_same_bytes_and_resume(self, tmp_path, monkeypatch):
         full = tmp_path / "full"
         gen.run(small_cfg(full), progress=False)
+        rate = json.loads((full / "stats.json").read_text())["images_per_second"]
+        gen.run(small_cfg(full), progress=False)  # nothing left to render: keeps the timing
+        assert json.loads((full / "stats.json").read_text())["images_per_second"] == rate > 0
 
         # A run that dies after two frames, then is re-run.
         crashed = tmp_path / "crashed"
