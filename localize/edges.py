@@ -146,17 +146,18 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
         sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
         sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
         diff = (a != b) & sa & sb
-        code = pair_code(np.where(diff, a, 0), np.where(diff, b, 0))  # 0 off the boundaries
+        # codes only at the boundaries (a few thousand pixels, not the whole image)
+        ys, xs = np.nonzero(diff)  # between (ys, xs) and its next pixel along the axis
+        code = pair_code(a[ys, xs], b[ys, xs])
         if axis == 0:
             edges[:-1] |= diff
             edges[1:] |= diff
-            np.copyto(pairs[1:], code, where=diff)
-            np.copyto(pairs[:-1], code, where=diff)
+            pairs[ys + 1, xs] = code
         else:
             edges[:, :-1] |= diff
             edges[:, 1:] |= diff
-            np.copyto(pairs[:, 1:], code, where=diff)
-            np.copyto(pairs[:, :-1], code, where=diff)
+            pairs[ys, xs + 1] = code
+        pairs[ys, xs] = code
     unknown = _dilate(~struct, int(dilate_px))
     edges &= ~unknown
     return EdgeImage(edges, ~unknown, np.where(edges, pairs, np.uint8(0)))
