@@ -102,6 +102,77 @@ def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: i
     return EdgeImage(edges > 0, np.ones(edges.shape, dtype=bool))
 
 
+def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
+    """Direction of the normal at every pixel of a binary edge map (structure tensor).
+
+    Args:
+        edges: (H, W) bool.
+        sigma: smoothing in pixels.
+
+    Returns:
+        (H, W) float32 angle of the normal in [0, pi) (image x right, y down).
+    """
+    e = cv2.GaussianBlur(edges.astype(np.float32), (0, 0), sigma)
+    gx = cv2.Sobel(e, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(e, cv2.CV_32F, 0, 1, ksize=3)
+    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 1.5 * sigma)
+    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 1.5 * sigma)
+    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 1.5 * sigma)
+    theta = 0.5 * np.arctan2(2 * jxy, jxx - jyy)
+    return np.mod(theta, np.pi).astype(np.float32)
+
+
+def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
+                        min_gradient: float) -> EdgeImage:
+    """Class boundaries moved onto the image's own edges: each edge pixel searches along its
+    normal, up to ``radius`` pixels either way, for the strongest grey-level gradient across
+    the boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door
+    in a wall of the same paint) it stays. The paper's 1-D search along the normal, applied to
+    the segmentation's boundaries: the SegNet says *which* boundary is there, at its quarter
+    resolution, and the image says *where*, to a pixel.
+
+    Args:
+        edge: class boundaries (edges, known, pairs) of a frame, (H, W).
+        rgb: (H, W, 3) uint8, the frame.
+        radius: search distance, pixels; 0 returns ``edge`` unchanged.
+        min_gradient: smallest |3x3 Sobel of the 3x3-blurred grey image| across the boundary
+            that counts as an image edge (a step of h grey levels gives about 3 h).
+
+    Returns:
+        The edge image with moved edge pixels (several may land on one; pairs move along;
+        none moves onto an unknown pixel).
+    """
+    _check_rgb(rgb)
+    if rgb.shape[:2] != edge.edges.shape:
+        raise ValueError(f"image {rgb.shape[:2]} and edges {edge.edges.shape} differ in size")
+    if radius <= 0 or not edge.edges.any():
+        return edge
+    H, W = edge.edges.shape
+    grey = cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32), (3, 3), 0)
+    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
+    ys, xs = np.nonzero(edge.edges)
+    theta = edge_normal_angle(edge.edges)[ys, xs]
+    nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    t = np.arange(-radius, radius + 1, dtype=np.float32)  # (T,) steps along the normal
+    px = np.clip(np.rint(xs[:, None] + t * nx), 0, W - 1).astype(np.intp)  # (n, T)
+    py = np.clip(np.rint(ys[:, None] + t * ny), 0, H - 1).astype(np.intp)
+    across = np.abs(gx[py, px] * nx + gy[py, px] * ny) - 1e-3 * np.abs(t)  # ties: stay
+    across[~edge.known[py, px]] = -1.0  # never onto a masked object
+    best = across.argmax(1)
+    move = across[np.arange(len(ys)), best] >= min_gradient
+    ny_ = np.where(move, py[np.arange(len(ys)), best], ys)
+    nx_ = np.where(move, px[np.arange(len(ys)), best], xs)
+    edges = np.zeros_like(edge.edges)
+    edges[ny_, nx_] = True
+    pairs = None
+    if edge.pairs is not None:
+        pairs = np.zeros_like(edge.pairs)
+        pairs[ny_, nx_] = edge.pairs[ys, xs]
+        pairs[~edges] = 0
+    return EdgeImage(edges, edge.known, pairs)
+
+
 def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
     """A bool mask (H, W) grown by a disk of ``radius`` pixels."""
     if radius <= 0 or not mask.any():
@@ -314,7 +385,8 @@ class EdgeExtractor:
         """Edge image of a frame.
 
         Args:
-            rgb: (H, W, 3) uint8 (used by mode none, and by cnn with ``cnn.refine: canny``).
+            rgb: (H, W, 3) uint8 (used by mode none, and by cnn with ``cnn.snap_px`` > 0 or
+                ``cnn.refine: canny``).
             labels: (H, W) uint8 class ids (true labels for oracle, predicted for cnn).
             confidence: (H, W) float32 largest softmax probability (cnn only; pixels below
                 ``cnn.min_confidence`` become unknown).
@@ -335,7 +407,9 @@ class EdgeExtractor:
         refine = cc.get("refine", "none")
         if refine == "none":
             edges = out.edges & known
-            return EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
+            out = EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
+            return snap_to_image_edges(out, rgb, int(cc.get("snap_px", 0)),
+                                       float(cc.get("snap_min_gradient", 15.0)))
         if refine == "canny":
             near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)

@@ -58,7 +58,7 @@ import numpy as np
 
 from datagen.config import reject_unknown_keys
 from datagen.dataset import Camera
-from localize.edges import EdgeImage
+from localize.edges import EdgeImage, edge_normal_angle
 from localize.projection import (
     ModelSamples,
     cam_from_world,
@@ -155,26 +155,6 @@ class Observation:
     def chance(self) -> float:
         """The neutral score used for padding."""
         return float(self.g0.mean())
-
-
-def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
-    """Direction of the normal at every pixel of a binary edge map (structure tensor).
-
-    Args:
-        edges: (H, W) bool.
-        sigma: smoothing in pixels.
-
-    Returns:
-        (H, W) float32 angle of the normal in [0, pi) (image x right, y down).
-    """
-    e = cv2.GaussianBlur(edges.astype(np.float32), (0, 0), sigma)
-    gx = cv2.Sobel(e, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(e, cv2.CV_32F, 0, 1, ksize=3)
-    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 1.5 * sigma)
-    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 1.5 * sigma)
-    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 1.5 * sigma)
-    theta = 0.5 * np.arctan2(2 * jxy, jxx - jyy)
-    return np.mod(theta, np.pi).astype(np.float32)
 
 
 def distance_to(mask: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ from localize.edges import (
     label_edges,
     load_segmenter,
     pair_code,
+    snap_to_image_edges,
     structural_prior_labels,
 )
 from tests.localize.conftest import palette_segnet
@@ -245,3 +246,65 @@ class TestRefineChoice:
         cfg = {**EDGES_CFG, "cnn": {"refine": "sobel"}}
         with pytest.raises(ValueError, match="edges.cnn.refine"):
             EdgeExtractor("cnn", cfg, object()).edges(C.colorize(two_walls()), two_walls())
+
+
+class TestSnap:
+    @staticmethod
+    def step(left: int, right: int, split: int = 27) -> tuple[np.ndarray, np.ndarray]:
+        """(40, 60) wall | door labels split at column ``split`` and an image whose grey step
+        lies between columns 29 and 30 (after the 3x3 blur, columns 28-31 see it)."""
+        lab = np.full((40, 60), C.WALL, dtype=np.uint8)
+        lab[:, split:] = C.DOOR
+        rgb = np.full((40, 60, 3), left, dtype=np.uint8)
+        rgb[:, 30:] = right
+        return lab, rgb
+
+    def test_boundary_moves_onto_the_image_step(self):
+        lab, rgb = self.step(80, 160)
+        edge = label_edges(lab, dilate_px=0)
+        assert set(np.nonzero(edge.edges)[1]) == {26, 27}
+        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
+        cols = np.nonzero(out.edges)[1]
+        assert set(cols) == {29}  # the nearer of the two steepest columns (29, 30)
+        assert out.edges[:, 29].all()
+        np.testing.assert_array_equal(out.pairs[out.edges], pair_code(C.WALL, C.DOOR))
+        assert not out.pairs[~out.edges].any()
+        np.testing.assert_array_equal(out.known, edge.known)
+
+    def test_out_of_reach_or_too_weak_stays(self):
+        lab, rgb = self.step(80, 160, split=25)
+        far = label_edges(lab, dilate_px=0)  # columns 24, 25: the gradient starts at 28
+        near = snap_to_image_edges(far, rgb, radius=1, min_gradient=15.0)
+        np.testing.assert_array_equal(near.edges, far.edges)
+        lab, faint = self.step(80, 82)
+        edge = label_edges(lab, dilate_px=0)  # a 2-level step: Sobel ~6 < 15
+        weak = snap_to_image_edges(edge, faint, radius=3, min_gradient=15.0)
+        np.testing.assert_array_equal(weak.edges, edge.edges)
+        flat = snap_to_image_edges(edge, np.zeros_like(rgb), radius=3, min_gradient=15.0)
+        np.testing.assert_array_equal(flat.edges, edge.edges)
+        assert snap_to_image_edges(edge, rgb, radius=0, min_gradient=15.0) is edge
+
+    def test_stays_inside_the_known_mask(self):
+        lab, rgb = self.step(80, 160)
+        lab[:, 29:32] = C.PERSON  # the image step is under an object
+        edge = label_edges(lab, dilate_px=1)
+        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
+        np.testing.assert_array_equal(out.edges, edge.edges)  # its step is masked: stays
+
+    def test_extractor_snaps_cnn_boundaries(self):
+        lab, rgb = self.step(80, 160)
+        cfg = {**EDGES_CFG, "cnn": {"snap_px": 3, "snap_min_gradient": 15.0}}
+        e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
+        assert set(np.nonzero(e.edges)[1]) == {29}
+        plain = EdgeExtractor("cnn", EDGES_CFG, object()).edges(rgb, lab)
+        assert set(np.nonzero(plain.edges)[1]) == {26, 27}
+        oracle = EdgeExtractor("oracle", cfg).edges(rgb, lab)  # true labels: never moved
+        np.testing.assert_array_equal(oracle.edges, plain.edges)
+
+    def test_bad_input(self):
+        lab, rgb = self.step(80, 160)
+        edge = label_edges(lab, dilate_px=0)
+        with pytest.raises(ValueError, match="differ in size"):
+            snap_to_image_edges(edge, rgb[:20], radius=2, min_gradient=15.0)
+        with pytest.raises(ValueError, match="RGB image"):
+            snap_to_image_edges(edge, rgb[..., 0], radius=2, min_gradient=15.0)

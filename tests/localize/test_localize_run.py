@@ -79,7 +79,7 @@ class TestEndToEnd:
         d = path.parent
         text = path.read_text()
         assert "0.32" in text and "177" in text
-        assert "mode cnn: k = 5.0" in text  # conf/filter/default.yaml's mode_likelihood
+        assert "mode cnn: k = 10.0" in text  # conf/filter/default.yaml's mode_likelihood
         for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
             assert (d / "plots" / f"{png}.png").stat().st_size > 1000
             assert f"plots/{png}.png" in text
