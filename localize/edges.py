@@ -8,7 +8,10 @@
   pixels of clutter, person, void or ignore, dilated by a few pixels, are *unknown*: an object
   that is not in the model may hide a model edge, so a model line falling there is neither
   confirmed nor contradicted (the likelihood scores such samples with the image's chance level).
-- ``oracle``: the same from the true label images, the upper bound of what segmentation gives.
+  The boundaries are then snapped onto the image (``snap_to_image_edges``): the network places
+  them at its quarter resolution, the image's gradient to a pixel.
+- ``oracle``: the same from the true label images (not snapped), the upper bound of what
+  segmentation gives.
 """
 
 from __future__ import annotations
@@ -159,17 +162,17 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     py = np.clip(np.rint(ys[:, None] + t * ny), 0, H - 1).astype(np.intp)
     across = np.abs(gx[py, px] * nx + gy[py, px] * ny) - 1e-3 * np.abs(t)  # ties: stay
     across[~edge.known[py, px]] = -1.0  # never onto a masked object
+    i = np.arange(len(ys))
     best = across.argmax(1)
-    move = across[np.arange(len(ys)), best] >= min_gradient
-    ny_ = np.where(move, py[np.arange(len(ys)), best], ys)
-    nx_ = np.where(move, px[np.arange(len(ys)), best], xs)
+    move = across[i, best] >= min_gradient
+    to_y = np.where(move, py[i, best], ys)
+    to_x = np.where(move, px[i, best], xs)
     edges = np.zeros_like(edge.edges)
-    edges[ny_, nx_] = True
+    edges[to_y, to_x] = True
     pairs = None
     if edge.pairs is not None:
         pairs = np.zeros_like(edge.pairs)
-        pairs[ny_, nx_] = edge.pairs[ys, xs]
-        pairs[~edges] = 0
+        pairs[to_y, to_x] = edge.pairs[ys, xs]
     return EdgeImage(edges, edge.known, pairs)
 
 
