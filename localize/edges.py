@@ -145,10 +145,12 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
         The edge image with moved edge pixels (several may land on one; pairs move along;
         none moves onto an unknown pixel).
     """
+    if radius <= 0:
+        return edge
     _check_rgb(rgb)
     if rgb.shape[:2] != edge.edges.shape:
         raise ValueError(f"image {rgb.shape[:2]} and edges {edge.edges.shape} differ in size")
-    if radius <= 0 or not edge.edges.any():
+    if not edge.edges.any():
         return edge
     H, W = edge.edges.shape
     grey = cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32), (3, 3), 0)
