@@ -83,8 +83,8 @@ def main() -> int:
     lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
     extractor = EdgeExtractor(args.mode, OmegaConf.to_container(cfg.edges, resolve=True),
                               ctx.segmenter)
-    pf = ParticleFilter(ctx.filter_params, ctx.world.free_boxes, ctx.world.z_range,
-                        np.random.default_rng(0))
+    pf = ParticleFilter(ctx.filter_params.for_mode(args.mode), ctx.world.free_boxes,
+                        ctx.world.z_range, np.random.default_rng(0))
     pf.init_tracking(xyzyaw_from_pose(flight.groundtruth[:1])[0])
     frames = [read_png(flight.rgb[t]) for t in range(T)]
     labels = [read_png(flight.label[t], rgb=False) for t in range(T)]

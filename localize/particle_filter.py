@@ -16,7 +16,7 @@ integrated in; each particle applies it in its own heading frame.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from scipy.special import logsumexp
@@ -47,6 +47,8 @@ class FilterParams:
         init_std: (4,) tracking init noise: x, y, z (metres), yaw (degrees).
         motion_std: (3,) per-frame motion noise: horizontal (metres), z (metres), yaw
             (degrees).
+        mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}`` (the
+            label modes' likelihood is clean enough for noise nearer the odometry's own).
         motion_rel: (2,) extra noise as a fraction of the frame's odometry translation and
             yaw change.
         resample_ess: resample when ESS < this fraction of the particle count.
@@ -77,6 +79,7 @@ class FilterParams:
     global_thin: int = 1
     init_std: Sequence[float] = (0.1, 0.1, 0.05, 3.0)
     motion_std: Sequence[float] = (0.01, 0.005, 0.5)
+    mode_motion_std: Mapping = field(default_factory=dict)
     motion_rel: Sequence[float] = (0.1, 0.1)
     resample_ess: float = 0.5
     free_space_slack: float = 0.25
@@ -96,14 +99,24 @@ class FilterParams:
                              f"filter.global_particles ({self.global_particles}) must be >= 1")
         if not 0.0 < self.resample_ess <= 1.0:
             raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
-        bad_modes = set(self.mode_likelihood) - {"none", "cnn", "oracle"}
-        if bad_modes:
-            raise ValueError(f"filter.mode_likelihood: unknown edge modes {sorted(bad_modes)}; "
-                             "use none, cnn, oracle")
+        for key in ("mode_likelihood", "mode_motion_std"):
+            bad_modes = set(getattr(self, key)) - {"none", "cnn", "oracle"}
+            if bad_modes:
+                raise ValueError(f"filter.{key}: unknown edge modes {sorted(bad_modes)}; "
+                                 "use none, cnn, oracle")
+        for mode, std in self.mode_motion_std.items():
+            if len(std) != 3:
+                raise ValueError(f"filter.mode_motion_std.{mode} needs 3 values (horizontal m, "
+                                 f"vertical m, yaw deg), got {list(std)}")
         for key, n in (("init_std", 4), ("motion_std", 3), ("motion_rel", 2),
                        ("recovery_local_std", 4)):
             if len(getattr(self, key)) != n:
                 raise ValueError(f"filter.{key} needs {n} values, got {list(getattr(self, key))}")
+
+    def for_mode(self, mode: str) -> FilterParams:
+        """These settings with ``motion_std`` replaced by ``mode_motion_std[mode]`` if set."""
+        std = self.mode_motion_std.get(mode)
+        return self if std is None else replace(self, motion_std=tuple(float(v) for v in std))
 
     @classmethod
     def from_cfg(cls, cfg: Mapping) -> FilterParams:

@@ -198,7 +198,7 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
                                                                   len(flight.timestamps))
     if T < 1:
         raise ValueError(f"flight {flight.name} has no frames")
-    fparams = ctx.filter_params
+    fparams = ctx.filter_params.for_mode(mode)
     if num_particles is not None:
         fparams = replace(fparams, num_particles=int(num_particles),
                           global_particles=max(int(num_particles), fparams.global_particles))

@@ -106,6 +106,17 @@ class TestWeights:
         per_mode = FilterParams.from_cfg({"mode_likelihood": {"cnn": {"k": 5.0}}})
         assert per_mode.mode_likelihood == {"cnn": {"k": 5.0}}
 
+    def test_mode_motion_std(self):
+        fp = FilterParams.from_cfg({"motion_std": [0.01, 0.005, 0.5],
+                                    "mode_motion_std": {"cnn": [0.01, 0.005, 0.2]}})
+        assert fp.for_mode("cnn").motion_std == (0.01, 0.005, 0.2)
+        assert fp.for_mode("cnn").num_particles == fp.num_particles
+        assert fp.for_mode("none") is fp  # modes without an entry keep motion_std
+        with pytest.raises(ValueError, match="mode_motion_std: unknown edge modes"):
+            FilterParams(mode_motion_std={"segnet": [0.01, 0.005, 0.2]})
+        with pytest.raises(ValueError, match="mode_motion_std.cnn needs 3 values"):
+            FilterParams(mode_motion_std={"cnn": [0.01, 0.2]})
+
 
 def bowl(target: np.ndarray, k: float = 50.0):
     """A log-likelihood peaked at target (x, y, z, yaw)."""
