@@ -104,14 +104,12 @@ class FilterParams:
             if bad_modes:
                 raise ValueError(f"filter.{key}: unknown edge modes {sorted(bad_modes)}; "
                                  "use none, cnn, oracle")
-        for mode, std in self.mode_motion_std.items():
-            if len(std) != 3:
-                raise ValueError(f"filter.mode_motion_std.{mode} needs 3 values (horizontal m, "
-                                 f"vertical m, yaw deg), got {list(std)}")
-        for key, n in (("init_std", 4), ("motion_std", 3), ("motion_rel", 2),
-                       ("recovery_local_std", 4)):
-            if len(getattr(self, key)) != n:
-                raise ValueError(f"filter.{key} needs {n} values, got {list(getattr(self, key))}")
+        sized = [(key, getattr(self, key), n) for key, n in
+                 (("init_std", 4), ("motion_std", 3), ("motion_rel", 2), ("recovery_local_std", 4))]
+        sized += [(f"mode_motion_std.{mode}", std, 3) for mode, std in self.mode_motion_std.items()]
+        for key, values, n in sized:
+            if len(values) != n:
+                raise ValueError(f"filter.{key} needs {n} values, got {list(values)}")
 
     def for_mode(self, mode: str) -> FilterParams:
         """These settings with ``motion_std`` replaced by ``mode_motion_std[mode]`` if set."""
