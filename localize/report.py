@@ -356,6 +356,10 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
         f"of a {f.likelihood.search_px}-pixel search reach"
         + "".join(f"; mode {mode}: " + ", ".join(f"{k} = {v}" for k, v in over.items())
                   for mode, over in f.get("mode_likelihood", {}).items())
+        + f". Motion noise per frame (horizontal m, vertical m, yaw deg): "
+        f"{list(f.motion_std)}"
+        + "".join(f"; mode {mode}: {list(std)}"
+                  for mode, std in f.get("mode_motion_std", {}).items())
         + f". Seeds: {list(cfg.seeds)}.",
         f"Paper (Buyval et al. 2017): mean error {paper_err} m, {paper_ms} ms per frame on a "
         f"GTX 1050; a LIDAR method ~{cfg.report.lidar_error_m} m.",
