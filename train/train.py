@@ -53,12 +53,17 @@ from train.segnet import SegNet, build_segnet, count_parameters, model_kwargs
 
 log = logging.getLogger(__name__)
 
+#: Training time granted when ``finish_by`` has already passed (s): enough for a model.
+MIN_FINISH_BY_SECONDS = 120
+
 #: Config keys that do not change what is trained (left out of the config hash).
 HASH_EXCLUDE = (
     "name",
     "out_root",
     "threads",
     "max_minutes",
+    "finish_by",
+    "fit_budget",
     "overwrite",
     "progress",
     "eval.batch_size",
@@ -362,16 +367,61 @@ def make_optimizer(
         )
     else:
         raise ValueError(f"optim.name={name!r} is not known; use adamw or sgd (conf/optim/)")
-    sched = torch.optim.lr_scheduler.OneCycleLR(
-        opt,
+    return opt, make_scheduler(opt, optim_cfg, total_steps)
+
+
+def make_scheduler(
+    optimizer: torch.optim.Optimizer, optim_cfg: dict, total_steps: int, done_steps: int = 0
+) -> torch.optim.lr_scheduler.OneCycleLR:
+    """The one-cycle schedule over ``total_steps`` batches, positioned after ``done_steps``.
+
+    With ``done_steps > 0`` it replaces a running schedule by one of another length (the
+    optimizer must have been given a schedule before: it holds ``initial_lr``); the learning
+    rate is set at once to the new schedule's value at that step.
+    """
+    return torch.optim.lr_scheduler.OneCycleLR(
+        optimizer,
         max_lr=optim_cfg["lr"],
         total_steps=max(total_steps, 1),
         pct_start=optim_cfg.get("warmup", 0.1),
-        cycle_momentum=name == "sgd",
+        cycle_momentum=optim_cfg["name"] == "sgd",
         div_factor=25.0,
         final_div_factor=1e3,
+        last_epoch=done_steps - 1,
     )
-    return opt, sched
+
+
+def fit_epochs(planned: int, epochs_done: int, seconds: float, budget: float) -> int:
+    """How many epochs the schedule should span so that training ends within its time budget.
+
+    Args:
+        planned: epochs the schedule spans now.
+        epochs_done: epochs finished so far (>= 1).
+        seconds: wall time they took, validation included (s).
+        budget: the whole training budget (s).
+
+    Returns:
+        ``planned`` if it fits at the mean epoch time so far; else the whole epochs that fit,
+        at least ``epochs_done`` (the schedule cannot end in the past).
+    """
+    per_epoch = seconds / max(epochs_done, 1)
+    if per_epoch <= 0 or not math.isfinite(budget):
+        return planned
+    return max(epochs_done, min(planned, int(budget // per_epoch)))
+
+
+def training_budget(cfg: DictConfig, trained_seconds: float) -> float:
+    """Seconds of training allowed in all (over resumes): ``max_minutes``, and no later than
+    the Unix time ``finish_by`` (at least ``MIN_FINISH_BY_SECONDS`` from now). inf: none."""
+    budget = float(cfg.max_minutes) * 60.0 if cfg.max_minutes is not None else math.inf
+    finish_by = cfg.get("finish_by")
+    if finish_by is not None:
+        left = float(finish_by) - time.time()
+        if left < MIN_FINISH_BY_SECONDS:
+            log.warning("finish_by leaves %.0f s: training %d s anyway", left,
+                        MIN_FINISH_BY_SECONDS)
+        budget = min(budget, trained_seconds + max(left, MIN_FINISH_BY_SECONDS))
+    return budget
 
 
 def _write_log(path: Path, history: list[dict]) -> None:
@@ -448,10 +498,8 @@ def run(cfg: DictConfig) -> dict:
     augment = augment.at_resolution(model.training_factor)
     batch_size = min(int(cfg.batch_size), len(train_data))
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
-    epochs = int(cfg.epochs)
-    optimizer, scheduler = make_optimizer(
-        model, OmegaConf.to_container(cfg.optim, resolve=True), epochs * steps_per_epoch
-    )
+    optim_cfg = OmegaConf.to_container(cfg.optim, resolve=True)
+    optimizer, scheduler = make_optimizer(model, optim_cfg, int(cfg.epochs) * steps_per_epoch)
     ema = make_ema(model, float(cfg.get("ema_decay") or 0.0))
     net = model if ema is None else ema.module  # what is validated, kept and exported
     log.info(
@@ -472,6 +520,7 @@ def run(cfg: DictConfig) -> dict:
         "history": [],
         "train_seconds": 0.0,
         "stopped_by_budget": False,
+        "epochs": int(cfg.epochs),  # the schedule's span: fewer when the budget cannot hold it
     }
     if last_path.is_file():
         ckpt = torch.load(last_path, map_location="cpu", weights_only=False)
@@ -482,7 +531,7 @@ def run(cfg: DictConfig) -> dict:
             if "ema" not in ckpt:
                 raise RuntimeError(f"{last_path} has no weight average; pass overwrite=true")
             ema.load_state_dict(ckpt["ema"])
-        state.update({k: ckpt[k] for k in state})
+        state.update({k: ckpt.get(k, state[k]) for k in state})
         log.info(
             "resuming %s after epoch %d (%.0f s trained)",
             last_path,
@@ -490,8 +539,9 @@ def run(cfg: DictConfig) -> dict:
             state["train_seconds"],
         )
 
-    budget = float(cfg.max_minutes) * 60.0 if cfg.max_minutes is not None else math.inf
-    while state["epoch"] < epochs and not state["stopped_by_budget"]:
+    budget = training_budget(cfg, state["train_seconds"])
+    fit = bool(cfg.get("fit_budget", True))
+    while state["epoch"] < state["epochs"] and not state["stopped_by_budget"]:
         epoch = state["epoch"]
         t0 = time.monotonic()
         deadline = t0 + budget - state["train_seconds"]
@@ -510,7 +560,7 @@ def run(cfg: DictConfig) -> dict:
             batch_size,
             deadline,
             progress,
-            desc=f"epoch {epoch + 1}/{epochs}",
+            desc=f"epoch {epoch + 1}/{state['epochs']}",
             bf16=bf16,
             ema=ema,
             boundary_weight=float(cfg.loss.get("boundary_weight", 1.0)),
@@ -549,6 +599,16 @@ def run(cfg: DictConfig) -> dict:
                     "config_hash": info["config_hash"],
                 },
             )
+        if fit and state["epoch"] < state["epochs"] and not res.stopped:
+            span = fit_epochs(state["epochs"], state["epoch"], state["train_seconds"], budget)
+            if span < state["epochs"]:
+                log.warning(
+                    "%d epochs at %.0f s each do not fit the time budget (%.1f min): the "
+                    "one-cycle schedule now ends after epoch %d (fit_budget=false keeps it)",
+                    state["epochs"], state["train_seconds"] / state["epoch"], budget / 60, span)
+                state["epochs"] = span
+                scheduler = make_scheduler(optimizer, optim_cfg, span * steps_per_epoch,
+                                           scheduler.last_epoch)
         save_torch(
             last_path,
             {
@@ -564,7 +624,7 @@ def run(cfg: DictConfig) -> dict:
         log.info(
             "epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f%s (%.0f s)%s",
             epoch + 1,
-            epochs,
+            state["epochs"],
             res.loss,
             val["pixel_accuracy"],
             val["mean_iou"],
@@ -611,7 +671,8 @@ def run(cfg: DictConfig) -> dict:
         "onnx_max_abs_diff": None,
         "train_seconds": round(state["train_seconds"], 1),
         "epochs_done": state["epoch"],
-        "epochs": epochs,
+        "epochs": state["epochs"],
+        "epochs_requested": int(cfg.epochs),
         "stopped_by_budget": state["stopped_by_budget"],
         "best_epoch": state["best_epoch"],
         "val_best": best.get("val"),

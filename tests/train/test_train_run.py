@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import time
 from pathlib import Path
 
 import pytest
@@ -122,6 +123,49 @@ def test_resolve_precision() -> None:
         tt.resolve_precision("half")
 
 
+def test_fit_epochs() -> None:
+    # 21 epochs of 85 s do not fit 10 minutes: 7 do.
+    assert tt.fit_epochs(21, 1, 85.0, 600.0) == 7
+    assert tt.fit_epochs(21, 3, 120.0, 1080.0) == 21  # 40 s each: all fit
+    assert tt.fit_epochs(21, 5, 500.0, 300.0) == 5  # never before the epochs already done
+    assert tt.fit_epochs(21, 1, 85.0, math.inf) == 21
+
+
+def test_make_scheduler_respans_in_place() -> None:
+    """A schedule replaced after 30 of 100 steps by one of 60 steps continues as the 60-step
+    schedule would at step 30, and ends at its final learning rate."""
+    cfg = {"name": "adamw", "lr": 3e-3, "weight_decay": 1e-4, "warmup": 0.1}
+
+    def stepped(total: int, steps: int):
+        opt, sched = tt.make_optimizer(torch.nn.Linear(2, 2), cfg, total)
+        for _ in range(steps):
+            opt.step()
+            sched.step()
+        return opt, sched
+
+    opt, sched = stepped(100, 30)
+    _, ref = stepped(60, 30)
+    assert sched.get_last_lr()[0] != pytest.approx(ref.get_last_lr()[0])
+    sched = tt.make_scheduler(opt, cfg, 60, sched.last_epoch)
+    assert opt.param_groups[0]["lr"] == pytest.approx(ref.get_last_lr()[0])
+    for _ in range(29):
+        opt.step()
+        sched.step()
+    assert opt.param_groups[0]["lr"] == pytest.approx(3e-3 / 25 / 1e3)
+
+
+def test_training_budget() -> None:
+    now = time.time()
+    cfg = OmegaConf.create({"max_minutes": 10.0, "finish_by": None})
+    assert tt.training_budget(cfg, 0.0) == 600.0
+    cfg.finish_by = now + 300.0  # sooner than max_minutes: 300 s more
+    assert tt.training_budget(cfg, 50.0) == pytest.approx(350.0, abs=5.0)
+    cfg.finish_by = now - 60.0  # already past: a minimum to end with a model
+    assert tt.training_budget(cfg, 0.0) == pytest.approx(tt.MIN_FINISH_BY_SECONDS, abs=5.0)
+    cfg.max_minutes, cfg.finish_by = None, None
+    assert tt.training_budget(cfg, 0.0) == math.inf
+
+
 @pytest.mark.slow
 class TestRun:
     def test_outputs(self, trained, capsys) -> None:
@@ -184,6 +228,23 @@ class TestRun:
             compose_train(synthetic_dataset, tmp_path, "epochs=1", "seed=1", "overwrite=true")
         )
         assert m["epochs_done"] == 1
+
+    def test_schedule_fitted_to_budget(
+        self, trained, synthetic_dataset, compose_train, tmp_path, monkeypatch
+    ) -> None:
+        """When the epochs left do not fit the budget, the schedule is shortened: a 4-epoch
+        run cut to 2 ends at the learning rate of a 2-epoch run."""
+        monkeypatch.setattr(tt, "fit_epochs", lambda planned, done, seconds, budget: 2)
+        m = tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=4"))
+        assert (m["epochs"], m["epochs_requested"], m["epochs_done"]) == (2, 4, 2)
+        rows = list(csv.DictReader((tmp_path / "demo" / "train_log.csv").open()))
+        assert len(rows) == 2
+        two = list(csv.DictReader((trained[0] / "train_log.csv").open()))
+        assert float(rows[-1]["lr"]) == pytest.approx(float(two[-1]["lr"]))
+        assert float(rows[-1]["lr"]) < 0.1 * float(rows[0]["lr"])
+        monkeypatch.setattr(tt, "fit_epochs", lambda planned, done, seconds, budget: planned)
+        again = tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=4"))
+        assert again["epochs_done"] == 2  # a resume keeps the fitted schedule
 
     def test_resume_after_interruption(
         self, trained, synthetic_dataset, compose_train, tmp_path, monkeypatch
