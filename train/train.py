@@ -391,23 +391,29 @@ def make_scheduler(
     )
 
 
-def fit_epochs(planned: int, epochs_done: int, seconds: float, budget: float) -> int:
+def fit_epochs(requested: int, epochs_done: int, seconds: float, budget: float,
+               last_epoch_seconds: float) -> int:
     """How many epochs the schedule should span so that training ends within its time budget.
 
+    The epochs left are timed at the latest epoch's time, not the mean so far: the first epoch
+    carries the warm-up (and any load the machine had then), and a schedule cut on its time
+    alone would stay too short. Re-fitted after every epoch, the span can shrink or grow again.
+
     Args:
-        planned: epochs the schedule spans now.
+        requested: the configured epochs (the longest schedule).
         epochs_done: epochs finished so far (>= 1).
         seconds: wall time they took, validation included (s).
         budget: the whole training budget (s).
+        last_epoch_seconds: wall time of the latest epoch (s).
 
     Returns:
-        ``planned`` if it fits at the mean epoch time so far; else the whole epochs that fit,
-        at least ``epochs_done`` (the schedule cannot end in the past).
+        The epochs done plus the whole epochs that fit in the budget left, at most
+        ``requested`` and at least ``epochs_done`` (the schedule cannot end in the past).
     """
-    per_epoch = seconds / max(epochs_done, 1)
-    if per_epoch <= 0 or not math.isfinite(budget):
-        return planned
-    return max(epochs_done, min(planned, int(budget // per_epoch)))
+    if last_epoch_seconds <= 0 or not math.isfinite(budget):
+        return requested
+    left = max(budget - seconds, 0.0)
+    return max(epochs_done, min(requested, epochs_done + int(left // last_epoch_seconds)))
 
 
 def training_budget(cfg: DictConfig, trained_seconds: float) -> float:
@@ -600,12 +606,13 @@ def run(cfg: DictConfig) -> dict:
                 },
             )
         if fit and state["epoch"] < state["epochs"] and not res.stopped:
-            span = fit_epochs(state["epochs"], state["epoch"], state["train_seconds"], budget)
-            if span < state["epochs"]:
+            span = fit_epochs(int(cfg.epochs), state["epoch"], state["train_seconds"], budget,
+                              dt)
+            if span != state["epochs"]:
                 log.warning(
-                    "%d epochs at %.0f s each do not fit the time budget (%.1f min): the "
-                    "one-cycle schedule now ends after epoch %d (fit_budget=false keeps it)",
-                    state["epochs"], state["train_seconds"] / state["epoch"], budget / 60, span)
+                    "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): "
+                    "the one-cycle schedule now ends after epoch %d (fit_budget=false keeps "
+                    "it)", dt, span, int(cfg.epochs), budget / 60, span)
                 state["epochs"] = span
                 scheduler = make_scheduler(optimizer, optim_cfg, span * steps_per_epoch,
                                            scheduler.last_epoch)

@@ -125,10 +125,13 @@ def test_resolve_precision() -> None:
 
 def test_fit_epochs() -> None:
     # 21 epochs of 85 s do not fit 10 minutes: 7 do.
-    assert tt.fit_epochs(21, 1, 85.0, 600.0) == 7
-    assert tt.fit_epochs(21, 3, 120.0, 1080.0) == 21  # 40 s each: all fit
-    assert tt.fit_epochs(21, 5, 500.0, 300.0) == 5  # never before the epochs already done
-    assert tt.fit_epochs(21, 1, 85.0, math.inf) == 21
+    assert tt.fit_epochs(21, 1, 85.0, 600.0, 85.0) == 7
+    assert tt.fit_epochs(21, 3, 120.0, 1080.0, 40.0) == 21  # 40 s each: all fit
+    assert tt.fit_epochs(21, 5, 500.0, 300.0, 100.0) == 5  # never before the epochs done
+    assert tt.fit_epochs(21, 1, 85.0, math.inf, 85.0) == 21
+    # a slow first epoch (warm-up) then 60 s each: the epochs left are timed at the latest,
+    # so the schedule grows back (the mean, 72 s, would give 14)
+    assert tt.fit_epochs(21, 2, 145.0, 1080.0, 60.0) == 17
 
 
 def test_make_scheduler_respans_in_place() -> None:
@@ -234,7 +237,7 @@ class TestRun:
     ) -> None:
         """When the epochs left do not fit the budget, the schedule is shortened: a 4-epoch
         run cut to 2 ends at the learning rate of a 2-epoch run."""
-        monkeypatch.setattr(tt, "fit_epochs", lambda planned, done, seconds, budget: 2)
+        monkeypatch.setattr(tt, "fit_epochs", lambda req, done, seconds, budget, last: 2)
         m = tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=4"))
         assert (m["epochs"], m["epochs_requested"], m["epochs_done"]) == (2, 4, 2)
         rows = list(csv.DictReader((tmp_path / "demo" / "train_log.csv").open()))
@@ -242,7 +245,7 @@ class TestRun:
         two = list(csv.DictReader((trained[0] / "train_log.csv").open()))
         assert float(rows[-1]["lr"]) == pytest.approx(float(two[-1]["lr"]))
         assert float(rows[-1]["lr"]) < 0.1 * float(rows[0]["lr"])
-        monkeypatch.setattr(tt, "fit_epochs", lambda planned, done, seconds, budget: planned)
+        monkeypatch.setattr(tt, "fit_epochs", lambda req, done, seconds, budget, last: 2)
         again = tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=4"))
         assert again["epochs_done"] == 2  # a resume keeps the fitted schedule
 
