@@ -126,7 +126,7 @@ def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
 
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
-                        min_gradient: float) -> EdgeImage:
+                        min_gradient: float, band: bool = False) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
     normal, up to ``radius`` pixels either way, for the strongest grey-level gradient across
     the boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door
@@ -140,6 +140,12 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
         radius: search distance, pixels; 0 returns ``edge`` unchanged.
         min_gradient: smallest |3x3 Sobel of the 3x3-blurred grey image| across the boundary
             that counts as an image edge (a step of h grey levels gives about 3 h).
+        band: mark the two pixels on either side of the step instead of the one with the
+            steepest gradient: the step's sub-pixel position along the normal is the vertex of
+            the parabola through the gradient at the steepest pixel and its two neighbours, and
+            the pixels at ``floor`` and ``floor + 1`` of it are marked. True label boundaries are
+            drawn that way (``label_edges`` marks both sides), so a snapped boundary then lies
+            where the true one would, not up to half a pixel to one side of it.
 
     Returns:
         The edge image with moved edge pixels (several may land on one; pairs move along;
@@ -159,22 +165,44 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     ys, xs = np.nonzero(edge.edges)
     theta = edge_normal_angle(edge.edges)[ys, xs]
     nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
-    t = np.arange(-radius, radius + 1, dtype=np.float32)  # (T,) steps along the normal
-    px = np.clip(np.rint(xs[:, None] + t * nx), 0, W - 1).astype(np.intp)  # (n, T)
-    py = np.clip(np.rint(ys[:, None] + t * ny), 0, H - 1).astype(np.intp)
-    across = np.abs(gx[py, px] * nx + gy[py, px] * ny) - 1e-3 * np.abs(t)  # ties: stay
-    across[~edge.known[py, px]] = -1.0  # never onto a masked object
+    # (T,) steps along the normal; one more each side for the band's parabola
+    t = np.arange(-radius - 1, radius + 2, dtype=np.float32)
+
+    def along(step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel (y, x) of every edge pixel moved by ``step`` (n, T') along its normal."""
+        return (np.clip(np.rint(ys[:, None] + step * ny), 0, H - 1).astype(np.intp),
+                np.clip(np.rint(xs[:, None] + step * nx), 0, W - 1).astype(np.intp))
+
+    py, px = along(t)  # (n, T)
+    grad = np.abs(gx[py, px] * nx + gy[py, px] * ny)
+    across = grad[:, 1:-1] - 1e-3 * np.abs(t[1:-1])  # ties: stay
+    across[~edge.known[py[:, 1:-1], px[:, 1:-1]]] = -1.0  # never onto a masked object
     i = np.arange(len(ys))
     best = across.argmax(1)
     move = across[i, best] >= min_gradient
-    to_y = np.where(move, py[i, best], ys)
-    to_x = np.where(move, px[i, best], xs)
+    if band:
+        a, b, c = grad[i, best], grad[i, best + 1], grad[i, best + 2]
+        curv = a - 2 * b + c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sub = np.where(curv < 0, 0.5 * (a - c) / curv, 0.0)
+        lo = np.floor(t[best + 1] + np.clip(sub, -0.5, 0.5))[:, None] + np.float32([0, 1])
+        by, bx = along(lo)  # (n, 2) the pixels either side of the step
+        to = [np.where(move, by[:, j], ys) for j in (0, 1)], [np.where(move, bx[:, j], xs)
+                                                              for j in (0, 1)]
+        to_y, to_x = np.concatenate(to[0]), np.concatenate(to[1])
+        src = np.tile(i, 2)
+    else:
+        to_y = np.where(move, py[i, best + 1], ys)
+        to_x = np.where(move, px[i, best + 1], xs)
+        src = i
     edges = np.zeros_like(edge.edges)
     edges[to_y, to_x] = True
+    edges &= edge.known
     pairs = None
     if edge.pairs is not None:
         pairs = np.zeros_like(edge.pairs)
-        pairs[to_y, to_x] = edge.pairs[ys, xs]
+        pairs[to_y, to_x] = edge.pairs[ys[src], xs[src]]
+        pairs[~edges] = 0
     return EdgeImage(edges, edge.known, pairs)
 
 
@@ -414,7 +442,8 @@ class EdgeExtractor:
             edges = out.edges & known
             out = EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
             return snap_to_image_edges(out, rgb, int(cc.get("snap_px", 0)),
-                                       float(cc.get("snap_min_gradient", 15.0)))
+                                       float(cc.get("snap_min_gradient", 15.0)),
+                                       bool(cc.get("snap_band", False)))
         if refine == "canny":
             near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)

@@ -271,6 +271,33 @@ class TestSnap:
         assert not out.pairs[~out.edges].any()
         np.testing.assert_array_equal(out.known, edge.known)
 
+    def test_band_marks_both_sides_of_the_step(self):
+        # the step lies between columns 29 and 30: true labels split there mark both columns
+        lab, rgb = self.step(80, 160)
+        for split in (27, 32):  # from either side
+            lab_s, _ = self.step(80, 160, split=split)
+            out = snap_to_image_edges(label_edges(lab_s, dilate_px=0), rgb, radius=3,
+                                      min_gradient=15.0, band=True)
+            truth = label_edges(self.step(80, 160, split=30)[0], dilate_px=0)
+            np.testing.assert_array_equal(out.edges, truth.edges)
+            np.testing.assert_array_equal(out.pairs, truth.pairs)
+        # column 30 mostly dark: the step lies right of its centre, the band moves one column
+        rgb[:, 30] = 90
+        for split in (28, 32):
+            lab_s, _ = self.step(80, 160, split=split)
+            out = snap_to_image_edges(label_edges(lab_s, dilate_px=0), rgb, radius=3,
+                                      min_gradient=15.0, band=True)
+            assert set(np.nonzero(out.edges)[1]) == {30, 31}
+        rgb[:, 30] = 150  # mostly bright: left of its centre, the band stays at 29, 30
+        out = snap_to_image_edges(label_edges(lab, dilate_px=0), rgb, radius=3,
+                                  min_gradient=15.0, band=True)
+        assert set(np.nonzero(out.edges)[1]) == {29, 30}
+        # too weak: stays, as without the band
+        lab, faint = self.step(80, 82)
+        edge = label_edges(lab, dilate_px=0)
+        weak = snap_to_image_edges(edge, faint, radius=3, min_gradient=15.0, band=True)
+        np.testing.assert_array_equal(weak.edges, edge.edges)
+
     def test_out_of_reach_or_too_weak_stays(self):
         lab, rgb = self.step(80, 160, split=25)
         far = label_edges(lab, dilate_px=0)  # columns 24, 25: the gradient starts at 28
