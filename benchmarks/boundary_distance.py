@@ -1,0 +1,90 @@
+"""How far the cnn mode's class boundaries lie from the true ones, class pair by class pair.
+
+Usage::
+
+    python benchmarks/boundary_distance.py                    # the demo's dataset and SegNet
+    python benchmarks/boundary_distance.py --dataset outputs/datasets/big \
+        --model outputs/models/big/segnet.onnx --step 4 edges.cnn.snap_band=true
+
+For every flight, every ``--step``-th frame: the localizer's cnn edges (``EdgeExtractor``, with
+the ``conf/localize.yaml`` edge settings and any overrides given) and the true label boundaries
+(the oracle's). For each true boundary pixel on a known pixel, the distance in pixels to the
+nearest cnn boundary pixel *of the same class pair* (capped at ``--cap``). Prints per flight and
+class pair the count of true boundary pixels, the mean distance, and the shares within 1 px and
+beyond 3 px. With the 1-pixel tolerance of the likelihood, what lies beyond ~3 px is a boundary
+the cnn mode misses or puts elsewhere (docs/localize.md, "part 6": door jambs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from datagen.atomic import read_png  # noqa: E402
+from datagen.dataset import Dataset  # noqa: E402
+from localize.edges import EdgeExtractor, load_segmenter  # noqa: E402
+from localize.likelihood import distance_to  # noqa: E402
+
+CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
+
+
+def pair_distances(cnn, oracle, rgb: np.ndarray, labels: np.ndarray,
+                   cap: float) -> dict[int, np.ndarray]:
+    """Per class-pair code, the distances (n,) float32, px, from the frame's true boundary
+    pixels to the nearest cnn boundary pixel of the same pair, capped at ``cap``."""
+    pred, conf = cnn.segment(rgb)
+    ec = cnn.edges(rgb, pred, conf)
+    eo = oracle.edges(rgb, labels)
+    out = {}
+    for code in np.unique(eo.pairs[eo.edges]):
+        true = eo.edges & (eo.pairs == code) & ec.known
+        if true.any():
+            out[int(code)] = np.minimum(distance_to(ec.edges & (ec.pairs == code))[true], cap)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--dataset", default="outputs/datasets/demo")
+    ap.add_argument("--model", default="outputs/models/demo/segnet.onnx")
+    ap.add_argument("--step", type=int, default=2, help="every n-th frame of each flight")
+    ap.add_argument("--cap", type=float, default=10.0, help="distances capped here, px")
+    ap.add_argument("overrides", nargs="*", help="localize config overrides, e.g. "
+                    "edges.cnn.snap_px=3")
+    args = ap.parse_args(argv)
+    if args.step < 1:
+        ap.error("--step must be at least 1")
+    dataset = Dataset(args.dataset)
+    with initialize_config_dir(str(CONF_DIR), version_base=None):
+        cfg = compose("localize", overrides=list(args.overrides))
+    edges_cfg = OmegaConf.to_container(cfg.edges, resolve=True)
+    cnn = EdgeExtractor("cnn", edges_cfg, load_segmenter(args.model, dataset.classes))
+    oracle = EdgeExtractor("oracle", edges_cfg)
+    names = {int(c["id"]): c["name"] for c in dataset.classes}
+    print(f"dataset {args.dataset}, model {args.model}, every {args.step} frames")
+    for name in dataset.flight_names():
+        flight = dataset.flight(name)
+        found: dict[int, list[np.ndarray]] = {}
+        for t in range(0, len(flight.rgb), args.step):
+            frame = pair_distances(cnn, oracle, read_png(flight.rgb[t]),
+                                   read_png(flight.label[t], rgb=False), args.cap)
+            for code, d in frame.items():
+                found.setdefault(code, []).append(d)
+        print(f"flight {name}: class pair, true boundary px, mean px, within 1 px, beyond 3 px")
+        for code, parts in sorted(found.items()):
+            d = np.concatenate(parts)
+            pair = f"{names.get(code // 16, code // 16)} | {names.get(code % 16, code % 16)}"
+            print(f"  {pair:18s} {len(d):8d} {d.mean():6.2f} {np.mean(d <= 1):6.0%} "
+                  f"{np.mean(d > 3):6.0%}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
