@@ -126,7 +126,8 @@ def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
 
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
-                        min_gradient: float, band: bool = False) -> EdgeImage:
+                        min_gradient: float, band: bool = False,
+                        stay: bool = False) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
     normal, up to ``radius`` pixels either way, for the strongest grey-level gradient across
     the boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door
@@ -146,6 +147,10 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
             the pixels at ``floor`` and ``floor + 1`` of it are marked. True label boundaries are
             drawn that way (``label_edges`` marks both sides), so a snapped boundary then lies
             where the true one would, not up to half a pixel to one side of it.
+        stay: a boundary pixel that already lies on an image edge (a local maximum of the
+            gradient along its normal that reaches ``min_gradient``) stays, even when a
+            stronger edge lies within reach (a door leaf's edge a jamb's width inside a true
+            door boundary); the others move as without it.
 
     Returns:
         The edge image with moved edge pixels (several may land on one; pairs move along;
@@ -180,6 +185,12 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     i = np.arange(len(ys))
     best = across.argmax(1)
     move = across[i, best] >= min_gradient
+    if stay:  # already on a strong-enough gradient peak: keep it
+        here = grad[:, radius + 1]
+        on_edge = ((here >= grad[:, radius]) & (here >= grad[:, radius + 2])
+                   & (across[:, radius] >= min_gradient))
+        best = np.where(on_edge, radius, best)
+        move |= on_edge
     if band:
         a, b, c = grad[i, best], grad[i, best + 1], grad[i, best + 2]
         curv = a - 2 * b + c
@@ -443,7 +454,8 @@ class EdgeExtractor:
             out = EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
             return snap_to_image_edges(out, rgb, int(cc.get("snap_px", 0)),
                                        float(cc.get("snap_min_gradient", 15.0)),
-                                       bool(cc.get("snap_band", False)))
+                                       bool(cc.get("snap_band", False)),
+                                       bool(cc.get("snap_stay", False)))
         if refine == "canny":
             near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)

@@ -298,6 +298,24 @@ class TestSnap:
         weak = snap_to_image_edges(edge, faint, radius=3, min_gradient=15.0, band=True)
         np.testing.assert_array_equal(weak.edges, edge.edges)
 
+    def test_stay_keeps_a_boundary_already_on_an_edge(self):
+        # a weak step (wall | jamb) at columns 26 | 27, where the labels split, and a strong one
+        # (jamb | leaf) at 30 | 31, within reach
+        lab, _ = self.step(80, 160, split=27)
+        rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
+        rgb[:, 27:31] = 100
+        rgb[:, 31:] = 200
+        edge = label_edges(lab, dilate_px=0)
+        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
+        assert set(np.nonzero(strongest.edges)[1]) <= {29, 30}  # onto the leaf's edge
+        kept = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, stay=True)
+        np.testing.assert_array_equal(kept.edges, edge.edges)
+        # a boundary off any edge still moves to the strongest
+        lab, rgb = self.step(80, 160)
+        off = snap_to_image_edges(label_edges(lab, dilate_px=0), rgb, radius=3,
+                                  min_gradient=15.0, stay=True)
+        assert set(np.nonzero(off.edges)[1]) == {29}
+
     def test_out_of_reach_or_too_weak_stays(self):
         lab, rgb = self.step(80, 160, split=25)
         far = label_edges(lab, dilate_px=0)  # columns 24, 25: the gradient starts at 28
