@@ -198,9 +198,8 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
             sub = np.where(curv < 0, 0.5 * (a - c) / curv, 0.0)
         lo = np.floor(t[best + 1] + np.clip(sub, -0.5, 0.5))[:, None] + np.float32([0, 1])
         by, bx = along(lo)  # (n, 2) the pixels either side of the step
-        to = [np.where(move, by[:, j], ys) for j in (0, 1)], [np.where(move, bx[:, j], xs)
-                                                              for j in (0, 1)]
-        to_y, to_x = np.concatenate(to[0]), np.concatenate(to[1])
+        to_y = np.where(move[:, None], by, ys[:, None]).T.reshape(-1)  # (2n,) side-major
+        to_x = np.where(move[:, None], bx, xs[:, None]).T.reshape(-1)
         src = np.tile(i, 2)
     else:
         to_y = np.where(move, py[i, best + 1], ys)
