@@ -505,7 +505,8 @@ def run(cfg: DictConfig) -> dict:
     batch_size = min(int(cfg.batch_size), len(train_data))
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
     optim_cfg = OmegaConf.to_container(cfg.optim, resolve=True)
-    optimizer, scheduler = make_optimizer(model, optim_cfg, int(cfg.epochs) * steps_per_epoch)
+    requested = int(cfg.epochs)  # the longest schedule; fit_budget may span fewer
+    optimizer, scheduler = make_optimizer(model, optim_cfg, requested * steps_per_epoch)
     ema = make_ema(model, float(cfg.get("ema_decay") or 0.0))
     net = model if ema is None else ema.module  # what is validated, kept and exported
     log.info(
@@ -526,7 +527,7 @@ def run(cfg: DictConfig) -> dict:
         "history": [],
         "train_seconds": 0.0,
         "stopped_by_budget": False,
-        "epochs": int(cfg.epochs),  # the schedule's span: fewer when the budget cannot hold it
+        "epochs": requested,  # the schedule's span: fewer when the budget cannot hold it
     }
     if last_path.is_file():
         ckpt = torch.load(last_path, map_location="cpu", weights_only=False)
@@ -606,13 +607,12 @@ def run(cfg: DictConfig) -> dict:
                 },
             )
         if fit and state["epoch"] < state["epochs"] and not res.stopped:
-            span = fit_epochs(int(cfg.epochs), state["epoch"], state["train_seconds"], budget,
-                              dt)
+            span = fit_epochs(requested, state["epoch"], state["train_seconds"], budget, dt)
             if span != state["epochs"]:
                 log.warning(
                     "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): "
                     "the one-cycle schedule now ends after epoch %d (fit_budget=false keeps "
-                    "it)", dt, span, int(cfg.epochs), budget / 60, span)
+                    "it)", dt, span, requested, budget / 60, span)
                 state["epochs"] = span
                 scheduler = make_scheduler(optimizer, optim_cfg, span * steps_per_epoch,
                                            scheduler.last_epoch)
@@ -679,7 +679,7 @@ def run(cfg: DictConfig) -> dict:
         "train_seconds": round(state["train_seconds"], 1),
         "epochs_done": state["epoch"],
         "epochs": state["epochs"],
-        "epochs_requested": int(cfg.epochs),
+        "epochs_requested": requested,
         "stopped_by_budget": state["stopped_by_budget"],
         "best_epoch": state["best_epoch"],
         "val_best": best.get("val"),
