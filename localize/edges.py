@@ -127,7 +127,7 @@ def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
                         min_gradient: float, band: bool = False,
-                        stay: bool = False) -> EdgeImage:
+                        stay: bool = False, colour: bool = False) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
     normal, up to ``radius`` pixels either way, for the strongest grey-level gradient across
     the boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door
@@ -151,6 +151,9 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
             gradient along its normal that reaches ``min_gradient``) stays, even when a
             stronger edge lies within reach (a door leaf's edge a jamb's width inside a true
             door boundary); the others move as without it.
+        colour: the gradient across the boundary is the root mean square over the R, G and B
+            channels' instead of the grey image's (same scale for a grey step), so a step
+            between two colours of equal brightness (a pink wall beside a grey jamb) counts.
 
     Returns:
         The edge image with moved edge pixels (several may land on one; pairs move along;
@@ -164,9 +167,10 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     if not edge.edges.any():
         return edge
     H, W = edge.edges.shape
-    grey = cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32), (3, 3), 0)
-    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
+    img = rgb if colour else cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+    img = cv2.GaussianBlur(img.astype(np.float32), (3, 3), 0)  # (H, W) or (H, W, 3)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
     ys, xs = np.nonzero(edge.edges)
     theta = edge_normal_angle(edge.edges)[ys, xs]
     nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
@@ -179,7 +183,11 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
                 np.clip(np.rint(xs[:, None] + step * nx), 0, W - 1).astype(np.intp))
 
     py, px = along(t)  # (n, T)
-    grad = np.abs(gx[py, px] * nx + gy[py, px] * ny)
+    if colour:  # (n, T, 3) channel gradients along the normal -> their RMS
+        grad = np.sqrt(np.mean((gx[py, px] * nx[..., None] + gy[py, px] * ny[..., None]) ** 2,
+                               axis=-1))
+    else:
+        grad = np.abs(gx[py, px] * nx + gy[py, px] * ny)
     across = grad[:, 1:-1] - 1e-3 * np.abs(t[1:-1])  # ties: stay
     across[~edge.known[py[:, 1:-1], px[:, 1:-1]]] = -1.0  # never onto a masked object
     i = np.arange(len(ys))
@@ -454,7 +462,8 @@ class EdgeExtractor:
             return snap_to_image_edges(out, rgb, int(cc.get("snap_px", 0)),
                                        float(cc.get("snap_min_gradient", 15.0)),
                                        bool(cc.get("snap_band", False)),
-                                       bool(cc.get("snap_stay", False)))
+                                       bool(cc.get("snap_stay", False)),
+                                       bool(cc.get("snap_colour", False)))
         if refine == "canny":
             near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)

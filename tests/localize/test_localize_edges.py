@@ -329,6 +329,27 @@ class TestSnap:
         np.testing.assert_array_equal(flat.edges, edge.edges)
         assert snap_to_image_edges(edge, rgb, radius=0, min_gradient=15.0) is edge
 
+    def test_colour_finds_a_step_of_equal_brightness(self):
+        lab, _ = self.step(80, 160)
+        rgb = np.zeros((40, 60, 3), dtype=np.uint8)
+        rgb[:, :30] = (180, 100, 100)  # pink-ish | green-ish of the same grey level (~124)
+        rgb[:, 30:] = (80, 150, 120)
+        grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        assert abs(int(grey[0, 0]) - int(grey[0, 59])) <= 2
+        edge = label_edges(lab, dilate_px=0)
+        plain = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
+        np.testing.assert_array_equal(plain.edges, edge.edges)  # no grey step: stays
+        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, colour=True)
+        assert set(np.nonzero(out.edges)[1]) == {29}
+        # a grey step has the same gradient either way: the colour snap moves it the same
+        lab, grey_step = self.step(80, 160)
+        a = snap_to_image_edges(label_edges(lab, dilate_px=0), grey_step, 3, 15.0)
+        b = snap_to_image_edges(label_edges(lab, dilate_px=0), grey_step, 3, 15.0, colour=True)
+        np.testing.assert_array_equal(a.edges, b.edges)
+        lab, faint = self.step(80, 82)  # and a faint one stays faint
+        weak = snap_to_image_edges(label_edges(lab, dilate_px=0), faint, 3, 15.0, colour=True)
+        np.testing.assert_array_equal(weak.edges, label_edges(lab, dilate_px=0).edges)
+
     def test_stays_inside_the_known_mask(self):
         lab, rgb = self.step(80, 160)
         lab[:, 29:32] = C.PERSON  # the image step is under an object
