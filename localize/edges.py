@@ -129,18 +129,19 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
                         min_gradient: float, band: bool = False,
                         stay: bool = False, colour: bool = False) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
-    normal, up to ``radius`` pixels either way, for the strongest grey-level gradient across
-    the boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door
-    in a wall of the same paint) it stays. The paper's 1-D search along the normal, applied to
-    the segmentation's boundaries: the SegNet says *which* boundary is there, at its quarter
-    resolution, and the image says *where*, to a pixel.
+    normal, up to ``radius`` pixels either way, for the strongest grey-level (or ``colour``)
+    gradient across the boundary, and moves there if that gradient reaches ``min_gradient``;
+    elsewhere (a door in a wall of the same paint) it stays. The paper's 1-D search along the
+    normal, applied to the segmentation's boundaries: the SegNet says *which* boundary is
+    there, at its quarter resolution, and the image says *where*, to a pixel.
 
     Args:
         edge: class boundaries (edges, known, pairs) of a frame, (H, W).
         rgb: (H, W, 3) uint8, the frame.
         radius: search distance, pixels; 0 returns ``edge`` unchanged.
         min_gradient: smallest |3x3 Sobel of the 3x3-blurred grey image| across the boundary
-            that counts as an image edge (a step of h grey levels gives about 3 h).
+            (with ``colour``, the RMS of the three channels') that counts as an image edge (a
+            step of h grey levels gives about 3 h).
         band: mark the two pixels on either side of the step instead of the one with the
             steepest gradient: the step's sub-pixel position along the normal is the vertex of
             the parabola through the gradient at the steepest pixel and its two neighbours, and
