@@ -210,47 +210,55 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     B = int(params.orientation_bins)
     edges = edge.edges & edge.known
     known = edge.known
+    unknown = ~known
     masks = _bin_masks(edges, B)
     s2 = 2.0 * float(params.sigma) ** 2
     g_far = np.float32(np.exp(-1.0 / s2))
-    dist_unknown = distance_to(~known)
-    unknown = ~known
+    dist_unknown = distance_to(unknown)
+    reach = np.float32(params.search_px)
 
-    def score(m: np.ndarray, g0b: np.float32 | None) -> tuple[np.ndarray, np.float32]:
+    def score(m: np.ndarray, g0b: np.float32 | None, out: np.ndarray) -> np.float32:
+        """g(d) (H, W) of the edges ``m`` into ``out``; returns the chance level g0b."""
         d = distance_to(m)
-        dn = np.minimum(d, params.search_px) / np.float32(params.search_px)
-        gb = np.exp(-dn * dn / np.float32(s2))
+        hidden = (d > dist_unknown) & known  # the nearest edge may hide behind an object
+        np.minimum(d, reach, out=out)
+        out /= reach  # d / search_px, truncated at 1
+        out *= out
+        out /= np.float32(-s2)
+        np.exp(out, out=out)
         if g0b is None:
-            g0b = np.float32(gb[known].mean() if known.any() else g_far)
-        # masked writes in place (copyto/out=) instead of boolean-indexed copies
-        np.maximum(gb, g0b, out=gb, where=(d > dist_unknown) & known)  # hidden by unknown
-        np.copyto(gb, g0b, where=unknown)
-        return gb, g0b
+            g0b = np.float32(out[known].mean() if known.any() else g_far)
+        np.maximum(out, g0b, out=out, where=hidden)
+        np.copyto(out, g0b, where=unknown)
+        return g0b
 
     paired = (params.class_pairs and edge.pairs is not None and pair_codes is not None
               and len(pair_codes) > 0)
+    n_pairs = len(pair_codes) if paired else 1
+    n = n_pairs * len(masks)
+    # flat buffers with one trailing 0 that invalid samples read
+    g_flat = np.empty(n * H * W + 1, dtype=np.float32)
+    e_flat = np.empty(n * H * W + 1, dtype=np.float32)
+    g_flat[-1] = e_flat[-1] = 0.0
+    g = g_flat[:-1].reshape(n, H, W)
+    e = e_flat[:-1].reshape(n_pairs, len(masks), H, W)
     if paired:
         # chance levels from all edges; one distance transform per (pair, bin)
-        g0 = np.array([score(m, None)[1] for m in masks], np.float32)
-        pair_masks = [edge.pairs == c for c in np.asarray(pair_codes, np.uint8)]
-        g = np.empty((len(pair_masks), len(masks), H, W), dtype=np.float32)
-        for q, pm in enumerate(pair_masks):
+        g0 = np.array([score(m, None, g[0]) for m in masks], np.float32)
+        for q, c in enumerate(np.asarray(pair_codes, np.uint8)):
+            pm = edge.pairs == c
             for b, m in enumerate(masks):
-                g[q, b] = score(m & pm, g0[b])[0]
-        g = g.reshape(-1, H, W)
+                score(m & pm, g0[b], g[q * len(masks) + b])
     else:
-        g = np.empty((len(masks), H, W), dtype=np.float32)
-        g0 = np.empty(len(masks), dtype=np.float32)
-        for b, m in enumerate(masks):  # one distance transform per bin of a small image
-            g[b], g0[b] = score(m, None)
-    # one trailing 0 that invalid samples read
-    zero = np.zeros(1, np.float32)
+        g0 = np.array([score(m, None, g[b]) for b, m in enumerate(masks)], np.float32)
     eps = np.float32(params.outlier)
-    e = np.log(g + eps) - np.log(np.tile(g0, len(g) // len(g0)) + eps)[:, None, None]
-    np.copyto(e, np.float32(1e-7), where=(e == 0) & known[None])
-    np.copyto(e, np.float32(0.0), where=unknown[None])
-    return Observation(np.concatenate([g.reshape(-1), zero]), np.concatenate([e.reshape(-1), zero]),
-                       g0, W, H, B, len(pair_codes) if paired else 0)
+    np.add(g.reshape(e.shape), eps, out=e)
+    np.log(e, out=e)
+    e -= np.log(g0 + eps)[:, None, None]
+    e = e.reshape(n, H, W)
+    np.copyto(e, np.float32(1e-7), where=(e == 0) & known)
+    np.copyto(e, np.float32(0.0), where=unknown)
+    return Observation(g_flat, e_flat, g0, W, H, B, len(pair_codes) if paired else 0)
 
 
 class EdgeLikelihood:
