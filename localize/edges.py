@@ -18,17 +18,68 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from datagen import classes as C
+from datagen.config import reject_unknown_keys
 
 log = logging.getLogger(__name__)
 
 MODES = ("none", "cnn", "oracle")
+REFINES = ("none", "canny", "mask")
+
+
+@dataclass(frozen=True)
+class CnnSettings:
+    """``edges.cnn``: how the cnn mode makes edges of the SegNet's output.
+
+    The defaults are conf/edges/default.yaml's (a test keeps them equal), where each choice is
+    explained with its measurements; a partial config gets the same behaviour as the full one.
+
+    Attributes:
+        prior_correction: strength s of ``structural_prior_labels`` (0: plain argmax).
+        min_confidence: pixels whose largest softmax probability is below it are unknown (0:
+            off).
+        snap_px: search reach of ``snap_to_image_edges``, pixels (0: no snap).
+        snap_min_gradient, snap_band, snap_stay, snap_colour: its other settings.
+        refine: ``none`` (the snapped class boundaries), ``canny`` (Canny edges within
+            ``refine_px`` of them) or ``mask`` (mode none's edges, objects masked).
+        refine_px: pixels, for ``refine: canny``.
+        guided_refine: the segmenter's guided refinement of its probabilities (``load_segmenter``).
+    """
+
+    prior_correction: float = 0.75
+    min_confidence: float = 0.0
+    snap_px: int = 2
+    snap_min_gradient: float = 8.0
+    snap_band: bool = False
+    snap_stay: bool = True
+    snap_colour: bool = True
+    refine: str = "none"
+    refine_px: int = 6
+    guided_refine: bool = False
+
+    def __post_init__(self) -> None:
+        if self.refine not in REFINES:
+            raise ValueError(f"edges.cnn.refine={self.refine!r}: use none, canny or mask")
+        for key in ("prior_correction", "min_confidence", "snap_px", "snap_min_gradient",
+                    "refine_px"):
+            if getattr(self, key) < 0:
+                raise ValueError(f"edges.cnn.{key} must be >= 0, got {getattr(self, key)}")
+
+    @classmethod
+    def from_cfg(cls, cfg: Mapping | None) -> CnnSettings:
+        """From the ``edges.cnn`` mapping (None or missing keys: the defaults); an unknown key
+        raises ValueError listing the known ones."""
+        cfg = dict(cfg or {})
+        reject_unknown_keys(cfg, (f.name for f in fields(cls)), "edges.cnn settings")
+        types = {f.name: type(f.default) for f in fields(cls)}
+        return cls(**{k: types[k](v) for k, v in cfg.items()})
 
 
 @dataclass
@@ -398,8 +449,9 @@ class EdgeExtractor:
         if mode == "cnn" and segmenter is None:
             raise ValueError("edge mode 'cnn' needs a segmenter (see load_segmenter)")
         self.mode, self.cfg, self.segmenter = mode, cfg, segmenter
+        self.cnn = CnnSettings.from_cfg(cfg.get("cnn"))
         self.log_prior = None
-        strength = float(cfg.get("cnn", {}).get("prior_correction", 0.0))
+        strength = self.cnn.prior_correction
         if mode == "cnn" and strength > 0:
             log_w = class_log_prior(segmenter)
             self.log_prior = None if log_w is None else strength * log_w
@@ -416,7 +468,7 @@ class EdgeExtractor:
         confidence is all ones when ``cnn.min_confidence`` is 0 (it is not used then, and the
         softmax is skipped)."""
         _check_rgb(rgb)
-        need_conf = self.cfg.get("cnn", {}).get("min_confidence", 0.0) > 0
+        need_conf = self.cnn.min_confidence > 0
         if self.log_prior is None and not need_conf:
             labels, conf = self.segmenter.labels(rgb), None  # argmax only: no softmax
         else:
@@ -450,27 +502,20 @@ class EdgeExtractor:
         lc = self.cfg["labels"]
         if self.mode == "oracle":
             return label_edges(labels, C.STRUCTURAL, int(lc["dilate_px"]), 0)
-        cc = self.cfg.get("cnn", {})
+        cc = self.cnn
         out = label_edges(labels, C.STRUCTURAL, int(lc["dilate_px"]), int(lc["median"]))
         known = out.known
-        threshold = float(cc.get("min_confidence", 0.0))
-        if confidence is not None and threshold > 0:
-            known = known & ~_dilate(confidence < threshold, int(lc["dilate_px"]))
-        refine = cc.get("refine", "none")
-        if refine == "none":
+        if confidence is not None and cc.min_confidence > 0:
+            known = known & ~_dilate(confidence < cc.min_confidence, int(lc["dilate_px"]))
+        if cc.refine == "none":
             edges = out.edges & known
             out = EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
-            return snap_to_image_edges(out, rgb, int(cc.get("snap_px", 0)),
-                                       float(cc.get("snap_min_gradient", 15.0)),
-                                       bool(cc.get("snap_band", False)),
-                                       bool(cc.get("snap_stay", False)),
-                                       bool(cc.get("snap_colour", False)))
-        if refine == "canny":
-            near = _dilate(out.edges & known, int(cc.get("refine_px", 3)))
+            return snap_to_image_edges(out, rgb, cc.snap_px, cc.snap_min_gradient, cc.snap_band,
+                                       cc.snap_stay, cc.snap_colour)
+        if cc.refine == "canny":
+            near = _dilate(out.edges & known, cc.refine_px)
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)
-        if refine == "mask":
-            return EdgeImage(self._canny(rgb, hough=True) & known, known)
-        raise ValueError(f"edges.cnn.refine={refine!r}: use none, canny or mask")
+        return EdgeImage(self._canny(rgb, hough=True) & known, known)  # refine: mask
 
     @property
     def class_boundaries_only(self) -> bool:
@@ -496,5 +541,5 @@ def class_boundaries_only(mode: str, cfg: dict) -> bool:
     if mode == "none":
         return False
     if mode == "cnn":
-        return cfg.get("cnn", {}).get("refine", "none") != "mask"
+        return CnnSettings.from_cfg(cfg.get("cnn")).refine != "mask"
     return True

@@ -32,7 +32,13 @@ from tqdm import tqdm
 from datagen.atomic import atomic_write_json, read_png
 from datagen.dataset import Camera, Dataset, Flight, World
 from datagen.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.edges import EdgeExtractor, class_boundaries_only, load_segmenter, pair_code
+from localize.edges import (
+    CnnSettings,
+    EdgeExtractor,
+    class_boundaries_only,
+    load_segmenter,
+    pair_code,
+)
 from localize.likelihood import EdgeLikelihood, LikelihoodParams
 from localize.metrics import position_errors, yaw_errors_deg
 from localize.particle_filter import FilterParams, ParticleFilter, odometry_increment
@@ -156,6 +162,7 @@ def prepare(cfg: DictConfig) -> Context:
     fparams, lparams = filter_settings(cfg)
     for mode in cfg.modes:  # fail before any run on a bad per-mode setting
         mode_likelihood_params(lparams, fparams, mode)
+    cnn = CnnSettings.from_cfg(OmegaConf.to_container(cfg.edges, resolve=True).get("cnn"))
     samples = sample_segments(world.segments, float(cfg.model_edges.spacing))
     v = cfg.visibility
     vis = load_or_build(world, samples.points, out_dir / "cache", float(v.cell_xy),
@@ -170,7 +177,7 @@ def prepare(cfg: DictConfig) -> Context:
     segmenter = None
     if "cnn" in cfg.modes:
         segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads),
-                                   bool(cfg.edges.get("cnn", {}).get("guided_refine", False)))
+                                   cnn.guided_refine)
     return Context(cfg, dataset, camera, world, models, fparams, lparams, out_dir, segmenter)
 
 

@@ -8,7 +8,7 @@ from benchmarks.boundary_distance import pair_distances
 from datagen import classes as C
 from localize.edges import EdgeExtractor, pair_code
 
-CFG = {"labels": {"dilate_px": 0, "median": 0}, "cnn": {"snap_px": 0}}
+CFG = {"labels": {"dilate_px": 0, "median": 0}, "cnn": {"snap_px": 0, "prior_correction": 0.0}}
 
 
 class ShiftedSegmenter:

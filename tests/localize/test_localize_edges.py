@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import json
+from dataclasses import fields
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
 from datagen import classes as C
 from localize.edges import (
+    CnnSettings,
     EdgeExtractor,
     EdgeImage,
     canny_edges,
@@ -23,9 +27,20 @@ from localize.edges import (
 )
 from tests.localize.conftest import palette_segnet
 
+ROOT = Path(__file__).resolve().parents[2]
+
+# the cnn mode as the plain class boundaries of the predicted labels (no prior correction, no
+# snap); tests that exercise one of those turn it on with cnn(...)
+PLAIN_CNN = {"prior_correction": 0.0, "snap_px": 0}
 EDGES_CFG = {"canny": {"low": 50.0, "high": 150.0, "blur": 3},
              "hough": {"enabled": False, "threshold": 10, "min_length": 8, "max_gap": 2},
-             "labels": {"dilate_px": 1, "median": 0}}
+             "labels": {"dilate_px": 1, "median": 0},
+             "cnn": PLAIN_CNN}
+
+
+def cnn(**settings) -> dict:
+    """EDGES_CFG with these ``edges.cnn`` settings on top of the plain ones."""
+    return {**EDGES_CFG, "cnn": {**PLAIN_CNN, **settings}}
 
 
 def two_walls() -> np.ndarray:
@@ -118,7 +133,7 @@ class TestPriorCorrection:
 
     def test_extractor_reads_the_weights_from_the_model(self, tmp_path):
         lab = two_walls()
-        cfg = {**EDGES_CFG, "cnn": {"prior_correction": 1.0}}
+        cfg = cnn(prior_correction=1.0)
         weights = {c["name"]: 1.0 for c in C.as_json()}
         seg = load_segmenter(palette_segnet(tmp_path / "a.onnx", 20, 30,
                                             extra_metadata={"class_weights": weights}),
@@ -134,7 +149,7 @@ class TestPriorCorrection:
         assert (labels[structural] == C.DOOR).all()
         np.testing.assert_array_equal(labels[~structural], lab[~structural])  # masks unchanged
         assert conf.shape == lab.shape
-        ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": 0.0}}, seg)
+        ex = EdgeExtractor("cnn", cnn(prior_correction=0.0), seg)
         assert ex.log_prior is None  # strength 0: off
         np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
 
@@ -144,7 +159,7 @@ class TestPriorCorrection:
             assert class_log_prior(seg) is None
         assert "class_weights" in caplog.text
         lab = two_walls()
-        ex = EdgeExtractor("cnn", {**EDGES_CFG, "cnn": {"prior_correction": 1.0}}, seg)
+        ex = EdgeExtractor("cnn", cnn(prior_correction=1.0), seg)
         np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
 
     def test_model_trained_without_weighting_needs_no_correction(self, tmp_path, caplog):
@@ -175,7 +190,7 @@ class TestSegmenter:
     def test_low_confidence_is_unknown(self, tmp_path):
         lab = two_walls()
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
-        cfg = {**EDGES_CFG, "cnn": {"min_confidence": 0.5}}
+        cfg = cnn(min_confidence=0.5)
         ex = EdgeExtractor("cnn", cfg, seg)
         _, probs = seg.predict(C.colorize(lab))
         np.testing.assert_allclose(ex.segment(C.colorize(lab))[1], probs.max(0), rtol=1e-5)
@@ -191,7 +206,7 @@ class TestSegmenter:
         rgb[9:11, 2:8] = 255  # a texture stripe inside the wall: Canny sees it
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
         plain = EdgeExtractor("cnn", EDGES_CFG, seg).edges(rgb, lab)
-        cfg = {**EDGES_CFG, "cnn": {"refine": "canny", "refine_px": 2}}
+        cfg = cnn(refine="canny", refine_px=2)
         fine = EdgeExtractor("cnn", cfg, seg).edges(rgb, lab)
         canny = canny_edges(rgb, **{k: EDGES_CFG["canny"][k] for k in ("low", "high", "blur")})
         assert canny.edges[8:12, 2:8].any()           # the stripe makes Canny edges...
@@ -231,19 +246,29 @@ class TestRefineChoice:
         assert not EdgeExtractor("none", EDGES_CFG).class_boundaries_only
         assert EdgeExtractor("oracle", EDGES_CFG).class_boundaries_only
         for refine, only in (("none", True), ("canny", True), ("mask", False)):
-            cfg = {**EDGES_CFG, "cnn": {"refine": refine}}
+            cfg = cnn(refine=refine)
             assert EdgeExtractor("cnn", cfg, seg).class_boundaries_only is only
 
     def test_mask_drops_edges_on_objects(self):
         lab = two_walls()
         rgb = C.colorize(lab)
-        cfg = {**EDGES_CFG, "cnn": {"refine": "mask"}}
+        cfg = cnn(refine="mask")
         e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
         assert not e.known[8:12, 22:26].any() and not e.edges[8:12, 22:26].any()
         assert e.edges.any()
 
+    def test_cnn_defaults_are_the_configs(self):
+        """A partial ``edges.cnn`` behaves as conf/edges/default.yaml, which sets every key."""
+        yaml_cnn = OmegaConf.to_container(OmegaConf.load(ROOT / "conf/edges/default.yaml"))["cnn"]
+        assert CnnSettings.from_cfg(yaml_cnn) == CnnSettings() == CnnSettings.from_cfg(None)
+        assert set(yaml_cnn) == {f.name for f in fields(CnnSettings)}
+
+    def test_unknown_cnn_key_raises(self):
+        with pytest.raises(ValueError, match=r"edges.cnn settings \['snap_pixels'\]"):
+            EdgeExtractor("cnn", cnn(snap_pixels=3), object())
+
     def test_unknown_refine_raises(self):
-        cfg = {**EDGES_CFG, "cnn": {"refine": "sobel"}}
+        cfg = cnn(refine="sobel")
         with pytest.raises(ValueError, match="edges.cnn.refine"):
             EdgeExtractor("cnn", cfg, object()).edges(C.colorize(two_walls()), two_walls())
 
@@ -359,7 +384,7 @@ class TestSnap:
 
     def test_extractor_snaps_cnn_boundaries(self):
         lab, rgb = self.step(80, 160)
-        cfg = {**EDGES_CFG, "cnn": {"snap_px": 3, "snap_min_gradient": 15.0}}
+        cfg = cnn(snap_px=3, snap_min_gradient=15.0)
         e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
         assert set(np.nonzero(e.edges)[1]) == {29}
         plain = EdgeExtractor("cnn", EDGES_CFG, object()).edges(rgb, lab)
