@@ -392,12 +392,16 @@ def make_scheduler(
 
 
 def fit_epochs(requested: int, epochs_done: int, seconds: float, budget: float,
-               last_epoch_seconds: float) -> int:
+               last_epoch_seconds: float, current: int | None = None) -> int:
     """How many epochs the schedule should span so that training ends within its time budget.
 
     The epochs left are timed at the latest epoch's time, not the mean so far: the first epoch
     carries the warm-up (and any load the machine had then), and a schedule cut on its time
     alone would stay too short. Re-fitted after every epoch, the span can shrink or grow again.
+    With the ``current`` span given, it shrinks as soon as that no longer fits, but grows only
+    when the extra epoch fits with half an epoch to spare: where the budget ends near an epoch
+    boundary, epoch times that wobble by a few per cent would otherwise flip the span (and
+    re-span the learning-rate schedule) back and forth every epoch.
 
     Args:
         requested: the configured epochs (the longest schedule).
@@ -405,6 +409,7 @@ def fit_epochs(requested: int, epochs_done: int, seconds: float, budget: float,
         seconds: wall time they took, validation included (s).
         budget: the whole training budget (s).
         last_epoch_seconds: wall time of the latest epoch (s).
+        current: the span the schedule has now, or None (no hysteresis).
 
     Returns:
         The epochs done plus the whole epochs that fit in the budget left, at most
@@ -412,8 +417,11 @@ def fit_epochs(requested: int, epochs_done: int, seconds: float, budget: float,
     """
     if last_epoch_seconds <= 0 or not math.isfinite(budget):
         return requested
-    left = max(budget - seconds, 0.0)
-    return max(epochs_done, min(requested, epochs_done + int(left // last_epoch_seconds)))
+    fit = epochs_done + max(budget - seconds, 0.0) / last_epoch_seconds  # fractional epochs
+    span = int(fit)
+    if current is not None and span > current >= epochs_done:
+        span = max(current, int(fit - 0.5))  # grow only with half an epoch to spare
+    return max(epochs_done, min(requested, span))
 
 
 def training_budget(cfg: DictConfig, trained_seconds: float) -> float:
@@ -607,7 +615,8 @@ def run(cfg: DictConfig) -> dict:
                 },
             )
         if fit and state["epoch"] < state["epochs"] and not res.stopped:
-            span = fit_epochs(requested, state["epoch"], state["train_seconds"], budget, dt)
+            span = fit_epochs(requested, state["epoch"], state["train_seconds"], budget, dt,
+                              state["epochs"])
             if span != state["epochs"]:
                 log.warning(
                     "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): "

@@ -134,6 +134,19 @@ def test_fit_epochs() -> None:
     assert tt.fit_epochs(21, 2, 145.0, 1080.0, 60.0) == 17
 
 
+def test_fit_epochs_does_not_flip_flop() -> None:
+    """A budget ending near an epoch boundary: 60 s epochs with 5.95 epochs' time left after
+    10 of them. The span shrinks at once when it no longer fits, and grows back only when a
+    whole extra epoch fits with half an epoch to spare."""
+    budget = 600.0 + 5.95 * 60.0
+    assert tt.fit_epochs(21, 10, 600.0, budget, 60.0, current=16) == 15  # 16 does not fit
+    assert tt.fit_epochs(21, 10, 600.0, budget, 58.0, current=15) == 15  # 16.2: not by 0.5
+    assert tt.fit_epochs(21, 10, 600.0, budget, 50.0, current=15) == 16  # 17.1: 16 more
+    assert tt.fit_epochs(21, 10, 600.0, budget, 46.0, current=15) == 17  # 17.8
+    assert tt.fit_epochs(21, 10, 600.0, budget, 58.0) == 16  # no hysteresis without current
+    assert tt.fit_epochs(21, 10, 600.0, math.inf, 58.0, current=15) == 21
+
+
 def test_make_scheduler_respans_in_place() -> None:
     """A schedule replaced after 30 of 100 steps by one of 60 steps continues as the 60-step
     schedule would at step 30, and ends at its final learning rate."""
@@ -237,7 +250,7 @@ class TestRun:
     ) -> None:
         """When the epochs left do not fit the budget, the schedule is shortened: a 4-epoch
         run cut to 2 ends at the learning rate of a 2-epoch run."""
-        monkeypatch.setattr(tt, "fit_epochs", lambda req, done, seconds, budget, last: 2)
+        monkeypatch.setattr(tt, "fit_epochs", lambda req, done, seconds, budget, last, current: 2)
         m = tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=4"))
         assert (m["epochs"], m["epochs_requested"], m["epochs_done"]) == (2, 4, 2)
         rows = list(csv.DictReader((tmp_path / "demo" / "train_log.csv").open()))
@@ -245,7 +258,7 @@ class TestRun:
         two = list(csv.DictReader((trained[0] / "train_log.csv").open()))
         assert float(rows[-1]["lr"]) == pytest.approx(float(two[-1]["lr"]))
         assert float(rows[-1]["lr"]) < 0.1 * float(rows[0]["lr"])
-        monkeypatch.setattr(tt, "fit_epochs", lambda req, done, seconds, budget, last: 2)
+        monkeypatch.setattr(tt, "fit_epochs", lambda req, done, seconds, budget, last, current: 2)
         again = tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=4"))
         assert again["epochs_done"] == 2  # a resume keeps the fitted schedule
 
