@@ -79,7 +79,18 @@ class CnnSettings:
         cfg = dict(cfg or {})
         reject_unknown_keys(cfg, (f.name for f in fields(cls)), "edges.cnn settings")
         types = {f.name: type(f.default) for f in fields(cls)}
-        return cls(**{k: types[k](v) for k, v in cfg.items()})
+        out = {}
+        for k, v in cfg.items():
+            kind = types[k]
+            ok = isinstance(v, bool) if kind is bool else (
+                isinstance(v, str) if kind is str else
+                isinstance(v, (int, float)) and not isinstance(v, bool)
+                and (kind is float or float(v).is_integer()))
+            if not ok:
+                raise ValueError(f"edges.cnn.{k}={v!r}: expected a {kind.__name__} (e.g. "
+                                 f"{getattr(cls, k)!r})")
+            out[k] = kind(v)
+        return cls(**out)
 
 
 @dataclass

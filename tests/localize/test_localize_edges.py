@@ -267,6 +267,12 @@ class TestRefineChoice:
         with pytest.raises(ValueError, match=r"edges.cnn settings \['snap_pixels'\]"):
             EdgeExtractor("cnn", cnn(snap_pixels=3), object())
 
+    def test_cnn_setting_of_the_wrong_type_raises(self):
+        for key, value in (("snap_colour", "yes"), ("snap_px", 1.5), ("snap_min_gradient", "8")):
+            with pytest.raises(ValueError, match=f"edges.cnn.{key}="):
+                CnnSettings.from_cfg({key: value})
+        assert CnnSettings.from_cfg({"snap_px": 3.0, "snap_min_gradient": 5}).snap_px == 3
+
     def test_unknown_refine_raises(self):
         cfg = cnn(refine="sobel")
         with pytest.raises(ValueError, match="edges.cnn.refine"):
