@@ -79,18 +79,22 @@ class CnnSettings:
         cfg = dict(cfg or {})
         reject_unknown_keys(cfg, (f.name for f in fields(cls)), "edges.cnn settings")
         types = {f.name: type(f.default) for f in fields(cls)}
-        out = {}
         for k, v in cfg.items():
-            kind = types[k]
-            ok = isinstance(v, bool) if kind is bool else (
-                isinstance(v, str) if kind is str else
-                isinstance(v, (int, float)) and not isinstance(v, bool)
-                and (kind is float or float(v).is_integer()))
-            if not ok:
-                raise ValueError(f"edges.cnn.{k}={v!r}: expected a {kind.__name__} (e.g. "
+            if not _fits(types[k], v):
+                raise ValueError(f"edges.cnn.{k}={v!r}: expected a {types[k].__name__} (e.g. "
                                  f"{getattr(cls, k)!r})")
-            out[k] = kind(v)
-        return cls(**out)
+        return cls(**{k: types[k](v) for k, v in cfg.items()})
+
+
+def _fits(kind: type, value) -> bool:
+    """Whether a config value can stand for a setting of type ``kind`` (bool, str, int or
+    float) without changing meaning: a number for a number (a whole one for an int), never a
+    bool for a number or a string for either."""
+    if kind in (bool, str):
+        return isinstance(value, kind)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return kind is float or float(value).is_integer()
 
 
 @dataclass
@@ -230,10 +234,10 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     if not edge.edges.any():
         return edge
     H, W = edge.edges.shape
-    img = rgb if colour else cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
-    img = cv2.GaussianBlur(img.astype(np.float32), (3, 3), 0)  # (H, W) or (H, W, 3)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    img = rgb if colour else cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)[..., None]
+    img = cv2.GaussianBlur(img.astype(np.float32), (3, 3), 0).reshape(H, W, -1)  # (H, W, C)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3).reshape(H, W, -1)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3).reshape(H, W, -1)
     ys, xs = np.nonzero(edge.edges)
     theta = edge_normal_angle(edge.edges)[ys, xs]
     nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
@@ -246,11 +250,9 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
                 np.clip(np.rint(xs[:, None] + step * nx), 0, W - 1).astype(np.intp))
 
     py, px = along(t)  # (n, T)
-    if colour:  # (n, T, 3) channel gradients along the normal -> their RMS
-        grad = np.sqrt(np.mean((gx[py, px] * nx[..., None] + gy[py, px] * ny[..., None]) ** 2,
-                               axis=-1))
-    else:
-        grad = np.abs(gx[py, px] * nx + gy[py, px] * ny)
+    # (n, T, C) channel gradients along the normal -> their RMS (C = 1: the grey one's size)
+    grad = np.sqrt(np.mean((gx[py, px] * nx[..., None] + gy[py, px] * ny[..., None]) ** 2,
+                           axis=-1))
     across = grad[:, 1:-1] - 1e-3 * np.abs(t[1:-1])  # ties: stay
     across[~edge.known[py[:, 1:-1], px[:, 1:-1]]] = -1.0  # never onto a masked object
     i = np.arange(len(ys))

@@ -243,7 +243,8 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     g = g_flat[:-1].reshape(n, H, W)
     e = e_flat[:-1].reshape(n_pairs, len(masks), H, W)
     if paired:
-        # chance levels from all edges; one distance transform per (pair, bin)
+        # chance levels from all edges (g[0] as scratch, overwritten below); one distance
+        # transform per (pair, bin)
         g0 = np.array([score(m, None, g[0]) for m in masks], np.float32)
         for q, c in enumerate(np.asarray(pair_codes, np.uint8)):
             pm = edge.pairs == c
