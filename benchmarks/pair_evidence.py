@@ -111,6 +111,8 @@ def main(argv: list[str] | None = None) -> int:
     flight = ctx.dataset.flight(args.flight)
     first, end = args.frames or (0, len(truth))
     frames = range(max(first, 0), min(end, len(truth)), max(args.every, 1))
+    if not frames:
+        raise SystemExit(f"--frames {first} {end}: no frame of the flight's {len(truth)} in range")
     edges_cfg = OmegaConf.to_container(cfg.edges, resolve=True)
     names = {int(c["id"]): c["name"] for c in ctx.dataset.classes}
     liks, extractors = {}, {}
