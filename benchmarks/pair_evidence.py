@@ -36,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from datagen.atomic import read_png  # noqa: E402
 from localize.edges import EdgeExtractor  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
+from localize.particle_filter import estimate as estimate_pose  # noqa: E402
 from localize.projection import ModelSamples, tilt_from_pose  # noqa: E402
 from localize.runner import Context, load_runs, mode_likelihood_params, prepare  # noqa: E402
 from localize.visibility import VisibilityGrid  # noqa: E402
@@ -66,9 +67,14 @@ def evidence(liks: dict[str, EdgeLikelihood], edge, estimate: np.ndarray, truth:
         tilt: (3, 3) roll/pitch of the frame (None: level).
     """
     states = np.stack([truth, estimate]).astype(np.float64)
-    out = {}
+    out, observed = {}, {}
     for key, lik in liks.items():
-        score, _ = lik.scores(states, lik.observe(edge), tilt)
+        # the score maps depend on the pair codes only with class_pairs: without it, one
+        # observation serves every entry
+        codes = None if lik.pair_codes is None else tuple(lik.pair_codes.tolist())
+        if codes not in observed:
+            observed[codes] = lik.observe(edge)
+        score, _ = lik.scores(states, observed[codes], tilt)
         out[key] = float(lik.params.k * (score[1] - score[0]))
     return out
 
@@ -82,10 +88,9 @@ def mean_estimate(report: Path, flight: str, mode: str) -> tuple[np.ndarray, np.
         raise SystemExit(f"{report}/runs/{flight}/ has no tracking runs of mode {mode!r}; run "
                          f"`python -m localize name={report.name} modes=[{mode}] "
                          f"inits=[tracking]` first")
-    est = np.asarray([r["estimate"] for r in runs])
-    x, y = np.cos(est[..., 3]).mean(0), np.sin(est[..., 3]).mean(0)
-    mean = est.mean(0)
-    mean[:, 3] = np.arctan2(y, x)
+    est = np.asarray([r["estimate"] for r in runs])  # (seeds, T, 4)
+    equal = np.zeros(len(runs))  # log-weights: every seed counts the same
+    mean = np.stack([estimate_pose(est[:, t], equal) for t in range(est.shape[1])])
     return mean, np.asarray(runs[0]["truth"])
 
 
