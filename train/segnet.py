@@ -157,6 +157,13 @@ class SegNet(nn.Module):
             colour: 3 channels) or "unshuffle" (every pixel of the block, as 3 d^2 channels:
             ``F.pixel_unshuffle``; the first convolution sees the full-resolution image, e.g.
             where in its block a thin frame or an edge lies, for ~1.2x the compute).
+        head: how a downsampled network's logits reach the input resolution: "bilinear"
+            (upsampled, nothing learned) or "refine" (upsampled, then a learned residual from
+            two 3x3 convolutions at full resolution on the upsampled logits and the image:
+            the network learns where, between the image's pixels, a class boundary lies, e.g.
+            a window's outline on its frame's outer edge; trained with ``loss.resolution:
+            input``).
+        head_channels: hidden channels of the "refine" head.
         generator: draws the initial weights (He-normal convolutions); None = global RNG.
 
     Shapes:
@@ -178,6 +185,8 @@ class SegNet(nn.Module):
         downsample: int = 1,
         skip: str = "none",
         stem: str = "average",
+        head: str = "bilinear",
+        head_channels: int = 8,
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
@@ -195,6 +204,15 @@ class SegNet(nn.Module):
             raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
         if stem not in ("average", "unshuffle"):
             raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
+        if head not in ("bilinear", "refine"):
+            raise ValueError(f"model.head must be 'bilinear' or 'refine', got {head!r}")
+        if head == "refine" and downsample > 1 and stem != "unshuffle":
+            raise ValueError(
+                "model.head=refine needs model.stem=unshuffle: the head works on the "
+                "full-resolution image, which the average stem's training never sees"
+            )
+        if int(head_channels) < 1:
+            raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -237,7 +255,20 @@ class SegNet(nn.Module):
             layers.append(_conv_bn_relu(c, cout))
             self.decoder.append(nn.Sequential(*layers))
         self.classifier = nn.Conv2d(chans[0], num_classes, 3, padding=1)
+        self.head = head
+        self.head_channels = int(head_channels)
+        self.refine: nn.Module | None = None
+        if head == "refine":
+            hc = self.head_channels
+            self.refine = nn.Sequential(
+                nn.Conv2d(num_classes + 3, hc, 3, padding=1),
+                nn.ReLU(inplace=True),
+                nn.Conv2d(hc, num_classes, 3, padding=1),
+            )
         self._init_weights(generator)
+        if self.refine is not None:  # the head starts as the identity: plain bilinear logits
+            nn.init.zeros_(self.refine[-1].weight)
+            nn.init.zeros_(self.refine[-1].bias)
 
     def set_flip_average(self, on: bool) -> SegNet:
         """Average the logits of the image and its mirror image (test-time flip); returns self.
@@ -346,14 +377,32 @@ class SegNet(nn.Module):
             (B, C, H, W) logits and the list of per-stage indices.
         """
         n = x.shape[0]
-        x, (h, w) = self.preprocess(self.with_mirror(x))  # indices, if given, are for this batch
-        x, pooled_idx = self._network(x, indices)
-        if self.downsample > 1:
-            x = F.interpolate(x, scale_factor=self.downsample, mode="bilinear", align_corners=False)
-        x = x[..., :h, :w]
+        x = self.with_mirror(x)  # indices, if given, are for this batch
+        self.check_input(x)
+        image, (h, w) = pad_to_multiple(x, self.multiple)
+        x, pooled_idx = self._network(self._stem(image), indices)
+        x = self.to_input_resolution(x, image)[..., :h, :w]
         if self.flip_average:
             x = 0.5 * (x[:n] + x[n:].flip(-1))
         return x, pooled_idx
+
+    def to_input_resolution(self, logits: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
+        """The network's logits brought to the image's resolution (``head``).
+
+        Args:
+            logits: (B, C, H / d, W / d) logits at the network's resolution.
+            image: (B, 3, H, W) float32 RGB in [0, 1] that the logits are for (used by the
+                "refine" head only).
+
+        Returns:
+            (B, C, H, W) logits: bilinear, plus the refine head's residual.
+        """
+        if self.downsample > 1:
+            logits = F.interpolate(logits, size=image.shape[-2:], mode="bilinear",
+                                   align_corners=False)
+        if self.refine is None:
+            return logits
+        return logits + self.refine(torch.cat([logits, (image - self.mean) / self.std], 1))
 
     @property
     def training_factor(self) -> int:
@@ -421,7 +470,7 @@ class SegNet(nn.Module):
             f"num_classes={self.num_classes}, stages={self.stages}, channels={self.channels}, "
             f"convs_per_stage={self.convs_per_stage}, auto_pad={self.auto_pad}, "
             f"pooling={self.pooling}, downsample={self.downsample}, skip={self.skip}, "
-            f"stem={self.stem}"
+            f"stem={self.stem}, head={self.head}"
         )
 
 
@@ -451,6 +500,8 @@ def model_kwargs(model_cfg: dict) -> dict:
         "downsample",
         "skip",
         "stem",
+        "head",
+        "head_channels",
     )
     out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
     for k in ("convs_per_stage", "mean", "std"):

@@ -75,6 +75,8 @@ HASH_EXCLUDE = (
 #: out of the hash at that value, so folders trained before them keep their hash and resume.
 HASH_DEFAULTS = {
     "model.stem": "average",
+    "model.head": "bilinear",
+    "model.head_channels": 8,
     "loss.boundary_weight": 1.0,
     "loss.resolution": "network",
 }
@@ -268,7 +270,9 @@ def train_one_epoch(
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             logits = model.forward_network_resolution(x)
         logits = logits.float()
-        if full_labels:  # as at inference: bilinear to the input's resolution
+        if full_labels and model.training_factor == 1:  # as at inference (bilinear, head)
+            logits = model.to_input_resolution(logits, x)
+        elif full_labels:  # average stem: x is at the network's resolution; bilinear
             logits = F.interpolate(logits, size=y.shape[-2:], mode="bilinear",
                                    align_corners=False)
         loss = segmentation_loss(logits, y, class_weights, boundary_weight)
@@ -505,6 +509,10 @@ def run(cfg: DictConfig) -> dict:
 
     mcfg = OmegaConf.to_container(cfg.model, resolve=True)
     model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
+    if model.refine is not None and not full_labels:
+        raise ValueError(
+            "model.head=refine learns at the input's resolution: add loss.resolution=input"
+        )
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)

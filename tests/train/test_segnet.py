@@ -157,6 +157,33 @@ class TestForward:
         with pytest.raises(ValueError, match="model.stem"):
             _tiny(downsample=2, stem="space")
 
+    def test_refine_head(self) -> None:
+        """head="refine": starts as plain bilinear logits (zero residual); once trained, its
+        residual reads the full-resolution image, so a change within one 2x2 block moves the
+        logits at that pixel."""
+        m = _tiny(downsample=2, skip="add", stem="unshuffle", head="refine").eval()
+        plain = _tiny(downsample=2, skip="add", stem="unshuffle").eval()
+        plain.load_state_dict(m.state_dict(), strict=False)
+        x = torch.rand(2, 3, 32, 48)
+        with torch.no_grad():
+            torch.testing.assert_close(m(x), plain(x))
+            low = m.forward_network_resolution(x)
+            torch.testing.assert_close(m.to_input_resolution(low, x), m(x))
+            torch.nn.init.normal_(m.refine[-1].weight, std=0.1)
+            assert not torch.allclose(m(x), plain(x))
+            y = x.clone()
+            y[:, :, 10, 10] += 0.5
+            diff = (m.to_input_resolution(low, y) - m(x)).abs().amax(dim=(0, 1))
+            assert diff[10, 10] > 0  # the head sees the full-resolution pixel ...
+            diff[8:13, 8:13] = 0
+            assert diff.max() == 0  # ... and only within its 5x5 reach
+        assert "head=refine" in repr(m)
+        with pytest.raises(ValueError, match="model.head=refine needs model.stem=unshuffle"):
+            _tiny(downsample=2, head="refine")
+        with pytest.raises(ValueError, match="model.head"):
+            _tiny(head="cubic")
+        assert _tiny(head="refine").refine is not None  # full resolution: any stem
+
     def test_skip_add_uses_encoder_features(self) -> None:
         """skip="add" changes the output of the same weights; "none" is plain SegNet."""
         plain, added = _tiny(), _tiny(skip="add")

@@ -53,19 +53,22 @@ def test_loss_falls(synthetic_dataset: Path, bf16: bool) -> None:
     assert losses[-1] < 0.7 * losses[0], losses
 
 
-@pytest.mark.parametrize(("stem", "full_labels"),
-                         [("average", False), ("unshuffle", False), ("average", True)])
+@pytest.mark.parametrize(("stem", "full_labels", "head"),
+                         [("average", False, "bilinear"), ("unshuffle", False, "bilinear"),
+                          ("average", True, "bilinear"), ("unshuffle", True, "refine")])
 def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
-                                     full_labels: bool) -> None:
+                                     full_labels: bool, head: str) -> None:
     """The training loop at a quarter resolution: images box-averaged once (average stem) or
     kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle);
-    or the labels kept whole and the loss taken on upsampled logits (loss.resolution: input)."""
+    or the labels kept whole and the loss taken on upsampled logits (loss.resolution: input),
+    through the learned full-resolution head (model.head: refine), which then trains too."""
     model = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=4, stem=stem,
-                   generator=torch.Generator().manual_seed(0))
+                   head=head, generator=torch.Generator().manual_seed(0))
     full = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
     data = downsample_split(full, model.training_factor, keep_labels=full_labels)
     assert data.images.shape[-1] * (1 if stem == "unshuffle" else 4) == full.images.shape[-1]
-    assert data.labels.shape[-1] == data.images.shape[-1] * (4 if full_labels else 1)
+    kept = full_labels or stem == "unshuffle"  # unshuffle: reduced after augmentation
+    assert data.labels.shape[-1] == full.labels.shape[-1] // (1 if kept else 4)
     opt = torch.optim.AdamW(model.parameters(), lr=1e-2)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
     gen = torch.Generator().manual_seed(0)
@@ -73,6 +76,8 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
                                  full_labels=full_labels).loss for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
+    if model.refine is not None:
+        assert model.refine[-1].weight.abs().sum() > 0  # was zero: the head learned
 
 
 def test_weight_average() -> None:
