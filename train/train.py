@@ -267,12 +267,13 @@ def train_one_epoch(
         if not full_labels and model.training_factor != model.downsample:
             y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
         x = x.contiguous(memory_format=torch.channels_last)
+        head = full_labels and model.refine is not None  # full-resolution x (unshuffle stem)
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             logits = model.forward_network_resolution(x)
+            if head:  # as at inference: bilinear, then the learned head (1.5x a step's time)
+                logits = model.to_input_resolution(logits, x)
         logits = logits.float()
-        if full_labels and model.training_factor == 1:  # as at inference (bilinear, head)
-            logits = model.to_input_resolution(logits, x)
-        elif full_labels:  # average stem: x is at the network's resolution; bilinear
+        if full_labels and not head:  # as at inference: bilinear to the input's resolution
             logits = F.interpolate(logits, size=y.shape[-2:], mode="bilinear",
                                    align_corners=False)
         loss = segmentation_loss(logits, y, class_weights, boundary_weight)
