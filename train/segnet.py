@@ -257,18 +257,18 @@ class SegNet(nn.Module):
         self.classifier = nn.Conv2d(chans[0], num_classes, 3, padding=1)
         self.head = head
         self.head_channels = int(head_channels)
-        self.refine: nn.Module | None = None
+        self.refine_head: nn.Module | None = None
         if head == "refine":
             hc = self.head_channels
-            self.refine = nn.Sequential(
+            self.refine_head = nn.Sequential(
                 nn.Conv2d(num_classes + 3, hc, 3, padding=1),
                 nn.ReLU(inplace=True),
                 nn.Conv2d(hc, num_classes, 3, padding=1),
             )
         self._init_weights(generator)
-        if self.refine is not None:  # the head starts as the identity: plain bilinear logits
-            nn.init.zeros_(self.refine[-1].weight)
-            nn.init.zeros_(self.refine[-1].bias)
+        if self.refine_head is not None:  # the head starts as the identity: plain bilinear logits
+            nn.init.zeros_(self.refine_head[-1].weight)
+            nn.init.zeros_(self.refine_head[-1].bias)
 
     def set_flip_average(self, on: bool) -> SegNet:
         """Average the logits of the image and its mirror image (test-time flip); returns self.
@@ -400,9 +400,9 @@ class SegNet(nn.Module):
         if self.downsample > 1:
             logits = F.interpolate(logits, size=image.shape[-2:], mode="bilinear",
                                    align_corners=False)
-        if self.refine is None:
+        if self.refine_head is None:
             return logits
-        return logits + self.refine(torch.cat([logits, (image - self.mean) / self.std], 1))
+        return logits + self.refine_head(torch.cat([logits, (image - self.mean) / self.std], 1))
 
     @property
     def training_factor(self) -> int:

@@ -267,7 +267,7 @@ def train_one_epoch(
         if not full_labels and model.training_factor != model.downsample:
             y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
         x = x.contiguous(memory_format=torch.channels_last)
-        head = full_labels and model.refine is not None  # full-resolution x (unshuffle stem)
+        head = full_labels and model.refine_head is not None  # full-resolution x (unshuffle stem)
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             logits = model.forward_network_resolution(x)
             if head:  # as at inference: bilinear, then the learned head (1.5x a step's time)
@@ -510,7 +510,7 @@ def run(cfg: DictConfig) -> dict:
 
     mcfg = OmegaConf.to_container(cfg.model, resolve=True)
     model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
-    if model.refine is not None and not full_labels:
+    if model.refine_head is not None and not full_labels:
         raise ValueError(
             "model.head=refine learns at the input's resolution: add loss.resolution=input"
         )

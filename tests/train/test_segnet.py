@@ -169,7 +169,7 @@ class TestForward:
             torch.testing.assert_close(m(x), plain(x))
             low = m.forward_network_resolution(x)
             torch.testing.assert_close(m.to_input_resolution(low, x), m(x))
-            torch.nn.init.normal_(m.refine[-1].weight, std=0.1)
+            torch.nn.init.normal_(m.refine_head[-1].weight, std=0.1)
             assert not torch.allclose(m(x), plain(x))
             y = x.clone()
             y[:, :, 10, 10] += 0.5
@@ -182,7 +182,7 @@ class TestForward:
             _tiny(downsample=2, head="refine")
         with pytest.raises(ValueError, match="model.head"):
             _tiny(head="cubic")
-        assert _tiny(head="refine").refine is not None  # full resolution: any stem
+        assert _tiny(head="refine").refine_head is not None  # full resolution: any stem
 
     def test_skip_add_uses_encoder_features(self) -> None:
         """skip="add" changes the output of the same weights; "none" is plain SegNet."""

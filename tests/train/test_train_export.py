@@ -109,8 +109,8 @@ class TestExport:
     ) -> None:
         m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=2, stem=stem,
                    head=head, generator=torch.Generator().manual_seed(3)).eval()
-        if m.refine is not None:  # a head that does something (it starts at zero)
-            torch.nn.init.normal_(m.refine[-1].weight, std=0.1, generator=torch.Generator())
+        if m.refine_head is not None:  # a head that does something (it starts at zero)
+            torch.nn.init.normal_(m.refine_head[-1].weight, std=0.1, generator=torch.Generator())
         path = tmp_path / "ds.onnx"
         meta = onnx_metadata(m, as_json(), H, W, "ds")
         report = export_checked(m, path, images, meta, tolerance=1e-4, threads=1, batch_size=5)

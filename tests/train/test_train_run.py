@@ -76,8 +76,8 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
                                  full_labels=full_labels).loss for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
-    if model.refine is not None:
-        assert model.refine[-1].weight.abs().sum() > 0  # was zero: the head learned
+    if model.refine_head is not None:
+        assert model.refine_head[-1].weight.abs().sum() > 0  # was zero: the head learned
 
 
 def test_weight_average() -> None:
