@@ -469,6 +469,10 @@ def run(cfg: DictConfig) -> dict:
     torch.set_num_threads(int(cfg.threads))
     bf16 = resolve_precision(str(cfg.precision))  # a bad value fails before any loading
     full_labels = _loss_resolution(cfg) == "input"
+    if cfg.model.get("head") == "refine" and not full_labels:
+        raise ValueError(
+            "model.head=refine learns at the input's resolution: add loss.resolution=input"
+        )
     progress = bool(cfg.progress)
     dataset = Dataset(cfg.dataset)
     ds_json = (dataset.root / "dataset.json").read_bytes()
@@ -510,10 +514,6 @@ def run(cfg: DictConfig) -> dict:
 
     mcfg = OmegaConf.to_container(cfg.model, resolve=True)
     model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
-    if model.refine_head is not None and not full_labels:
-        raise ValueError(
-            "model.head=refine learns at the input's resolution: add loss.resolution=input"
-        )
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)

@@ -323,6 +323,13 @@ class TestBadInput:
         with pytest.raises(ValueError, match="loss.resolution='full': use network or input"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "loss.resolution=full"))
 
+    def test_refine_head_needs_input_resolution(self, synthetic_dataset, compose_train,
+                                                tmp_path) -> None:
+        with pytest.raises(ValueError, match="model.head=refine .* loss.resolution=input"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "model.head=refine",
+                                 "model.stem=unshuffle"))
+        assert not (tmp_path / "demo").exists()  # failed before writing anything
+
     def test_bad_precision(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(ValueError, match="precision='half': use auto, bf16 or fp32"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "precision=half"))
