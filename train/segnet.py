@@ -164,6 +164,8 @@ class SegNet(nn.Module):
             a window's outline on its frame's outer edge; trained with ``loss.resolution:
             input``).
         head_channels: hidden channels of the "refine" head.
+        head_layers: hidden layers of the "refine" head (1: two 3x3 convolutions, a 5x5 view;
+            each more adds a 3x3 convolution and 2 pixels of reach).
         generator: draws the initial weights (He-normal convolutions); None = global RNG.
 
     Shapes:
@@ -187,6 +189,7 @@ class SegNet(nn.Module):
         stem: str = "average",
         head: str = "bilinear",
         head_channels: int = 8,
+        head_layers: int = 1,
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
@@ -213,6 +216,8 @@ class SegNet(nn.Module):
             )
         if int(head_channels) < 1:
             raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
+        if int(head_layers) < 1:
+            raise ValueError(f"model.head_layers must be >= 1, got {head_layers}")
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -257,14 +262,14 @@ class SegNet(nn.Module):
         self.classifier = nn.Conv2d(chans[0], num_classes, 3, padding=1)
         self.head = head
         self.head_channels = int(head_channels)
+        self.head_layers = int(head_layers)
         self.refine_head: nn.Module | None = None
         if head == "refine":
             hc = self.head_channels
-            self.refine_head = nn.Sequential(
-                nn.Conv2d(num_classes + 3, hc, 3, padding=1),
-                nn.ReLU(inplace=True),
-                nn.Conv2d(hc, num_classes, 3, padding=1),
-            )
+            layers = [nn.Conv2d(num_classes + 3, hc, 3, padding=1), nn.ReLU(inplace=True)]
+            for _ in range(self.head_layers - 1):
+                layers += [nn.Conv2d(hc, hc, 3, padding=1), nn.ReLU(inplace=True)]
+            self.refine_head = nn.Sequential(*layers, nn.Conv2d(hc, num_classes, 3, padding=1))
         self._init_weights(generator)
         if self.refine_head is not None:  # the head starts as the identity: plain bilinear logits
             nn.init.zeros_(self.refine_head[-1].weight)
@@ -502,6 +507,7 @@ def model_kwargs(model_cfg: dict) -> dict:
         "stem",
         "head",
         "head_channels",
+        "head_layers",
     )
     out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
     for k in ("convs_per_stage", "mean", "std"):

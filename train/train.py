@@ -77,6 +77,7 @@ HASH_DEFAULTS = {
     "model.stem": "average",
     "model.head": "bilinear",
     "model.head_channels": 8,
+    "model.head_layers": 1,
     "loss.boundary_weight": 1.0,
     "loss.resolution": "network",
 }

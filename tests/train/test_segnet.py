@@ -184,6 +184,29 @@ class TestForward:
             _tiny(head="cubic")
         assert _tiny(head="refine").refine_head is not None  # full resolution: any stem
 
+    def test_refine_head_layers(self) -> None:
+        """head_layers=2: one more hidden 3x3 convolution, so a pixel reaches 7x7 logits; the
+        head still starts as the identity, and 0 layers is refused."""
+        kw = dict(downsample=2, skip="add", stem="unshuffle", head="refine", head_channels=4)
+        m = _tiny(head_layers=2, **kw).eval()
+        assert sum(isinstance(c, nn.Conv2d) for c in m.refine_head) == 3
+        x = torch.rand(1, 3, 32, 48)
+        with torch.no_grad():
+            low = m.forward_network_resolution(x)
+            bilinear = nn.functional.interpolate(low, size=(32, 48), mode="bilinear")
+            torch.testing.assert_close(m.to_input_resolution(low, x), bilinear)
+            for p in m.refine_head.parameters():
+                torch.nn.init.normal_(p, std=0.3)
+            y = x.clone()
+            y[:, :, 10, 10] += 0.5
+            diff = (m.to_input_resolution(low, y) - m.to_input_resolution(low, x)).abs()
+            diff = diff.amax(dim=(0, 1))
+            assert diff[7, 10] > 0 and diff[10, 13] > 0  # 3 px away: the deeper reach ...
+            diff[7:14, 7:14] = 0
+            assert diff.max() == 0  # ... and no farther
+        with pytest.raises(ValueError, match="model.head_layers"):
+            _tiny(head_layers=0, **kw)
+
     def test_skip_add_uses_encoder_features(self) -> None:
         """skip="add" changes the output of the same weights; "none" is plain SegNet."""
         plain, added = _tiny(), _tiny(skip="add")
