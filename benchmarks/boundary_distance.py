@@ -13,6 +13,13 @@ nearest cnn boundary pixel *of the same class pair* (capped at ``--cap``). Print
 class pair the count of true boundary pixels, the mean distance, and the shares within 1 px and
 beyond 3 px. With the 1-pixel tolerance of the likelihood, what lies beyond ~3 px is a boundary
 the cnn mode misses or puts elsewhere (docs/localize.md, "part 6": door jambs).
+
+Then the other way round, which side the cnn boundaries err to: for each cnn boundary pixel,
+its distance to the nearest true boundary pixel of the same pair, signed by the true class
+under it: + when it lies inside the pair's higher-id class (that class comes out too small, the
+boundary moved into it), - inside the lower-id one. Prints the mean signed offset and the
+shares at least 1.5 px off to each side: a bias a fixed correction could take out shows as a
+mean of one sign on every flight.
 """
 
 from __future__ import annotations
@@ -29,24 +36,55 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from datagen.atomic import read_png  # noqa: E402
 from datagen.dataset import Dataset  # noqa: E402
-from localize.edges import EdgeExtractor, load_segmenter  # noqa: E402
+from localize.edges import EdgeExtractor, EdgeImage, load_segmenter  # noqa: E402
 from localize.likelihood import distance_to  # noqa: E402
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
+
+
+def frame_edges(cnn, oracle, rgb: np.ndarray,
+                labels: np.ndarray) -> tuple[EdgeImage, EdgeImage]:
+    """The cnn mode's and the true (oracle) edge images of a frame."""
+    pred, conf = cnn.segment(rgb)
+    return cnn.edges(rgb, pred, conf), oracle.edges(rgb, labels)
 
 
 def pair_distances(cnn, oracle, rgb: np.ndarray, labels: np.ndarray,
                    cap: float) -> dict[int, np.ndarray]:
     """Per class-pair code, the distances (n,) float32, px, from the frame's true boundary
     pixels to the nearest cnn boundary pixel of the same pair, capped at ``cap``."""
-    pred, conf = cnn.segment(rgb)
-    ec = cnn.edges(rgb, pred, conf)
-    eo = oracle.edges(rgb, labels)
+    return true_to_cnn(*frame_edges(cnn, oracle, rgb, labels), cap)
+
+
+def true_to_cnn(ec: EdgeImage, eo: EdgeImage, cap: float) -> dict[int, np.ndarray]:
+    """``pair_distances`` of given cnn (``ec``) and true (``eo``) edge images."""
     out = {}
     for code in np.unique(eo.pairs[eo.edges]):
         true = eo.edges & (eo.pairs == code) & ec.known
         if true.any():
             out[int(code)] = np.minimum(distance_to(ec.edges & (ec.pairs == code))[true], cap)
+    return out
+
+
+def signed_offsets(ec: EdgeImage, eo: EdgeImage, labels: np.ndarray,
+                   cap: float) -> dict[int, np.ndarray]:
+    """Per class-pair code, the signed offsets (n,) float32, px, of the cnn boundary pixels
+    from the nearest true boundary pixel of the same pair, capped at ``cap``: + where the true
+    class under the pixel is the pair's higher-id class, - the lower-id one, 0 on a true
+    boundary pixel; pixels over a third class are left out.
+
+    Args:
+        ec, eo: the cnn and the true edge images of a frame (``frame_edges``), (H, W).
+        labels: (H, W) uint8 true class ids.
+    """
+    out = {}
+    for code in np.unique(ec.pairs[ec.edges & ec.known]):
+        ys, xs = np.nonzero(ec.edges & ec.known & (ec.pairs == code))
+        d = np.minimum(distance_to(eo.edges & (eo.pairs == code))[ys, xs], cap)
+        under = labels[ys, xs]
+        sign = np.where(under == code % 16, 1.0, np.where(under == code // 16, -1.0, np.nan))
+        s = np.where(d == 0, 0.0, sign * d)
+        out[int(code)] = s[~np.isnan(s)].astype(np.float32)
     return out
 
 
@@ -72,17 +110,29 @@ def main(argv: list[str] | None = None) -> int:
     for name in dataset.flight_names():
         flight = dataset.flight(name)
         found: dict[int, list[np.ndarray]] = {}
+        side: dict[int, list[np.ndarray]] = {}
         for t in range(0, len(flight.rgb), args.step):
-            frame = pair_distances(cnn, oracle, read_png(flight.rgb[t]),
-                                   read_png(flight.label[t], rgb=False), args.cap)
-            for code, d in frame.items():
+            labels = read_png(flight.label[t], rgb=False)
+            ec, eo = frame_edges(cnn, oracle, read_png(flight.rgb[t]), labels)
+            for code, d in true_to_cnn(ec, eo, args.cap).items():
                 found.setdefault(code, []).append(d)
+            for code, s in signed_offsets(ec, eo, labels, args.cap).items():
+                side.setdefault(code, []).append(s)
         print(f"flight {name}: class pair, true boundary px, mean px, within 1 px, beyond 3 px")
         for code, parts in sorted(found.items()):
             d = np.concatenate(parts)
             pair = f"{names.get(code // 16, code // 16)} | {names.get(code % 16, code % 16)}"
             print(f"  {pair:18s} {len(d):8d} {d.mean():6.2f} {np.mean(d <= 1):6.0%} "
                   f"{np.mean(d > 3):6.0%}")
+        print(f"flight {name}: class pair a | b, cnn boundary px, mean signed px (+: into b), "
+              "at least 1.5 px into a, into b")
+        for code, parts in sorted(side.items()):
+            s = np.concatenate(parts)
+            if not len(s):
+                continue
+            pair = f"{names.get(code // 16, code // 16)} | {names.get(code % 16, code % 16)}"
+            print(f"  {pair:18s} {len(s):8d} {s.mean():+6.2f} {np.mean(s <= -1.5):6.0%} "
+                  f"{np.mean(s >= 1.5):6.0%}")
     return 0
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmarks.boundary_distance import pair_distances
+from benchmarks.boundary_distance import frame_edges, pair_distances, signed_offsets
 from datagen import classes as C
 from localize.edges import EdgeExtractor, pair_code
 
@@ -45,3 +45,15 @@ def test_distances_per_pair():
     far = pair_distances(EdgeExtractor("cnn", CFG, ShiftedSegmenter(20)), oracle, rgb,
                          split(30), cap=10.0)
     assert far[wall_door].max() == 10.0  # capped
+
+
+def test_signed_offsets_name_the_side():
+    rgb = np.zeros((20, 60, 3), np.uint8)
+    oracle = EdgeExtractor("oracle", CFG)
+    wall_door = pair_code(C.WALL, C.DOOR)
+    for shift, want in ((0, [0.0]), (3, [2.0, 3.0]), (-3, [-3.0, -2.0])):
+        ec, eo = frame_edges(EdgeExtractor("cnn", CFG, ShiftedSegmenter(shift)), oracle, rgb,
+                             split(30))
+        s = signed_offsets(ec, eo, split(30), cap=10.0)
+        # door (the higher id) starts 3 px late: the boundary lies inside the true door, +
+        np.testing.assert_array_equal(np.unique(s[wall_door]), want)
