@@ -36,7 +36,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from datagen.atomic import read_png  # noqa: E402
 from datagen.dataset import Dataset  # noqa: E402
-from localize.edges import EdgeExtractor, EdgeImage, load_segmenter  # noqa: E402
+from localize.edges import (  # noqa: E402
+    EdgeExtractor,
+    EdgeImage,
+    load_segmenter,
+    pair_classes,
+    pair_name,
+)
 from localize.likelihood import distance_to  # noqa: E402
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
@@ -81,8 +87,9 @@ def signed_offsets(ec: EdgeImage, eo: EdgeImage, labels: np.ndarray,
     for code in np.unique(ec.pairs[ec.edges & ec.known]):
         ys, xs = np.nonzero(ec.edges & ec.known & (ec.pairs == code))
         d = np.minimum(distance_to(eo.edges & (eo.pairs == code))[ys, xs], cap)
+        lower, higher = pair_classes(int(code))
         under = labels[ys, xs]
-        sign = np.where(under == code % 16, 1.0, np.where(under == code // 16, -1.0, np.nan))
+        sign = np.where(under == higher, 1.0, np.where(under == lower, -1.0, np.nan))
         s = np.where(d == 0, 0.0, sign * d)
         out[int(code)] = s[~np.isnan(s)].astype(np.float32)
     return out
@@ -121,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"flight {name}: class pair, true boundary px, mean px, within 1 px, beyond 3 px")
         for code, parts in sorted(found.items()):
             d = np.concatenate(parts)
-            pair = f"{names.get(code // 16, code // 16)} | {names.get(code % 16, code % 16)}"
+            pair = pair_name(code, names)
             print(f"  {pair:18s} {len(d):8d} {d.mean():6.2f} {np.mean(d <= 1):6.0%} "
                   f"{np.mean(d > 3):6.0%}")
         print(f"flight {name}: class pair a | b, cnn boundary px, mean signed px (+: into b), "
@@ -130,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
             s = np.concatenate(parts)
             if not len(s):
                 continue
-            pair = f"{names.get(code // 16, code // 16)} | {names.get(code % 16, code % 16)}"
+            pair = pair_name(code, names)
             print(f"  {pair:18s} {len(s):8d} {s.mean():+6.2f} {np.mean(s <= -1.5):6.0%} "
                   f"{np.mean(s >= 1.5):6.0%}")
     return 0

@@ -34,7 +34,7 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from datagen.atomic import read_png  # noqa: E402
-from localize.edges import EdgeExtractor  # noqa: E402
+from localize.edges import EdgeExtractor, pair_name  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.particle_filter import estimate as estimate_pose  # noqa: E402
 from localize.projection import ModelSamples, tilt_from_pose  # noqa: E402
@@ -150,8 +150,7 @@ def main(argv: list[str] | None = None) -> int:
           "summed (negative: the edges pull back to the truth)")
     print(f"  {'model lines':18s}" + "".join(f" {m + ' edges':>13s}" for m in args.edges))
     for key in total[args.edges[0]]:
-        label = key if key == "all" else (f"{names.get(int(key) // 16, int(key) // 16)} | "
-                                          f"{names.get(int(key) % 16, int(key) % 16)}")
+        label = key if key == "all" else pair_name(int(key), names)
         print(f"  {label:18s}" + "".join(f" {total[m].get(key, 0.0):+13.2f}"
                                          for m in args.edges))
     return 0

@@ -136,6 +136,17 @@ def pair_code(a, b) -> np.ndarray:
     return (16 * np.minimum(a, b) + np.maximum(a, b)).astype(np.uint8)
 
 
+def pair_classes(code):
+    """The two class ids (lower, higher) of a ``pair_code``; scalars or arrays of one shape."""
+    return code // 16, code % 16
+
+
+def pair_name(code: int, names: Mapping[int, str]) -> str:
+    """``"wall | door"`` for a ``pair_code``, from class names by id (an unnamed id as itself)."""
+    a, b = pair_classes(int(code))
+    return f"{names.get(a, a)} | {names.get(b, b)}"
+
+
 def _check_rgb(rgb: np.ndarray) -> None:
     if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
         raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")

@@ -21,7 +21,9 @@ from localize.edges import (
     class_log_prior,
     label_edges,
     load_segmenter,
+    pair_classes,
     pair_code,
+    pair_name,
     snap_to_image_edges,
     structural_prior_labels,
 )
@@ -75,6 +77,8 @@ class TestLabelEdges:
                                                                                   C.WINDOW)
         with pytest.raises(ValueError, match="below 16"):
             pair_code(3, 16)
+        assert pair_classes(int(pair_code(C.DOOR, C.WALL))) == (C.WALL, C.DOOR)
+        assert pair_name(pair_code(C.DOOR, C.WALL), {C.WALL: "wall"}) == f"wall | {C.DOOR}"
 
     def test_dilation_grows_unknown(self):
         a = label_edges(two_walls(), dilate_px=0)
