@@ -220,19 +220,43 @@ def write_metadata(job: Job, variant: str) -> None:
 
 
 def check_existing(cfg: Mapping, out: Path) -> None:
-    """Refuse to mix two configs in one output directory (before any rendering)."""
+    """Refuse to mix two configs in one output directory (before any rendering).
+
+    One change is allowed: more frames in a split (``splits.train=12800`` on a dataset of
+    6400). A frame depends only on the seed, its split and its index, so the frames already
+    there are the ones the larger config would render, and only the new ones are rendered.
+    """
     meta = out / "dataset.json"
     if not meta.is_file():
         return
-    old = json.loads(meta.read_text()).get("config_hash")
+    old_meta = json.loads(meta.read_text())
+    old = old_meta.get("config_hash")
     if old == config_hash(cfg):
         return
     if cfg.get("overwrite"):
         log.warning("overwrite=true: deleting %s, made with another config", out)
         shutil.rmtree(out)
         return
+    grown = _grown_splits(old_meta.get("generator"), cfg)
+    if grown:
+        log.info("%s: growing %s; the frames already rendered are kept", out, grown)
+        return
     raise ValueError(f"{out} holds a dataset made with another config (hash {old}, now "
-                     f"{config_hash(cfg)}). Use another name=..., or overwrite=true to replace it.")
+                     f"{config_hash(cfg)}). Use another name=..., or overwrite=true to replace it "
+                     "(only raising splits.<split> counts re-uses an existing dataset).")
+
+
+def _grown_splits(old: Mapping | None, cfg: Mapping) -> str:
+    """'train 6400 -> 12800, ...' if cfg differs from the old generator config only by larger
+    split counts, else ''."""
+    new = json.loads(json.dumps({k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}))
+    if not old or {**old, "splits": None} != {**new, "splits": None}:
+        return ""
+    before = {s: int(old["splits"].get(s, 0)) for s in SPLITS}
+    after = {s: int(new["splits"].get(s, 0)) for s in SPLITS}
+    if any(after[s] < before[s] for s in SPLITS):
+        return ""
+    return ", ".join(f"{s} {before[s]} -> {after[s]}" for s in SPLITS if after[s] != before[s])
 
 
 def frame_done(d: Path, index: int, depth: bool) -> bool:

@@ -139,6 +139,23 @@ class TestBadConfig:
                           "overwrite=true"), progress=False)
         assert json.loads((out / "dataset.json").read_text())["seed"] == 3
 
+    def test_more_frames_grow_the_dataset(self, tmp_path):
+        out, base = tmp_path / "ds", ["splits.val=0", "render_flights=[]"]
+        gen.run(small_cfg(out, *base, "splits.train=2"), progress=False)
+        first = tree_bytes(out / "train" / "rgb")
+        gen.run(small_cfg(out, *base, "splits.train=4"), progress=False)
+        assert Dataset(out).meta["counts"]["train"] == 4
+        grown = tree_bytes(out / "train" / "rgb")
+        assert sorted(grown) == ["000000.png", "000001.png", "000002.png", "000003.png"]
+        assert all(grown[k] == first[k] for k in first), "existing frames must be kept"
+        fresh = tmp_path / "fresh"
+        gen.run(small_cfg(fresh, *base, "splits.train=4"), progress=False)
+        a = read_png(fresh / "train" / "rgb" / "000003.png").astype(int)
+        b = read_png(out / "train" / "rgb" / "000003.png").astype(int)
+        assert np.abs(a - b).max() <= 1, "a grown frame is the frame a fresh run renders"
+        with pytest.raises(ValueError, match="another config"):  # fewer frames: refused
+            gen.run(small_cfg(out, *base, "splits.train=3"), progress=False)
+
     def test_missing_dataset_error(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m datagen"):
             Dataset(tmp_path / "nope")
