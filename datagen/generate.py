@@ -49,9 +49,13 @@ def flight_stream(name: str) -> int:
     return 1000 + zlib.crc32(name.encode()) % 1_000_000
 
 
+def content_config(cfg: Mapping) -> dict:
+    """The keys of cfg that decide the dataset's content (dataset.json's ``generator``)."""
+    return {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}
+
+
 def config_hash(cfg: Mapping) -> str:
-    content = {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}
-    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
+    return hashlib.sha256(json.dumps(content_config(cfg), sort_keys=True).encode()).hexdigest()[:16]
 
 
 def make_camera(cam_cfg: Mapping) -> Camera:
@@ -200,7 +204,7 @@ def write_metadata(job: Job, variant: str) -> None:
         "config_hash": config_hash(cfg),
         "counts": {**{s: int(cfg["splits"].get(s, 0)) for s in SPLITS},
                    "flights": {k: int(v["groundtruth"].shape[0]) for k, v in job.flights.items()}},
-        "generator": {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS},
+        "generator": content_config(cfg),
         "software": software_versions(variant),
     }
     save_world(out / "world", job.model)
@@ -249,7 +253,7 @@ def check_existing(cfg: Mapping, out: Path) -> None:
 def _grown_splits(old: Mapping | None, cfg: Mapping) -> str:
     """'train 6400 -> 12800, ...' if cfg differs from the old generator config only by larger
     split counts, else ''."""
-    new = json.loads(json.dumps({k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}))
+    new = json.loads(json.dumps(content_config(cfg)))  # as dataset.json stores it
     if not old or {**old, "splits": None} != {**new, "splits": None}:
         return ""
     before = {s: int(old["splits"].get(s, 0)) for s in SPLITS}
