@@ -38,6 +38,8 @@ log = logging.getLogger(__name__)
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 # Keys that do not change the dataset's content (left out of the config hash).
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir")
+#: training options, and the value at which each changes nothing (see ``content_config``)
+NEUTRAL_TRAINING = {"flight_views": 0.0}
 
 
 def rng_for(seed: int, *keys: int) -> np.random.Generator:
@@ -50,8 +52,17 @@ def flight_stream(name: str) -> int:
 
 
 def content_config(cfg: Mapping) -> dict:
-    """The keys of cfg that decide the dataset's content (dataset.json's ``generator``)."""
-    return {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}
+    """The keys of cfg that decide the dataset's content (dataset.json's ``generator``).
+
+    A ``training`` option added after datasets were made (``NEUTRAL_TRAINING``) is left out
+    at its neutral value, which renders what was rendered before it existed: those datasets
+    keep their hash and stay valid.
+    """
+    out = {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}
+    if "training" in out:
+        out["training"] = {k: v for k, v in out["training"].items()
+                           if NEUTRAL_TRAINING.get(k, object()) != v}
+    return out
 
 
 def config_hash(cfg: Mapping) -> str:
@@ -138,6 +149,33 @@ def _check_inside(model: CorridorModel, camera: Camera, poses: np.ndarray, where
                          "and the flight preset's trajectory")
 
 
+def poses_of_split(cfg: Mapping, world, split: str) -> np.ndarray:
+    """(N, 4, 4) body poses of a split's frames; frame i's depends only on (seed, split, i).
+
+    A share ``training.flight_views`` of them (decided per frame by its own generator) are
+    posed as the flights fly (``trajectories.sample_flight_views``), the others spread over
+    the free space (``trajectories.sample_training_poses``).
+    """
+    tr = cfg["training"]
+    share = float(tr.get("flight_views", 0.0))
+    if not 0.0 <= share <= 1.0:
+        raise ValueError(f"training.flight_views={share} must be a share in [0, 1]")
+    presets = list(cfg["flights"].values())
+    stream = SPLIT_STREAM[split]
+    poses = np.zeros((int(cfg["splits"].get(split, 0)), 4, 4))
+    for i in range(len(poses)):
+        if share > 0 and rng_for(cfg["seed"], stream, i, 3).random() < share:
+            poses[i] = trajectories.sample_flight_views(
+                rng_for(cfg["seed"], stream, i, 4), 1, world.free_boxes, world.z_range,
+                presets)[0]
+        else:
+            poses[i] = trajectories.sample_training_poses(
+                rng_for(cfg["seed"], stream, i, 0), 1, world.free_boxes, world.z_range,
+                tr["max_roll_pitch_deg"], float(tr.get("yaw_along_corridor", 0.0)),
+                float(tr.get("yaw_spread_deg", 50.0)))[0]
+    return poses
+
+
 def prepare(cfg: Mapping) -> Job:
     """Resolve and validate a datagen config; build the world and every pose. No rendering."""
     cfg = dict(cfg)
@@ -147,13 +185,7 @@ def prepare(cfg: Mapping) -> Job:
     w = model.world
     split_poses = {}
     for split in SPLITS:
-        n = int(cfg["splits"].get(split, 0))
-        rngs = [rng_for(cfg["seed"], SPLIT_STREAM[split], i, 0) for i in range(n)]
-        poses = np.stack([trajectories.sample_training_poses(
-            r, 1, w.free_boxes, w.z_range, cfg["training"]["max_roll_pitch_deg"],
-            float(cfg["training"].get("yaw_along_corridor", 0.0)),
-            float(cfg["training"].get("yaw_spread_deg", 50.0)))[0]
-            for r in rngs]) if n else np.zeros((0, 4, 4))
+        poses = poses_of_split(cfg, w, split)
         _check_inside(model, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}
@@ -228,7 +260,8 @@ def check_existing(cfg: Mapping, out: Path) -> None:
 
     One change is allowed: more frames in a split (``splits.train=12800`` on a dataset of
     6400). A frame depends only on the seed, its split and its index, so the frames already
-    there are the ones the larger config would render, and only the new ones are rendered.
+    there are the ones the larger config would render, and only the new ones are rendered
+    (with ``overwrite=true`` too: deleting them would only render them again).
     """
     meta = out / "dataset.json"
     if not meta.is_file():
@@ -237,13 +270,13 @@ def check_existing(cfg: Mapping, out: Path) -> None:
     old = old_meta.get("config_hash")
     if old == config_hash(cfg):
         return
+    grown = _grown_splits(old_meta.get("generator"), cfg)
+    if grown:  # even with overwrite=true: the frames there are the ones it would render
+        log.info("%s: growing %s; the frames already rendered are kept", out, grown)
+        return
     if cfg.get("overwrite"):
         log.warning("overwrite=true: deleting %s, made with another config", out)
         shutil.rmtree(out)
-        return
-    grown = _grown_splits(old_meta.get("generator"), cfg)
-    if grown:
-        log.info("%s: growing %s; the frames already rendered are kept", out, grown)
         return
     raise ValueError(f"{out} holds a dataset made with another config (hash {old}, now "
                      f"{config_hash(cfg)}). Use another name=..., or overwrite=true to replace it "

@@ -117,6 +117,38 @@ def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
     return pose_from_xyz_rpy(np.column_stack([xy, height]), np.column_stack([tilt, yaw]))
 
 
+def sample_flight_views(rng: np.random.Generator, n: int, boxes: np.ndarray,
+                        z_range: np.ndarray, presets: list[Mapping]) -> np.ndarray:
+    """Camera body poses as the flights see the corridor, for training images.
+
+    Each pose is a random frame of its own flight (``flight_trajectory``) of a random preset,
+    flown along +Y or -Y with equal chance: heights, lateral sway, yaw swings and tilts as
+    flown, over the stretch of corridor a flight covers.
+
+    Args:
+        rng: random generator.
+        n: number of poses.
+        boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
+        z_range: (2,) allowed heights (m).
+        presets: flight presets (conf/flights/default.yaml's entries), each with
+            ``num_frames`` and ``fps``.
+
+    Returns:
+        (n, 4, 4) world_from_body.
+    """
+    if not presets:
+        raise ValueError("training.flight_views needs at least one preset under `flights`")
+    out = np.empty((n, 4, 4))
+    for i in range(n):
+        preset = presets[rng.integers(len(presets))]
+        trajectory = {**_section(preset, "trajectory", TRAJECTORY_DEFAULTS),
+                      "reverse": bool(rng.random() < 0.5)}
+        poses = flight_trajectory(rng, int(preset["num_frames"]), float(preset["fps"]), boxes,
+                                  z_range, {"trajectory": trajectory})
+        out[i] = poses[rng.integers(len(poses))]
+    return out
+
+
 def smooth_noise(rng: np.random.Generator, t: np.ndarray, freq_hz: tuple[float, float],
                  terms: int = 4) -> np.ndarray:
     """Smooth random signal: a sum of sinusoids with random frequencies and phases.

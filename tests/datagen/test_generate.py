@@ -148,6 +148,9 @@ class TestBadConfig:
         grown = tree_bytes(out / "train" / "rgb")
         assert sorted(grown) == ["000000.png", "000001.png", "000002.png", "000003.png"]
         assert all(grown[k] == first[k] for k in first), "existing frames must be kept"
+        gen.run(small_cfg(out, *base, "splits.train=5", "overwrite=true"), progress=False)
+        assert all(tree_bytes(out / "train" / "rgb")[k] == grown[k] for k in grown), \
+            "overwrite=true grows too: deleting the frames would only render them again"
         fresh = tmp_path / "fresh"
         gen.run(small_cfg(fresh, *base, "splits.train=4"), progress=False)
         a = read_png(fresh / "train" / "rgb" / "000003.png").astype(int)
@@ -155,6 +158,22 @@ class TestBadConfig:
         assert np.abs(a - b).max() <= 1, "a grown frame is the frame a fresh run renders"
         with pytest.raises(ValueError, match="another config"):  # fewer frames: refused
             gen.run(small_cfg(out, *base, "splits.train=3"), progress=False)
+
+    def test_flight_views_share(self):
+        cfg = small_cfg(Path("unused"), "splits.train=400")
+        base = gen.prepare(cfg).split_poses["train"]
+        assert gen.config_hash(cfg) == gen.config_hash(
+            {**cfg, "training": {k: v for k, v in cfg["training"].items()
+                                 if k != "flight_views"}}), "the neutral share keeps old hashes"
+        cfg["training"]["flight_views"] = 0.5
+        mixed = gen.prepare(cfg).split_poses["train"]
+        kept = np.all(mixed == base, axis=(1, 2))
+        assert kept.mean() == pytest.approx(0.5, abs=0.08), "the other frames are unchanged"
+        heights = mixed[~kept, 2, 3]
+        assert heights.min() >= 0.8 and heights.max() <= 1.7  # the flights' heights
+        cfg["training"]["flight_views"] = 1.5
+        with pytest.raises(ValueError, match="training.flight_views"):
+            gen.prepare(cfg)
 
     def test_missing_dataset_error(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m datagen"):

@@ -77,6 +77,28 @@ class TestTrainingPoses:
             TR.sample_training_poses(np.random.default_rng(0), 3, np.zeros((0, 4)), Z)
 
 
+class TestFlightViews:
+    def test_posed_as_the_flights(self, flights):
+        presets = [flights.paper, flights.cluttered]
+        T = TR.sample_flight_views(np.random.default_rng(0), 300, BOXES, Z, presets)
+        assert T.shape == (300, 4, 4)
+        assert_rigid(T)
+        s = xyzyaw_from_pose(T)
+        # in the main corridor, at the presets' heights (+- sway), both directions
+        assert np.all((s[:, 0] > -0.7) & (s[:, 0] < 0.7) & (s[:, 1] > 0.3) & (s[:, 1] < 9.7))
+        assert np.all((s[:, 2] >= 1.0 - 0.2 - 1e-9) & (s[:, 2] <= 1.5 + 0.2 + 1e-9))
+        off_axis = np.abs(np.abs(s[:, 3]) - np.pi / 2)
+        assert off_axis.max() <= np.deg2rad(40.0) + 1e-9  # the presets' largest yaw swing
+        assert (s[:, 3] > 0).mean() == pytest.approx(0.5, abs=0.1)
+        assert np.abs(rpy(T)[:, :2]).max() <= np.deg2rad(8.0) + 1e-9
+        again = TR.sample_flight_views(np.random.default_rng(0), 300, BOXES, Z, presets)
+        np.testing.assert_array_equal(T, again)
+
+    def test_needs_a_preset(self):
+        with pytest.raises(ValueError, match="flight_views"):
+            TR.sample_flight_views(np.random.default_rng(0), 2, BOXES, Z, [])
+
+
 class TestFlight:
     @pytest.mark.parametrize("preset", ["paper", "cluttered"])
     def test_inside_smooth_forward(self, preset, flights):
