@@ -9,6 +9,7 @@ kernels; docs/datagen.md).
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import logging
@@ -29,6 +30,7 @@ from datagen import appearance, distractors, trajectories
 from datagen import classes as C
 from datagen.atomic import atomic_write_json, write_png
 from datagen.camera import intrinsics
+from datagen.config import drop_defaults
 from datagen.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from datagen.poses import pose_from_xyz_rpy, write_tum
 from datagen.world import MAIN, OPENING, CorridorModel, build_world
@@ -38,8 +40,9 @@ log = logging.getLogger(__name__)
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 # Keys that do not change the dataset's content (left out of the config hash).
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir")
-#: training options, and the value at which each changes nothing (see ``content_config``)
-NEUTRAL_TRAINING = {"flight_views": 0.0}
+#: Keys added after datasets were made, with the value that renders what was rendered before
+#: them: left out of the hash at that value, so those datasets keep their hash.
+HASH_DEFAULTS = {"training.flight_views": 0.0}
 
 
 def rng_for(seed: int, *keys: int) -> np.random.Generator:
@@ -52,16 +55,11 @@ def flight_stream(name: str) -> int:
 
 
 def content_config(cfg: Mapping) -> dict:
-    """The keys of cfg that decide the dataset's content (dataset.json's ``generator``).
-
-    A ``training`` option added after datasets were made (``NEUTRAL_TRAINING``) is left out
-    at its neutral value, which renders what was rendered before it existed: those datasets
-    keep their hash and stay valid.
-    """
-    out = {k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS}
-    if "training" in out:
-        out["training"] = {k: v for k, v in out["training"].items()
-                           if NEUTRAL_TRAINING.get(k, object()) != v}
+    """The keys of cfg that decide the dataset's content (dataset.json's ``generator``): all
+    but ``NON_CONTENT_KEYS``, and the ``HASH_DEFAULTS`` keys at their earlier behaviour (a
+    copy; cfg is not changed)."""
+    out = copy.deepcopy({k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS})
+    drop_defaults(out, HASH_DEFAULTS)
     return out
 
 
@@ -157,7 +155,7 @@ def poses_of_split(cfg: Mapping, world, split: str) -> np.ndarray:
     the free space (``trajectories.sample_training_poses``).
     """
     tr = cfg["training"]
-    share = float(tr.get("flight_views", 0.0))
+    share = float(tr.get("flight_views", HASH_DEFAULTS["training.flight_views"]))
     if not 0.0 <= share <= 1.0:
         raise ValueError(f"training.flight_views={share} must be a share in [0, 1]")
     presets = list(cfg["flights"].values())

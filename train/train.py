@@ -32,6 +32,7 @@ from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
 from datagen.atomic import atomic_write, atomic_write_json, atomic_write_text
+from datagen.config import drop_defaults, drop_key
 from datagen.dataset import Dataset
 from train.data import (
     AugmentConfig,
@@ -96,25 +97,13 @@ OUTPUT_FILES = (
 # ----------------------------------------------------------------------------- config, resume
 
 
-def _drop(d: dict, dotted: str) -> None:
-    head, _, rest = dotted.partition(".")
-    if rest:
-        if isinstance(d.get(head), dict):
-            _drop(d[head], rest)
-    else:
-        d.pop(head, None)
-
-
 def training_config(cfg: DictConfig) -> dict:
     """The part of the config that determines the trained weights (resolved, plain dict)."""
     d = OmegaConf.to_container(cfg, resolve=True)
     d.pop("hydra", None)
     for key in HASH_EXCLUDE:
-        _drop(d, key)
-    for key, old in HASH_DEFAULTS.items():  # keys added later, at their old behaviour
-        group, _, name = key.partition(".")
-        if d.get(group, {}).get(name, old) == old:
-            _drop(d, key)
+        drop_key(d, key)
+    drop_defaults(d, HASH_DEFAULTS)  # keys added later, at their old behaviour
     return d
 
 
