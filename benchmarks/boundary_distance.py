@@ -20,6 +20,14 @@ under it: + when it lies inside the pair's higher-id class (that class comes out
 boundary moved into it), - inside the lower-id one. Prints the mean signed offset and the
 shares at least 1.5 px off to each side: a bias a fixed correction could take out shows as a
 mean of one sign on every flight.
+
+Last, before any snap or median, where the network's own decision crosses: for each pair of
+4-neighbour pixels the true labels give two structural classes a | b, whether the decision
+between a and b (the logits with the cnn mode's prior correction; ``logit_crossings``) changes
+sign between the two pixels (the boundary within half a pixel of the true one) or lies beyond
+one of them. Prints per pair the share between the two pixels and the shares beyond into a and
+into b: how often the network places a boundary to the pixel, which the distances above, in
+whole pixels of the snapped edges, cannot tell.
 """
 
 from __future__ import annotations
@@ -35,12 +43,14 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from datagen.atomic import read_png  # noqa: E402
+from datagen.classes import STRUCTURAL  # noqa: E402
 from datagen.dataset import Dataset  # noqa: E402
 from localize.edges import (  # noqa: E402
     EdgeExtractor,
     EdgeImage,
     load_segmenter,
     pair_classes,
+    pair_code,
     pair_name,
 )
 from localize.likelihood import distance_to  # noqa: E402
@@ -95,6 +105,51 @@ def signed_offsets(ec: EdgeImage, eo: EdgeImage, labels: np.ndarray,
     return out
 
 
+def logit_crossings(z: np.ndarray, labels: np.ndarray,
+                    structural: tuple[int, ...]) -> dict[int, np.ndarray]:
+    """Where the network's decision crosses at the true class changes, per class-pair code.
+
+    Args:
+        z: (C, H, W) float class scores as the cnn mode decides by them (logits minus the
+            prior correction).
+        labels: (H, W) true class ids.
+        structural: the class ids of the model.
+
+    Returns:
+        Per pair code, (n,) int8 over the n pairs of 4-neighbour pixels p, q whose true
+        classes are two structural classes: 0 where z_b - z_a changes sign from p (class a)
+        to q (class b), the boundary within half a pixel of the true one; +1 where it lies
+        beyond, inside the pair's higher-id class (which comes out too small); -1 inside the
+        lower-id one. Signs as ``signed_offsets``.
+    """
+    lab = labels.astype(np.int64)
+    is_s = np.zeros(max(int(lab.max()), max(structural)) + 1, dtype=bool)
+    is_s[list(structural)] = True
+    out: dict[int, list[np.ndarray]] = {}
+    for dy, dx in ((0, 1), (1, 0)):
+        a = lab[: lab.shape[0] - dy, : lab.shape[1] - dx]
+        b = lab[dy:, dx:]
+        ys, xs = np.nonzero((a != b) & is_s[a] & is_s[b])
+        ca, cb = a[ys, xs], b[ys, xs]
+        f_p = z[cb, ys, xs] - z[ca, ys, xs]  # at p (true class a): should be < 0
+        f_q = z[cb, ys + dy, xs + dx] - z[ca, ys + dy, xs + dx]  # at q (class b): > 0
+        # beyond p: b reaches into a; beyond q: a reaches into b
+        side = np.where(f_p >= 0, -1, np.where(f_q <= 0, 1, 0))
+        side = np.where(cb > ca, side, -side).astype(np.int8)  # + into the higher id
+        code = pair_code(np.minimum(ca, cb), np.maximum(ca, cb))
+        for c in np.unique(code):
+            out.setdefault(int(c), []).append(side[code == c])
+    return {c: np.concatenate(v) for c, v in out.items()}
+
+
+def decision_scores(cnn, rgb: np.ndarray) -> np.ndarray:
+    """(C, H, W) the scores the cnn mode's structural decision takes the argmax of: the
+    logits, minus its prior correction when it has one."""
+    z = np.asarray(cnn.segmenter.logits(rgb), dtype=np.float32)
+    return z if cnn.log_prior is None else z - np.asarray(cnn.log_prior,
+                                                          np.float32)[:, None, None]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dataset", default="outputs/datasets/demo")
@@ -118,9 +173,14 @@ def main(argv: list[str] | None = None) -> int:
         flight = dataset.flight(name)
         found: dict[int, list[np.ndarray]] = {}
         side: dict[int, list[np.ndarray]] = {}
+        cross: dict[int, list[np.ndarray]] = {}
         for t in range(0, len(flight.rgb), args.step):
             labels = read_png(flight.label[t], rgb=False)
-            ec, eo = frame_edges(cnn, oracle, read_png(flight.rgb[t]), labels)
+            rgb = read_png(flight.rgb[t])
+            ec, eo = frame_edges(cnn, oracle, rgb, labels)
+            z = decision_scores(cnn, rgb)
+            for code, c in logit_crossings(z, labels, STRUCTURAL).items():
+                cross.setdefault(code, []).append(c)
             for code, d in true_to_cnn(ec, eo, args.cap).items():
                 found.setdefault(code, []).append(d)
             for code, s in signed_offsets(ec, eo, labels, args.cap).items():
@@ -140,6 +200,13 @@ def main(argv: list[str] | None = None) -> int:
             pair = pair_name(code, names)
             print(f"  {pair:18s} {len(s):8d} {s.mean():+6.2f} {np.mean(s <= -1.5):6.0%} "
                   f"{np.mean(s >= 1.5):6.0%}")
+        print(f"flight {name}: class pair a | b, true class changes, the network's decision "
+              "crossing between the two pixels, beyond them into a, into b")
+        for code, parts in sorted(cross.items()):
+            c = np.concatenate(parts)
+            pair = pair_name(code, names)
+            print(f"  {pair:18s} {len(c):8d} {np.mean(c == 0):6.0%} {np.mean(c < 0):6.0%} "
+                  f"{np.mean(c > 0):6.0%}")
     return 0
 
 

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmarks.boundary_distance import frame_edges, pair_distances, signed_offsets
+from benchmarks.boundary_distance import (
+    decision_scores,
+    frame_edges,
+    logit_crossings,
+    pair_distances,
+    signed_offsets,
+)
 from datagen import classes as C
 from localize.edges import EdgeExtractor, pair_code
 
@@ -57,3 +63,47 @@ def test_signed_offsets_name_the_side():
         s = signed_offsets(ec, eo, split(30), cap=10.0)
         # door (the higher id) starts 3 px late: the boundary lies inside the true door, +
         np.testing.assert_array_equal(np.unique(s[wall_door]), want)
+
+
+class RampSegmenter:
+    """Logits of the ``split`` layout whose wall | door decision crosses at column ``c`` (a
+    ramp, sub-pixel), ceiling in the top 4 rows, or of its mirror image; class weights give
+    wall ``e`` (log 1)."""
+
+    def __init__(self, c: float, mirror: bool = False):
+        self.c, self.mirror = c, mirror
+        self.classes = C.as_json()
+        self.metadata = {"class_weights": {k["name"]: (np.e if k["id"] == C.WALL else 1.0)
+                                           for k in self.classes}}
+        self.path = "ramp.onnx"
+
+    def logits(self, rgb: np.ndarray) -> np.ndarray:
+        z = np.full((len(self.classes), 20, 60), -20.0, np.float32)
+        f = np.arange(60, dtype=np.float32) - np.float32(self.c)
+        z[C.DOOR] = f / 2
+        z[C.WALL] = -f / 2
+        z[C.CEILING, :4] = 20.0
+        return z[..., ::-1] if self.mirror else z
+
+
+def test_logit_crossings_place_the_decision_to_the_pixel():
+    # wall columns 0-29, door from 30 (mirrored: door 0-29, wall from 30): the true change
+    # lies between columns 29 and 30
+    wall_door = pair_code(C.WALL, C.DOOR)
+    cfg = {**CFG, "cnn": {**CFG["cnn"], "prior_correction": 0.0}}
+    for mirror in (False, True):
+        truth = split(30)[:, ::-1] if mirror else split(30)
+        for c, want in ((29.5, 0), (29.1, 0), (30.9, 1), (28.5, -1)):
+            ex = EdgeExtractor("cnn", cfg, RampSegmenter(c, mirror))
+            got = logit_crossings(decision_scores(ex, None), truth, C.STRUCTURAL)
+            # +: the boundary lies inside the true door (the higher id), which comes out small
+            np.testing.assert_array_equal(np.unique(got[wall_door]), [want])
+            assert len(got[wall_door]) == 16  # one per row below the ceiling
+            np.testing.assert_array_equal(got[pair_code(C.WALL, C.CEILING)], 0)
+    truth = split(30)
+    # the prior correction takes log w_wall = 1 off the wall's score: the door's ramp wins one
+    # pixel earlier (30.9 -> 29.9 lies between the two pixels again)
+    cfg = {**CFG, "cnn": {**CFG["cnn"], "prior_correction": 1.0}}
+    ex = EdgeExtractor("cnn", cfg, RampSegmenter(30.9))
+    got = logit_crossings(decision_scores(ex, None), truth, C.STRUCTURAL)
+    np.testing.assert_array_equal(np.unique(got[wall_door]), [0])
