@@ -48,10 +48,12 @@ from datagen.dataset import Dataset  # noqa: E402
 from localize.edges import (  # noqa: E402
     EdgeExtractor,
     EdgeImage,
+    class_changes,
     load_segmenter,
     pair_classes,
     pair_code,
     pair_name,
+    structural_mask,
 )
 from localize.likelihood import distance_to  # noqa: E402
 
@@ -112,7 +114,7 @@ def logit_crossings(z: np.ndarray, labels: np.ndarray,
     Args:
         z: (C, H, W) float class scores as the cnn mode decides by them (logits minus the
             prior correction).
-        labels: (H, W) true class ids.
+        labels: (H, W) uint8 true class ids.
         structural: the class ids of the model.
 
     Returns:
@@ -122,21 +124,18 @@ def logit_crossings(z: np.ndarray, labels: np.ndarray,
         beyond, inside the pair's higher-id class (which comes out too small); -1 inside the
         lower-id one. Signs as ``signed_offsets``.
     """
-    lab = labels.astype(np.int64)
-    is_s = np.zeros(max(int(lab.max()), max(structural)) + 1, dtype=bool)
-    is_s[list(structural)] = True
+    labels = np.ascontiguousarray(labels, dtype=np.uint8)
     out: dict[int, list[np.ndarray]] = {}
-    for dy, dx in ((0, 1), (1, 0)):
-        a = lab[: lab.shape[0] - dy, : lab.shape[1] - dx]
-        b = lab[dy:, dx:]
-        ys, xs = np.nonzero((a != b) & is_s[a] & is_s[b])
-        ca, cb = a[ys, xs], b[ys, xs]
+    changes = class_changes(labels, structural_mask(labels, structural))
+    for (dy, dx), (diff, a, b) in zip(((1, 0), (0, 1)), changes, strict=True):
+        ys, xs = np.nonzero(diff)
+        ca, cb = a[ys, xs].astype(np.intp), b[ys, xs].astype(np.intp)
         f_p = z[cb, ys, xs] - z[ca, ys, xs]  # at p (true class a): should be < 0
         f_q = z[cb, ys + dy, xs + dx] - z[ca, ys + dy, xs + dx]  # at q (class b): > 0
         # beyond p: b reaches into a; beyond q: a reaches into b
         side = np.where(f_p >= 0, -1, np.where(f_q <= 0, 1, 0))
         side = np.where(cb > ca, side, -side).astype(np.int8)  # + into the higher id
-        code = pair_code(np.minimum(ca, cb), np.maximum(ca, cb))
+        code = pair_code(ca, cb)
         for c in np.unique(code):
             out.setdefault(int(c), []).append(side[code == c])
     return {c: np.concatenate(v) for c, v in out.items()}

@@ -309,6 +309,37 @@ def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
 
 
+def structural_mask(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL
+                    ) -> np.ndarray:
+    """(H, W) bool: the pixels of ``labels`` (uint8 class ids) whose class is structural."""
+    lut = np.zeros(256, dtype=bool)
+    lut[list(structural)] = True
+    return lut[labels]
+
+
+def class_changes(labels: np.ndarray, struct: np.ndarray
+                  ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+    """The 4-neighbour pixel pairs p, q whose classes are two different structural classes.
+
+    Args:
+        labels: (H, W) class ids.
+        struct: (H, W) bool, the structural pixels (``structural_mask``).
+
+    Returns:
+        For axis 0 (q below p) and axis 1 (q right of p): ``(diff, a, b)``, each (H - 1, W)
+        or (H, W - 1): ``diff`` true at the p of each such pair, ``a`` and ``b`` the classes
+        of p and q.
+    """
+    out = []
+    for axis in (0, 1):
+        a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
+        b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
+        sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
+        sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
+        out.append(((a != b) & sa & sb, a, b))
+    return tuple(out)
+
+
 def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
                 dilate_px: int = 3, median: int = 0) -> EdgeImage:
     """Boundaries between different structural classes, and the mask of unknown pixels.
@@ -333,17 +364,10 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
     labels = np.ascontiguousarray(labels, dtype=np.uint8)
     if median and median > 1:
         labels = cv2.medianBlur(labels, int(median) | 1)
-    lut = np.zeros(256, dtype=bool)
-    lut[list(structural)] = True
-    struct = lut[labels]
+    struct = structural_mask(labels, structural)
     edges = np.zeros(labels.shape, dtype=bool)
     pairs = np.zeros(labels.shape, dtype=np.uint8)
-    for axis in (0, 1):
-        a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
-        b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
-        sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
-        sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
-        diff = (a != b) & sa & sb
+    for axis, (diff, a, b) in enumerate(class_changes(labels, struct)):
         # codes only at the boundaries (a few thousand pixels, not the whole image)
         ys, xs = np.nonzero(diff)  # between (ys, xs) and its next pixel along the axis
         code = pair_code(a[ys, xs], b[ys, xs])
