@@ -30,7 +30,7 @@ variant = choose_variant({variant!r})
 n = {images}
 cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "splits.test=0",
                                  "render_flights=[]", "training.chunk=%d" % (n + 1),
-                                 "out_dir={out}", "render.variant=" + {variant!r}])
+                                 "out_dir={out}", "render.variant=" + {variant!r}] + sys.argv[1:])
 job = gen.prepare(cfg)
 gen.write_metadata(job, variant)
 times = []

@@ -27,6 +27,19 @@ def segment_ids(shape_index: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return shape_index.astype(np.int64) * 6 + axis * 2 + positive
 
 
+def _relabel(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(segments, return_inverse=True)`` for small non-negative ids, by a lookup
+    table instead of a sort (~10x faster on a 320x240 frame). Returns ids (K,) ascending and
+    inverse (H, W) in [0, K)."""
+    if segments.min() < 0:
+        ids, inverse = np.unique(segments, return_inverse=True)
+        return ids, inverse.reshape(segments.shape)
+    present = np.bincount(segments.ravel()) > 0
+    ids = np.flatnonzero(present)
+    lookup = np.cumsum(present) - 1
+    return ids, lookup[segments]
+
+
 def denoise(rgb: np.ndarray, albedo: np.ndarray, segments: np.ndarray, keep: np.ndarray,
             sigma_px: float = 4.0) -> np.ndarray:
     """Denoise a linear image.
@@ -49,8 +62,7 @@ def denoise(rgb: np.ndarray, albedo: np.ndarray, segments: np.ndarray, keep: np.
     out = np.zeros_like(shading)
     H, W = segments.shape
     pad = int(np.ceil(3 * sigma_px))
-    ids, inverse = np.unique(segments, return_inverse=True)
-    inverse = inverse.reshape(H, W)
+    ids, inverse = _relabel(segments)
     rows, cols = np.indices((H, W))
     # Bounding box of every segment, so each blur only touches its own neighbourhood.
     r0 = np.full(len(ids), H)

@@ -32,6 +32,7 @@ from datagen.atomic import atomic_write_json, write_png
 from datagen.camera import intrinsics
 from datagen.config import drop_defaults
 from datagen.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
+from datagen.pipeline import Pipeline
 from datagen.poses import pose_from_xyz_rpy, write_tum
 from datagen.world import MAIN, OPENING, CorridorModel, build_world
 
@@ -39,7 +40,7 @@ log = logging.getLogger(__name__)
 
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 # Keys that do not change the dataset's content (left out of the config hash).
-NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir")
+NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "pipeline")
 #: Keys added after datasets were made, with the value that renders what was rendered before
 #: them: left out of the hash at that value, so those datasets keep their hash.
 HASH_DEFAULTS = {"training.flight_views": 0.0}
@@ -351,6 +352,11 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: Mapping,
     renderer.set_objects(poses, appearance.object_colours(rng, len(slots)))
 
 
+def _pipelined(cfg: Mapping) -> bool:
+    """Whether frames are developed and written on a worker thread (``pipeline``)."""
+    return bool(cfg.get("pipeline", True))
+
+
 def render_split(job: Job, split: str, progress: bool = True) -> int:
     """Render this shard's frames of a split; returns the number of frames rendered."""
     cfg, poses = job.cfg, job.split_poses[split]
@@ -366,26 +372,36 @@ def render_split(job: Job, split: str, progress: bool = True) -> int:
     chunk = int(cfg["training"]["chunk"])
     renderer, loaded = None, None
     stream = SPLIT_STREAM[split]
-    for i in tqdm(todo, desc=f"{split:>5}", unit="img", disable=not progress):
-        c = i // chunk
-        if loaded != c:
-            crng = rng_for(cfg["seed"], stream, c, 1)
-            clutter, people = _slot_meshes(cfg, crng, presets)
-            tex = appearance.sample_textures(crng, None, cfg["appearance"])
-            renderer, loaded = _new_renderer(job, tex, clutter, people), c
-        rng = rng_for(cfg["seed"], stream, i, 2)
-        preset = presets[rng.choice(len(presets), p=weights / weights.sum())]
-        _dress(job, renderer, rng, preset, poses[i])
-        _render_frame(job, renderer, d, i, poses[i], seed=int(rng.integers(2**31)))
+    with Pipeline(enabled=_pipelined(cfg)) as pipe:
+        for i in tqdm(todo, desc=f"{split:>5}", unit="img", disable=not progress):
+            c = i // chunk
+            if loaded != c:
+                crng = rng_for(cfg["seed"], stream, c, 1)
+                clutter, people = _slot_meshes(cfg, crng, presets)
+                tex = appearance.sample_textures(crng, None, cfg["appearance"])
+                renderer, loaded = _new_renderer(job, tex, clutter, people), c
+            rng = rng_for(cfg["seed"], stream, i, 2)
+            preset = presets[rng.choice(len(presets), p=weights / weights.sum())]
+            _dress(job, renderer, rng, preset, poses[i])
+            _render_frame(job, renderer, d, i, poses[i], int(rng.integers(2**31)), pipe)
     return len(todo)
 
 
-def _render_frame(job: Job, renderer, d: Path, i: int, body_pose: np.ndarray, seed: int) -> None:
+def _render_frame(job: Job, renderer, d: Path, i: int, body_pose: np.ndarray, seed: int,
+                  pipe: Pipeline) -> None:
+    """Trace frame i here; develop and write it on the pipeline's worker."""
     r = job.cfg["render"]
     renderer.set_camera(body_pose @ job.camera.body_from_cam)
-    rgb, label, depth = renderer.render(int(r["spp"]), seed, float(r["exposure"]),
-                                        float(r["denoise_sigma_px"]))
-    write_frame(d, i, rgb, label, depth if r["depth"] else None)
+    sigma = float(r["denoise_sigma_px"])
+    traced = renderer.trace(int(r["spp"]), seed, albedo=sigma > 0)
+    pipe.submit(_finish_frame, renderer, traced, d, i, float(r["exposure"]), sigma,
+                bool(r["depth"]))
+
+
+def _finish_frame(renderer, traced, d: Path, i: int, exposure: float, sigma: float,
+                  depth: bool) -> None:
+    rgb, label, z = renderer.develop(traced, exposure, sigma)
+    write_frame(d, i, rgb, label, z if depth else None)
 
 
 def render_flight(job: Job, name: str, progress: bool = True) -> int:
@@ -424,11 +440,12 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
     ) if n_people else np.zeros((0, len(gt), 3))
     renderer = _new_renderer(job, textures, clutter, people)
     renderer.set_lights(lights)
-    for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
-        poses = np.concatenate([placed, tracks[:, i]], axis=0)
-        renderer.set_objects(poses, colours)
-        seed = int(rng_for(cfg["seed"], flight_stream(name), 2, i).integers(2**31))
-        _render_frame(job, renderer, d, i, gt[i], seed)
+    with Pipeline(enabled=_pipelined(cfg)) as pipe:
+        for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
+            poses = np.concatenate([placed, tracks[:, i]], axis=0)
+            renderer.set_objects(poses, colours)
+            seed = int(rng_for(cfg["seed"], flight_stream(name), 2, i).integers(2**31))
+            _render_frame(job, renderer, d, i, gt[i], seed, pipe)
     return len(todo)
 
 

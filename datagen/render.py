@@ -35,6 +35,20 @@ TEXTURE_EXTENT = {"floor": (2.0, 2.0), "ceiling": (2.0, 2.0), "wall": (4.0, 2.8)
                   "frame": (0.5, 0.5), "door": None, "window": None}
 
 
+@dataclass(frozen=True)
+class Traced:
+    """The raw passes of one view, as ``CorridorRenderer.trace`` returns them.
+
+    aux: (H, W, 5) float32 at the pixel centres: shape index, ray length (m; 0 = no hit),
+    shading normal. rgb: (H, W, 3) float32 linear path-traced radiance. albedo: (H, W, 3)
+    float32 linear albedo from the same samples, or None.
+    """
+
+    aux: np.ndarray
+    rgb: np.ndarray
+    albedo: np.ndarray | None
+
+
 def shape_index(mi, shape, pos: int) -> int:
     """The value the ``aov`` integrator's ``shape_index`` gives for a shape of a loaded scene.
 
@@ -307,7 +321,7 @@ class CorridorRenderer:
 
     def render(self, spp: int, seed: int, exposure: float = 1.0, denoise_sigma_px: float = 4.0
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Render the current view.
+        """Render the current view: ``develop(trace(...))``.
 
         Args:
             spp: path-tracer samples per pixel. seed: sample seed.
@@ -319,21 +333,46 @@ class CorridorRenderer:
             is hit);
             depth (H, W) float32 z in metres (0 where nothing is hit).
         """
+        return self.develop(self.trace(spp, seed, denoise_sigma_px > 0), exposure,
+                            denoise_sigma_px)
+
+    def trace(self, spp: int, seed: int, albedo: bool = True) -> Traced:
+        """The Mitsuba passes of the current view (applies the pending scene changes).
+
+        The result holds plain arrays only, so the scene may change (or ``trace`` run again)
+        while another thread ``develop``s it.
+
+        Args:
+            spp: path-tracer samples per pixel. seed: sample seed.
+            albedo: also trace the albedo pass the denoiser needs.
+        """
+        mi = self.mi
         self.params.update()
-        aux = np.asarray(self.mi.render(self.scene, sensor=1, integrator=self.aov, spp=1,
-                                        seed=0))
+        aux = np.asarray(mi.render(self.scene, sensor=1, integrator=self.aov, spp=1, seed=0))
+        rgb = np.asarray(mi.render(self.scene, sensor=0, spp=int(spp), seed=int(seed)))
+        alb = (np.asarray(mi.render(self.scene, sensor=0, integrator=self.albedo, spp=int(spp),
+                                    seed=int(seed)))[..., :3] if albedo else None)
+        return Traced(aux, rgb[..., :3], alb)
+
+    def develop(self, traced: Traced, exposure: float = 1.0, denoise_sigma_px: float = 4.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Labels, depth and the denoised sRGB image of a ``trace`` (numpy only; thread-safe).
+
+        Returns:
+            As ``render``.
+        """
+        aux = traced.aux
         index = np.rint(aux[..., 0]).astype(np.int64)
         index = np.where((index >= 0) & (index < len(self._lut)), index, 0)
         t = aux[..., 1]
         label = self._lut[index]
         label[t <= 0] = C.IGNORE
-        rgb = np.asarray(self.mi.render(self.scene, sensor=0, spp=int(spp), seed=int(seed)))
-        rgb = rgb[..., :3]
+        rgb = traced.rgb
         if denoise_sigma_px > 0:
-            albedo = np.asarray(self.mi.render(self.scene, sensor=0, integrator=self.albedo,
-                                               spp=int(spp), seed=int(seed)))
+            if traced.albedo is None:
+                raise ValueError("develop: denoise_sigma_px > 0 needs a trace with albedo=True")
             keep = np.isin(label, list(self._emitter_class)) | self._is_light[index]
-            rgb = denoise(rgb, albedo[..., :3], segment_ids(index, aux[..., 2:5]), keep,
+            rgb = denoise(rgb, traced.albedo, segment_ids(index, aux[..., 2:5]), keep,
                           denoise_sigma_px)
         return linear_to_srgb8(rgb * exposure), label, (t / self._ray_norm).astype(np.float32)
 

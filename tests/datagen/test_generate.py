@@ -91,6 +91,13 @@ class TestDeterminismAndResume:
         assert all(a[k] == b[k] for k in a), [k for k in a if a[k] != b[k]]
         assert not [k for k in a if Path(k).name.startswith(".")], "temp files left behind"
 
+        # Developing and writing on the caller's thread: the same bytes, and the same hash.
+        serial = tmp_path / "serial"
+        gen.run(small_cfg(serial, "pipeline=false"), progress=False)
+        c = tree_bytes(serial)
+        assert sorted(a) == sorted(c)
+        assert all(a[k] == c[k] for k in a), [k for k in a if a[k] != c[k]]
+
     def test_other_seed_other_images(self, tmp_path):
         gen.run(small_cfg(tmp_path / "s1", "seed=1", "splits.val=0",
                           "render_flights=[]"), progress=False)

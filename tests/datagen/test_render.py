@@ -107,3 +107,30 @@ class TestRender:
         dist = _boundary_distance(label)
         iu, iv = np.rint(uv[ok, 0]).astype(int), np.rint(uv[ok, 1]).astype(int)
         assert np.mean(dist[iv, iu] <= 1.0) < 0.6
+
+
+def test_render_is_develop_of_trace():
+    """``render`` = ``develop(trace(...))``; the traced arrays survive the scene moving on."""
+    from datagen.render import CorridorRenderer
+
+    cfg = compose_config("datagen", ["camera.width=64", "camera.height=48"])
+    camera = make_camera(cfg["camera"])
+    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    r = CorridorRenderer(build_world(cfg["world"]), camera, tex)
+    r.set_lights(np.full((r.num_lights, 3), 6.0))
+    poses = [pose_from_xyz_rpy([0.2, y, 1.3], [0.0, 0.0, np.pi / 2])[0] @ camera.body_from_cam
+             for y in (0.8, 2.0)]
+    r.set_camera(poses[0])
+    direct = r.render(spp=1, seed=3)
+    r.set_camera(poses[0])
+    traced = r.trace(spp=1, seed=3)
+    r.set_camera(poses[1])
+    r.trace(spp=1, seed=4)  # the next frame, traced before the first is developed
+    for x, y in zip(direct, r.develop(traced), strict=True):
+        assert x.shape == y.shape and x.dtype == y.dtype
+        assert np.abs(x.astype(float) - y.astype(float)).max() <= 1  # LLVM: rare 1-level noise
+    assert traced.albedo is not None and traced.aux.shape == (48, 64, 5)
+    with pytest.raises(ValueError, match="albedo=True"):
+        r.develop(r.trace(spp=1, seed=3, albedo=False))
+    rgb, label, _ = r.develop(r.trace(spp=1, seed=3, albedo=False), denoise_sigma_px=0)
+    assert rgb.shape == (48, 64, 3) and label.shape == (48, 64)
