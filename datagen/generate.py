@@ -394,13 +394,15 @@ def _render_frame(job: Job, renderer, d: Path, i: int, body_pose: np.ndarray, se
     renderer.set_camera(body_pose @ job.camera.body_from_cam)
     sigma = float(r["denoise_sigma_px"])
     traced = renderer.trace(int(r["spp"]), seed, albedo=sigma > 0)
-    pipe.submit(_finish_frame, renderer, traced, d, i, float(r["exposure"]), sigma,
+    # The worker gets the renderer's numpy-only developer, never the renderer: the last
+    # reference to a Mitsuba scene must not be dropped on the worker (datagen.render.trace).
+    pipe.submit(_finish_frame, renderer.developer, traced, d, i, float(r["exposure"]), sigma,
                 bool(r["depth"]))
 
 
-def _finish_frame(renderer, traced, d: Path, i: int, exposure: float, sigma: float,
+def _finish_frame(developer, traced, d: Path, i: int, exposure: float, sigma: float,
                   depth: bool) -> None:
-    rgb, label, z = renderer.develop(traced, exposure, sigma)
+    rgb, label, z = developer.develop(traced, exposure, sigma)
     write_frame(d, i, rgb, label, z if depth else None)
 
 

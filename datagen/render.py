@@ -239,14 +239,14 @@ class CorridorRenderer:
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
         # Albedo in its own pass: an aov integrator wrapping the path tracer is ~5x slower.
         self.albedo = mi.load_dict({"type": "aov", "aovs": "al:albedo"})
-        self._emitter_class = {C.WINDOW}
         self._lut = self._class_lookup()
         self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
         # Ray length -> z depth factor per pixel: z = t / |K^-1 [u, v, 1]|.
         u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
         rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u,
                         dtype=float)], axis=-1)
-        self._ray_norm = np.linalg.norm(rays, axis=-1)
+        self.developer = Developer(self._lut, self._is_light, (C.WINDOW,),
+                                   np.linalg.norm(rays, axis=-1))
 
     def _class_lookup(self) -> np.ndarray:
         """Map aov ``shape_index`` values to class ids (built right after loading)."""
@@ -339,8 +339,9 @@ class CorridorRenderer:
     def trace(self, spp: int, seed: int, albedo: bool = True) -> Traced:
         """The Mitsuba passes of the current view (applies the pending scene changes).
 
-        The result holds plain arrays only, so the scene may change (or ``trace`` run again)
-        while another thread ``develop``s it.
+        The result holds numpy-owned arrays only, so the scene may change (or ``trace`` run
+        again) while another thread develops it with ``developer`` (never with this renderer:
+        no Mitsuba object may be used or freed on another thread while this one renders).
 
         Args:
             spp: path-tracer samples per pixel. seed: sample seed.
@@ -348,33 +349,56 @@ class CorridorRenderer:
         """
         mi = self.mi
         self.params.update()
-        aux = np.asarray(mi.render(self.scene, sensor=1, integrator=self.aov, spp=1, seed=0))
-        rgb = np.asarray(mi.render(self.scene, sensor=0, spp=int(spp), seed=int(seed)))
-        alb = (np.asarray(mi.render(self.scene, sensor=0, integrator=self.albedo, spp=int(spp),
-                                    seed=int(seed)))[..., :3] if albedo else None)
-        return Traced(aux, rgb[..., :3], alb)
+        # np.array copies: np.asarray would view Dr.Jit's memory, and freeing that on another
+        # thread while this one renders deadlocks Dr.Jit.
+        aux = np.array(mi.render(self.scene, sensor=1, integrator=self.aov, spp=1, seed=0))
+        rgb = np.array(mi.render(self.scene, sensor=0, spp=int(spp), seed=int(seed)))[..., :3]
+        alb = (np.array(mi.render(self.scene, sensor=0, integrator=self.albedo, spp=int(spp),
+                                  seed=int(seed)))[..., :3] if albedo else None)
+        return Traced(aux, rgb, alb)
 
     def develop(self, traced: Traced, exposure: float = 1.0, denoise_sigma_px: float = 4.0
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Labels, depth and the denoised sRGB image of a ``trace`` (numpy only; thread-safe).
+        """``self.developer.develop``: see ``Developer.develop``."""
+        return self.developer.develop(traced, exposure, denoise_sigma_px)
+
+
+@dataclass(frozen=True)
+class Developer:
+    """Turns a ``Traced`` view into the frame's images: numpy only, holds no Mitsuba object, so
+    it may run on another thread while the renderer it came from traces the next view.
+
+    lut: (S,) uint8 class id per Mitsuba shape index. is_light: (S,) bool, the ceiling light
+    panels. emitter_classes: classes whose pixels are emitted light (kept as rendered).
+    ray_norm: (H, W) |K^-1 [u, v, 1]| per pixel (ray length -> z depth).
+    """
+
+    lut: np.ndarray
+    is_light: np.ndarray
+    emitter_classes: tuple[int, ...]
+    ray_norm: np.ndarray
+
+    def develop(self, traced: Traced, exposure: float = 1.0, denoise_sigma_px: float = 4.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Labels, depth and the denoised sRGB image of a traced view.
 
         Returns:
-            As ``render``.
+            As ``CorridorRenderer.render``.
         """
         aux = traced.aux
         index = np.rint(aux[..., 0]).astype(np.int64)
-        index = np.where((index >= 0) & (index < len(self._lut)), index, 0)
+        index = np.where((index >= 0) & (index < len(self.lut)), index, 0)
         t = aux[..., 1]
-        label = self._lut[index]
+        label = self.lut[index]
         label[t <= 0] = C.IGNORE
         rgb = traced.rgb
         if denoise_sigma_px > 0:
             if traced.albedo is None:
                 raise ValueError("develop: denoise_sigma_px > 0 needs a trace with albedo=True")
-            keep = np.isin(label, list(self._emitter_class)) | self._is_light[index]
+            keep = np.isin(label, self.emitter_classes) | self.is_light[index]
             rgb = denoise(rgb, traced.albedo, segment_ids(index, aux[..., 2:5]), keep,
                           denoise_sigma_px)
-        return linear_to_srgb8(rgb * exposure), label, (t / self._ray_norm).astype(np.float32)
+        return linear_to_srgb8(rgb * exposure), label, (t / self.ray_norm).astype(np.float32)
 
 
 def linear_to_srgb8(img: np.ndarray) -> np.ndarray:

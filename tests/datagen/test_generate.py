@@ -98,6 +98,13 @@ class TestDeterminismAndResume:
         assert sorted(a) == sorted(c)
         assert all(a[k] == c[k] for k in a), [k for k in a if a[k] != c[k]]
 
+    def test_new_scene_every_frame(self, tmp_path):
+        """A scene loaded per frame (chunk 1) while the worker develops the last one's frame."""
+        out = tmp_path / "c1"
+        gen.run(small_cfg(out, "training.chunk=1", "splits.train=12", "render_flights=[]"),
+                progress=False)
+        assert len(list((out / "train" / "rgb").glob("*.png"))) == 12
+
     def test_other_seed_other_images(self, tmp_path):
         gen.run(small_cfg(tmp_path / "s1", "seed=1", "splits.val=0",
                           "render_flights=[]"), progress=False)

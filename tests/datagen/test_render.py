@@ -130,6 +130,12 @@ def test_render_is_develop_of_trace():
         assert x.shape == y.shape and x.dtype == y.dtype
         assert np.abs(x.astype(float) - y.astype(float)).max() <= 1  # LLVM: rare 1-level noise
     assert traced.albedo is not None and traced.aux.shape == (48, 64, 5)
+    for a in (traced.aux, traced.rgb, traced.albedo):  # numpy's own memory, not Dr.Jit's
+        while isinstance(a.base, np.ndarray):
+            a = a.base
+        assert a.flags.owndata, "a traced array views Dr.Jit memory"
+    dev = r.developer  # what the worker thread gets: numpy only
+    assert all(isinstance(v, np.ndarray | tuple) for v in vars(dev).values())
     with pytest.raises(ValueError, match="albedo=True"):
         r.develop(r.trace(spp=1, seed=3, albedo=False))
     rgb, label, _ = r.develop(r.trace(spp=1, seed=3, albedo=False), denoise_sigma_px=0)
