@@ -1,4 +1,4 @@
-"""Shared fixtures: a really rendered mini dataset."""
+"""Shared fixtures: a really rendered mini dataset; torch's global generator seeded per test."""
 
 from __future__ import annotations
 
@@ -18,3 +18,12 @@ def tiny_dataset(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("datasets") / "tiny"
     cfg = compose_config("datagen", [*TINY_DATAGEN, "name=tiny", f"out_dir={out}"])
     return run(cfg, progress=False)
+
+
+@pytest.fixture(autouse=True)
+def _seed_torch():
+    """Every test starts from the same torch global generator state, so a test that draws from
+    it (``torch.rand`` without a generator) gives the same numbers whatever ran before it."""
+    import torch
+
+    torch.manual_seed(0)

@@ -190,18 +190,21 @@ class TestForward:
         kw = dict(downsample=2, skip="add", stem="unshuffle", head="refine", head_channels=4)
         m = _tiny(head_layers=2, **kw).eval()
         assert sum(isinstance(c, nn.Conv2d) for c in m.refine_head) == 3
-        x = torch.rand(1, 3, 32, 48)
+        g = torch.Generator().manual_seed(0)  # random weights can leave a path dead (ReLU)
+        x = torch.rand(1, 3, 32, 48, generator=g)
         with torch.no_grad():
             low = m.forward_network_resolution(x)
             bilinear = nn.functional.interpolate(low, size=(32, 48), mode="bilinear")
             torch.testing.assert_close(m.to_input_resolution(low, x), bilinear)
             for p in m.refine_head.parameters():
-                torch.nn.init.normal_(p, std=0.3)
+                torch.nn.init.normal_(p, std=0.3, generator=g)
             y = x.clone()
             y[:, :, 10, 10] += 0.5
             diff = (m.to_input_resolution(low, y) - m.to_input_resolution(low, x)).abs()
             diff = diff.amax(dim=(0, 1))
-            assert diff[7, 10] > 0 and diff[10, 13] > 0  # 3 px away: the deeper reach ...
+            ring = diff[7:14, 7:14].clone()
+            ring[1:6, 1:6] = 0
+            assert ring.max() > 0  # 3 px away: the deeper reach ...
             diff[7:14, 7:14] = 0
             assert diff.max() == 0  # ... and no farther
         with pytest.raises(ValueError, match="model.head_layers"):
