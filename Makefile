@@ -63,13 +63,14 @@ demo: setup
 contact-sheet: setup
 	$(PY) -m datagen.contact_sheet outputs/datasets/demo docs/img/contact_sheet.png
 
-# Speed and accuracy figures; the last four read the demo's outputs (run `make demo` first).
+# Speed and accuracy figures; the last five read the demo's outputs (run `make demo` first).
 bench: setup
 	$(PY) benchmarks/datagen_throughput.py
 	-$(PY) benchmarks/train_accuracy.py outputs/models/demo  # exits 1 when a target is missed
 	$(PY) benchmarks/segnet_speed.py
 	$(PY) benchmarks/localize_speed.py
 	$(PY) benchmarks/boundary_distance.py
+	$(PY) benchmarks/flight_spread.py   # 3 new flights per preset: the accuracy over more flights (~8 min)
 
 clean:
 	rm -rf outputs multirun
