@@ -174,7 +174,7 @@ class TestBadConfig:
             gen.run(small_cfg(out, *base, "splits.train=3"), progress=False)
 
     def test_flight_views_share(self):
-        cfg = small_cfg(Path("unused"), "splits.train=400")
+        cfg = small_cfg(Path("unused"), "splits.train=400", "training.flight_views=0")
         base = gen.prepare(cfg).split_poses["train"]
         assert gen.config_hash(cfg) == gen.config_hash(
             {**cfg, "training": {k: v for k, v in cfg["training"].items()
