@@ -239,17 +239,17 @@ class CorridorRenderer:
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
         # Albedo in its own pass: an aov integrator wrapping the path tracer is ~5x slower.
         self.albedo = mi.load_dict({"type": "aov", "aovs": "al:albedo"})
-        self._lut = self._class_lookup()
+        lut, is_light = self._class_lookup()
         self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
         # Ray length -> z depth factor per pixel: z = t / |K^-1 [u, v, 1]|.
         u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
         rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u,
                         dtype=float)], axis=-1)
-        self.developer = Developer(self._lut, self._is_light, (C.WINDOW,),
-                                   np.linalg.norm(rays, axis=-1))
+        self.developer = Developer(lut, is_light, (C.WINDOW,), np.linalg.norm(rays, axis=-1))
 
-    def _class_lookup(self) -> np.ndarray:
-        """Map aov ``shape_index`` values to class ids (built right after loading)."""
+    def _class_lookup(self) -> tuple[np.ndarray, np.ndarray]:
+        """Map aov ``shape_index`` values to class ids, and to whether the shape is a ceiling
+        light (built right after loading): (S,) uint8, (S,) bool."""
         mi = self.mi
         shapes = list(self.scene.shapes())
         lut = np.zeros(len(shapes) + 2, dtype=np.uint8)
@@ -261,8 +261,7 @@ class CorridorRenderer:
                 light = np.concatenate([light, np.zeros(index + 1 - len(light), dtype=bool)])
             lut[index] = self.class_of[shape.id()]
             light[index] = shape.id().startswith("light")
-        self._is_light = light
-        return lut
+        return lut, light
 
     # --- per-frame state (applied to the scene by the next ``render``) ----------------------
 
