@@ -5,8 +5,9 @@ flight is mostly the flight's own (the seeds agree to a few mm), so one flight i
 This renders ``--flights`` more flights of every preset the dataset rendered, with the
 dataset's own generator config (same world, camera, appearance and distractor presets; each
 new flight ``<preset>_<k>`` draws its own trajectory, textures, clutter and people), into a
-flights-only dataset beside it, runs ``python -m localize`` on them and prints, per flight and
-pooled per preset, the mean position error of each mode and the targets' ratios.
+flights-only dataset beside it, runs ``python -m localize`` on them and on the dataset's own
+flights (``--no-own``: the new ones only), and prints, per flight and pooled per preset, the
+mean position error of each mode and the targets' ratios.
 
     python benchmarks/flight_spread.py                                  # the demo's outputs
     python benchmarks/flight_spread.py --dataset outputs/datasets/big --flights 5 \\
@@ -53,6 +54,17 @@ def flights_config(dataset: Path, n: int, out: Path) -> dict:
     return gen
 
 
+def merge_flights(*metrics: dict) -> dict:
+    """One ``{"flights": ...}`` of several reports' ``metrics.json`` (flight names must differ)."""
+    flights: dict = {}
+    for m in metrics:
+        twice = flights.keys() & m["flights"].keys()
+        if twice:
+            raise ValueError(f"flights {sorted(twice)} are in two reports")
+        flights.update(m["flights"])
+    return {"flights": flights}
+
+
 def summarize(metrics: dict) -> list[str]:
     """Table rows: per flight and pooled per preset, mean position error (m) per mode and the
     targets' ratios (none / cnn >= 2, cnn / oracle <= 1.25)."""
@@ -92,19 +104,29 @@ def main() -> None:
     ap.add_argument("--flights", type=int, default=3, help="new flights per preset")
     ap.add_argument("--out", type=Path, default=None,
                     help="flights-only dataset (default: <dataset>_flights beside it)")
+    ap.add_argument("--own", action=argparse.BooleanOptionalAction, default=True,
+                    help="also localize the dataset's own flights and pool them with the new")
     ap.add_argument("overrides", nargs="*", help="python -m localize overrides (key=value)")
     a = ap.parse_args()
     if a.flights < 1:
         ap.error("--flights must be >= 1")
     out = a.out or a.dataset.with_name(a.dataset.name + "_flights")
     render(flights_config(a.dataset, a.flights, out))
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose(config_name="localize", overrides=[
-            f"dataset={out}", f"name={out.name}", "inits=[tracking]",
-            "paper_faithful.enabled=false", *a.overrides])
-    report = localize(cfg)
-    metrics = json.loads((report.parent / "metrics.json").read_text())
-    print(f"\n{a.flights} new flights per preset of {a.dataset} (report: {report})\n")
+    runs = [(out, None)] + ([(a.dataset, "_own")] if a.own else [])
+    reports = []
+    for dataset, suffix in runs:
+        with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+            cfg = compose(config_name="localize", overrides=[
+                f"dataset={dataset}", f"name={out.name}", "inits=[tracking]",
+                "paper_faithful.enabled=false", *a.overrides])
+        if suffix:  # the own flights' report beside the new ones' (a `name=` override too)
+            cfg.name = f"{cfg.name}{suffix}"
+        reports.append(localize(cfg))
+    metrics = merge_flights(*(json.loads((r.parent / "metrics.json").read_text())
+                              for r in reports))
+    own = " and its own" if a.own else ""
+    print(f"\n{a.flights} new flights per preset of {a.dataset}{own} (reports: "
+          f"{', '.join(str(r) for r in reports)})\n")
     print("\n".join(summarize(metrics)))
 
 

@@ -7,7 +7,7 @@ import shutil
 
 import pytest
 
-from benchmarks.flight_spread import flights_config, summarize
+from benchmarks.flight_spread import flights_config, merge_flights, summarize
 from datagen.generate import run as render
 
 
@@ -34,6 +34,20 @@ class TestSummarize:
         rows = summarize(_metrics({"paper_1": {"cnn": 0.03, "oracle": 0.02}}))
         assert rows[0].count("(m)") == 2
         assert "| 1.50 | - |" in rows[2]
+
+
+class TestMergeFlights:
+    def test_pools_the_own_flights_with_the_new(self):
+        own = _metrics({"cluttered": {"cnn": 0.01, "oracle": 0.01}})
+        new = _metrics({"cluttered_1": {"cnn": 0.03, "oracle": 0.01}})
+        rows = summarize(merge_flights(new, own))
+        pooled = next(r for r in rows if "cluttered, 2 flights pooled" in r)
+        assert "| 0.0200 | 0.0100 | 2.00 |" in pooled
+
+    def test_a_flight_in_two_reports(self):
+        m = _metrics({"paper": {"cnn": 0.01}})
+        with pytest.raises(ValueError, match="paper"):
+            merge_flights(m, m)
 
 
 class TestFlightsConfig:
