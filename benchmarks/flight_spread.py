@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -67,7 +68,9 @@ def merge_flights(*metrics: dict) -> dict:
 
 def summarize(metrics: dict) -> list[str]:
     """Table rows: per flight and pooled per preset, mean position error (m) per mode and the
-    targets' ratios (none / cnn >= 2, cnn / oracle <= 1.25)."""
+    targets' ratios (none / cnn >= 2, cnn / oracle <= 1.25). A flight's preset is its name
+    without a ``_<k>`` suffix (``flights_config``'s new flights), or the name itself (the
+    dataset's own flights, one per preset)."""
     flights = metrics["flights"]
     modes = [m for m in ("cnn", "oracle", "none") if any(m in d for d in flights.values())]
     rows = ["| flight | " + " | ".join(f"{m} (m)" for m in modes)
@@ -88,7 +91,7 @@ def summarize(metrics: dict) -> list[str]:
         g = d.get("cnn", {}).get("global")
         conv = f"{g['converged_within_rate']:.0%}" if g else "-"
         rows.append(row(name, err, conv))
-        preset = name.rsplit("_", 1)[0]
+        preset = re.sub(r"_\d+$", "", name)
         for m, e in err.items():
             pooled.setdefault(preset, {}).setdefault(m, []).append(e)
     for preset, errs in sorted(pooled.items()):

@@ -44,6 +44,15 @@ class TestMergeFlights:
         pooled = next(r for r in rows if "cluttered, 2 flights pooled" in r)
         assert "| 0.0200 | 0.0100 | 2.00 |" in pooled
 
+    def test_a_preset_name_with_an_underscore(self):
+        own = _metrics({"cluttered_long": {"cnn": 0.01}, "cluttered": {"cnn": 0.05}})
+        new = _metrics({"cluttered_long_1": {"cnn": 0.03}, "cluttered_1": {"cnn": 0.07}})
+        rows = summarize(merge_flights(new, own))
+        long = next(r for r in rows if "cluttered_long, 2 flights pooled" in r)
+        assert "| 0.0200 |" in long
+        plain = next(r for r in rows if "**cluttered, 2 flights pooled" in r)
+        assert "| 0.0600 |" in plain
+
     def test_a_flight_in_two_reports(self):
         m = _metrics({"paper": {"cnn": 0.01}})
         with pytest.raises(ValueError, match="paper"):
