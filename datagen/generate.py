@@ -43,7 +43,7 @@ SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "pipeline")
 #: Keys added after datasets were made, with the value that renders what was rendered before
 #: them: left out of the hash at that value, so those datasets keep their hash.
-HASH_DEFAULTS = {"training.flight_views": 0.0}
+HASH_DEFAULTS = {"training.flight_views": 0.0, "render.denoise_frames": False}
 
 
 def rng_for(seed: int, *keys: int) -> np.random.Generator:
@@ -325,7 +325,8 @@ def _new_renderer(job: Job, textures, clutter, people):
     from datagen.render import CorridorRenderer
 
     return CorridorRenderer(job.model, job.camera, textures, clutter, people,
-                            max_depth=int(job.cfg["render"]["max_depth"]))
+                            max_depth=int(job.cfg["render"]["max_depth"]),
+                            denoise_frames=bool(job.cfg["render"].get("denoise_frames", False)))
 
 
 def _dress(job: Job, renderer, rng: np.random.Generator, preset: Mapping,

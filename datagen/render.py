@@ -161,7 +161,7 @@ class CorridorRenderer:
 
     def __init__(self, model: CorridorModel, camera: Camera, textures: Mapping[str, np.ndarray],
                  clutter: Sequence[trimesh.Trimesh] = (), people: Sequence[trimesh.Trimesh] = (),
-                 max_depth: int = 3):
+                 max_depth: int = 3, denoise_frames: bool = True):
         import mitsuba as mi
 
         self.mi = mi
@@ -239,29 +239,36 @@ class CorridorRenderer:
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
         # Albedo in its own pass: an aov integrator wrapping the path tracer is ~5x slower.
         self.albedo = mi.load_dict({"type": "aov", "aovs": "al:albedo"})
-        lut, is_light = self._class_lookup()
+        lut, raw = self._class_lookup(denoise_frames)
         self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
         # Ray length -> z depth factor per pixel: z = t / |K^-1 [u, v, 1]|.
         u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
         rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u,
                         dtype=float)], axis=-1)
-        self.developer = Developer(lut, is_light, (C.WINDOW,), np.linalg.norm(rays, axis=-1))
+        self.developer = Developer(lut, raw, np.linalg.norm(rays, axis=-1))
 
-    def _class_lookup(self) -> tuple[np.ndarray, np.ndarray]:
-        """Map aov ``shape_index`` values to class ids, and to whether the shape is a ceiling
-        light (built right after loading): (S,) uint8, (S,) bool."""
+    def _class_lookup(self, denoise_frames: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Map aov ``shape_index`` values to class ids, and to whether the denoiser keeps the
+        shape's pixels as rendered (built right after loading): (S,) uint8, (S,) bool.
+
+        Kept raw are the emitters (the ceiling lights and the window's outdoor view: their
+        radiance is not shading); with ``denoise_frames=False`` also the window's frame faces
+        (its jambs, head and sill, labelled window), as datagen did before 2026-11-25: they
+        are diffuse surfaces, and raw they show the path tracer's noise as a speckled band
+        around every window."""
         mi = self.mi
         shapes = list(self.scene.shapes())
         lut = np.zeros(len(shapes) + 2, dtype=np.uint8)
-        light = np.zeros(len(shapes) + 2, dtype=bool)
+        raw = np.zeros(len(shapes) + 2, dtype=bool)
         for pos, shape in enumerate(shapes):
             index = shape_index(mi, shape, pos)
             if index >= len(lut):
                 lut = np.concatenate([lut, np.zeros(index + 1 - len(lut), dtype=np.uint8)])
-                light = np.concatenate([light, np.zeros(index + 1 - len(light), dtype=bool)])
+                raw = np.concatenate([raw, np.zeros(index + 1 - len(raw), dtype=bool)])
             lut[index] = self.class_of[shape.id()]
-            light[index] = shape.id().startswith("light")
-        return lut, light
+            raw[index] = shape.is_emitter() or (not denoise_frames
+                                                and lut[index] == C.WINDOW)
+        return lut, raw
 
     # --- per-frame state (applied to the scene by the next ``render``) ----------------------
 
@@ -367,14 +374,13 @@ class Developer:
     """Turns a ``Traced`` view into the frame's images: numpy only, holds no Mitsuba object, so
     it may run on another thread while the renderer it came from traces the next view.
 
-    lut: (S,) uint8 class id per Mitsuba shape index. is_light: (S,) bool, the ceiling light
-    panels. emitter_classes: classes whose pixels are emitted light (kept as rendered).
+    lut: (S,) uint8 class id per Mitsuba shape index. raw: (S,) bool, the shapes whose pixels
+    the denoiser keeps as rendered (emitters; ``CorridorRenderer._class_lookup``).
     ray_norm: (H, W) |K^-1 [u, v, 1]| per pixel (ray length -> z depth).
     """
 
     lut: np.ndarray
-    is_light: np.ndarray
-    emitter_classes: tuple[int, ...]
+    raw: np.ndarray
     ray_norm: np.ndarray
 
     def develop(self, traced: Traced, exposure: float = 1.0, denoise_sigma_px: float = 4.0
@@ -394,7 +400,7 @@ class Developer:
         if denoise_sigma_px > 0:
             if traced.albedo is None:
                 raise ValueError("develop: denoise_sigma_px > 0 needs a trace with albedo=True")
-            keep = np.isin(label, self.emitter_classes) | self.is_light[index]
+            keep = self.raw[index]
             rgb = denoise(rgb, traced.albedo, segment_ids(index, aux[..., 2:5]), keep,
                           denoise_sigma_px)
         return linear_to_srgb8(rgb * exposure), label, (t / self.ray_norm).astype(np.float32)

@@ -140,3 +140,43 @@ def test_render_is_develop_of_trace():
         r.develop(r.trace(spp=1, seed=3, albedo=False))
     rgb, label, _ = r.develop(r.trace(spp=1, seed=3, albedo=False), denoise_sigma_px=0)
     assert rgb.shape == (48, 64, 3) and label.shape == (48, 64)
+
+
+def test_denoiser_keeps_only_emitters_raw():
+    """The denoiser leaves the emitters as rendered (the ceiling lights, the window's outdoor
+    view) and smooths every diffuse surface, the window's frame faces too (labelled window);
+    ``denoise_frames=False`` leaves those frames raw, as datasets made before it were."""
+    from datagen.render import CorridorRenderer, shape_index
+
+    cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
+    camera = make_camera(cfg["camera"])
+    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    model = build_world(cfg["world"])
+    for denoise_frames in (True, False):
+        r = CorridorRenderer(model, camera, tex, denoise_frames=denoise_frames)
+        shapes = list(r.scene.shapes())
+        raw = r.developer.raw[[shape_index(r.mi, s, i) for i, s in enumerate(shapes)]]
+        emitter = np.array([s.is_emitter() for s in shapes])
+        frame = np.array([s.id() == "window_frame" for s in shapes])
+        assert emitter.sum() == r.num_lights + 1 and frame.sum() == 1  # lights, window view
+        np.testing.assert_array_equal(raw, emitter | (frame & (not denoise_frames)))
+
+
+def test_develop_smooths_all_but_the_raw_shapes():
+    """A noisy flat view, shape 1 on the left (diffuse), shape 2 on the right (kept raw)."""
+    from datagen.render import Developer, Traced, linear_to_srgb8
+
+    H, W = 16, 32
+    aux = np.zeros((H, W, 5), np.float32)
+    aux[..., 0] = np.where(np.arange(W) < W // 2, 1, 2)
+    aux[..., 1] = 2.0  # every pixel hits at 2 m
+    aux[..., 4] = 1.0  # normal +z
+    rng = np.random.default_rng(0)
+    rgb = (0.4 * (1 + 0.5 * rng.standard_normal((H, W, 3)))).astype(np.float32)
+    albedo = np.full((H, W, 3), 0.5, np.float32)
+    dev = Developer(np.array([0, C.WINDOW, C.WINDOW], np.uint8), np.array([False, False, True]),
+                    np.ones((H, W)))
+    out, label, _ = dev.develop(Traced(aux, rgb, albedo))
+    assert (label == C.WINDOW).all()
+    np.testing.assert_array_equal(out[:, W // 2:], linear_to_srgb8(rgb[:, W // 2:]))
+    assert out[:, : W // 2].std() < 0.2 * linear_to_srgb8(rgb[:, : W // 2]).std()
