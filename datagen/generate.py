@@ -326,7 +326,8 @@ def _new_renderer(job: Job, textures, clutter, people):
 
     return CorridorRenderer(job.model, job.camera, textures, clutter, people,
                             max_depth=int(job.cfg["render"]["max_depth"]),
-                            denoise_frames=bool(job.cfg["render"].get("denoise_frames", False)))
+                            denoise_frames=bool(job.cfg["render"].get(
+                                "denoise_frames", HASH_DEFAULTS["render.denoise_frames"])))
 
 
 def _dress(job: Job, renderer, rng: np.random.Generator, preset: Mapping,
