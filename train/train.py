@@ -81,6 +81,7 @@ HASH_DEFAULTS = {
     "model.head_layers": 1,
     "loss.boundary_weight": 1.0,
     "loss.resolution": "network",
+    "init_from": None,
 }
 #: Files of an output folder that ``overwrite=true`` removes.
 OUTPUT_FILES = (
@@ -185,6 +186,43 @@ def prepare_output(out_dir: Path, info: dict, overwrite: bool) -> None:
 def save_torch(path: Path, obj: dict) -> None:
     """torch.save through a temporary file (atomic)."""
     atomic_write(path, lambda p: torch.save(obj, p))
+
+
+def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes: int) -> Path:
+    """Start ``model`` from a trained model's best weights (the ``init_from`` key: fine-tuning).
+
+    Args:
+        model: the freshly built network (same ``model.*`` settings as the source).
+        source: a model folder made by ``python -m train`` or its ``checkpoint_best.pt``.
+        mcfg: this run's ``model`` config; num_classes: this dataset's class count.
+
+    Returns:
+        The checkpoint file read.
+    """
+    path = Path(source)
+    if path.is_dir():
+        path = path / "checkpoint_best.pt"
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"init_from={source}: no {path.name} there; give a model folder made by "
+            "`python -m train` (or its checkpoint_best.pt), or init_from=null")
+    ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    if "model" not in ckpt or "model_kwargs" not in ckpt:
+        raise ValueError(f"init_from={source}: {path} is not a checkpoint_best.pt of "
+                         "`python -m train`")
+    theirs, ours = ckpt["model_kwargs"], model_kwargs(mcfg)
+    try:
+        if ckpt.get("num_classes") != num_classes:
+            raise RuntimeError(f"{ckpt.get('num_classes')} classes there, {num_classes} in "
+                               "this dataset")
+        model.load_state_dict(ckpt["model"])
+    except RuntimeError as err:
+        diff = [f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here"
+                for k in sorted(set(theirs) | set(ours)) if theirs.get(k) != ours.get(k)]
+        raise ValueError(
+            f"init_from={source}: {path} holds another network ({'; '.join(diff) or err}); "
+            "train with the model.* settings and classes it was trained with") from err
+    return path
 
 
 # ----------------------------------------------------------------------------- loops
@@ -478,6 +516,10 @@ def run(cfg: DictConfig) -> dict:
         "dataset": str(dataset.root),
         "config": train_cfg,
     }
+    mcfg = OmegaConf.to_container(cfg.model, resolve=True)
+    model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
+    if cfg.get("init_from") is not None:  # fine-tuning (a resume replaces these weights)
+        log.info("weights from %s", load_init_weights(model, cfg.init_from, mcfg, num_classes))
     out_dir = Path(cfg.out_root) / cfg.name
     prepare_output(out_dir, info, bool(cfg.overwrite))
     last_path, best_path = out_dir / "checkpoint_last.pt", out_dir / "checkpoint_best.pt"
@@ -502,8 +544,6 @@ def run(cfg: DictConfig) -> dict:
     if class_weights is not None:
         log.info("class weights: %s", class_weights)
 
-    mcfg = OmegaConf.to_container(cfg.model, resolve=True)
-    model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)

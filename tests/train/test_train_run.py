@@ -118,6 +118,8 @@ def test_stem_in_config_hash() -> None:
                               ) == plain
     assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "resolution": "input"}})
                               ) != plain
+    assert tt.training_config(OmegaConf.create({"seed": 0, "init_from": None})) == \
+        tt.training_config(OmegaConf.create({"seed": 0}))
 
 
 def test_resolve_precision() -> None:
@@ -295,8 +297,41 @@ class TestRun:
         for k, v in reference["model"].items():
             torch.testing.assert_close(resumed["model"][k], v, rtol=1e-5, atol=1e-6)
 
+    def test_init_from_starts_from_the_weights(
+        self, trained, synthetic_dataset, compose_train, tmp_path
+    ) -> None:
+        """Fine-tuning at a vanishing learning rate keeps the source's weights; without
+        init_from the same run ends elsewhere (random start)."""
+        source = torch.load(trained[0] / "checkpoint_best.pt", weights_only=False)["model"]
+        runs = {}
+        for name, extra in (("ft", [f"init_from={trained[0]}"]), ("scratch", [])):
+            tt.run(compose_train(synthetic_dataset, tmp_path, f"name={name}", "epochs=1",
+                                 "optim.lr=1e-12", *extra))
+            runs[name] = torch.load(tmp_path / name / "checkpoint_best.pt",
+                                    weights_only=False)["model"]
+        weights = [k for k, v in source.items() if k.endswith("weight") and v.dim() == 4]
+        assert weights
+        for k in weights:
+            torch.testing.assert_close(runs["ft"][k], source[k], rtol=1e-4, atol=1e-5)
+        assert any(not torch.allclose(runs["scratch"][k], source[k], atol=1e-3)
+                   for k in weights)
+        config = json.loads((tmp_path / "ft" / "config.json").read_text())
+        assert config["config"]["init_from"] == str(trained[0])
+        assert "init_from" not in json.loads(
+            (tmp_path / "scratch" / "config.json").read_text())["config"]
+
 
 class TestBadInput:
+    def test_init_from_missing_or_other_network(
+        self, trained, synthetic_dataset, compose_train, tmp_path
+    ) -> None:
+        with pytest.raises(FileNotFoundError, match="init_from=.*checkpoint_best.pt"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, f"init_from={tmp_path / 'none'}"))
+        with pytest.raises(ValueError, match="init_from=.*width=0.125 there, 0.25 here"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, f"init_from={trained[0]}",
+                                 "model.width=0.25"))
+        assert not (tmp_path / "demo").exists()  # refused before any output
+
     def test_missing_dataset(self, compose_train, tmp_path) -> None:
         with pytest.raises(FileNotFoundError, match="dataset not found"):
             tt.run(compose_train(tmp_path / "nope", tmp_path))
