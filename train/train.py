@@ -210,15 +210,14 @@ def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes
     if "model" not in ckpt or "model_kwargs" not in ckpt:
         raise ValueError(f"init_from={source}: {path} is not a checkpoint_best.pt of "
                          "`python -m train`")
-    theirs, ours = ckpt["model_kwargs"], model_kwargs(mcfg)
     try:
-        if ckpt.get("num_classes") != num_classes:
-            raise RuntimeError(f"{ckpt.get('num_classes')} classes there, {num_classes} in "
-                               "this dataset")
-        model.load_state_dict(ckpt["model"])
+        model.load_state_dict(ckpt["model"])  # refuses other layer shapes or class counts
     except RuntimeError as err:
+        theirs, ours = ckpt["model_kwargs"], model_kwargs(mcfg)
         diff = [f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here"
                 for k in sorted(set(theirs) | set(ours)) if theirs.get(k) != ours.get(k)]
+        if ckpt.get("num_classes") != num_classes:
+            diff.append(f"{ckpt.get('num_classes')} classes there, {num_classes} here")
         raise ValueError(
             f"init_from={source}: {path} holds another network ({'; '.join(diff) or err}); "
             "train with the model.* settings and classes it was trained with") from err
