@@ -47,7 +47,7 @@ from train.data import (
     to_float,
 )
 from train.export import ParityError, export_checked, onnx_metadata
-from train.losses import median_frequency_weights, segmentation_loss
+from train.losses import image_edge_mask, median_frequency_weights, segmentation_loss
 from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
 from train.refine import GuidedRefine, refine_logits
 from train.segnet import SegNet, build_segnet, count_parameters, model_kwargs
@@ -80,6 +80,8 @@ HASH_DEFAULTS = {
     "model.head_channels": 8,
     "model.head_layers": 1,
     "loss.boundary_weight": 1.0,
+    "loss.edge_weight": 1.0,
+    "loss.edge_threshold": 0.03,
     "loss.resolution": "network",
     "init_from": None,
 }
@@ -250,6 +252,8 @@ def train_one_epoch(
     ema: AveragedModel | None = None,
     boundary_weight: float = 1.0,
     full_labels: bool = False,
+    edge_weight: float = 1.0,
+    edge_threshold: float = 0.03,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution (the
     loss at the input's with ``full_labels``).
@@ -272,6 +276,8 @@ def train_one_epoch(
         full_labels: ``data`` holds the input-resolution labels; the loss is taken on the
             logits upsampled to them as at inference (``loss.resolution: input``) instead of
             on block-majority labels at the network's resolution.
+        edge_weight, edge_threshold: loss factor on image edges inside one class, and what
+            counts as an image edge (``segmentation_loss``, ``image_edge_mask``).
 
     Returns:
         Mean loss, number of steps done, and whether the deadline stopped the epoch.
@@ -303,7 +309,9 @@ def train_one_epoch(
         if full_labels and not head:  # as at inference: bilinear to the input's resolution
             logits = F.interpolate(logits, size=y.shape[-2:], mode="bilinear",
                                    align_corners=False)
-        loss = segmentation_loss(logits, y, class_weights, boundary_weight)
+        edges = (image_edge_mask(x, edge_threshold, tuple(y.shape[-2:]))
+                 if edge_weight != 1.0 else None)
+        loss = segmentation_loss(logits, y, class_weights, boundary_weight, edge_weight, edges)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -500,6 +508,10 @@ def run(cfg: DictConfig) -> dict:
         raise ValueError(
             "model.head=refine learns at the input's resolution: add loss.resolution=input"
         )
+    for key in ("boundary_weight", "edge_weight", "edge_threshold"):
+        if not float(cfg.loss.get(key, 1.0)) > 0:
+            raise ValueError(f"loss.{key}={cfg.loss.get(key)} must be positive (1 = off for the "
+                             "weights)")
     progress = bool(cfg.progress)
     dataset = Dataset(cfg.dataset)
     ds_json = (dataset.root / "dataset.json").read_bytes()
@@ -617,6 +629,8 @@ def run(cfg: DictConfig) -> dict:
             bf16=bf16,
             ema=ema,
             boundary_weight=float(cfg.loss.get("boundary_weight", 1.0)),
+            edge_weight=float(cfg.loss.get("edge_weight", 1.0)),
+            edge_threshold=float(cfg.loss.get("edge_threshold", 0.03)),
             full_labels=full_labels,
         )
         cm, _ = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")

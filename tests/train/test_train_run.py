@@ -61,7 +61,9 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     """The training loop at a quarter resolution: images box-averaged once (average stem) or
     kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle);
     or the labels kept whole and the loss taken on upsampled logits (loss.resolution: input),
-    through the learned full-resolution head (model.head: refine), which then trains too."""
+    through the learned full-resolution head (model.head: refine), which then trains too. The
+    unshuffle runs weigh image edges inside one class (loss.edge_weight), their edge masks at
+    the labels' resolution, coarser or the same."""
     model = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=4, stem=stem,
                    head=head, generator=torch.Generator().manual_seed(0))
     full = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
@@ -74,7 +76,9 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     gen = torch.Generator().manual_seed(0)
     aug = AugmentConfig().at_resolution(model.training_factor)
     losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
-                                 full_labels=full_labels).loss for _ in range(8)]
+                                 full_labels=full_labels,
+                                 edge_weight=3.0 if stem == "unshuffle" else 1.0).loss
+              for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
     if model.refine_head is not None:
         assert model.refine_head[-1].weight.abs().sum() > 0  # was zero: the head learned
@@ -117,6 +121,10 @@ def test_stem_in_config_hash() -> None:
     assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "resolution": "network"}})
                               ) == plain
     assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "resolution": "input"}})
+                              ) != plain
+    assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "edge_weight": 1.0,
+                                                         "edge_threshold": 0.03}})) == plain
+    assert tt.training_config(OmegaConf.create({"loss": {"power": 0.5, "edge_weight": 4.0}})
                               ) != plain
     assert tt.training_config(OmegaConf.create({"seed": 0, "init_from": None})) == \
         tt.training_config(OmegaConf.create({"seed": 0}))
@@ -353,6 +361,11 @@ class TestBadInput:
     def test_zero_budget(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(RuntimeError, match="time budget"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "max_minutes=0"))
+
+    def test_bad_loss_weight(self, synthetic_dataset, compose_train, tmp_path) -> None:
+        with pytest.raises(ValueError, match="loss.edge_weight=-2 must be positive"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "loss.edge_weight=-2"))
+        assert not any(tmp_path.iterdir())  # nothing written
 
     def test_bad_loss_resolution(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(ValueError, match="loss.resolution='full': use network or input"):
