@@ -21,6 +21,12 @@ boundary moved into it), - inside the lower-id one. Prints the mean signed offse
 shares at least 1.5 px off to each side: a bias a fixed correction could take out shows as a
 mean of one sign on every flight.
 
+Then, pooled over the flights, per class pair: the cnn boundary pixels by their distance to the
+true boundary of their pair, in bands (on it, 1 px, 2 px, 2.5-5, 5-10, 10 px or more;
+``distance_bands``), and the share of true boundary pixels with a cnn one within 1 px. A
+boundary 2.5 px or more off is on another image edge (the top of a skirting board, a poster's
+outline; docs/localize.md, "image edges inside one class"), which the snap cannot reach.
+
 Last, before any snap or median, where the network's own decision crosses: for each pair of
 4-neighbour pixels the true labels give two structural classes a | b, whether the decision
 between a and b (the logits with the cnn mode's prior correction; ``logit_crossings``) changes
@@ -141,6 +147,20 @@ def logit_crossings(z: np.ndarray, labels: np.ndarray,
     return {c: np.concatenate(v) for c, v in out.items()}
 
 
+#: Upper edges (px, exclusive) of ``distance_bands``' bands; the last band is open.
+BANDS = (0.5, 1.5, 2.5, 5.0, 9.99)
+BAND_NAMES = ("0 px", "1 px", "2 px", "2.5-5", "5-10", ">= 10")
+
+
+def distance_bands(offsets: np.ndarray) -> np.ndarray:
+    """Shares (6,) of boundary pixels per band of |offset| (``BAND_NAMES``; offsets capped at
+    10 px fall in the last band), from (n,) signed or unsigned offsets in px; zeros if n = 0."""
+    a = np.abs(np.asarray(offsets, dtype=np.float64))
+    if not len(a):
+        return np.zeros(len(BANDS) + 1)
+    return np.bincount(np.searchsorted(BANDS, a, side="right"), minlength=len(BANDS) + 1) / len(a)
+
+
 def decision_scores(cnn, rgb: np.ndarray) -> np.ndarray:
     """(C, H, W) the scores the cnn mode's structural decision takes the argmax of: the
     logits, minus its prior correction when it has one."""
@@ -168,6 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     oracle = EdgeExtractor("oracle", edges_cfg)
     names = {int(c["id"]): c["name"] for c in dataset.classes}
     print(f"dataset {args.dataset}, model {args.model}, every {args.step} frames")
+    pooled_side: dict[int, list[np.ndarray]] = {}
+    pooled_found: dict[int, list[np.ndarray]] = {}
     for name in dataset.flight_names():
         flight = dataset.flight(name)
         found: dict[int, list[np.ndarray]] = {}
@@ -182,8 +204,10 @@ def main(argv: list[str] | None = None) -> int:
                 cross.setdefault(code, []).append(c)
             for code, d in true_to_cnn(ec, eo, args.cap).items():
                 found.setdefault(code, []).append(d)
+                pooled_found.setdefault(code, []).append(d)
             for code, s in signed_offsets(ec, eo, labels, args.cap).items():
                 side.setdefault(code, []).append(s)
+                pooled_side.setdefault(code, []).append(s)
         print(f"flight {name}: class pair, true boundary px, mean px, within 1 px, beyond 3 px")
         for code, parts in sorted(found.items()):
             d = np.concatenate(parts)
@@ -206,6 +230,16 @@ def main(argv: list[str] | None = None) -> int:
             pair = pair_name(code, names)
             print(f"  {pair:18s} {len(c):8d} {np.mean(c == 0):6.0%} {np.mean(c < 0):6.0%} "
                   f"{np.mean(c > 0):6.0%}")
+    print("all flights: class pair, cnn boundary px, shares by distance to the true boundary ("
+          + ", ".join(BAND_NAMES) + "), true boundary px with a cnn one within 1 px")
+    for code, parts in sorted(pooled_side.items()):
+        s = np.concatenate(parts)
+        if not len(s):
+            continue
+        d = np.concatenate(pooled_found.get(code, [np.zeros(0)]))
+        within = f"{np.mean(d <= 1):6.0%}" if len(d) else "     -"
+        print(f"  {pair_name(code, names):18s} {len(s):8d} "
+              + " ".join(f"{v:6.0%}" for v in distance_bands(s)) + f" {within}")
     return 0
 
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from benchmarks.boundary_distance import (
     decision_scores,
+    distance_bands,
     frame_edges,
     logit_crossings,
     pair_distances,
@@ -107,3 +108,10 @@ def test_logit_crossings_place_the_decision_to_the_pixel():
     ex = EdgeExtractor("cnn", cfg, RampSegmenter(30.9))
     got = logit_crossings(decision_scores(ex, None), truth, C.STRUCTURAL)
     np.testing.assert_array_equal(np.unique(got[wall_door]), [0])
+
+
+def test_distance_bands():
+    """Shares by |offset| band: on the band, 1 px, 2 px, 2.5-5, 5-10, capped at 10."""
+    shares = distance_bands(np.array([0.0, -1.0, 1.41, 2.0, -2.24, 3.0, 5.0, -9.9, 10.0, 10.0]))
+    np.testing.assert_allclose(shares, [0.1, 0.2, 0.2, 0.1, 0.2, 0.2])
+    np.testing.assert_array_equal(distance_bands(np.zeros(0)), np.zeros(6))
