@@ -508,8 +508,11 @@ def run(cfg: DictConfig) -> dict:
         raise ValueError(
             "model.head=refine learns at the input's resolution: add loss.resolution=input"
         )
-    for key in ("boundary_weight", "edge_weight", "edge_threshold"):
-        if not float(cfg.loss.get(key, 1.0)) > 0:
+    # the loss's pixel weights (a config from before a key existed: its old behaviour)
+    pixel_weights = {k: float(cfg.loss.get(k, HASH_DEFAULTS[f"loss.{k}"]))
+                     for k in ("boundary_weight", "edge_weight", "edge_threshold")}
+    for key, value in pixel_weights.items():
+        if not value > 0:
             raise ValueError(f"loss.{key}={cfg.loss.get(key)} must be positive (1 = off for the "
                              "weights)")
     progress = bool(cfg.progress)
@@ -628,9 +631,7 @@ def run(cfg: DictConfig) -> dict:
             desc=f"epoch {epoch + 1}/{state['epochs']}",
             bf16=bf16,
             ema=ema,
-            boundary_weight=float(cfg.loss.get("boundary_weight", 1.0)),
-            edge_weight=float(cfg.loss.get("edge_weight", 1.0)),
-            edge_threshold=float(cfg.loss.get("edge_threshold", 0.03)),
+            **pixel_weights,
             full_labels=full_labels,
         )
         cm, _ = evaluate(net, val_data, num_classes, int(cfg.eval.batch_size), progress, "val")
