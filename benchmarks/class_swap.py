@@ -1,0 +1,90 @@
+"""Which class's segmentation errors cost the cnn mode its accuracy: the SegNet's labels with one
+set of classes taken from the truth.
+
+Usage::
+
+    python benchmarks/class_swap.py --swap floor onnx_model=outputs/models/usrhbw6/segnet.onnx \\
+        name=swap_floor "modes=[cnn]" progress=false
+    python benchmarks/class_swap.py --swap door,window ...   # several classes at once
+
+This is ``benchmarks/flight_spread.py`` (same arguments after ``--swap``; its flights) with one
+change to the cnn mode: every pixel that the true label image or the SegNet puts in one of the
+``--swap`` classes takes its true label, so every boundary of those classes is where the
+truth has it, and every other boundary is the SegNet's. The drop in the cnn error against a
+plain ``flight_spread`` run with the same overrides and seeds is what perfect segmentation of
+those classes would be worth; the classes whose swap closes most of the gap to ``oracle`` are
+where a better SegNet pays (docs/localize.md, "which class costs the gap"). A diagnostic: the
+localizer itself never reads true labels in cnn mode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import localize.runner as runner  # noqa: E402
+from datagen import classes as C  # noqa: E402
+from datagen.atomic import read_png  # noqa: E402
+from localize.edges import EdgeExtractor  # noqa: E402
+
+
+def swap_labels(predicted: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """The predicted labels with the true label wherever either map has one of ``classes``.
+
+    Args:
+        predicted, truth: (H, W) uint8 class ids.
+        classes: (K,) class ids to take from the truth.
+    Returns:
+        (H, W) uint8.
+    """
+    if predicted.shape != truth.shape:
+        raise ValueError(f"predicted {predicted.shape} and true {truth.shape} labels differ")
+    take = np.isin(truth, classes) | np.isin(predicted, classes)
+    return np.where(take, truth, predicted).astype(np.uint8)
+
+
+def install(classes: np.ndarray) -> None:
+    """Patch the runner so cnn mode's labels are ``swap_labels`` of the SegNet's and the true
+    ones of the frame being read (the frame's label image beside its ``rgb/`` image)."""
+    current: dict[str, Path] = {}
+    plain_read, plain_segment = runner.read_png, EdgeExtractor.segment
+
+    def read(path, *args, **kwargs):
+        path = Path(path)
+        if path.parent.name == "rgb":
+            current["label"] = path.parent.parent / "label" / path.name
+        return plain_read(path, *args, **kwargs)
+
+    def segment(self, rgb):
+        labels, conf = plain_segment(self, rgb)
+        truth = read_png(current["label"], rgb=False)
+        return swap_labels(labels, truth, classes), conf
+
+    runner.read_png = read
+    EdgeExtractor.segment = segment
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], add_help=False)
+    ap.add_argument("--swap", required=True,
+                    help="comma-separated class names whose true labels replace the SegNet's")
+    a, rest = ap.parse_known_args()
+    names = [n for n in a.swap.split(",") if n]
+    unknown = sorted(set(names) - set(C.NAMES))
+    if unknown or not names:
+        ap.error(f"--swap {a.swap!r}: unknown class {unknown}; use names from {list(C.NAMES)}")
+    install(np.array([C.ID[n] for n in names]))
+    import flight_spread  # noqa: E402  (benchmarks/ is on sys.path as the script's folder)
+
+    sys.argv = [sys.argv[0], *rest]
+    flight_spread.main()
+
+
+if __name__ == "__main__":
+    main()

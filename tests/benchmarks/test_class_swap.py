@@ -1,0 +1,69 @@
+"""benchmarks/class_swap.py: the SegNet's labels with some classes taken from the truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import localize.runner as runner
+from benchmarks.class_swap import install, swap_labels
+from datagen import classes as C
+from datagen.atomic import write_png
+from localize.edges import EdgeExtractor
+
+CFG = {"labels": {"dilate_px": 0, "median": 0}, "cnn": {"snap_px": 0, "prior_correction": 0.0}}
+
+
+def truth() -> np.ndarray:
+    """(8, 10): ceiling rows 0-1, wall rows 2-5 with a door in columns 6-7, floor rows 6-7."""
+    lab = np.full((8, 10), C.WALL, dtype=np.uint8)
+    lab[:2] = C.CEILING
+    lab[2:6, 6:8] = C.DOOR
+    lab[6:] = C.FLOOR
+    return lab
+
+
+def predicted() -> np.ndarray:
+    """The truth with the floor one row too high and the door one column too wide above it."""
+    lab = truth()
+    lab[5] = C.FLOOR
+    lab[2:5, 5] = C.DOOR
+    return lab
+
+
+def test_swap_takes_the_classes_from_the_truth_and_keeps_the_rest():
+    t, p = truth(), predicted()
+    floor = swap_labels(p, t, np.array([C.FLOOR]))
+    np.testing.assert_array_equal(floor[5], t[5])            # the floor row is back to wall
+    np.testing.assert_array_equal(floor[2:5], p[2:5])        # the door stays too wide
+    door = swap_labels(p, t, np.array([C.DOOR]))
+    np.testing.assert_array_equal(door[2:5], t[2:5])
+    np.testing.assert_array_equal(door[5, :5], p[5, :5])     # floor still too high left of it
+    both = swap_labels(p, t, np.array([C.FLOOR, C.DOOR]))
+    np.testing.assert_array_equal(both, t)
+    assert both.dtype == np.uint8
+    np.testing.assert_array_equal(swap_labels(p, t, np.array([C.WINDOW])), p)
+    with pytest.raises(ValueError, match="differ"):
+        swap_labels(p, t[:4], np.array([C.FLOOR]))
+
+
+class Segmenter:
+    def labels(self, rgb: np.ndarray) -> np.ndarray:
+        return predicted()
+
+
+def test_install_swaps_the_frame_being_read(tmp_path, monkeypatch):
+    # keep the originals so that the patch is undone after the test
+    monkeypatch.setattr(runner, "read_png", runner.read_png)
+    monkeypatch.setattr(EdgeExtractor, "segment", EdgeExtractor.segment)
+    (tmp_path / "rgb").mkdir()
+    (tmp_path / "label").mkdir()
+    rgb = np.full((8, 10, 3), 90, np.uint8)
+    write_png(tmp_path / "rgb" / "000003.png", rgb)
+    write_png(tmp_path / "label" / "000003.png", truth())
+    install(np.array([C.FLOOR]))
+    image = runner.read_png(tmp_path / "rgb" / "000003.png")
+    np.testing.assert_array_equal(image, rgb)
+    labels, conf = EdgeExtractor("cnn", CFG, Segmenter()).segment(image)
+    np.testing.assert_array_equal(labels, swap_labels(predicted(), truth(), np.array([C.FLOOR])))
+    assert conf.shape == labels.shape
