@@ -46,7 +46,8 @@ class CnnSettings:
         min_confidence: pixels whose largest softmax probability is below it are unknown (0:
             off).
         snap_px: search reach of ``snap_to_image_edges``, pixels (0: no snap).
-        snap_min_gradient, snap_band, snap_stay, snap_colour: its other settings.
+        snap_min_gradient, snap_band, snap_stay, snap_colour, snap_nearest: its other
+            settings.
         refine: ``none`` (the snapped class boundaries), ``canny`` (Canny edges within
             ``refine_px`` of them) or ``mask`` (mode none's edges, objects masked).
         refine_px: pixels, for ``refine: canny``.
@@ -60,6 +61,7 @@ class CnnSettings:
     snap_band: bool = False
     snap_stay: bool = True
     snap_colour: bool = True
+    snap_nearest: bool = False
     refine: str = "none"
     refine_px: int = 6
     guided_refine: bool = False
@@ -204,7 +206,8 @@ def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
                         min_gradient: float, band: bool = False,
-                        stay: bool = False, colour: bool = False) -> EdgeImage:
+                        stay: bool = False, colour: bool = False,
+                        nearest: bool = False) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
     normal, up to ``radius`` pixels either way, for the strongest grey-level (or ``colour``)
     gradient across the boundary, and moves there if that gradient reaches ``min_gradient``;
@@ -232,6 +235,12 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
         colour: the gradient across the boundary is the root mean square over the R, G and B
             channels' instead of the grey image's (same scale for a grey step), so a step
             between two colours of equal brightness (a pink wall beside a grey jamb) counts.
+        nearest: move to the nearest image edge within reach (a local maximum of the gradient
+            along the normal that reaches ``min_gradient``; of two as near, the stronger)
+            instead of the strongest one, and stay where there is none. A boundary already
+            on an edge stays (as ``stay``); one a pixel off goes to the edge beside it, not to
+            a stronger texture edge two pixels away (the top of a skirting board above a
+            floor | wall boundary). Overrides ``stay``.
 
     Returns:
         The edge image with moved edge pixels (several may land on one; pairs move along;
@@ -267,9 +276,17 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     across = grad[:, 1:-1] - 1e-3 * np.abs(t[1:-1])  # ties: stay
     across[~edge.known[py[:, 1:-1], px[:, 1:-1]]] = -1.0  # never onto a masked object
     i = np.arange(len(ys))
-    best = across.argmax(1)
-    move = across[i, best] >= min_gradient
-    if stay:  # already on a strong-enough gradient peak: keep it
+    if nearest:  # the nearest gradient peak that counts, ties to the stronger
+        inner = grad[:, 1:-1]
+        peak = ((inner >= grad[:, :-2]) & (inner >= grad[:, 2:]) & (across >= min_gradient))
+        cost = np.where(peak, np.abs(t[1:-1]) - 1e-3 * inner, np.inf)
+        best = cost.argmin(1)
+        move = peak.any(1)
+        best = np.where(move, best, radius)
+    else:
+        best = across.argmax(1)
+        move = across[i, best] >= min_gradient
+    if stay and not nearest:  # already on a strong-enough gradient peak: keep it
         here = grad[:, radius + 1]
         on_edge = ((here >= grad[:, radius]) & (here >= grad[:, radius + 2])
                    & (across[:, radius] >= min_gradient))
@@ -559,7 +576,7 @@ class EdgeExtractor:
             edges = out.edges & known
             out = EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
             return snap_to_image_edges(out, rgb, cc.snap_px, cc.snap_min_gradient, cc.snap_band,
-                                       cc.snap_stay, cc.snap_colour)
+                                       cc.snap_stay, cc.snap_colour, cc.snap_nearest)
         if cc.refine == "canny":
             near = _dilate(out.edges & known, cc.refine_px)
             return EdgeImage(self._canny(rgb, hough=False) & near & known, known)

@@ -351,6 +351,33 @@ class TestSnap:
                                   min_gradient=15.0, stay=True)
         assert set(np.nonzero(off.edges)[1]) == {29}
 
+    def test_nearest_goes_to_the_edge_beside_it_not_the_strongest(self):
+        # boundary pixels at columns 24 | 25; a weaker step at 22 | 23, a stronger one at 27 | 28
+        lab = np.full((40, 60), C.WALL, dtype=np.uint8)
+        lab[:, 25:] = C.DOOR
+        rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
+        rgb[:, 23:] = 110
+        rgb[:, 28:] = 200
+        edge = label_edges(lab, dilate_px=0)
+        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, stay=True)
+        assert set(np.nonzero(strongest.edges)[1]) == {27}
+        near = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, nearest=True)
+        # 24 is a pixel from the weak step and moves onto it; 25 is two pixels from both and
+        # takes the stronger
+        assert set(np.nonzero(near.edges)[1]) == {23, 27}
+        np.testing.assert_array_equal(near.pairs > 0, near.edges)
+        # on an edge already: stays (as with stay); no edge in reach: stays
+        lab, _ = self.step(80, 160, split=27)
+        rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
+        rgb[:, 27:31] = 100
+        rgb[:, 31:] = 200
+        edge = label_edges(lab, dilate_px=0)
+        kept = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, nearest=True)
+        np.testing.assert_array_equal(kept.edges, edge.edges)
+        flat = snap_to_image_edges(edge, np.zeros_like(rgb), radius=3, min_gradient=15.0,
+                                   nearest=True)
+        np.testing.assert_array_equal(flat.edges, edge.edges)
+
     def test_out_of_reach_or_too_weak_stays(self):
         lab, rgb = self.step(80, 160, split=25)
         far = label_edges(lab, dilate_px=0)  # columns 24, 25: the gradient starts at 28
