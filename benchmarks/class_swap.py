@@ -4,7 +4,7 @@ set of classes taken from the truth.
 Usage::
 
     python benchmarks/class_swap.py --swap floor onnx_model=outputs/models/usrhbw6/segnet.onnx \\
-        name=swap_floor "modes=[cnn]" progress=false
+        name=hw6 "modes=[cnn]" progress=false     # reports hw6_swap_floor, hw6_swap_floor_own
     python benchmarks/class_swap.py --swap door,window ...   # several classes at once
 
 This is ``benchmarks/flight_spread.py`` (same arguments after ``--swap``; its flights) with one
@@ -14,7 +14,8 @@ truth has it, and every other boundary is the SegNet's. The drop in the cnn erro
 plain ``flight_spread`` run with the same overrides and seeds is what perfect segmentation of
 those classes would be worth; the classes whose swap closes most of the gap to ``oracle`` are
 where a better SegNet pays (docs/localize.md, "which class costs the gap"). A diagnostic: the
-localizer itself never reads true labels in cnn mode.
+localizer itself never reads true labels in cnn mode. The report's name gets the suffix
+``_swap_<classes>``, so a swapped run never resumes from a plain one's runs.
 """
 
 from __future__ import annotations
@@ -82,8 +83,18 @@ def main() -> None:
     install(np.array([C.ID[n] for n in names]))
     import flight_spread  # noqa: E402  (benchmarks/ is on sys.path as the script's folder)
 
-    sys.argv = [sys.argv[0], *rest]
+    sys.argv = [sys.argv[0], *report_name(rest, names)]
     flight_spread.main()
+
+
+def report_name(args: list[str], names: list[str]) -> list[str]:
+    """``args`` with the report's ``name=`` override suffixed by ``_swap_<classes>`` (no
+    override: ``swap_<classes>``), so a swapped run never resumes from, or into, a plain run's
+    report."""
+    swap = "swap_" + "_".join(names)
+    given = [a.split("=", 1)[1] for a in args if a.startswith("name=")]
+    name = f"{given[-1]}_{swap}" if given else swap
+    return [a for a in args if not a.startswith("name=")] + [f"name={name}"]
 
 
 if __name__ == "__main__":

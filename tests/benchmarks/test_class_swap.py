@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import localize.runner as runner
-from benchmarks.class_swap import install, swap_labels
+from benchmarks.class_swap import install, report_name, swap_labels
 from datagen import classes as C
 from datagen.atomic import write_png
 from localize.edges import EdgeExtractor
@@ -67,3 +67,10 @@ def test_install_swaps_the_frame_being_read(tmp_path, monkeypatch):
     labels, conf = EdgeExtractor("cnn", CFG, Segmenter()).segment(image)
     np.testing.assert_array_equal(labels, swap_labels(predicted(), truth(), np.array([C.FLOOR])))
     assert conf.shape == labels.shape
+
+
+def test_report_name_keeps_swapped_runs_apart():
+    assert report_name(["name=hw6", "seeds=[3]"], ["floor"]) == ["seeds=[3]",
+                                                                 "name=hw6_swap_floor"]
+    assert report_name(["modes=[cnn]"], ["door", "window"]) == ["modes=[cnn]",
+                                                                "name=swap_door_window"]
