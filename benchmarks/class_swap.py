@@ -64,6 +64,9 @@ def install(classes: np.ndarray) -> None:
 
     def segment(self, rgb):
         labels, conf = plain_segment(self, rgb)
+        if "label" not in current:
+            raise RuntimeError("class_swap: a frame was segmented before its rgb/ image was "
+                               "read, so its true labels are unknown")
         truth = read_png(current["label"], rgb=False)
         return swap_labels(labels, truth, classes), conf
 
@@ -72,7 +75,9 @@ def install(classes: np.ndarray) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], add_help=False)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 epilog="Every other argument is benchmarks/flight_spread.py's "
+                                        "(--dataset, --flights, localize overrides).")
     ap.add_argument("--swap", required=True,
                     help="comma-separated class names whose true labels replace the SegNet's")
     a, rest = ap.parse_known_args()
