@@ -236,7 +236,9 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
             channels' instead of the grey image's (same scale for a grey step), so a step
             between two colours of equal brightness (a pink wall beside a grey jamb) counts.
         nearest: move to the nearest image edge within reach (a local maximum of the gradient
-            along the normal that reaches ``min_gradient``; of two as near, the stronger)
+            along the normal that reaches ``min_gradient``, ranked by distance in pixels less
+            0.001 x its gradient: of two as near, the stronger; a farther one wins only with a
+            gradient ~1000 higher, about the largest a step can give)
             instead of the strongest one, and stay where there is none. A boundary already
             on an edge stays (as ``stay``); one a pixel off goes to the edge beside it, not to
             a stronger texture edge two pixels away (the top of a skirting board above a
