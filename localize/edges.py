@@ -236,13 +236,13 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
             channels' instead of the grey image's (same scale for a grey step), so a step
             between two colours of equal brightness (a pink wall beside a grey jamb) counts.
         nearest: move to the nearest image edge within reach (a local maximum of the gradient
-            along the normal that reaches ``min_gradient``, ranked by distance in pixels less
-            0.001 x its gradient: of two as near, the stronger; a farther one wins only with a
-            gradient ~1000 higher, about the largest a step can give)
-            instead of the strongest one, and stay where there is none. A boundary already
-            on an edge stays (as ``stay``); one a pixel off goes to the edge beside it, not to
-            a stronger texture edge two pixels away (the top of a skirting board above a
-            floor | wall boundary). Overrides ``stay``.
+            along the normal that reaches ``min_gradient``) instead of the strongest, and stay
+            where there is none. Edges rank by distance in pixels less 0.001 x gradient: of two
+            as near, the stronger; a farther one wins only with a gradient ~1000 higher, about
+            the largest a step can give. A boundary already on an edge stays (as ``stay``);
+            one a pixel off goes to the edge beside it, not to a stronger texture edge two
+            pixels away (the top of a skirting board above a floor | wall boundary).
+            Overrides ``stay``.
 
     Returns:
         The edge image with moved edge pixels (several may land on one; pairs move along;
@@ -278,22 +278,19 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     across = grad[:, 1:-1] - 1e-3 * np.abs(t[1:-1])  # ties: stay
     across[~edge.known[py[:, 1:-1], px[:, 1:-1]]] = -1.0  # never onto a masked object
     i = np.arange(len(ys))
-    if nearest:  # the nearest gradient peak that counts, ties to the stronger
-        inner = grad[:, 1:-1]
-        peak = ((inner >= grad[:, :-2]) & (inner >= grad[:, 2:]) & (across >= min_gradient))
-        cost = np.where(peak, np.abs(t[1:-1]) - 1e-3 * inner, np.inf)
-        best = cost.argmin(1)
+    inner = grad[:, 1:-1]
+    # (n, 2 radius + 1) image edges along the normal: gradient peaks that count
+    peak = (inner >= grad[:, :-2]) & (inner >= grad[:, 2:]) & (across >= min_gradient)
+    if nearest:  # the nearest peak, ties to the stronger; none: stay
+        best = np.where(peak, np.abs(t[1:-1]) - 1e-3 * inner, np.inf).argmin(1)
         move = peak.any(1)
         best = np.where(move, best, radius)
     else:
         best = across.argmax(1)
         move = across[i, best] >= min_gradient
-    if stay and not nearest:  # already on a strong-enough gradient peak: keep it
-        here = grad[:, radius + 1]
-        on_edge = ((here >= grad[:, radius]) & (here >= grad[:, radius + 2])
-                   & (across[:, radius] >= min_gradient))
-        best = np.where(on_edge, radius, best)
-        move |= on_edge
+        if stay:  # already on a peak: keep it
+            best = np.where(peak[:, radius], radius, best)
+            move |= peak[:, radius]
     if band:
         a, b, c = grad[i, best], grad[i, best + 1], grad[i, best + 2]
         curv = a - 2 * b + c
