@@ -46,6 +46,15 @@ Scores aggregate in one of three ways:
 
 Finally ``log W = log(alpha) + k * score``. The likelihood stays finite for any input: with no
 edges at all every particle gets the same score.
+
+**Few lines in view** (``lines_ref``): a mean over lines weighs a frame that shows four model
+lines (the camera close to an end wall) as much as one that shows forty, so one misplaced
+boundary in such a view moves the pose as far as forty consistent ones. With ``lines_ref`` R
+the frame's k is scaled by ``min(1, m / R)``, m the particles' median count of lines (lines
+with at least ``min_line_samples`` visible samples): below R lines the log-likelihood is
+``k / R`` times the *sum* of the line scores, as if each line were one independent
+observation, and the odometry carries more of the estimate. One scale per frame, not per
+particle, so a pose is not favoured for seeing more or fewer lines.
 """
 
 from __future__ import annotations
@@ -84,6 +93,8 @@ class LikelihoodParams:
         min_line_samples: visible samples a line needs to count (aggregate = lines).
         min_lines: fewer counted lines (or, for ``samples``, fewer than ``min_lines *
             min_line_samples`` samples) are padded with the chance score g0.
+        lines_ref: a frame whose particles see fewer lines than this (their median) has its
+            k scaled by that count / ``lines_ref`` (``frame_k``); 0 = off.
         evidence_norm: samples per unit of score for ``evidence``.
         outlier: eps of the evidence's log-ratio, the floor of a sample's match probability
             (large eps: e tends to (g - g0) / eps, a linear reward).
@@ -103,6 +114,7 @@ class LikelihoodParams:
     aggregate: str = "lines"
     min_line_samples: int = 2
     min_lines: int = 1
+    lines_ref: int = 0
     evidence_norm: float = 100.0
     outlier: float = 0.05
     min_quality_samples: int = 30
@@ -118,6 +130,8 @@ class LikelihoodParams:
         if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
             raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
                              f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")
+        if self.lines_ref < 0:
+            raise ValueError(f"likelihood.lines_ref must be >= 0 (0 = off), got {self.lines_ref}")
 
     @classmethod
     def from_cfg(cls, cfg: Mapping) -> LikelihoodParams:
@@ -155,6 +169,19 @@ class Observation:
     def chance(self) -> float:
         """The neutral score used for padding."""
         return float(self.g0.mean())
+
+
+def frame_k(k: float, lines: np.ndarray, lines_ref: int) -> float:
+    """The frame's likelihood sharpness: ``k * min(1, median(lines) / lines_ref)``.
+
+    Args:
+        k: the configured sharpness.
+        lines: (N,) lines each particle sees (those with enough visible samples).
+        lines_ref: the line count from which a frame counts fully; 0 returns ``k``.
+    """
+    if lines_ref <= 0 or len(lines) == 0:
+        return float(k)
+    return float(k) * min(1.0, float(np.median(lines)) / lines_ref)
 
 
 def distance_to(mask: np.ndarray) -> np.ndarray:
@@ -318,19 +345,27 @@ class EdgeLikelihood:
             ``min_quality_samples`` of them. Recovery watches the best particle's quality
             whatever the aggregate.
         """
+        score, quality, _ = self._evaluate(states, obs, tilt)
+        return score, quality
+
+    def _evaluate(self, states: np.ndarray, obs: Observation, tilt: np.ndarray | None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``scores`` and (N,) int the lines each particle sees (see ``frame_k``)."""
         states = np.asarray(states, dtype=np.float64)
         if states.ndim != 2 or states.shape[1] != 4:
             raise ValueError(f"states must be (N, 4), got {states.shape}")
         N = len(states)
         score = np.empty(N)
         quality = np.empty(N)
+        lines = np.empty(N, dtype=np.int64)
         step = max(1, int(self.params.chunk))
         for i in range(0, N, step):  # blocks of particles, vectorized within
-            score[i:i + step], quality[i:i + step] = self._block(states[i:i + step], obs, tilt)
-        return score, quality
+            b = slice(i, i + step)
+            score[b], quality[b], lines[b] = self._block(states[b], obs, tilt)
+        return score, quality, lines
 
     def _block(self, states: np.ndarray, obs: Observation,
-               tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+               tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p, cam, s = self.params, self.camera, self.samples
         W, H = cam.width, cam.height
         proj = projection_matrices(cam_from_world(states, cam.body_from_cam, tilt), cam.K)
@@ -358,29 +393,33 @@ class EdgeLikelihood:
         # how well the known visible samples fit: 1 = all on edges, 0 = chance
         e_top = np.log((1.0 + p.outlier) / (chance + p.outlier))
         quality = np.where(known >= p.min_quality_samples, e_mean / e_top, np.nan)
+        ok = None  # (n, L) lines with enough visible samples: the lines aggregate, lines_ref
+        if p.aggregate == "lines" or p.lines_ref > 0:
+            ns = np.add.reduceat(valid.view(np.uint8), self._starts, axis=1, dtype=np.int16)
+            ok = ns >= p.min_line_samples
+        m = np.zeros(len(states), np.int64) if ok is None else ok.sum(axis=1)
         if p.aggregate == "evidence":
             # unknown samples count with the particle's own mean evidence (they may or may not
             # match; moving lines off a masked object onto empty wall must not pay)
-            return e_mean * n / p.evidence_norm, quality
+            return e_mean * n / p.evidence_norm, quality, m
         g = obs.g[idx]
         if p.aggregate == "samples":
             need = p.min_lines * p.min_line_samples
             total = g.sum(axis=1, dtype=np.float64) + np.maximum(need - n, 0) * chance
-            return total / np.maximum(np.maximum(n, need), 1), quality
+            return total / np.maximum(np.maximum(n, need), 1), quality, m
         gs = np.add.reduceat(g, self._starts, axis=1)
-        ns = np.add.reduceat(valid.view(np.uint8), self._starts, axis=1, dtype=np.int16)
-        ok = ns >= p.min_line_samples
         line = np.where(ok, gs / np.maximum(ns, 1), np.float32(0.0))
-        m = ok.sum(axis=1)
         total = line.sum(axis=1, dtype=np.float64) + np.maximum(p.min_lines - m, 0) * chance
-        return total / np.maximum(np.maximum(m, p.min_lines), 1), quality
+        return total / np.maximum(np.maximum(m, p.min_lines), 1), quality, m
 
     def log_likelihood(self, states: np.ndarray, obs: Observation,
                        tilt: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``log W = log(alpha) + k * score`` per particle.
+        """``log W = log(alpha) + k * score`` per particle, k scaled down in a frame of few
+        lines (``frame_k``, with ``lines_ref``).
 
         Returns:
             log_w (N,) float64 (finite); quality (N,) in [0, 1] (see ``scores``).
         """
-        score, quality = self.scores(states, obs, tilt)
-        return np.log(self.params.alpha) + self.params.k * score, quality
+        score, quality, lines = self._evaluate(states, obs, tilt)
+        k = frame_k(self.params.k, lines, self.params.lines_ref)
+        return np.log(self.params.alpha) + k * score, quality

@@ -7,7 +7,13 @@ import pytest
 
 from datagen import classes as C
 from localize.edges import EdgeImage, label_edges, pair_code
-from localize.likelihood import EdgeLikelihood, LikelihoodParams, edge_normal_angle, observe
+from localize.likelihood import (
+    EdgeLikelihood,
+    LikelihoodParams,
+    edge_normal_angle,
+    frame_k,
+    observe,
+)
 from localize.projection import cam_from_world, sample_segments
 from localize.visibility import build_visibility_grid
 
@@ -109,6 +115,35 @@ def test_peaks_at_true_pose(model, camera, rendered, aggregate, bins):
     assert quality[0] > 0.9
     logw, q = lik.log_likelihood(states, obs)
     np.testing.assert_allclose(logw, np.log(1.0) + 3.0 * score)
+
+
+def test_frame_k():
+    assert frame_k(25.0, np.array([4, 4, 10]), 15) == pytest.approx(25.0 * 4 / 15)
+    assert frame_k(25.0, np.array([40, 3, 41]), 15) == 25.0  # enough lines: k itself
+    assert frame_k(25.0, np.array([4]), 0) == 25.0  # off
+    assert frame_k(25.0, np.array([], int), 15) == 25.0
+    with pytest.raises(ValueError, match="lines_ref"):
+        LikelihoodParams(lines_ref=-1)
+
+
+@pytest.mark.parametrize("aggregate", ["lines", "evidence"])
+def test_lines_ref_scales_the_frame_not_the_particles(model, camera, rendered, aggregate):
+    """With lines_ref above the lines in view every particle's log-weight is the same
+    fraction of k times its score (the ranking is kept); with lines_ref 1 it is k itself."""
+    s, vis = model
+    states = np.vstack([TRUE, TRUE + OFFSETS])
+    edge = label_edges(rendered, dilate_px=0)
+    base = LikelihoodParams(aggregate=aggregate, k=25.0, min_lines=1)
+    for ref, lo, hi in ((1, 25.0, 25.0), (10_000, 1e-6, 0.5)):
+        lik = EdgeLikelihood(s, camera, LikelihoodParams(**{**base.__dict__, "lines_ref": ref}),
+                             vis)
+        obs = lik.observe(edge)
+        score, _ = lik.scores(states, obs)
+        logw, _ = lik.log_likelihood(states, obs)
+        scale = logw / score
+        np.testing.assert_allclose(scale, scale[0], rtol=1e-9)
+        assert lo - 1e-9 <= scale[0] <= hi + 1e-9
+        assert np.argmax(logw) == 0
 
 
 def test_class_pairs_peak_and_need_sample_pairs(model, camera, rendered, small_world):
