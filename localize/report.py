@@ -354,6 +354,8 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
         f"Dataset `{m['dataset']}`. Filter: {f.num_particles} particles, likelihood "
         f"`{f.likelihood.aggregate}` with k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
         f"of a {f.likelihood.search_px}-pixel search reach"
+        + (f", k scaled down in frames of fewer than {f.likelihood.lines_ref} lines"
+           if f.likelihood.get("lines_ref", 0) else "")
         + "".join(f"; mode {mode}: " + ", ".join(f"{k} = {v}" for k, v in over.items())
                   for mode, over in f.get("mode_likelihood", {}).items())
         + f". Motion noise per frame (horizontal m, vertical m, yaw deg): "

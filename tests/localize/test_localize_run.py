@@ -81,6 +81,7 @@ class TestEndToEnd:
         assert "0.32" in text and "177" in text
         assert "mode cnn: k = 20.0" in text  # conf/filter/default.yaml's mode_likelihood
         assert "mode cnn: [0.01, 0.005, 0.2]" in text  # and its mode_motion_std
+        assert "fewer than 15 lines" in text  # and its likelihood.lines_ref
         for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
             assert (d / "plots" / f"{png}.png").stat().st_size > 1000
             assert f"plots/{png}.png" in text
