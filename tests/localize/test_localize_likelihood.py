@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -135,8 +137,7 @@ def test_lines_ref_scales_the_frame_not_the_particles(model, camera, rendered, a
     edge = label_edges(rendered, dilate_px=0)
     base = LikelihoodParams(aggregate=aggregate, k=25.0, min_lines=1)
     for ref, lo, hi in ((1, 25.0, 25.0), (10_000, 1e-6, 0.5)):
-        lik = EdgeLikelihood(s, camera, LikelihoodParams(**{**base.__dict__, "lines_ref": ref}),
-                             vis)
+        lik = EdgeLikelihood(s, camera, replace(base, lines_ref=ref), vis)
         obs = lik.observe(edge)
         score, _ = lik.scores(states, obs)
         logw, _ = lik.log_likelihood(states, obs)
