@@ -34,7 +34,7 @@ from datagen.config import drop_defaults
 from datagen.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from datagen.pipeline import Pipeline
 from datagen.poses import pose_from_xyz_rpy, write_tum
-from datagen.world import MAIN, OPENING, CorridorModel, build_world
+from datagen.world import MAIN, OPENING, CorridorModel, build_world, recess_mouths
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +43,8 @@ SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "pipeline")
 #: Keys added after datasets were made, with the value that renders what was rendered before
 #: them: left out of the hash at that value, so those datasets keep their hash.
-HASH_DEFAULTS = {"training.flight_views": 0.0, "render.denoise_frames": False}
+HASH_DEFAULTS = {"training.flight_views": 0.0, "render.denoise_frames": False,
+                 "training.opening_views": 0.0, "training.opening_distance": [0.4, 2.5]}
 
 
 def rng_for(seed: int, *keys: int) -> np.random.Generator:
@@ -148,22 +149,32 @@ def _check_inside(model: CorridorModel, camera: Camera, poses: np.ndarray, where
                          "and the flight preset's trajectory")
 
 
-def poses_of_split(cfg: Mapping, world, split: str) -> np.ndarray:
+def poses_of_split(cfg: Mapping, model: CorridorModel, split: str) -> np.ndarray:
     """(N, 4, 4) body poses of a split's frames; frame i's depends only on (seed, split, i).
 
-    A share ``training.flight_views`` of them (decided per frame by its own generator) are
-    posed as the flights fly (``trajectories.sample_flight_views``), the others spread over
-    the free space (``trajectories.sample_training_poses``).
+    A share ``training.opening_views`` of them (decided per frame by its own generator) face
+    a door or window from close by (``trajectories.sample_opening_views``); of the others, a
+    share ``training.flight_views`` are posed as the flights fly
+    (``trajectories.sample_flight_views``) and the rest spread over the free space
+    (``trajectories.sample_training_poses``).
     """
-    tr = cfg["training"]
+    tr, world = cfg["training"], model.world
     share = float(tr.get("flight_views", HASH_DEFAULTS["training.flight_views"]))
-    if not 0.0 <= share <= 1.0:
-        raise ValueError(f"training.flight_views={share} must be a share in [0, 1]")
+    close = float(tr.get("opening_views", HASH_DEFAULTS["training.opening_views"]))
+    for key, v in (("flight_views", share), ("opening_views", close)):
+        if not 0.0 <= v <= 1.0:
+            raise ValueError(f"training.{key}={v} must be a share in [0, 1]")
+    distance = tuple(tr.get("opening_distance", HASH_DEFAULTS["training.opening_distance"]))
+    mouths = recess_mouths(model.boxes)
     presets = list(cfg["flights"].values())
     stream = SPLIT_STREAM[split]
     poses = np.zeros((int(cfg["splits"].get(split, 0)), 4, 4))
     for i in range(len(poses)):
-        if share > 0 and rng_for(cfg["seed"], stream, i, 3).random() < share:
+        if close > 0 and rng_for(cfg["seed"], stream, i, 5).random() < close:
+            poses[i] = trajectories.sample_opening_views(
+                rng_for(cfg["seed"], stream, i, 6), 1, *mouths, world.free_boxes,
+                world.z_range, distance, max_roll_pitch_deg=tr["max_roll_pitch_deg"])[0]
+        elif share > 0 and rng_for(cfg["seed"], stream, i, 3).random() < share:
             poses[i] = trajectories.sample_flight_views(
                 rng_for(cfg["seed"], stream, i, 4), 1, world.free_boxes, world.z_range,
                 presets)[0]
@@ -184,7 +195,7 @@ def prepare(cfg: Mapping) -> Job:
     w = model.world
     split_poses = {}
     for split in SPLITS:
-        poses = poses_of_split(cfg, w, split)
+        poses = poses_of_split(cfg, model, split)
         _check_inside(model, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}

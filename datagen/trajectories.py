@@ -149,6 +149,69 @@ def sample_flight_views(rng: np.random.Generator, n: int, boxes: np.ndarray,
     return out
 
 
+def sample_opening_views(rng: np.random.Generator, n: int, centre: np.ndarray,
+                         inward: np.ndarray, half: np.ndarray, boxes: np.ndarray,
+                         z_range: np.ndarray, distance: tuple[float, float] = (0.4, 2.5),
+                         yaw_spread_deg: float = 20.0, max_roll_pitch_deg: float = 5.0
+                         ) -> np.ndarray:
+    """Camera body poses close to a door or window, facing it, for training images.
+
+    Each pose picks a recess (uniformly), an aim point on its mouth (uniform over it), a
+    position ``distance`` in front of the wall and up to 0.8 m to either side of the aim
+    point (positions outside the free boxes are drawn again), a height uniform in
+    ``z_range`` and a yaw towards the aim point within +/- ``yaw_spread_deg``. Close up,
+    a recess's jambs, head and sill are many pixels wide; the flights see them so at their
+    ends, facing an end wall, where a frame's few lines are mostly one opening's outline.
+
+    Args:
+        rng: random generator.
+        n: number of poses.
+        centre, inward, half: (R, 3) recess mouths (``world.recess_mouths``), m.
+        boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
+        z_range: (2,) allowed heights (m).
+        distance: (lo, hi) distance of the camera from the wall (m).
+        yaw_spread_deg: half-width of the yaw range about the aim direction, degrees.
+        max_roll_pitch_deg: roll and pitch are uniform in +/- this.
+
+    Returns:
+        (n, 4, 4) world_from_body.
+    """
+    boxes, z = _check(boxes, z_range)
+    centre, inward, half = (np.asarray(a, dtype=np.float64).reshape(-1, 3)
+                            for a in (centre, inward, half))
+    if len(centre) == 0:
+        raise ValueError("training.opening_views needs doors or windows in the world")
+    d_lo, d_hi = (float(v) for v in distance)
+    if not 0 < d_lo < d_hi:
+        raise ValueError(f"training.opening_distance must be [lo, hi] with 0 < lo < hi, "
+                         f"got {[d_lo, d_hi]}")
+    tangent = np.stack([-inward[:, 1], inward[:, 0], np.zeros(len(inward))], axis=1)
+    aim, xy = np.empty((n, 3)), np.empty((n, 2))
+    filled = 0
+    for _ in range(100):  # rejection rounds; each draws 4x what is missing
+        m = 4 * (n - filled)
+        r = rng.integers(len(centre), size=m)
+        a = centre[r] + half[r] * rng.uniform(-1, 1, (m, 3))
+        p = (a + inward[r] * rng.uniform(d_lo, d_hi, (m, 1))
+             + tangent[r] * rng.uniform(-0.8, 0.8, (m, 1)))[:, :2]
+        inside = (p[:, None] > boxes[None, :, :2]) & (p[:, None] < boxes[None, :, 2:])
+        ok = inside.all(axis=2).any(axis=1)
+        take = np.flatnonzero(ok)[: n - filled]
+        aim[filled:filled + len(take)], xy[filled:filled + len(take)] = a[take], p[take]
+        filled += len(take)
+        if filled == n:
+            break
+    else:
+        raise ValueError(f"training.opening_distance {[d_lo, d_hi]}: no camera position in "
+                         "the free space faces a door or window; make it smaller")
+    height = rng.uniform(z[0], z[1], n)
+    tilt = np.deg2rad(max_roll_pitch_deg) * rng.uniform(-1, 1, (n, 2))
+    yaw = (np.arctan2(aim[:, 1] - xy[:, 1], aim[:, 0] - xy[:, 0])
+           + np.deg2rad(yaw_spread_deg) * rng.uniform(-1, 1, n))
+    return pose_from_xyz_rpy(np.column_stack([xy, height]),
+                             np.column_stack([tilt, wrap_angle(yaw)]))
+
+
 def smooth_noise(rng: np.random.Generator, t: np.ndarray, freq_hz: tuple[float, float],
                  terms: int = 4) -> np.ndarray:
     """Smooth random signal: a sum of sinusoids with random frequencies and phases.

@@ -101,6 +101,31 @@ def corridor_boxes(spec: Mapping) -> list[Box]:
     return boxes
 
 
+def recess_mouths(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The door and window recesses' mouths, where they open onto the corridor.
+
+    Args:
+        boxes: the corridor's free boxes (``corridor_boxes``).
+
+    Returns:
+        centre (R, 3): the middle of each mouth, on the wall plane (m);
+        inward (R, 3): unit normal of that wall, pointing into the corridor;
+        half (R, 3): half extents of the mouth (m), 0 along the normal.
+        R = 0 (all three empty) for a corridor without doors or windows.
+    """
+    recesses = [b for b in boxes if b.kind in (DOOR_RECESS, WINDOW_RECESS)]
+    if not recesses:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+    lo = np.array([b.lo for b in recesses], dtype=np.float64)
+    hi = np.array([b.hi for b in recesses], dtype=np.float64)
+    inward = np.array([b.inward for b in recesses], dtype=np.float64)
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    # The mouth is the box face the inward normal points out of: hi on +, lo on -.
+    centre = np.where(inward > 0, hi, np.where(inward < 0, lo, centre))
+    half = np.where(inward != 0, 0.0, half)
+    return centre, inward, half
+
+
 def _check_along_walls(features: list[Box], width: float, length: float) -> None:
     for i, b in enumerate(features):
         axis = 1 if b.inward[0] != 0 else 0  # the coordinate along the wall

@@ -189,6 +189,22 @@ class TestBadConfig:
         with pytest.raises(ValueError, match="training.flight_views"):
             gen.prepare(cfg)
 
+    def test_opening_views_share(self):
+        cfg = small_cfg(Path("unused"), "splits.train=400", "training.opening_views=0")
+        base = gen.prepare(cfg).split_poses["train"]
+        trimmed = {k: v for k, v in cfg["training"].items()
+                   if k not in ("opening_views", "opening_distance")}
+        assert gen.config_hash(cfg) == gen.config_hash({**cfg, "training": trimmed}), \
+            "the neutral share keeps old hashes"
+        cfg["training"]["opening_views"] = 0.3
+        mixed = gen.prepare(cfg).split_poses["train"]
+        kept = np.all(mixed == base, axis=(1, 2))
+        assert kept.mean() == pytest.approx(0.7, abs=0.08), "the other frames are unchanged"
+        assert gen.config_hash(cfg) != gen.config_hash({**cfg, "training": trimmed})
+        cfg["training"]["opening_views"] = -0.1
+        with pytest.raises(ValueError, match="training.opening_views"):
+            gen.prepare(cfg)
+
     def test_missing_dataset_error(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m datagen"):
             Dataset(tmp_path / "nope")

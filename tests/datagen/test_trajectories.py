@@ -99,6 +99,50 @@ class TestFlightViews:
             TR.sample_flight_views(np.random.default_rng(0), 2, BOXES, Z, [])
 
 
+class TestOpeningViews:
+    # a door on the left wall (x = -1) at y = 2, a window on the front wall (y = 10)
+    CENTRE = np.array([[-1.0, 2.0, 1.05], [0.0, 10.0, 1.4]])
+    INWARD = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    HALF = np.array([[0.0, 0.45, 1.05], [0.6, 0.0, 0.5]])
+
+    def sample(self, n=400, seed=0, **kw):
+        return TR.sample_opening_views(np.random.default_rng(seed), n, self.CENTRE,
+                                       self.INWARD, self.HALF, BOXES, Z, **kw)
+
+    def test_close_to_and_facing_an_opening(self):
+        T = self.sample(distance=(0.4, 1.5), yaw_spread_deg=20.0)
+        assert T.shape == (400, 4, 4)
+        assert_rigid(T)
+        s = xyzyaw_from_pose(T)
+        inside = ((s[:, None, :2] > BOXES[:, :2]) & (s[:, None, :2] < BOXES[:, 2:])).all(2)
+        assert inside.any(axis=1).all()
+        assert np.all((s[:, 2] >= Z[0]) & (s[:, 2] <= Z[1]))
+        # 0.4-1.5 m from the wall of a recess, looking within 20 degrees of a point of its
+        # mouth: inside the angle its two ends make, widened by 20 degrees
+        ends = self.CENTRE[:, None, :2] + np.array([-1, 1])[:, None] * self.HALF[:, None, :2]
+        rays = ends[None] - s[:, None, None, :2]  # (N, R, 2 ends, 2)
+        unit = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+        mid = np.arctan2(*unit.sum(2)[..., ::-1].transpose(2, 0, 1))
+        half = np.arccos(np.clip((unit[:, :, 0] * unit[:, :, 1]).sum(-1), -1, 1)) / 2
+        off = np.abs(np.angle(np.exp(1j * (s[:, 3, None] - mid))))
+        depth = np.abs(((s[:, None, :3] - self.CENTRE) * self.INWARD).sum(-1))
+        aimed = (off <= half + np.deg2rad(20.0) + 1e-9) & (depth >= 0.4 - 1e-9) & (depth <= 1.5)
+        assert aimed.any(axis=1).all()
+        front = s[:, 1] > 7.0  # only the window is in reach there
+        assert 0.3 < front.mean() < 0.7, "both recesses drawn"
+        assert np.abs(rpy(T)[:, :2]).max() <= np.deg2rad(5.0) + 1e-9
+        np.testing.assert_array_equal(T, self.sample(distance=(0.4, 1.5), yaw_spread_deg=20.0))
+
+    def test_bad_input_names_the_key(self):
+        with pytest.raises(ValueError, match="opening_distance"):
+            self.sample(distance=(2.0, 1.0))
+        with pytest.raises(ValueError, match="opening_distance"):
+            self.sample(distance=(30.0, 40.0))  # no free space that far from both walls
+        with pytest.raises(ValueError, match="doors or windows"):
+            TR.sample_opening_views(np.random.default_rng(0), 2, np.zeros((0, 3)),
+                                    np.zeros((0, 3)), np.zeros((0, 3)), BOXES, Z)
+
+
 class TestFlight:
     @pytest.mark.parametrize("preset", ["paper", "cluttered"])
     def test_inside_smooth_forward(self, preset, flights):

@@ -8,7 +8,7 @@ import trimesh
 
 from datagen import classes as C
 from datagen.edges import extract_edges
-from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces
+from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces, recess_mouths
 from tests.helpers import compose_config
 
 
@@ -121,6 +121,24 @@ class TestCorridor:
         b = model.world.free_boxes
         assert b[0].tolist() == pytest.approx([-0.7, 0.3, 0.7, 9.7])
         assert (b[:, 2] > b[:, 0]).all() and (b[:, 3] > b[:, 1]).all()
+
+    def test_recess_mouths_lie_on_their_walls(self, model, spec):
+        centre, inward, half = recess_mouths(model.boxes)
+        assert len(centre) == len(spec["doors"]) + len(spec["windows"])
+        W, L = spec["width"], spec["length"]
+        # each mouth is on a wall plane, its normal points back into the corridor
+        on_side = np.isclose(np.abs(centre[:, 0]), W / 2) & (inward[:, 0] == -np.sign(centre[:, 0]))
+        towards_middle = np.where(centre[:, 1] == 0, 1, -1)
+        on_end = np.isin(centre[:, 1], [0.0, L]) & (inward[:, 1] == towards_middle)
+        assert np.all(on_side ^ on_end)
+        np.testing.assert_array_equal(half[inward != 0], 0.0)
+        door = spec["door"]
+        first = spec["doors"][0]
+        np.testing.assert_allclose([centre[0, 1], half[0, 1]], [first["at"], door["width"] / 2])
+        np.testing.assert_allclose(centre[0, 2], door["height"] / 2)
+        np.testing.assert_allclose(half[0, 2], door["height"] / 2)
+        bare = recess_mouths([Box((0, 0, 0), (1, 1, 1), MAIN)])
+        assert all(a.shape == (0, 3) for a in bare)
 
     @pytest.mark.parametrize("key,value", [("width", -1.0), ("height", 0.0)])
     def test_bad_sizes(self, spec, key, value):
