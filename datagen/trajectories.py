@@ -160,8 +160,8 @@ def sample_opening_views(rng: np.random.Generator, n: int, centre: np.ndarray,
     position ``distance`` in front of the wall and up to 0.8 m to either side of the aim
     point (positions outside the free boxes are drawn again), a height uniform in
     ``z_range`` and a yaw towards the aim point within +/- ``yaw_spread_deg``. Close up,
-    a recess's jambs, head and sill are many pixels wide; the flights see them so at their
-    ends, facing an end wall, where a frame's few lines are mostly one opening's outline.
+    a recess's jambs, head and sill are many pixels wide, as a flight sees them at its end,
+    facing an end wall, where a frame's few lines are mostly one opening's outline.
 
     Args:
         rng: random generator.
