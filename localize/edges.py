@@ -184,15 +184,20 @@ def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: i
     return EdgeImage(edges > 0, np.ones(edges.shape, dtype=bool))
 
 
-def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
-    """Direction of the normal at every pixel of a binary edge map (structure tensor).
+def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0,
+                      at: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Direction of the normal of a binary edge map (structure tensor), at every pixel or at
+    the pixels ``at``.
 
     Args:
         edges: (H, W) bool.
         sigma: smoothing in pixels.
+        at: None, or (ys, xs) int arrays of n pixels: the angle only there (the smoothing is
+            the same; the arctangent, most of the cost, runs on n values, not H * W).
 
     Returns:
-        (H, W) float32 angle of the normal in [0, pi) (image x right, y down).
+        (H, W) float32, or (n,) with ``at``: angle of the normal in [0, pi) (image x right,
+        y down).
     """
     e = cv2.GaussianBlur(edges.astype(np.float32), (0, 0), sigma)
     gx = cv2.Sobel(e, cv2.CV_32F, 1, 0, ksize=3)
@@ -200,6 +205,8 @@ def edge_normal_angle(edges: np.ndarray, sigma: float = 1.0) -> np.ndarray:
     jxx = cv2.GaussianBlur(gx * gx, (0, 0), 1.5 * sigma)
     jxy = cv2.GaussianBlur(gx * gy, (0, 0), 1.5 * sigma)
     jyy = cv2.GaussianBlur(gy * gy, (0, 0), 1.5 * sigma)
+    if at is not None:
+        jxx, jxy, jyy = jxx[at], jxy[at], jyy[at]
     theta = 0.5 * np.arctan2(2 * jxy, jxx - jyy)
     return np.mod(theta, np.pi).astype(np.float32)
 
@@ -261,7 +268,7 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3).reshape(H, W, -1)
     gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3).reshape(H, W, -1)
     ys, xs = np.nonzero(edge.edges)
-    theta = edge_normal_angle(edge.edges)[ys, xs]
+    theta = edge_normal_angle(edge.edges, at=(ys, xs))
     nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
     # (T,) steps along the normal; one more each side for the band's parabola
     t = np.arange(-radius - 1, radius + 2, dtype=np.float32)

@@ -6,9 +6,10 @@ Each remaining sample reads ``g(d) = exp(-d^2 / (2 sigma^2))`` from a precompute
 where d is the distance from the pixel to the nearest image edge:
 
 - **Unit of d and sigma.** d is measured in pixels by a Euclidean distance transform of the edge
-  image, truncated at ``search_px`` (the reach of the paper's normal search) and divided by it,
-  so d is in [0, 1] and sigma is a fraction of the search range: the paper's ``sigma = 0.3``
-  with ``search_px = 10`` is a 3-pixel tolerance; a sample with no edge within reach scores
+  image (OpenCV's 5x5 chamfer approximation, ``distance_to``), truncated at ``search_px`` (the
+  reach of the paper's normal search) and divided by it, so d is in [0, 1] and sigma is a
+  fraction of the search range: the paper's ``sigma = 0.3`` with ``search_px = 10`` is a
+  3-pixel tolerance; a sample with no edge within reach scores
   ``exp(-1 / (2 sigma^2))``.
 - **Direction of the search.** The paper searches along the line's normal. A plain distance
   transform looks in every direction; with ``orientation_bins = B > 0`` the edge pixels are split
@@ -185,10 +186,16 @@ def frame_k(k: float, lines: np.ndarray, lines_ref: int) -> float:
 
 
 def distance_to(mask: np.ndarray) -> np.ndarray:
-    """Euclidean distance (H, W) float32, pixels, to the nearest True pixel (1e6 if none)."""
+    """Euclidean distance (H, W) float32, pixels, to the nearest True pixel (1e6 if none).
+
+    OpenCV's 5x5-mask chamfer approximation of the Euclidean distance: within 0.04 px of the
+    exact one up to 4 px and 2 % beyond (measured on random line maps), a fraction of the
+    likelihood's 1-pixel sigma, at half the exact transform's time (0.40 vs 0.92 ms for a
+    320x240 map; a frame takes 13 of them in cnn mode). docs/localize.md, "edge maps faster".
+    """
     if not mask.any():
         return np.full(mask.shape, 1e6, dtype=np.float32)
-    return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
 
 
 def _bin_masks(edges: np.ndarray, bins: int) -> np.ndarray:
@@ -209,7 +216,7 @@ def _bin_masks(edges: np.ndarray, bins: int) -> np.ndarray:
         return edges[None]
     H, W = edges.shape
     ys, xs = np.nonzero(edges)
-    theta = edge_normal_angle(edges)[ys, xs]
+    theta = edge_normal_angle(edges, at=(ys, xs))
     lower = np.floor(theta.astype(np.float64) * (bins / np.pi)).astype(np.intp)
     masks = np.zeros((bins, H, W), dtype=bool)
     for cand in ((lower - 1) % bins, lower % bins, (lower + 1) % bins):
@@ -241,18 +248,21 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     masks = _bin_masks(edges, B)
     s2 = 2.0 * float(params.sigma) ** 2
     g_far = np.float32(np.exp(-1.0 / s2))
-    dist_unknown = distance_to(unknown)
+    any_unknown = bool(unknown.any())  # often none (no object in view): skip their handling
+    dist_unknown = distance_to(unknown) if any_unknown else None
     reach = np.float32(params.search_px)
+    scale = np.float32(-1.0 / (s2 * float(reach) ** 2))  # g = exp(scale * min(d, reach)^2)
 
     def score(m: np.ndarray, g0b: np.float32 | None, out: np.ndarray) -> np.float32:
         """g(d) (H, W) of the edges ``m`` into ``out``; returns the chance level g0b."""
         d = distance_to(m)
-        hidden = (d > dist_unknown) & known  # the nearest edge may hide behind an object
-        np.minimum(d, reach, out=out)
-        out /= reach  # d / search_px, truncated at 1
+        np.minimum(d, reach, out=out)  # d truncated at search_px, then / search_px below
         out *= out
-        out /= np.float32(-s2)
+        out *= scale
         np.exp(out, out=out)
+        if not any_unknown:
+            return np.float32(out.mean()) if g0b is None else g0b
+        hidden = (d > dist_unknown) & known  # the nearest edge may hide behind an object
         if g0b is None:
             g0b = np.float32(out[known].mean() if known.any() else g_far)
         np.maximum(out, g0b, out=out, where=hidden)
@@ -284,8 +294,11 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     np.log(e, out=e)
     e -= np.log(g0 + eps)[:, None, None]
     e = e.reshape(n, H, W)
-    np.copyto(e, np.float32(1e-7), where=(e == 0) & known)
-    np.copyto(e, np.float32(0.0), where=unknown)
+    if any_unknown:
+        np.copyto(e, np.float32(1e-7), where=(e == 0) & known)
+        np.copyto(e, np.float32(0.0), where=unknown)
+    else:
+        np.copyto(e, np.float32(1e-7), where=e == 0)
     return Observation(g_flat, e_flat, g0, W, H, B, len(pair_codes) if paired else 0)
 
 
