@@ -191,7 +191,8 @@ def distance_to(mask: np.ndarray) -> np.ndarray:
     OpenCV's 5x5-mask chamfer approximation of the Euclidean distance: within 0.04 px of the
     exact one up to 4 px and 2 % beyond (measured on random line maps), a fraction of the
     likelihood's 1-pixel sigma, at half the exact transform's time (0.40 vs 0.92 ms for a
-    320x240 map; a frame takes 13 of them in cnn mode). docs/localize.md, "edge maps faster".
+    320x240 map; a frame takes 13 of them in cnn mode). docs/localize.md, "edge maps and
+    filter faster".
     """
     if not mask.any():
         return np.full(mask.shape, 1e6, dtype=np.float32)
@@ -324,6 +325,10 @@ class EdgeLikelihood:
                                                                    visibility)
         # run starts of segments, for per-line sums along the sample axis
         self._starts = samples.starts
+        # (P,) which run of ``starts`` each sample is in; (S, 3) each run's direction
+        self._segment_of = np.repeat(np.arange(len(self._starts)),
+                                     np.diff(np.r_[self._starts, len(samples)]))
+        self._segment_dirs = np.ascontiguousarray(samples.dirs[self._starts])
         self.pair_codes = None  # (Q,) the model's class pairs, the order of the pair maps
         self._pair_slot = None  # (P,) int32 index of each sample's pair in pair_codes
         if params.class_pairs:
@@ -386,12 +391,15 @@ class EdgeLikelihood:
         if self.visibility is not None:
             valid &= self.visibility.lookup(camera_centres(states, cam.body_from_cam, tilt))
         if obs.bins:
-            du, dv = image_directions(proj, s.dirs, xh)
+            # a 3D segment projects onto one image line: (du, dv) is the same at each of its
+            # samples (``image_directions``), so its bin is found once, at its first sample
+            first = self._starts
+            du, dv = image_directions(proj, self._segment_dirs, xh[:, :, first])
             # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
             theta = np.arctan2(du, -dv)
             b = np.rint(theta * np.float32(obs.bins / np.pi)).astype(np.int32) % obs.bins
             b *= np.int32(W * H)
-            idx += b
+            idx += b[:, self._segment_of]
         if obs.pairs:
             if self.pair_codes is None or obs.pairs != len(self.pair_codes):
                 raise ValueError(f"the observation has {obs.pairs} class-pair map sets, this "

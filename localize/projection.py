@@ -311,7 +311,9 @@ def image_directions(proj: np.ndarray, dirs: np.ndarray,
     """Image direction of 3D lines at projected points (up to a positive factor).
 
     With ``(a, b, c) = proj @ [X; 1]`` and ``(da, db, dc) = proj[:, :3] @ D`` the derivative of
-    ``(a / c, b / c)`` along D is ``(da c - a dc, db c - b dc) / c^2``.
+    ``(a / c, b / c)`` along D is ``(da c - a dc, db c - b dc) / c^2``. The numerator is the
+    same at every point ``X + t D`` of the line (the t terms cancel): a 3D line projects onto
+    one image line, so one point per segment gives the whole segment's direction.
 
     Args:
         proj: (N, 3, 4) projection matrices.

@@ -108,6 +108,23 @@ class TestProjection:
         np.testing.assert_allclose(cos, 1.0, atol=1e-3)
 
 
+    def test_image_direction_same_along_a_line(self, camera):
+        """A 3D line projects onto one image line: (du, dv) at any point of it, even behind the
+        camera, equals that at another (the likelihood finds a segment's bin once)."""
+        rng = np.random.default_rng(2)
+        p0 = rng.uniform([-1, 2, 0], [1, 4, 2], (10, 3))
+        dirs = rng.normal(size=(10, 3))
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        P = projection_matrices(cam_from_world(STATE, BODY_FROM_CAM, tilt()), camera.K)
+        out = []
+        for t in (0.0, 0.7, -3.0):
+            pts = p0 + t * dirs
+            ph = np.vstack([pts.T, np.ones(10)]).astype(np.float32)
+            _, _, xh = pixel_index(P, ph, camera.width, camera.height)
+            out.append(np.stack(image_directions(P, dirs, xh), -1)[0])
+        for other in out[1:]:
+            np.testing.assert_allclose(other, out[0], rtol=1e-3, atol=1e-3 * np.abs(out[0]).max())
+
 def _scene(small_world, camera, renderer, class_change_only: bool):
     s = sample_segments(small_world.segments, 0.05)
     if class_change_only:
