@@ -325,9 +325,7 @@ class EdgeLikelihood:
                                                                    visibility)
         # run starts of segments, for per-line sums along the sample axis
         self._starts = samples.starts
-        # (P,) which run of ``starts`` each sample is in; (S, 3) each run's direction
-        self._segment_of = np.repeat(np.arange(len(self._starts)),
-                                     np.diff(np.r_[self._starts, len(samples)]))
+        # (S, 3) each sampled segment's direction (its bin is found once; ``_block``)
         self._segment_dirs = np.ascontiguousarray(samples.dirs[self._starts])
         self.pair_codes = None  # (Q,) the model's class pairs, the order of the pair maps
         self._pair_slot = None  # (P,) int32 index of each sample's pair in pair_codes
@@ -393,13 +391,12 @@ class EdgeLikelihood:
         if obs.bins:
             # a 3D segment projects onto one image line: (du, dv) is the same at each of its
             # samples (``image_directions``), so its bin is found once, at its first sample
-            first = self._starts
-            du, dv = image_directions(proj, self._segment_dirs, xh[:, :, first])
+            du, dv = image_directions(proj, self._segment_dirs, xh[:, :, self._starts])
             # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
             theta = np.arctan2(du, -dv)
             b = np.rint(theta * np.float32(obs.bins / np.pi)).astype(np.int32) % obs.bins
             b *= np.int32(W * H)
-            idx += b[:, self._segment_of]
+            idx += b[:, s.run]
         if obs.pairs:
             if self.pair_codes is None or obs.pairs != len(self.pair_codes):
                 raise ValueError(f"the observation has {obs.pairs} class-pair map sets, this "

@@ -46,6 +46,11 @@ class ModelSamples:
         """(4, P) float32 homogeneous points."""
         return homogeneous(self.points)
 
+    @cached_property
+    def run(self) -> np.ndarray:
+        """(P,) int index into ``starts`` of the sampled segment each point belongs to."""
+        return np.repeat(np.arange(len(self.starts)), np.diff(np.r_[self.starts, len(self)]))
+
     def thin(self, step: int) -> tuple[ModelSamples, np.ndarray]:
         """Every ``step``-th sample of each segment (at least its middle one).
 
@@ -55,10 +60,8 @@ class ModelSamples:
         step = int(step)
         if step <= 1:
             return self, np.arange(len(self))
-        within = np.arange(len(self)) - np.repeat(self.starts, np.diff(np.r_[self.starts,
-                                                                            len(self)]))
-        count = np.repeat(np.diff(np.r_[self.starts, len(self)]), np.diff(np.r_[self.starts,
-                                                                                len(self)]))
+        within = np.arange(len(self)) - self.starts[self.run]
+        count = np.diff(np.r_[self.starts, len(self)])[self.run]
         keep = (within % step == step // 2) | ((count <= step) & (within == count // 2))
         cols = np.flatnonzero(keep)
         seg = self.segment[cols]

@@ -42,6 +42,7 @@ class TestSampleSegments:
         np.testing.assert_allclose(s.points[:10, 0], np.arange(10) * 0.1 + 0.05, atol=1e-6)
         np.testing.assert_allclose(s.dirs[:10], [[1, 0, 0]] * 10)
         assert s.points_h.shape == (4, 12)
+        np.testing.assert_array_equal(s.run, [0] * 10 + [1] * 2)
 
     def test_bad_input(self):
         with pytest.raises(ValueError, match=r"\(M, 2, 3\)"):
@@ -107,7 +108,6 @@ class TestProjection:
         cos = (fd * an).sum(-1) / np.linalg.norm(fd, axis=-1) / np.linalg.norm(an, axis=-1)
         np.testing.assert_allclose(cos, 1.0, atol=1e-3)
 
-
     def test_image_direction_same_along_a_line(self, camera):
         """A 3D line projects onto one image line: (du, dv) at any point of it, even behind the
         camera, equals that at another (the likelihood finds a segment's bin once)."""
@@ -124,6 +124,7 @@ class TestProjection:
             out.append(np.stack(image_directions(P, dirs, xh), -1)[0])
         for other in out[1:]:
             np.testing.assert_allclose(other, out[0], rtol=1e-3, atol=1e-3 * np.abs(out[0]).max())
+
 
 def _scene(small_world, camera, renderer, class_change_only: bool):
     s = sample_segments(small_world.segments, 0.05)
