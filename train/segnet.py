@@ -516,5 +516,37 @@ def model_kwargs(model_cfg: dict) -> dict:
     return out
 
 
+#: The state-dict key of the first convolution: the stem's, which ``downsample`` shapes.
+STEM_CONV_KEY = "encoder.0.0.0.weight"
+
+
+def finer_unshuffle_stem(weight: torch.Tensor, d_from: int, d_to: int) -> torch.Tensor:
+    """The first convolution of an ``unshuffle`` stem carried to a finer block size.
+
+    The stem feeds the network every pixel of each d x d block as 3 d^2 channels (channel
+    c d^2 + i d + j: colour c, row i, column j). A network trained with blocks of ``d_from``
+    pixels becomes one with blocks of ``d_to`` (a divisor: the network at ``d_from / d_to``
+    times its resolution) by giving each new pixel the summed weights of the
+    (d_from / d_to)^2 old pixels whose place it takes. Exactly: the new network on an image
+    computes what the old one computed on that image enlarged d_from / d_to times (nearest),
+    so it starts as the old network seeing everything that much closer.
+
+    Args:
+        weight: (O, 3 d_from^2, kh, kw) the old stem convolution's weights.
+        d_from, d_to: the old and the new ``downsample``.
+
+    Returns:
+        (O, 3 d_to^2, kh, kw) weights.
+    """
+    o, cin, kh, kw = weight.shape
+    if d_to < 1 or d_from % d_to or cin != 3 * d_from**2:
+        raise ValueError(
+            f"cannot carry a stem of {cin} channels from downsample {d_from} to {d_to}: "
+            "the new downsample must divide the old, the weights be (O, 3 d^2, kh, kw)")
+    r = d_from // d_to
+    w = weight.reshape(o, 3, d_to, r, d_to, r, kh, kw)  # row i = i' r + di, column j = j' r + dj
+    return w.sum(dim=(3, 5)).reshape(o, 3 * d_to**2, kh, kw)
+
+
 def count_parameters(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())

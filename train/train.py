@@ -50,7 +50,14 @@ from train.export import ParityError, export_checked, onnx_metadata
 from train.losses import image_edge_mask, median_frequency_weights, segmentation_loss
 from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
 from train.refine import GuidedRefine, refine_logits
-from train.segnet import SegNet, build_segnet, count_parameters, model_kwargs
+from train.segnet import (
+    STEM_CONV_KEY,
+    SegNet,
+    build_segnet,
+    count_parameters,
+    finer_unshuffle_stem,
+    model_kwargs,
+)
 
 log = logging.getLogger(__name__)
 
@@ -194,7 +201,9 @@ def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes
     """Start ``model`` from a trained model's best weights (the ``init_from`` key: fine-tuning).
 
     Args:
-        model: the freshly built network (same ``model.*`` settings as the source).
+        model: the freshly built network (same ``model.*`` settings as the source, but for
+            a finer ``downsample`` with the ``unshuffle`` stem: the source's stem convolution
+            is carried over by ``segnet.finer_unshuffle_stem``).
         source: a model folder made by ``python -m train`` or its ``checkpoint_best.pt``.
         mcfg: this run's ``model`` config; num_classes: this dataset's class count.
 
@@ -212,10 +221,16 @@ def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes
     if "model" not in ckpt or "model_kwargs" not in ckpt:
         raise ValueError(f"init_from={source}: {path} is not a checkpoint_best.pt of "
                          "`python -m train`")
+    theirs, ours = ckpt["model_kwargs"], model_kwargs(mcfg)
+    state = ckpt["model"]
+    d_from, d_to = int(theirs.get("downsample", 1)), int(ours.get("downsample", 1))
+    if (theirs.get("stem") == ours.get("stem") == "unshuffle" and 1 < d_to < d_from
+            and d_from % d_to == 0):  # the same network at a finer resolution
+        state = {**state, STEM_CONV_KEY: finer_unshuffle_stem(state[STEM_CONV_KEY], d_from, d_to)}
+        log.info("init_from: the unshuffle stem carried from downsample %d to %d", d_from, d_to)
     try:
-        model.load_state_dict(ckpt["model"])  # refuses other layer shapes or class counts
+        model.load_state_dict(state)  # refuses other layer shapes or class counts
     except RuntimeError as err:
-        theirs, ours = ckpt["model_kwargs"], model_kwargs(mcfg)
         diff = [f"{k}={theirs.get(k)!r} there, {ours.get(k)!r} here"
                 for k in sorted(set(theirs) | set(ours)) if theirs.get(k) != ours.get(k)]
         if ckpt.get("num_classes") != num_classes:

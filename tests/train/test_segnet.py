@@ -7,11 +7,13 @@ import torch
 from torch import nn
 
 from train.segnet import (
+    STEM_CONV_KEY,
     SegNet,
     WindowMaxPool,
     WindowMaxUnpool,
     build_segnet,
     code_to_plane_index,
+    finer_unshuffle_stem,
     pad_to_multiple,
     plane_index_to_code,
     vgg_stages,
@@ -156,6 +158,28 @@ class TestForward:
         assert _tiny(stem="unshuffle").stem == "average"  # no blocks at full resolution
         with pytest.raises(ValueError, match="model.stem"):
             _tiny(downsample=2, stem="space")
+
+    def test_finer_unshuffle_stem(self) -> None:
+        """A downsample-4 network's weights, its stem carried to downsample 2, compute on an
+        image what the original computes on that image enlarged twice (nearest)."""
+        coarse = _tiny(downsample=4, skip="add", stem="unshuffle").eval()
+        fine = _tiny(downsample=2, skip="add", stem="unshuffle").eval()
+        state = coarse.state_dict()
+        state[STEM_CONV_KEY] = finer_unshuffle_stem(state[STEM_CONV_KEY], 4, 2)
+        fine.load_state_dict(state)
+        x = torch.rand(2, 3, 32, 48, generator=torch.Generator().manual_seed(1))
+        big = x.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3)
+        with torch.no_grad():
+            torch.testing.assert_close(fine.forward_network_resolution(x),
+                                       coarse.forward_network_resolution(big))
+        w = torch.rand(4, 48, 3, 3)
+        torch.testing.assert_close(finer_unshuffle_stem(w, 4, 4), w)
+        torch.testing.assert_close(finer_unshuffle_stem(w, 4, 1), w.reshape(4, 3, 16, 3, 3)
+                                   .sum(dim=2))
+        with pytest.raises(ValueError, match="must divide"):
+            finer_unshuffle_stem(w, 4, 3)
+        with pytest.raises(ValueError, match="48 channels"):
+            finer_unshuffle_stem(w, 2, 1)
 
     def test_refine_head(self) -> None:
         """head="refine": starts as plain bilinear logits (zero residual); once trained, its

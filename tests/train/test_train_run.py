@@ -17,7 +17,7 @@ from datagen.dataset import Dataset
 from train.data import AugmentConfig, downsample_split, load_split, to_float
 from train.losses import median_frequency_weights, segmentation_loss
 from train.runtime import read_metadata
-from train.segnet import SegNet
+from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 
 
 @pytest.fixture(scope="module")
@@ -327,6 +327,27 @@ class TestRun:
         assert config["config"]["init_from"] == str(trained[0])
         assert "init_from" not in json.loads(
             (tmp_path / "scratch" / "config.json").read_text())["config"]
+
+
+def test_init_from_a_coarser_unshuffle_network(tmp_path) -> None:
+    """init_from a downsample-4 unshuffle network into a downsample-2 one carries the stem
+    (segnet.finer_unshuffle_stem) and every other weight as it is; another width is refused."""
+    mcfg = dict(width=0.125, stages=3, convs_per_stage=[1, 1, 2], skip="add", stem="unshuffle",
+                head="refine", downsample=4)
+    coarse = SegNet(num_classes=5, **mcfg)
+    torch.save({"model": coarse.state_dict(), "model_kwargs": dict(mcfg), "num_classes": 5},
+               tmp_path / "checkpoint_best.pt")
+    fine_cfg = {**mcfg, "downsample": 2}
+    fine = SegNet(num_classes=5, **fine_cfg)
+    assert tt.load_init_weights(fine, tmp_path, fine_cfg, 5) == tmp_path / "checkpoint_best.pt"
+    for k, v in coarse.state_dict().items():
+        if k != STEM_CONV_KEY:
+            torch.testing.assert_close(fine.state_dict()[k], v)
+    torch.testing.assert_close(fine.state_dict()[STEM_CONV_KEY],
+                               finer_unshuffle_stem(coarse.state_dict()[STEM_CONV_KEY], 4, 2))
+    wider = {**fine_cfg, "width": 0.25}
+    with pytest.raises(ValueError, match="downsample=4 there, 2 here; width=0.125 there"):
+        tt.load_init_weights(SegNet(num_classes=5, **wider), tmp_path, wider, 5)
 
 
 class TestBadInput:
