@@ -5,6 +5,8 @@ Usage::
     python benchmarks/segnet_speed.py                      # outputs/models/demo if trained
     python benchmarks/segnet_speed.py --model segnet_small --height 240 --width 320
     python benchmarks/segnet_speed.py --model-dir outputs/models/demo --runs 50 --threads 2
+    python benchmarks/segnet_speed.py --model-dir none model.downsample=2 model.stem=unshuffle \
+        model.head=refine      # the README's hr2 network, random weights
 
 With a trained model folder (checkpoint_best.pt + segnet.onnx) both runtimes use its weights;
 otherwise a randomly initialised model of the given config is exported to a temporary file
@@ -12,7 +14,9 @@ otherwise a randomly initialised model of the given config is exported to a temp
 frame over ``--runs`` runs after warm-up, and the process CPU time per frame, which is less
 sensitive to other jobs on a shared machine. Timings are for batch 1 unless --batch is given.
 ``onnxruntime_refined`` adds the guided refinement (train/refine.py) that ``train.predict``
-applies; the localizer uses the network alone.
+applies; the localizer uses the network alone. ``onnxruntime_int8`` is the int8 copy
+(``train.quantize``): the model folder's ``segnet_int8.onnx`` if there is one, else the timed
+graph quantized here with random calibration frames (speed does not depend on the ranges).
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from omegaconf import OmegaConf
 from datagen.classes import as_json
 from train.export import onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter
+from train.quantize import INT8_NAME, quantize_segnet
 from train.refine import GuidedRefine
 from train.runtime import read_metadata
 from train.segnet import SegNet, build_segnet, count_parameters
@@ -71,7 +76,7 @@ def build_model(args: argparse.Namespace, tmp: Path) -> tuple[SegNet, Path, str]
         model.set_flip_average(bool(read_metadata(path).get("flip_average", False)))  # as the graph
         return model, path, str(mdir)
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = compose("train", overrides=[f"model={args.model}"])
+        cfg = compose("train", overrides=[f"model={args.model}", *args.overrides])
     mcfg = OmegaConf.to_container(cfg.model, resolve=True)
     model = build_segnet(mcfg, len(as_json()), torch.Generator().manual_seed(0)).eval()
     exported = copy.deepcopy(model).set_pooling(args.pooling)
@@ -82,7 +87,9 @@ def build_model(args: argparse.Namespace, tmp: Path) -> tuple[SegNet, Path, str]
     )
     path = tmp / "segnet.onnx"
     onnx.save_model(proto, str(path))
-    return model, path, f"conf/model/{args.model}.yaml (random weights, {args.pooling} pooling)"
+    extra = f" {' '.join(args.overrides)}" if args.overrides else ""
+    return model, path, (f"conf/model/{args.model}.yaml{extra} (random weights, {args.pooling} "
+                         "pooling)")
 
 
 def main() -> None:
@@ -93,6 +100,8 @@ def main() -> None:
         help="trained model folder; ignored if it has no checkpoint/onnx",
     )
     ap.add_argument("--model", default="segnet_small", help="conf/model/<name>.yaml fallback")
+    ap.add_argument("overrides", nargs="*", help="conf/train.yaml overrides of the fallback "
+                    "model, e.g. model.downsample=2 model.stem=unshuffle model.head=refine")
     ap.add_argument("--height", type=int, default=240)
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--runs", type=int, default=30)
@@ -127,6 +136,12 @@ def main() -> None:
         results["onnxruntime_refined"] = timed(lambda: refined.labels(rgb), args.runs)
         seg1 = OnnxSegmenter(onnx_path, threads=1, refine=False)
         results["onnxruntime_1thread"] = timed(lambda: seg1.logits(rgb), args.runs)
+        int8_path = onnx_path.parent / INT8_NAME
+        if not int8_path.is_file():
+            int8_path = Path(tmp) / INT8_NAME
+            quantize_segnet(onnx_path, int8_path, rng.integers(0, 256, (8, h, w, 3), np.uint8))
+        seg8 = OnnxSegmenter(int8_path, threads=args.threads, refine=False)
+        results["onnxruntime_int8"] = timed(lambda: seg8.logits(rgb), args.runs)
         load1 = os.getloadavg()[0]
 
     per_frame = {k: {m: v / args.batch for m, v in r.items()} for k, r in results.items()}

@@ -206,6 +206,8 @@ class TestRun:
             "checkpoint_last.pt",
             "checkpoint_best.pt",
             "segnet.onnx",
+            "segnet_int8.onnx",
+            "quantize.json",
             "metrics.json",
             "confusion.png",
             "train_log.csv",
@@ -221,6 +223,10 @@ class TestRun:
             for c in Dataset(json.loads((out / "config.json").read_text())["dataset"]).classes
         }
         assert 0.0 <= on_disk["onnx_max_abs_diff"] <= 1e-4
+        # export.int8: the int8 copy's scores, from train.quantize's comparison
+        quant = json.loads((out / "quantize.json").read_text())
+        assert on_disk["int8"]["label_agreement"] == quant["label_agreement"] > 0.5
+        assert on_disk["int8"]["mean_iou"] == quant["int8"]["mean_iou"]
         # Test metrics of the shipped segmenter (refined) and of the network alone.
         assert on_disk["refine"] == {"kernel_size": 45, "eps": 1e-5, "subsample": 4}
         assert 0.0 <= on_disk["test_network"]["mean_iou"] <= 1.0
