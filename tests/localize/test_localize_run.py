@@ -32,6 +32,26 @@ def report(flat_dataset, flat_segnet, tmp_path_factory):
     return cfg, path
 
 
+@pytest.mark.parametrize("preset", ["default", "paper"])
+def test_presets_per_mode_k(preset):
+    """The tuned preset gives the oracle its own sharper k; the paper's keeps k = 3 and
+    sigma = 0.3 in every mode, though its mode_likelihood merges into the default's."""
+    from hydra import compose, initialize_config_dir
+
+    from localize.runner import filter_settings
+    from tests.helpers import CONF
+
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose("localize", overrides=[f"filter={preset}"])
+    fp, lp = filter_settings(cfg)
+    k = {m: mode_likelihood_params(lp, fp, m).k for m in ("none", "cnn", "oracle")}
+    if preset == "paper":
+        assert k == {"none": 3.0, "cnn": 3.0, "oracle": 3.0}
+        assert {mode_likelihood_params(lp, fp, m).sigma for m in k} == {0.3}
+    else:
+        assert k["oracle"] > k["none"] and k["oracle"] > k["cnn"]
+
+
 @pytest.mark.slow
 class TestEndToEnd:
     def test_each_mode_converges_tracking(self, report):
@@ -79,7 +99,7 @@ class TestEndToEnd:
         d = path.parent
         text = path.read_text()
         assert "0.32" in text and "177" in text
-        assert "mode cnn: k = 20.0" in text  # conf/filter/default.yaml's mode_likelihood
+        assert "mode cnn: k = 30.0" in text  # conf/filter/default.yaml's mode_likelihood
         assert "mode cnn: [0.01, 0.005, 0.2]" in text  # and its mode_motion_std
         assert "fewer than 15 lines" in text  # and its likelihood.lines_ref
         for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
