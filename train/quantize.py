@@ -28,17 +28,16 @@ from pathlib import Path
 
 import numpy as np
 import onnx
+import torch
 from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
 from onnxruntime.quantization.shape_inference import quant_pre_process
 from tqdm import tqdm
 
 from datagen.atomic import atomic_write, atomic_write_json, read_png
 from datagen.dataset import Dataset
-from train.metrics import IGNORE, metrics_json
+from train.metrics import confusion_matrix, metrics_json
 from train.predict import OnnxSegmenter
 from train.runtime import INPUT_NAME, read_metadata
-
-log = logging.getLogger(__name__)
 
 INT8_NAME = "segnet_int8.onnx"
 REPORT_NAME = "quantize.json"
@@ -97,7 +96,8 @@ def quantize_segnet(src: str | Path, dst: str | Path, calibration: np.ndarray,
         The ``quantization`` metadata entry written into ``dst``.
     """
     src, dst = Path(src), Path(dst)
-    meta = read_metadata(src)
+    src_proto = onnx.load(str(src), load_external_data=False)
+    meta = read_metadata(src_proto)
     h, w = int(meta["input_height"]), int(meta["input_width"])
     if calibration.ndim != 4 or calibration.shape[1:] != (h, w, 3) or len(calibration) == 0:
         raise ValueError(f"calibration frames must be (N >= 1, {h}, {w}, 3) uint8 for {src}, got "
@@ -115,7 +115,7 @@ def quantize_segnet(src: str | Path, dst: str | Path, calibration: np.ndarray,
                         per_channel=True,
                         activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8)
         proto = onnx.load(str(out))
-    props = {p.key: p.value for p in onnx.load(str(src), load_external_data=False).metadata_props}
+    props = {p.key: p.value for p in src_proto.metadata_props}
     props["quantization"] = json.dumps(info)
     onnx.helper.set_model_props(proto, props)
     atomic_write(dst, lambda p: onnx.save(proto, str(p)))
@@ -134,16 +134,15 @@ def compare_on_split(fp32: str | Path, int8: str | Path, rgb_paths: list[Path],
     a = OnnxSegmenter(fp32, threads=threads, refine=False)
     b = OnnxSegmenter(int8, threads=threads, refine=False)
     c = a.num_classes
-    cms = [np.zeros((c, c), np.int64), np.zeros((c, c), np.int64)]
+    cms = [torch.zeros((c, c), dtype=torch.int64), torch.zeros((c, c), dtype=torch.int64)]
     same = total = 0
     for i in tqdm(range(0, len(rgb_paths), batch_size), desc="compare", disable=not progress):
         rgb = read_images(rgb_paths[i : i + batch_size])
-        truth = np.stack([read_png(p, rgb=False) for p in label_paths[i : i + batch_size]])
-        keep = truth != IGNORE
+        truth = torch.from_numpy(
+            np.stack([read_png(p, rgb=False) for p in label_paths[i : i + batch_size]]))
         preds = (a.labels(rgb), b.labels(rgb))
         for cm, pred in zip(cms, preds, strict=True):
-            cm += np.bincount(truth[keep].astype(np.int64) * c + pred[keep],
-                              minlength=c * c).reshape(c, c)
+            cm += confusion_matrix(torch.from_numpy(pred), truth, c)
         same += int((preds[0] == preds[1]).sum())
         total += preds[0].size
     names = [cl["name"] for cl in a.classes]
