@@ -31,7 +31,7 @@ from datagen.config import reject_unknown_keys
 log = logging.getLogger(__name__)
 
 MODES = ("none", "cnn", "oracle")
-REFINES = ("none", "canny", "mask")
+REFINES = ("none", "canny", "mask", "union")
 
 
 @dataclass(frozen=True)
@@ -48,9 +48,12 @@ class CnnSettings:
         snap_px: search reach of ``snap_to_image_edges``, pixels (0: no snap).
         snap_min_gradient, snap_band, snap_stay, snap_colour, snap_nearest: its other
             settings.
-        refine: ``none`` (the snapped class boundaries), ``canny`` (Canny edges within
-            ``refine_px`` of them) or ``mask`` (mode none's edges, objects masked).
-        refine_px: pixels, for ``refine: canny``.
+        refine: ``none`` (the snapped class boundaries), ``union`` (those and the Canny edges
+            within ``refine_px`` of them), ``canny`` (those Canny edges only) or ``mask`` (mode
+            none's edges, objects masked).
+        refine_px: pixels, for ``refine: union`` and ``canny``.
+        refine_low, refine_high: their Canny hysteresis thresholds (mode none has its own,
+            ``edges.canny``).
         guided_refine: the segmenter's guided refinement of its probabilities (``load_segmenter``).
     """
 
@@ -62,15 +65,17 @@ class CnnSettings:
     snap_stay: bool = True
     snap_colour: bool = True
     snap_nearest: bool = False
-    refine: str = "none"
+    refine: str = "union"
     refine_px: int = 6
+    refine_low: float = 25.0
+    refine_high: float = 75.0
     guided_refine: bool = False
 
     def __post_init__(self) -> None:
         if self.refine not in REFINES:
-            raise ValueError(f"edges.cnn.refine={self.refine!r}: use none, canny or mask")
+            raise ValueError(f"edges.cnn.refine={self.refine!r}: use one of {REFINES}")
         for key in ("prior_correction", "min_confidence", "snap_px", "snap_min_gradient",
-                    "refine_px"):
+                    "refine_px", "refine_low", "refine_high"):
             if getattr(self, key) < 0:
                 raise ValueError(f"edges.cnn.{key} must be >= 0, got {getattr(self, key)}")
 
@@ -561,7 +566,7 @@ class EdgeExtractor:
 
         Args:
             rgb: (H, W, 3) uint8 (used by mode none, and by cnn with ``cnn.snap_px`` > 0 or
-                ``cnn.refine: canny``).
+                ``cnn.refine`` union or canny).
             labels: (H, W) uint8 class ids (true labels for oracle, predicted for cnn).
             confidence: (H, W) float32 largest softmax probability (cnn only; pixels below
                 ``cnn.min_confidence`` become unknown).
@@ -578,14 +583,19 @@ class EdgeExtractor:
         known = out.known
         if confidence is not None and cc.min_confidence > 0:
             known = known & ~_dilate(confidence < cc.min_confidence, int(lc["dilate_px"]))
-        if cc.refine == "none":
+        if cc.refine in ("none", "union"):
             edges = out.edges & known
-            out = EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0)))
-            return snap_to_image_edges(out, rgb, cc.snap_px, cc.snap_min_gradient, cc.snap_band,
-                                       cc.snap_stay, cc.snap_colour, cc.snap_nearest)
+            out = snap_to_image_edges(
+                EdgeImage(edges, known, np.where(edges, out.pairs, np.uint8(0))), rgb,
+                cc.snap_px, cc.snap_min_gradient, cc.snap_band, cc.snap_stay, cc.snap_colour,
+                cc.snap_nearest)
+            if cc.refine == "union":  # image edges beside the boundaries join them (no pair)
+                near = _dilate(edges, cc.refine_px) & known
+                out = EdgeImage(out.edges | (self._refine_canny(rgb) & near), known, out.pairs)
+            return out
         if cc.refine == "canny":
             near = _dilate(out.edges & known, cc.refine_px)
-            return EdgeImage(self._canny(rgb, hough=False) & near & known, known)
+            return EdgeImage(self._refine_canny(rgb) & near & known, known)
         return EdgeImage(self._canny(rgb, hough=True) & known, known)  # refine: mask
 
     @property
@@ -599,6 +609,12 @@ class EdgeExtractor:
         c, h = self.cfg["canny"], self.cfg["hough"]
         lines = dict(h) if hough and h.get("enabled", False) else None
         return canny_edges(rgb, c["low"], c["high"], c["blur"], lines).edges
+
+    def _refine_canny(self, rgb: np.ndarray) -> np.ndarray:
+        """Canny edges (H, W) bool of a frame at ``cnn.refine_low`` / ``refine_high``, for
+        ``cnn.refine`` union and canny."""
+        cc = self.cnn
+        return canny_edges(rgb, cc.refine_low, cc.refine_high, self.cfg["canny"]["blur"]).edges
 
 
 def class_boundaries_only(mode: str, cfg: dict) -> bool:

@@ -15,7 +15,8 @@ from benchmarks.boundary_distance import (
 from datagen import classes as C
 from localize.edges import EdgeExtractor, pair_code
 
-CFG = {"labels": {"dilate_px": 0, "median": 0}, "cnn": {"snap_px": 0, "prior_correction": 0.0}}
+CFG = {"labels": {"dilate_px": 0, "median": 0},
+       "cnn": {"snap_px": 0, "prior_correction": 0.0, "refine": "none"}}
 
 
 class ShiftedSegmenter:

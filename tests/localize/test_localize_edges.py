@@ -32,8 +32,8 @@ from tests.localize.conftest import palette_segnet
 ROOT = Path(__file__).resolve().parents[2]
 
 # the cnn mode as the plain class boundaries of the predicted labels (no prior correction, no
-# snap); tests that exercise one of those turn it on with cnn(...)
-PLAIN_CNN = {"prior_correction": 0.0, "snap_px": 0}
+# snap, no image edges added); tests that exercise one of those turn it on with cnn(...)
+PLAIN_CNN = {"prior_correction": 0.0, "snap_px": 0, "refine": "none"}
 EDGES_CFG = {"canny": {"low": 50.0, "high": 150.0, "blur": 3},
              "hough": {"enabled": False, "threshold": 10, "min_length": 8, "max_gap": 2},
              "labels": {"dilate_px": 1, "median": 0},
@@ -219,6 +219,28 @@ class TestSegmenter:
         dist = cv2.distanceTransform((~plain.edges).astype(np.uint8), cv2.DIST_L2, 3)
         assert dist[fine.edges].max() <= 2.0
 
+    def test_union_adds_image_edges_beside_boundaries(self, tmp_path):
+        """refine union: every predicted boundary stays (with its class pair); Canny edges
+        within refine_px of one join it, without a pair; those farther away do not."""
+        lab = two_walls()
+        rgb = C.colorize(lab)
+        rgb[9:11, 2:8] = 255   # a stripe inside the wall, far from every boundary
+        rgb[6:9, 12] = 255     # a short mark 2 px left of the wall | door boundary
+        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
+        plain = EdgeExtractor("cnn", cnn(refine="none"), seg).edges(rgb, lab)
+        both = EdgeExtractor("cnn", cnn(refine="union", refine_px=2), seg).edges(rgb, lab)
+        canny = canny_edges(rgb, **{k: EDGES_CFG["canny"][k] for k in ("low", "high", "blur")})
+        assert canny.edges[8:12, 2:8].any() and canny.edges[6:9, 11:14].any()
+        assert (both.edges >= plain.edges).all()
+        np.testing.assert_array_equal(both.pairs, plain.pairs)
+        np.testing.assert_array_equal(both.known, plain.known)
+        assert not both.edges[8:12, 2:8].any()           # the far stripe stays out
+        added = both.edges & ~plain.edges
+        assert added[6:9, 11:14].any()                   # the mark beside the boundary joins
+        dist = cv2.distanceTransform((~plain.edges).astype(np.uint8), cv2.DIST_L2, 3)
+        assert dist[added].max() <= 2.0 + 1e-6
+        assert not (added & ~both.known).any()
+
     def test_missing_model(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m train"):
             load_segmenter(tmp_path / "nope.onnx", C.as_json())
@@ -249,7 +271,7 @@ class TestRefineChoice:
         seg = object()
         assert not EdgeExtractor("none", EDGES_CFG).class_boundaries_only
         assert EdgeExtractor("oracle", EDGES_CFG).class_boundaries_only
-        for refine, only in (("none", True), ("canny", True), ("mask", False)):
+        for refine, only in (("none", True), ("union", True), ("canny", True), ("mask", False)):
             cfg = cnn(refine=refine)
             assert EdgeExtractor("cnn", cfg, seg).class_boundaries_only is only
 

@@ -99,7 +99,7 @@ class TestEndToEnd:
         d = path.parent
         text = path.read_text()
         assert "0.32" in text and "177" in text
-        assert "mode cnn: k = 30.0" in text  # conf/filter/default.yaml's mode_likelihood
+        assert "mode cnn: k = 40.0" in text  # conf/filter/default.yaml's mode_likelihood
         assert "mode cnn: [0.01, 0.005, 0.2]" in text  # and its mode_motion_std
         assert "fewer than 15 lines" in text  # and its likelihood.lines_ref
         for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
