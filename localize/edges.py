@@ -54,6 +54,7 @@ class CnnSettings:
         refine_px: pixels, for ``refine: union`` and ``canny``.
         refine_low, refine_high: their Canny hysteresis thresholds (mode none has its own,
             ``edges.canny``).
+        refine_colour: their Canny runs on the colour image, not the grey one.
         guided_refine: the segmenter's guided refinement of its probabilities (``load_segmenter``).
     """
 
@@ -69,6 +70,7 @@ class CnnSettings:
     refine_px: int = 6
     refine_low: float = 25.0
     refine_high: float = 75.0
+    refine_colour: bool = True
     guided_refine: bool = False
 
     def __post_init__(self) -> None:
@@ -160,7 +162,7 @@ def _check_rgb(rgb: np.ndarray) -> None:
 
 
 def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: int = 3,
-                hough: dict | None = None) -> EdgeImage:
+                hough: dict | None = None, colour: bool = False) -> EdgeImage:
     """Canny edges of an RGB image, optionally replaced by the Hough line segments they hold.
 
     Args:
@@ -169,15 +171,18 @@ def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: i
         blur: Gaussian blur kernel size before Canny (odd; <= 1 disables it).
         hough: None or a dict with ``threshold`` (votes), ``min_length`` and ``max_gap``
             (pixels) for ``cv2.HoughLinesP``; the found segments are drawn 1 px wide.
+        colour: False: Canny on the grey image; True: on the RGB image (OpenCV takes, at each
+            pixel, the gradient of the channel where it is strongest: a step between colours
+            of equal brightness counts).
 
     Returns:
         The edge image; every pixel is known.
     """
     _check_rgb(rgb)
-    grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+    img = np.ascontiguousarray(rgb) if colour else cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
     if blur and blur > 1:
-        grey = cv2.GaussianBlur(grey, (int(blur) | 1, int(blur) | 1), 0)
-    edges = cv2.Canny(grey, float(low), float(high), L2gradient=True)
+        img = cv2.GaussianBlur(img, (int(blur) | 1, int(blur) | 1), 0)
+    edges = cv2.Canny(img, float(low), float(high), L2gradient=True)
     if hough:
         lines = cv2.HoughLinesP(edges, 1, np.pi / 180, int(hough.get("threshold", 30)),
                                 minLineLength=float(hough.get("min_length", 20)),
@@ -611,10 +616,11 @@ class EdgeExtractor:
         return canny_edges(rgb, c["low"], c["high"], c["blur"], lines).edges
 
     def _refine_canny(self, rgb: np.ndarray) -> np.ndarray:
-        """Canny edges (H, W) bool of a frame at ``cnn.refine_low`` / ``refine_high``, for
-        ``cnn.refine`` union and canny."""
+        """Canny edges (H, W) bool of a frame at ``cnn.refine_low`` / ``refine_high`` (of its
+        colour with ``cnn.refine_colour``), for ``cnn.refine`` union and canny."""
         cc = self.cnn
-        return canny_edges(rgb, cc.refine_low, cc.refine_high, self.cfg["canny"]["blur"]).edges
+        return canny_edges(rgb, cc.refine_low, cc.refine_high, self.cfg["canny"]["blur"],
+                           colour=cc.refine_colour).edges
 
 
 def class_boundaries_only(mode: str, cfg: dict) -> bool:

@@ -103,6 +103,15 @@ class TestCanny:
         assert e.edges[:, 19:21].any(axis=1).mean() > 0.9
         assert not e.edges[:, :15].any() and e.known.all()
 
+    def test_colour_finds_a_step_of_equal_brightness(self):
+        """Red | green of the same grey level: no grey edge, a colour one."""
+        img = np.zeros((40, 40, 3), np.uint8)
+        img[:, :20] = (150, 0, 0)
+        img[:, 20:] = (0, 76, 0)   # 0.299 * 150 = 44.9, 0.587 * 76 = 44.6: the same grey
+        assert not canny_edges(img, blur=0).edges.any()
+        e = canny_edges(img, blur=0, colour=True)
+        assert e.edges[:, 19:21].any(axis=1).mean() > 0.9 and not e.edges[:, :15].any()
+
     def test_hough_keeps_lines(self):
         img = np.zeros((40, 40, 3), np.uint8)
         img[:, 20:] = 200
