@@ -31,6 +31,14 @@ from train.runtime import INPUT_NAME, OUTPUT_NAME, ort_session, read_metadata
 DEFAULT_MODEL = Path("outputs/models/demo/segnet.onnx")
 
 
+def network_input(batch: np.ndarray) -> np.ndarray:
+    """The graph's ``image`` input of RGB frames: (N, H, W, 3) uint8 -> (N, 3, H, W) float32 in
+    [0, 1], contiguous (shape and dtype are the caller's to check)."""
+    x = np.ascontiguousarray(batch.transpose(0, 3, 1, 2), dtype=np.float32)
+    x *= np.float32(1.0 / 255.0)
+    return x
+
+
 class OnnxSegmenter:
     """Per-pixel classes from segnet.onnx.
 
@@ -102,9 +110,7 @@ class OnnxSegmenter:
                 f"image size {batch.shape[2]}x{batch.shape[1]} (WxH) differs from the model's "
                 f"input {w}x{h} ({self.path}); resize the image to {w}x{h} first."
             )
-        x = np.ascontiguousarray(batch.transpose(0, 3, 1, 2), dtype=np.float32)
-        x *= np.float32(1.0 / 255.0)
-        return x, single
+        return network_input(batch), single
 
     def logits(self, rgb: np.ndarray) -> np.ndarray:
         """Logits: the network's, or with ``refine``, the log of the refined probabilities.

@@ -36,7 +36,7 @@ from tqdm import tqdm
 from datagen.atomic import atomic_write, atomic_write_json, read_png
 from datagen.dataset import Dataset
 from train.metrics import confusion_matrix, metrics_json
-from train.predict import OnnxSegmenter
+from train.predict import OnnxSegmenter, network_input
 from train.runtime import INPUT_NAME, read_metadata
 
 INT8_NAME = "segnet_int8.onnx"
@@ -73,9 +73,9 @@ class _Frames(CalibrationDataReader):
     def get_next(self) -> dict | None:
         if self.i >= len(self.images):
             return None
-        x = self.images[self.i : self.i + 1].transpose(0, 3, 1, 2).astype(np.float32) / 255.0
+        x = network_input(self.images[self.i : self.i + 1])
         self.i += 1
-        return {INPUT_NAME: np.ascontiguousarray(x)}
+        return {INPUT_NAME: x}
 
     def rewind(self) -> None:
         self.i = 0
