@@ -1,14 +1,15 @@
 """ONNX export of a SegNet with metadata, checked against torch with onnxruntime.
 
-The graph takes ``image`` (N, 3, H, W) float32 in [0, 1] and gives ``logits`` (N, C, H, W);
-the batch size is dynamic, H and W are fixed to the size given at export (the dataset's camera
-size). Normalization and the padding to a multiple of ``2 ** stages`` happen inside the graph,
-so a consumer feeds plain [0, 1] images of the exported size. Metadata (``metadata_props``,
+The graph takes ``image`` (N, 3, H, W) float32 in [0, 1] and gives ``logits`` (N, C, H, W)
+and ``labels`` (N, H, W) uint8, their argmax (``train.runtime.add_label_output``); the batch
+size is dynamic, H and W are fixed to the size given at export (the dataset's camera size).
+Normalization and the padding to a multiple of ``2 ** stages`` happen inside the graph, so a
+consumer feeds plain [0, 1] images of the exported size. Metadata (``metadata_props``,
 every value a JSON string): classes, input_height, input_width, normalization, padding,
 model, config_hash.
 
 Pooling in the graph: by default the encoder's max-pooling indices are kept as window-local
-codes (``train.segnet.WindowMaxPool``) and unpooled with comparisons and DepthToSpace, which
+codes (``train.segnet.WindowMaxPool``) and unpooled with masks and DepthToSpace, which
 computes exactly what ``nn.MaxPool2d(return_indices=True)`` + ``nn.MaxUnpool2d`` compute and
 runs about twice as fast in onnxruntime. ``pooling="indices"`` exports MaxUnpool2d itself,
 which needs the dynamo exporter (``torch.onnx.export(..., dynamo=True)``, via onnxscript).
@@ -32,7 +33,7 @@ import torch
 from torch import nn
 
 from datagen.atomic import atomic_write
-from train.runtime import INPUT_NAME, OUTPUT_NAME, ort_session
+from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, add_label_output, ort_session
 from train.segnet import SegNet
 
 OPSET = 20
@@ -60,6 +61,8 @@ class ParityReport:
             exceed the tolerance although the graph is right.
         max_flip_gap: largest |a - b| in torch between the two values a flipped window chose.
         label_agreement: fraction of pixels with the same argmax class.
+        labels_output_mismatch: pixels where the graph's ``labels`` output differs from the
+            argmax of its own logits (0 for a correct graph; -1: no such output).
         images: number of images compared.
     """
 
@@ -68,6 +71,7 @@ class ParityReport:
     pool_index_flips: int = 0
     max_flip_gap: float = 0.0
     label_agreement: float = 1.0
+    labels_output_mismatch: int = -1
     images: int = 0
     notes: list[str] = field(default_factory=list)
 
@@ -78,6 +82,7 @@ class ParityReport:
             "pool_index_flips": self.pool_index_flips,
             "max_flip_gap": self.max_flip_gap,
             "label_agreement": self.label_agreement,
+            "labels_output_mismatch": self.labels_output_mismatch,
             "images": self.images,
             "notes": self.notes,
         }
@@ -240,22 +245,25 @@ def check_parity(
     """
     model = model.eval()
     sess = ort_session(onnx_model.SerializeToString(), threads)
+    names = [OUTPUT_NAME] + [o.name for o in sess.get_outputs() if o.name == LABELS_NAME]
     n = images.shape[0]
     raw = 0.0
     agree = 0
-    torch_logits = []
+    mismatch = 0 if len(names) > 1 else -1
     for sl in _chunks(n, batch_size):
         x = images[sl].contiguous()
         ref = model(x)
-        out = sess.run([OUTPUT_NAME], {INPUT_NAME: x.numpy()})[0]
+        out, *labels = sess.run(names, {INPUT_NAME: x.numpy()})
         raw = max(raw, float(np.abs(out - ref.numpy()).max()))
         agree += int((out.argmax(1) == ref.argmax(1).numpy()).sum())
-        torch_logits.append(ref)
+        if labels:
+            mismatch += int((labels[0] != out.argmax(1)).sum())
     report = ParityReport(
         max_abs_diff=raw,
         raw_max_abs_diff=raw,
         images=n,
         label_agreement=agree / float(images[:, 0].numel()),
+        labels_output_mismatch=mismatch,
     )
     if raw <= 1e-4:
         return report
@@ -365,7 +373,7 @@ def export_checked(
     model = model.eval()
     h, w = int(images.shape[2]), int(images.shape[3])
     exported = copy.deepcopy(model).set_pooling(pooling)
-    proto = to_onnx_proto(exported, h, w, opset=opset)
+    proto = add_label_output(to_onnx_proto(exported, h, w, opset=opset))
     onnx.helper.set_model_props(proto, metadata)
     onnx.checker.check_model(proto)
     report = check_parity(
@@ -373,6 +381,12 @@ def export_checked(
     )
     # A flip is float rounding only if the two candidate values are (nearly) equal.
     flip_ok = report.max_flip_gap <= max(tolerance, 1e-5)
+    if report.labels_output_mismatch != 0:
+        raise ParityError(
+            f"ONNX export of {path}: its {LABELS_NAME!r} output differs from the argmax of its "
+            f"logits on {report.labels_output_mismatch} pixels. The file was not written.",
+            report,
+        )
     if report.max_abs_diff > tolerance or not flip_ok:
         raise ParityError(
             f"ONNX export of {path} does not match torch: max |onnx - torch| = "

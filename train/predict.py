@@ -26,7 +26,7 @@ import onnx
 
 from datagen.atomic import read_png, write_png
 from train.refine import GuidedRefine, refine_logits_np
-from train.runtime import INPUT_NAME, OUTPUT_NAME, ort_session, read_metadata
+from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, ort_session, read_metadata
 
 DEFAULT_MODEL = Path("outputs/models/demo/segnet.onnx")
 
@@ -85,7 +85,13 @@ class OnnxSegmenter:
         settings = self.metadata.get("refine")
         self.refine = GuidedRefine(**settings) if refine and settings else None
         self.session = ort_session(proto.SerializeToString(), threads)
-        out_shape = self.session.get_outputs()[0].shape
+        outputs = {o.name: o for o in self.session.get_outputs()}
+        if OUTPUT_NAME not in outputs:
+            raise ValueError(f"{path}: the graph has no {OUTPUT_NAME!r} output; re-export the "
+                             "model with `python -m train`")
+        # graphs exported since 2026-11-28 also give the argmax (faster than numpy's)
+        self.has_labels_output = LABELS_NAME in outputs
+        out_shape = outputs[OUTPUT_NAME].shape
         if isinstance(out_shape[1], int) and out_shape[1] != self.num_classes:
             raise ValueError(
                 f"{path}: graph outputs {out_shape[1]} classes but the metadata "
@@ -129,7 +135,12 @@ class OnnxSegmenter:
 
     def labels(self, rgb: np.ndarray) -> np.ndarray:
         """Class labels only (no softmax): (H, W, 3) or (N, H, W, 3) uint8 RGB ->
-        (H, W) or (N, H, W) uint8."""
+        (H, W) or (N, H, W) uint8. The graph's own ``labels`` output where it has one and no
+        refinement applies; else the argmax of ``logits``."""
+        if self.has_labels_output and self.refine is None:
+            x, single = self._to_input(rgb)
+            out = self.session.run([LABELS_NAME], {INPUT_NAME: x})[0]
+            return out[0] if single else out
         z = self.logits(rgb)
         return z.argmax(0 if z.ndim == 3 else 1).astype(np.uint8)
 

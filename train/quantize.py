@@ -81,6 +81,18 @@ class _Frames(CalibrationDataReader):
         self.i = 0
 
 
+#: exporter scopes (node ``namespace`` metadata) left in float: the pooling codes compare a
+#: window's values with its maximum exactly, which quantized copies of the two would not
+FLOAT_SCOPES = ("WindowMaxPool", "WindowMaxUnpool")
+
+
+def float_nodes(proto: onnx.ModelProto, scopes: tuple[str, ...] = FLOAT_SCOPES) -> list[str]:
+    """Names of the nodes exported from inside the modules ``scopes`` (class names)."""
+    return [n.name for n in proto.graph.node
+            if any(p.key == "namespace" and any(s in p.value for s in scopes)
+                   for p in n.metadata_props)]
+
+
 def quantize_segnet(src: str | Path, dst: str | Path, calibration: np.ndarray,
                     op_types: tuple[str, ...] | None = OP_TYPES) -> dict:
     """Write an int8 copy of ``src`` to ``dst`` (atomically; the metadata copied).
@@ -105,13 +117,16 @@ def quantize_segnet(src: str | Path, dst: str | Path, calibration: np.ndarray,
     reader = _Frames(calibration)
     info = {"format": "QDQ", "weights": "int8 per channel", "activations": "uint8",
             "calibration": "minmax", "calibration_images": int(len(calibration)),
-            "op_types": "all" if op_types is None else list(op_types)}
+            "op_types": "all" if op_types is None else list(op_types),
+            "float_scopes": list(FLOAT_SCOPES)}
     with tempfile.TemporaryDirectory(prefix="quantize.", dir=dst.parent) as tmp:
         pre = Path(tmp) / "pre.onnx"
         out = Path(tmp) / "int8.onnx"
         quant_pre_process(str(src), str(pre), skip_symbolic_shape=True)
+        keep_float = float_nodes(onnx.load(str(pre), load_external_data=False))
         quantize_static(str(pre), str(out), reader, quant_format=QuantFormat.QDQ,
                         op_types_to_quantize=None if op_types is None else list(op_types),
+                        nodes_to_exclude=keep_float,
                         per_channel=True,
                         activation_type=QuantType.QUInt8, weight_type=QuantType.QInt8)
         proto = onnx.load(str(out))

@@ -10,6 +10,34 @@ import onnxruntime as ort
 
 INPUT_NAME = "image"
 OUTPUT_NAME = "logits"
+LABELS_NAME = "labels"
+
+
+def add_label_output(proto: onnx.ModelProto) -> onnx.ModelProto:
+    """Append a ``labels`` output, the argmax class of ``logits`` per pixel, to a SegNet graph.
+
+    (N, C, H, W) float32 logits -> (N, H, W) uint8 labels (ArgMax over C, the first class
+    winning a tie, as ``numpy.argmax``; then Cast). onnxruntime's ArgMax takes 0.35 ms on a
+    320x240 frame of 8 classes where ``numpy.argmax(axis=0)`` takes 2.1 ms (a strided
+    reduction), and the localizer reads labels only. Modifies and returns ``proto``.
+    """
+    graph = proto.graph
+    if any(o.name == LABELS_NAME for o in graph.output):
+        return proto
+    logits = next((o for o in graph.output if o.name == OUTPUT_NAME), None)
+    if logits is None:
+        raise ValueError(f"the graph has no {OUTPUT_NAME!r} output to take labels from")
+    dims = logits.type.tensor_type.shape.dim
+    shape = [d.dim_param or d.dim_value for i, d in enumerate(dims) if i != 1]
+    graph.node.extend([
+        onnx.helper.make_node("ArgMax", [OUTPUT_NAME], ["labels_int64"], axis=1, keepdims=0,
+                              select_last_index=0),
+        onnx.helper.make_node("Cast", ["labels_int64"], [LABELS_NAME],
+                              to=onnx.TensorProto.UINT8),
+    ])
+    graph.output.append(
+        onnx.helper.make_tensor_value_info(LABELS_NAME, onnx.TensorProto.UINT8, shape))
+    return proto
 
 
 def ort_session(model: str | Path | bytes, threads: int = 2) -> ort.InferenceSession:

@@ -6,13 +6,21 @@ import json
 from pathlib import Path
 
 import numpy as np
+import onnx
 import pytest
 
 import train.train as tt
 from datagen.atomic import read_png
 from datagen.dataset import Dataset
 from train.predict import OnnxSegmenter
-from train.quantize import INT8_NAME, REPORT_NAME, main, quantize_segnet, spread_indices
+from train.quantize import (
+    INT8_NAME,
+    REPORT_NAME,
+    float_nodes,
+    main,
+    quantize_segnet,
+    spread_indices,
+)
 from train.runtime import read_metadata
 
 
@@ -43,6 +51,13 @@ def test_int8_segments_like_the_float_model(quantized, synthetic_dataset: Path) 
     meta, meta32 = read_metadata(int8), read_metadata(model_dir / "segnet.onnx")
     assert meta["quantization"]["calibration_images"] == 8
     assert {k: v for k, v in meta.items() if k != "quantization"} == meta32
+    # the pooling bookkeeping stays float: its one-hot convolutions read float weights
+    proto8 = onnx.load(str(int8))
+    keep = set(float_nodes(proto8))
+    inits = {t.name for t in proto8.graph.initializer}
+    pool_convs = [n for n in proto8.graph.node if n.op_type == "Conv" and n.name in keep]
+    assert pool_convs and all(n.input[1] in inits for n in pool_convs)
+    assert [o.name for o in proto8.graph.output] == ["logits", "labels"]
     # the same frames through both graphs: nearly the same logits and labels (a tiny network
     # trained for seconds has small margins between classes: the shipped ones agree on more)
     rgb_paths, _ = Dataset(synthetic_dataset).split("test")

@@ -17,6 +17,7 @@ from train.segnet import (
     pad_to_multiple,
     plane_index_to_code,
     vgg_stages,
+    window_element,
 )
 
 
@@ -319,6 +320,17 @@ class TestWindowPooling:
         torch.testing.assert_close(
             WindowMaxUnpool()(v, code), nn.MaxUnpool2d(2, 2)(v, idx), rtol=0, atol=0
         )
+
+    def test_window_element_is_exact(self) -> None:
+        """The one-hot depthwise convolution reads each window position bit for bit."""
+        g = torch.Generator().manual_seed(7)
+        x = torch.randn(2, 5, 6, 10, generator=g) * torch.logspace(-30, 30, 10)  # wide range
+        x[0, 0, 0, :4] = torch.tensor([0.0, -0.0, 1e-45, -3e38])
+        for dy in (0, 1):
+            for dx in (0, 1):
+                torch.testing.assert_close(
+                    window_element(x, dy, dx), x[..., dy::2, dx::2], rtol=0, atol=0
+                )
 
     def test_model_modes_agree(self) -> None:
         m = _tiny()

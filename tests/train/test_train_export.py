@@ -13,7 +13,7 @@ import torch
 from datagen.classes import as_json
 from train.export import ParityError, check_parity, export_checked, onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter, main
-from train.runtime import ort_session, read_metadata
+from train.runtime import add_label_output, ort_session, read_metadata
 from train.segnet import SegNet
 
 H, W = 40, 56  # not multiples of the model's 8: the graph pads and crops
@@ -61,7 +61,8 @@ class TestExport:
         path, _ = exported
         proto = onnx.load(str(path))
         assert [i.name for i in proto.graph.input] == ["image"]
-        assert [o.name for o in proto.graph.output] == ["logits"]
+        assert [o.name for o in proto.graph.output] == ["logits", "labels"]
+        assert exported[1].labels_output_mismatch == 0  # labels == argmax(logits), checked
         dims = proto.graph.input[0].type.tensor_type.shape.dim
         assert dims[0].dim_param  # dynamic batch
         assert [d.dim_value for d in dims[1:]] == [3, H, W]
@@ -161,6 +162,14 @@ class TestExport:
         assert report.max_abs_diff > 1e-3  # the aligned comparison still sees the change
 
 
+    def test_wrong_labels_output_is_caught(self, model: SegNet, images: torch.Tensor) -> None:
+        proto = add_label_output(to_onnx_proto(model, H, W))
+        next(n for n in proto.graph.node if n.op_type == "ArgMax").op_type = "ArgMin"
+        report = check_parity(model, proto, images[:2], threads=1)
+        assert report.labels_output_mismatch > 0
+        assert report.max_abs_diff <= 1e-4  # the logits themselves are right
+
+
 class TestPredictor:
     def test_predict_matches_torch(self, exported, model: SegNet) -> None:
         seg = OnnxSegmenter(exported[0], threads=1)
@@ -180,6 +189,20 @@ class TestPredictor:
         np.testing.assert_array_equal(one, labels[0])
         np.testing.assert_array_equal(seg.labels(rgb), labels)
         np.testing.assert_array_equal(seg.labels(rgb[0]), labels[0])
+
+    def test_graph_without_labels_output(
+        self, exported, model: SegNet, tmp_path: Path
+    ) -> None:
+        """A graph exported before the ``labels`` output still gives labels (numpy argmax)."""
+        proto = to_onnx_proto(model, H, W)
+        proto.metadata_props.extend(onnx.load(str(exported[0])).metadata_props)
+        old = tmp_path / "old.onnx"
+        onnx.save(proto, str(old))
+        seg_old, seg_new = OnnxSegmenter(old, threads=1), OnnxSegmenter(exported[0], threads=1)
+        assert not seg_old.has_labels_output and seg_new.has_labels_output
+        rgb = np.random.default_rng(3).integers(0, 256, (3, H, W, 3), dtype=np.uint8)
+        np.testing.assert_array_equal(seg_old.labels(rgb), seg_new.labels(rgb))
+        np.testing.assert_array_equal(seg_old.labels(rgb), seg_new.logits(rgb).argmax(1))
 
     def test_bad_input(self, exported) -> None:
         seg = OnnxSegmenter(exported[0], threads=1)
