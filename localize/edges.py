@@ -463,8 +463,20 @@ def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int =
     return seg
 
 
+def _logits_and_labels(segmenter, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(C, H, W) logits and (H, W) argmax labels of a frame: from one run of the graph where the
+    segmenter gives both (``OnnxSegmenter.logits_and_labels``), else the argmax of its logits."""
+    both = getattr(segmenter, "logits_and_labels", None)
+    if both is not None:
+        z, labels = both(rgb)
+        return np.asarray(z), np.asarray(labels)
+    z = np.asarray(segmenter.logits(rgb))
+    return z, z.argmax(0)
+
+
 def structural_prior_labels(logits: np.ndarray, structural_ids: np.ndarray,
-                            log_prior: np.ndarray) -> np.ndarray:
+                            log_prior: np.ndarray, labels: np.ndarray | None = None
+                            ) -> np.ndarray:
     """Class labels with the training's class-weight prior taken out of the structural choice.
 
     A network trained with class-weighted cross-entropy (weight w_c) learns softmax scores
@@ -483,12 +495,14 @@ def structural_prior_labels(logits: np.ndarray, structural_ids: np.ndarray,
         logits: (C, H, W) float class scores.
         structural_ids: (S,) int ids of the structural classes.
         log_prior: (C,) float log w_c (0 for a class without a weight), or a multiple of it.
+        labels: (H, W) the plain argmax of ``logits`` if the caller has it (the graph's
+            ``labels`` output); None computes it.
 
     Returns:
         (H, W) uint8 labels.
     """
     ids = np.asarray(structural_ids, dtype=np.int64)
-    labels = logits.argmax(0)
+    labels = logits.argmax(0) if labels is None else labels
     corrected = ids[(logits[ids] - np.asarray(log_prior)[ids, None, None]).argmax(0)]
     structural = np.zeros(logits.shape[0], dtype=bool)
     structural[ids] = True
@@ -553,9 +567,9 @@ class EdgeExtractor:
         if self.log_prior is None and not need_conf:
             labels, conf = self.segmenter.labels(rgb), None  # argmax only: no softmax
         else:
-            z = np.asarray(self.segmenter.logits(rgb))
-            labels = (z.argmax(0) if self.log_prior is None else
-                      structural_prior_labels(z, self.segmenter.structural_ids, self.log_prior))
+            z, plain = _logits_and_labels(self.segmenter, rgb)
+            labels = (plain if self.log_prior is None else structural_prior_labels(
+                z, self.segmenter.structural_ids, self.log_prior, plain))
             # the largest softmax probability is 1 / sum_c exp(z_c - max z)
             conf = 1.0 / np.exp(z - z.max(0, keepdims=True)).sum(0) if need_conf else None
         labels = np.asarray(labels)

@@ -133,6 +133,19 @@ class OnnxSegmenter:
             out = refine_logits_np(rgb[None] if single else rgb, out, self.refine)
         return out[0] if single else out
 
+    def logits_and_labels(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``logits(rgb)`` and ``labels(rgb)`` from one run of the graph.
+
+        Returns:
+            (C, H, W) or (N, C, H, W) float32 and (H, W) or (N, H, W) uint8.
+        """
+        if not (self.has_labels_output and self.refine is None):
+            z = self.logits(rgb)
+            return z, z.argmax(0 if z.ndim == 3 else 1).astype(np.uint8)
+        x, single = self._to_input(rgb)
+        z, labels = self.session.run([OUTPUT_NAME, LABELS_NAME], {INPUT_NAME: x})
+        return (z[0], labels[0]) if single else (z, labels)
+
     def labels(self, rgb: np.ndarray) -> np.ndarray:
         """Class labels only (no softmax): (H, W, 3) or (N, H, W, 3) uint8 RGB ->
         (H, W) or (N, H, W) uint8. The graph's own ``labels`` output where it has one and no

@@ -141,6 +141,9 @@ class TestPriorCorrection:
         log_w[C.WALL], log_w[C.DOOR] = np.log(0.36), np.log(1.0)
         out = structural_prior_labels(z, np.array(C.STRUCTURAL), log_w)
         assert out.tolist() == [[C.WALL, C.DOOR, C.PERSON]] and out.dtype == np.uint8
+        given = structural_prior_labels(z, np.array(C.STRUCTURAL), log_w,
+                                        z.argmax(0).astype(np.uint8))  # the graph's argmax
+        np.testing.assert_array_equal(given, out)
         same = structural_prior_labels(z, np.array(C.STRUCTURAL), np.zeros(C.NUM_CLASSES))
         np.testing.assert_array_equal(same, z.argmax(0))
 

@@ -189,6 +189,12 @@ class TestPredictor:
         np.testing.assert_array_equal(one, labels[0])
         np.testing.assert_array_equal(seg.labels(rgb), labels)
         np.testing.assert_array_equal(seg.labels(rgb[0]), labels[0])
+        z, both = seg.logits_and_labels(rgb)  # one run of the graph
+        np.testing.assert_array_equal(z, seg.logits(rgb))
+        np.testing.assert_array_equal(both, labels)
+        z1, one_both = seg.logits_and_labels(rgb[0])
+        assert z1.shape == (8, H, W) and one_both.shape == (H, W)
+        np.testing.assert_array_equal(one_both, labels[0])
 
     def test_graph_without_labels_output(
         self, exported, model: SegNet, tmp_path: Path
