@@ -101,7 +101,8 @@ class WindowMaxPool(nn.Module):
     as MaxPool-with-indices + ScatterND. The code is arithmetic on the "not the maximum" flags
     of the first three positions, code = na * (1 + nb * (1 + nc)), not nested ``where``
     (onnxruntime's Where is several times slower than Mul on uint8), and the positions are
-    read by ``window_element``, not strided slices (docs/localize.md, "a faster SegNet graph").
+    read by ``window_element``, not strided slices (docs/train.md, "the pooling graph
+    without Where").
 
     Shapes: (B, C, H, W) with even H, W -> values (B, C, H/2, W/2), codes (B, C, H/2, W/2) uint8.
     """
