@@ -89,7 +89,7 @@ class OnnxSegmenter:
         if OUTPUT_NAME not in outputs:
             raise ValueError(f"{path}: the graph has no {OUTPUT_NAME!r} output; re-export the "
                              "model with `python -m train`")
-        # graphs exported since 2026-11-28 also give the argmax (faster than numpy's)
+        # graphs exported since e9222ac (2026-11-27) also give the argmax, faster than numpy's
         self.has_labels_output = LABELS_NAME in outputs
         out_shape = outputs[OUTPUT_NAME].shape
         if isinstance(out_shape[1], int) and out_shape[1] != self.num_classes:
