@@ -133,13 +133,19 @@ class OnnxSegmenter:
             out = refine_logits_np(rgb[None] if single else rgb, out, self.refine)
         return out[0] if single else out
 
+    @property
+    def _graph_labels(self) -> bool:
+        """Whether labels come from the graph's ``labels`` output (it has one and no
+        refinement changes the logits)."""
+        return self.has_labels_output and self.refine is None
+
     def logits_and_labels(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``logits(rgb)`` and ``labels(rgb)`` from one run of the graph.
 
         Returns:
             (C, H, W) or (N, C, H, W) float32 and (H, W) or (N, H, W) uint8.
         """
-        if not (self.has_labels_output and self.refine is None):
+        if not self._graph_labels:
             z = self.logits(rgb)
             return z, z.argmax(0 if z.ndim == 3 else 1).astype(np.uint8)
         x, single = self._to_input(rgb)
@@ -150,12 +156,11 @@ class OnnxSegmenter:
         """Class labels only (no softmax): (H, W, 3) or (N, H, W, 3) uint8 RGB ->
         (H, W) or (N, H, W) uint8. The graph's own ``labels`` output where it has one and no
         refinement applies; else the argmax of ``logits``."""
-        if self.has_labels_output and self.refine is None:
-            x, single = self._to_input(rgb)
-            out = self.session.run([LABELS_NAME], {INPUT_NAME: x})[0]
-            return out[0] if single else out
-        z = self.logits(rgb)
-        return z.argmax(0 if z.ndim == 3 else 1).astype(np.uint8)
+        if not self._graph_labels:
+            return self.logits_and_labels(rgb)[1]
+        x, single = self._to_input(rgb)
+        out = self.session.run([LABELS_NAME], {INPUT_NAME: x})[0]  # the logits not copied out
+        return out[0] if single else out
 
     def predict(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Class labels and softmax probabilities.

@@ -47,6 +47,10 @@ REPORT_NAME = "quantize.json"
 OP_TYPES: tuple[str, ...] | None = None
 
 
+#: training images whose activation ranges set the int8 scales (``export.int8_calibration``)
+CALIBRATION = 64
+
+
 def spread_indices(total: int, n: int) -> np.ndarray:
     """``n`` indices spread evenly over ``range(total)`` (all of them when n >= total).
 
@@ -165,9 +169,16 @@ def compare_on_split(fp32: str | Path, int8: str | Path, rgb_paths: list[Path],
             "label_agreement": same / max(total, 1), "images": len(rgb_paths)}
 
 
+def int8_summary(report: dict) -> dict:
+    """The ``int8`` entry of a model's metrics.json from a quantize.json report: the share of
+    labels equal to the float graph's and the int8 graph's test pixel accuracy and mean IoU."""
+    return {"label_agreement": report["label_agreement"],
+            **{k: report["int8"][k] for k in ("pixel_accuracy", "mean_iou")}}
+
+
 def quantize_model_dir(model_dir: str | Path, dataset: str | Path | None = None,
-                       calibration: int = 64, test_limit: int | None = None, threads: int = 2,
-                       progress: bool = True) -> dict:
+                       calibration: int = CALIBRATION, test_limit: int | None = None,
+                       threads: int = 2, progress: bool = True) -> dict:
     """``segnet_int8.onnx`` and ``quantize.json`` in a model folder of ``python -m train``.
 
     Args:
@@ -212,7 +223,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("model_dir", help="a model folder of `python -m train` (outputs/models/NAME)")
     ap.add_argument("--dataset", default=None, help="default: the model's training dataset")
-    ap.add_argument("--calibration", type=int, default=64, help="training images to calibrate on")
+    ap.add_argument("--calibration", type=int, default=CALIBRATION,
+                    help="training images to calibrate on")
     ap.add_argument("--test-limit", type=int, default=None, help="test images to compare on")
     ap.add_argument("--threads", type=int, default=2)
     args = ap.parse_args(argv)

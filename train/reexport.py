@@ -23,14 +23,21 @@ import json
 import logging
 from pathlib import Path
 
-import numpy as np
 import onnx
 import torch
 
-from datagen.atomic import atomic_write_json, read_png
+from datagen.atomic import atomic_write_json
 from datagen.dataset import Dataset
+from train.data import to_float
 from train.export import ParityReport, export_checked
-from train.quantize import INT8_NAME, REPORT_NAME, quantize_model_dir
+from train.quantize import (
+    CALIBRATION,
+    INT8_NAME,
+    REPORT_NAME,
+    int8_summary,
+    quantize_model_dir,
+    read_images,
+)
 from train.runtime import read_metadata
 from train.train import load_checkpoint
 
@@ -53,8 +60,8 @@ def parity_images(dataset: Dataset, n: int = PARITY_IMAGES) -> torch.Tensor:
     if not rgb_paths:
         raise FileNotFoundError(f"{dataset.root / 'test'} has no images for the parity check; "
                                 "pass another dataset with --dataset")
-    rgb = np.stack([read_png(p) for p in rgb_paths[:n]])
-    return torch.from_numpy(rgb).permute(0, 3, 1, 2).float().div_(255.0)
+    images = torch.from_numpy(read_images(rgb_paths[:n])).permute(0, 3, 1, 2)
+    return to_float(images)  # as ``python -m train`` makes its parity images
 
 
 def reexport(model_dir: str | Path, dataset: str | Path | None = None,
@@ -105,12 +112,11 @@ def reexport(model_dir: str | Path, dataset: str | Path | None = None,
     log.info("%s: re-exported, max |onnx - torch| %.2e", files["segnet.onnx"], report.max_abs_diff)
     if (model_dir / INT8_NAME).is_file():  # made from the old graph: make it again
         q_path = model_dir / REPORT_NAME
-        calibration = 64
+        calibration = CALIBRATION
         if q_path.is_file():
             calibration = int(json.loads(q_path.read_text())["quantization"]["calibration_images"])
         q = quantize_model_dir(model_dir, dataset, calibration, threads=threads, progress=False)
-        metrics["int8"] = {"label_agreement": q["label_agreement"],
-                           **{k: q["int8"][k] for k in ("pixel_accuracy", "mean_iou")}}
+        metrics["int8"] = int8_summary(q)
         atomic_write_json(files["metrics.json"], metrics)
         log.info("%s: made again, labels equal to the float graph's on %.2f %% of pixels",
                  model_dir / INT8_NAME, 100 * q["label_agreement"])

@@ -49,7 +49,7 @@ from train.data import (
 from train.export import ParityError, export_checked, onnx_metadata
 from train.losses import image_edge_mask, median_frequency_weights, segmentation_loss
 from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
-from train.quantize import INT8_NAME, quantize_model_dir
+from train.quantize import CALIBRATION, INT8_NAME, int8_summary, quantize_model_dir
 from train.quantize import REPORT_NAME as QUANTIZE_REPORT
 from train.refine import GuidedRefine, refine_logits
 from train.segnet import (
@@ -828,10 +828,10 @@ def run(cfg: DictConfig) -> dict:
         report.max_abs_diff,
     )
     if bool(cfg.export.get("int8", False)):
-        q = quantize_model_dir(out_dir, dataset.root, int(cfg.export.get("int8_calibration", 64)),
-                               limit, int(cfg.threads), progress)
-        metrics["int8"] = {"label_agreement": q["label_agreement"],
-                           **{k: q["int8"][k] for k in ("pixel_accuracy", "mean_iou")}}
+        calibration = int(cfg.export.get("int8_calibration", CALIBRATION))
+        q = quantize_model_dir(out_dir, dataset.root, calibration, limit, int(cfg.threads),
+                               progress)
+        metrics["int8"] = int8_summary(q)
         atomic_write_json(out_dir / "metrics.json", metrics)
         log.info("int8: test pixel acc %.4f, mIoU %.4f; labels equal to the float graph's on "
                  "%.2f %% of pixels", q["int8"]["pixel_accuracy"], q["int8"]["mean_iou"],
