@@ -60,7 +60,9 @@ particle, so a pose is not favoured for seeing more or fewer lines.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import functools
+from collections.abc import Callable, Iterable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
 
 import cv2
@@ -106,6 +108,9 @@ class LikelihoodParams:
             (edge images with ``pairs``; needs the samples' pair codes).
         near: samples closer to the camera than this are dropped, metres.
         chunk: particles processed per block (keeps the (chunk, P) arrays in cache).
+        workers: threads that score blocks of particles, and the orientation bins' maps, at
+            the same time (numpy and OpenCV release the GIL); 1 = in the calling thread.
+            Results do not depend on it.
     """
 
     alpha: float = 1.0
@@ -123,6 +128,7 @@ class LikelihoodParams:
     class_pairs: bool = False
     near: float = 0.1
     chunk: int = 64
+    workers: int = 1
 
     def __post_init__(self) -> None:
         if self.aggregate not in ("lines", "samples", "evidence"):
@@ -131,6 +137,8 @@ class LikelihoodParams:
         if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
             raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
                              f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")
+        if self.workers < 1:
+            raise ValueError(f"likelihood.workers must be >= 1, got {self.workers}")
         if self.lines_ref < 0:
             raise ValueError(f"likelihood.lines_ref must be >= 0 (0 = off), got {self.lines_ref}")
 
@@ -183,6 +191,20 @@ def frame_k(k: float, lines: np.ndarray, lines_ref: int) -> float:
     if lines_ref <= 0 or len(lines) == 0:
         return float(k)
     return float(k) * min(1.0, float(np.median(lines)) / lines_ref)
+
+
+@functools.cache
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """A shared pool of ``workers`` threads (made once per count, kept for the process)."""
+    return ThreadPoolExecutor(workers, thread_name_prefix="likelihood")
+
+
+def run_all(fn: Callable, items: Iterable, workers: int) -> list:
+    """``[fn(x) for x in items]``, on ``workers`` threads when more than one (same order)."""
+    items = list(items)
+    if workers <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    return list(_pool(workers).map(fn, items))
 
 
 def distance_to(mask: np.ndarray) -> np.ndarray:
@@ -279,27 +301,39 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     e_flat = np.empty(n * H * W + 1, dtype=np.float32)
     g_flat[-1] = e_flat[-1] = 0.0
     g = g_flat[:-1].reshape(n, H, W)
-    e = e_flat[:-1].reshape(n_pairs, len(masks), H, W)
-    if paired:
-        # chance levels from all edges (g[0] as scratch, overwritten below); one distance
-        # transform per (pair, bin)
-        g0 = np.array([score(m, None, g[0]) for m in masks], np.float32)
-        for q, c in enumerate(np.asarray(pair_codes, np.uint8)):
-            pm = edge.pairs == c
-            for b, m in enumerate(masks):
-                score(m & pm, g0[b], g[q * len(masks) + b])
-    else:
-        g0 = np.array([score(m, None, g[b]) for b, m in enumerate(masks)], np.float32)
+    e = e_flat[:-1].reshape(n, H, W)
     eps = np.float32(params.outlier)
-    np.add(g.reshape(e.shape), eps, out=e)
-    np.log(e, out=e)
-    e -= np.log(g0 + eps)[:, None, None]
-    e = e.reshape(n, H, W)
-    if any_unknown:
-        np.copyto(e, np.float32(1e-7), where=(e == 0) & known)
-        np.copyto(e, np.float32(0.0), where=unknown)
-    else:
-        np.copyto(e, np.float32(1e-7), where=e == 0)
+
+    def evidence(i: int, g0b: np.float32) -> None:
+        """e map i from g map i: ``log(g + eps) - log(g0 + eps)``, exactly 0 on unknown
+        pixels and nudged off 0 elsewhere."""
+        out = e[i]
+        np.add(g[i], eps, out=out)
+        np.log(out, out=out)
+        out -= np.log(g0b + eps)
+        np.copyto(out, np.float32(1e-7), where=(out == 0) & known if any_unknown else out == 0)
+        if any_unknown:
+            np.copyto(out, np.float32(0.0), where=unknown)
+
+    def plain_bin(b: int) -> np.float32:
+        """Map b of all edges; its chance level (with class pairs only that, as scratch:
+        pair q = 0's maps overwrite it)."""
+        g0b = score(masks[b], None, g[b])
+        if not paired:
+            evidence(b, g0b)
+        return g0b
+
+    def pair_bin(i: int) -> None:
+        """Map i = q * B + b: the edges of class pair q in bin b."""
+        q, b = divmod(i, len(masks))
+        score(masks[b] & pms[q], g0[b], g[i])
+        evidence(i, g0[b])
+
+    # the maps are independent: on params.workers threads
+    g0 = np.array(run_all(plain_bin, range(len(masks)), params.workers), np.float32)
+    if paired:  # one distance transform per (pair, bin)
+        pms = [edge.pairs == c for c in np.asarray(pair_codes, np.uint8)]
+        run_all(pair_bin, range(n), params.workers)
     return Observation(g_flat, e_flat, g0, W, H, B, len(pair_codes) if paired else 0)
 
 
@@ -375,9 +409,11 @@ class EdgeLikelihood:
         quality = np.empty(N)
         lines = np.empty(N, dtype=np.int64)
         step = max(1, int(self.params.chunk))
-        for i in range(0, N, step):  # blocks of particles, vectorized within
-            b = slice(i, i + step)
-            score[b], quality[b], lines[b] = self._block(states[b], obs, tilt)
+        blocks = [slice(i, i + step) for i in range(0, N, step)]  # vectorized within a block
+        done = run_all(lambda b: self._block(states[b], obs, tilt), blocks,
+                       int(self.params.workers))
+        for b, (s_b, q_b, l_b) in zip(blocks, done, strict=True):
+            score[b], quality[b], lines[b] = s_b, q_b, l_b
         return score, quality, lines
 
     def _block(self, states: np.ndarray, obs: Observation,

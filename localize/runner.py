@@ -15,6 +15,7 @@ file exist, so a stopped job resumes where it was (``overwrite=true`` re-runs ev
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import logging
@@ -373,6 +374,20 @@ def run(cfg: DictConfig) -> Path:
 # only choose which runs exist, so they may change between resumes.
 RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_edges",
                "visibility")
+# settings under RESULT_KEYS that change only how fast the results come, not the results
+SPEED_ONLY = (("filter", "likelihood", "workers"), ("filter", "likelihood", "chunk"))
+
+
+def result_settings(conf: dict, key: str):
+    """A copy of ``conf[key]`` without its ``SPEED_ONLY`` settings."""
+    value = copy.deepcopy(conf.get(key))
+    for first, *middle, last in SPEED_ONLY:
+        node = value if first == key else None
+        for part in middle:
+            node = node.get(part) if isinstance(node, dict) else None
+        if isinstance(node, dict):
+            node.pop(last, None)
+    return value
 
 
 def check_resume(out: Path, cfg: DictConfig) -> dict:
@@ -392,7 +407,7 @@ def check_resume(out: Path, cfg: DictConfig) -> dict:
     old = json.loads(path.read_text())
     both_hashed = conf["onnx_sha256"] and old.get("onnx_sha256")
     keys = [*RESULT_KEYS, "onnx_sha256"] if both_hashed else list(RESULT_KEYS)
-    diff = [k for k in keys if old.get(k) != conf.get(k)]
+    diff = [k for k in keys if result_settings(old, k) != result_settings(conf, k)]
     if diff and not cfg.overwrite:
         raise RuntimeError(f"{out} holds runs made with other settings ({', '.join(diff)} differ "
                            f"from {path}); pass overwrite=true to re-run them, or pick another "

@@ -282,3 +282,30 @@ class TestDegenerate:
                                     np.ones((camera.height, camera.width), bool)))
         with pytest.raises(ValueError, match=r"\(N, 4\)"):
             lik.scores(np.zeros((3, 3)), obs)
+
+
+@pytest.mark.parametrize("class_pairs", [False, True])
+def test_workers_do_not_change_results(model, camera, rendered, small_world, class_pairs):
+    """Scoring on 2 threads (bins' maps and particle blocks) gives the same maps and scores,
+    to the bit, as the calling thread alone, and so does another block size; with unknown
+    pixels and several blocks."""
+    s, vis = model
+    sc = small_world.segment_classes[s.segment]
+    pairs = pair_code(sc[:, 0], sc[:, 1])
+    edge = label_edges(rendered, dilate_px=0)
+    known = edge.known.copy()
+    known[:, : known.shape[1] // 4] = False  # an object hides a quarter of the view
+    edge = EdgeImage(edge.edges, known, edge.pairs)
+    states = np.vstack([TRUE, TRUE + OFFSETS, TRUE + 0.5 * OFFSETS])
+    out = []
+    for workers, chunk in ((1, 2), (2, 2), (2, 64)):
+        p = LikelihoodParams(aggregate="evidence", orientation_bins=4, class_pairs=class_pairs,
+                             chunk=chunk, workers=workers)
+        lik = EdgeLikelihood(s, camera, p, vis, pairs)
+        obs = lik.observe(edge)
+        out.append((obs.g, obs.e, obs.g0, *lik.scores(states, obs)))
+    for other in out[1:]:
+        for a, b in zip(out[0], other, strict=True):
+            np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="workers"):
+        LikelihoodParams(workers=0)

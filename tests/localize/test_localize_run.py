@@ -126,6 +126,14 @@ class TestEndToEnd:
             run(other)
         assert (path.parent / "config.json").read_text() == stored
 
+    def test_resume_ignores_speed_only_settings(self, report):
+        """Threads and block size change no result: a report resumes across them."""
+        cfg, path = report
+        traj = path.parent / "trajectories" / "paper" / "none_seed0.txt"
+        before = traj.stat().st_mtime_ns
+        faster = OmegaConf.merge(cfg, {"filter": {"likelihood": {"workers": 1, "chunk": 17}}})
+        assert run(faster) == path and traj.stat().st_mtime_ns == before
+
 
 def test_mode_likelihood_params():
     lp = LikelihoodParams(k=25.0)
