@@ -61,6 +61,7 @@ particle, so a pose is not favoured for seeing more or fewer lines.
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
@@ -194,8 +195,9 @@ def frame_k(k: float, lines: np.ndarray, lines_ref: int) -> float:
 
 
 @functools.cache
-def _pool(workers: int) -> ThreadPoolExecutor:
-    """A shared pool of ``workers`` threads (made once per count, kept for the process)."""
+def _pool(workers: int, pid: int) -> ThreadPoolExecutor:
+    """A shared pool of ``workers`` threads, made once per count and process (``pid``: a
+    forked child does not inherit its parent's threads, so it makes its own)."""
     return ThreadPoolExecutor(workers, thread_name_prefix="likelihood")
 
 
@@ -204,7 +206,7 @@ def run_all(fn: Callable, items: Iterable, workers: int) -> list:
     items = list(items)
     if workers <= 1 or len(items) <= 1:
         return [fn(x) for x in items]
-    return list(_pool(workers).map(fn, items))
+    return list(_pool(workers, os.getpid()).map(fn, items))
 
 
 def distance_to(mask: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from localize.likelihood import (
     edge_normal_angle,
     frame_k,
     observe,
+    run_all,
 )
 from localize.projection import cam_from_world, sample_segments
 from localize.visibility import build_visibility_grid
@@ -309,3 +310,24 @@ def test_workers_do_not_change_results(model, camera, rendered, small_world, cla
             np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="workers"):
         LikelihoodParams(workers=0)
+
+
+def _child_run_all(queue) -> None:
+    queue.put(run_all(lambda x: x * x, range(5), 2))
+
+
+def test_run_all_in_a_forked_child():
+    """A process forked after the pool was made gets its own threads (the parent's do not
+    exist in it) instead of waiting on them forever."""
+    import multiprocessing as mp
+
+    assert run_all(lambda x: x + 1, range(5), 2) == [1, 2, 3, 4, 5]  # the parent's pool
+    ctx = mp.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_child_run_all, args=(queue,))
+    child.start()
+    child.join(timeout=60)
+    if child.is_alive():
+        child.kill()
+        pytest.fail("run_all hung in a forked child")
+    assert queue.get(timeout=5) == [0, 1, 4, 9, 16]
