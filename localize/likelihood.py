@@ -108,7 +108,8 @@ class LikelihoodParams:
         class_pairs: match each model sample only to image edges between the same two classes
             (edge images with ``pairs``; needs the samples' pair codes).
         near: samples closer to the camera than this are dropped, metres.
-        chunk: particles processed per block (keeps the (chunk, P) arrays in cache).
+        chunk: particles processed per block (the (chunk, P) arrays stay small; with
+            ``workers`` > 1, blocks are what the threads share out).
         workers: threads that score blocks of particles, and the orientation bins' maps, at
             the same time (numpy and OpenCV release the GIL); 1 = in the calling thread.
             Results do not depend on it.
@@ -412,8 +413,7 @@ class EdgeLikelihood:
         lines = np.empty(N, dtype=np.int64)
         step = max(1, int(self.params.chunk))
         blocks = [slice(i, i + step) for i in range(0, N, step)]  # vectorized within a block
-        done = run_all(lambda b: self._block(states[b], obs, tilt), blocks,
-                       int(self.params.workers))
+        done = run_all(lambda b: self._block(states[b], obs, tilt), blocks, self.params.workers)
         for b, (s_b, q_b, l_b) in zip(blocks, done, strict=True):
             score[b], quality[b], lines[b] = s_b, q_b, l_b
         return score, quality, lines
