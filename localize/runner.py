@@ -382,7 +382,9 @@ def result_settings(conf: dict, key: str):
     """A copy of ``conf[key]`` without its ``SPEED_ONLY`` settings."""
     value = copy.deepcopy(conf.get(key))
     for first, *middle, last in SPEED_ONLY:
-        node = value if first == key else None
+        if first != key:
+            continue
+        node = value
         for part in middle:
             node = node.get(part) if isinstance(node, dict) else None
         if isinstance(node, dict):
