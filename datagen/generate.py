@@ -40,7 +40,7 @@ log = logging.getLogger(__name__)
 
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 # Keys that do not change the dataset's content (left out of the config hash).
-NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "pipeline")
+NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "pipeline", "progress")
 #: Keys added after datasets were made, with the value that renders what was rendered before
 #: them: left out of the hash at that value, so those datasets keep their hash.
 HASH_DEFAULTS = {"training.flight_views": 0.0, "render.denoise_frames": False,
@@ -126,6 +126,10 @@ def _check_counts(cfg: Mapping) -> None:
         if name not in presets:
             raise ValueError(f"training.distractors: unknown preset {name!r}; "
                              f"known: {sorted(presets)}")
+    for name, preset in cfg["flights"].items():  # every preset: flight_views samples them all
+        if int(preset["num_frames"]) <= 0 or float(preset["fps"]) <= 0:
+            raise ValueError(f"flights.{name}: num_frames ({preset['num_frames']}) and fps "
+                             f"({preset['fps']}) must be positive")
     for name in cfg["render_flights"]:
         if name not in cfg["flights"]:
             raise ValueError(f"render_flights: unknown flight preset {name!r}; "
@@ -202,9 +206,7 @@ def prepare(cfg: Mapping) -> Job:
     for name in cfg["render_flights"]:
         preset = cfg["flights"][name]
         r = rng_for(cfg["seed"], flight_stream(name), 0)
-        n, fps = int(preset["num_frames"]), float(preset["fps"])
-        if n <= 0 or fps <= 0:
-            raise ValueError(f"flights.{name}: num_frames and fps must be positive")
+        n, fps = int(preset["num_frames"]), float(preset["fps"])  # checked in _check_counts
         gt = trajectories.flight_trajectory(r, n, fps, w.free_boxes, w.z_range, preset)
         odo = trajectories.noisy_odometry(r, gt, preset, fps=fps)
         _check_inside(model, camera, gt, f"flights.{name}")

@@ -452,7 +452,8 @@ def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int =
     if not path.is_file():
         raise FileNotFoundError(
             f"segmentation model not found: {path}. Train and export one with `python -m train` "
-            "(or set localize's `model=` to an existing segnet.onnx, or drop `cnn` from modes).")
+            "(or set localize's `onnx_model=` to an existing segnet.onnx, or drop `cnn` from "
+            "modes).")
     from train.predict import OnnxSegmenter
 
     seg = OnnxSegmenter(str(path), threads=threads, refine=refine)

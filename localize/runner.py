@@ -155,6 +155,17 @@ def prepare(cfg: DictConfig) -> Context:
     for init in cfg.inits:
         if init not in INITS:
             raise ValueError(f"inits: unknown init {init!r}; use {INITS}")
+    for key, example in (("modes", "[none,cnn,oracle]"), ("inits", "[tracking]"),
+                         ("seeds", "[0,1,2]")):
+        values = list(cfg[key] or [])
+        if not values:
+            raise ValueError(f"{key} is empty: nothing to run; give at least one, e.g. "
+                             f"{key}={example}")
+        if len(set(map(str, values))) < len(values):
+            raise ValueError(f"{key}={values} repeats an entry; give each once")
+    for seed in cfg.seeds:
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"seeds: {seed!r} is not a non-negative integer")
     dataset = Dataset(cfg.dataset)
     select_flights(dataset, cfg.flight_names)
     world = dataset.world()

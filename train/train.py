@@ -510,6 +510,18 @@ def _write_log(path: Path, history: list[dict]) -> None:
 # ----------------------------------------------------------------------------- the run
 
 
+def check_counts(cfg: DictConfig) -> None:
+    """Raise ValueError naming the key when a count or the time budget is out of range (before
+    any loading: ``batch_size=0`` would otherwise end in a division by zero mid-run)."""
+    for key in ("epochs", "batch_size", "eval.batch_size", "threads"):
+        value = OmegaConf.select(cfg, key)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{key}={value!r} must be an integer >= 1")
+    minutes = cfg.get("max_minutes")
+    if minutes is not None and not float(minutes) >= 0:
+        raise ValueError(f"max_minutes={minutes!r} must be >= 0 (null: no time budget)")
+
+
 def run(cfg: DictConfig) -> dict:
     """Train (or resume), evaluate the best checkpoint on the test split, export ONNX.
 
@@ -520,6 +532,7 @@ def run(cfg: DictConfig) -> dict:
         The metrics.json contents.
     """
     t_start = time.monotonic()
+    check_counts(cfg)
     torch.set_num_threads(int(cfg.threads))
     bf16 = resolve_precision(str(cfg.precision))  # a bad value fails before any loading
     full_labels = _loss_resolution(cfg) == "input"

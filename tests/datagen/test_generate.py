@@ -130,6 +130,7 @@ class TestBadConfig:
         ("render_flights=[spiral]", "unknown flight preset 'spiral'"),
         ("flights.cluttered.distractors=crowd", "unknown preset 'crowd'"),
         ("shard=2", "shard=2"),
+        ("flights.cluttered.num_frames=0", "flights.cluttered: num_frames"),
     ])
     def test_clear_error_before_rendering(self, tmp_path, override, match):
         out = tmp_path / "bad"

@@ -4,6 +4,7 @@ shape, resuming, the paper-faithful comparison, and clear errors for bad input."
 from __future__ import annotations
 
 import json
+import re
 import shutil
 
 import numpy as np
@@ -184,6 +185,19 @@ class TestBadInput:
                             "modes=[sobel]"])
         with pytest.raises(ValueError, match="unknown edge mode"):
             run(cfg)
+
+    @pytest.mark.parametrize("override,match", [
+        ("seeds=[]", "seeds is empty"),
+        ("modes=[]", "modes is empty"),
+        ("seeds=[0,0]", "repeats an entry"),
+        ("seeds=[-1]", "not a non-negative integer"),
+    ])
+    def test_bad_lists(self, tiny_dataset, tmp_path, override, match):
+        cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",
+                            "modes=[oracle]", override])
+        with pytest.raises(ValueError, match=re.escape(match)):
+            run(cfg)
+        assert not (tmp_path / str(cfg.name)).exists()  # nothing written
 
     def test_missing_model(self, tiny_dataset, tmp_path):
         cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",

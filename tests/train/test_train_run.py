@@ -389,6 +389,19 @@ class TestBadInput:
         with pytest.raises(RuntimeError, match="time budget"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "max_minutes=0"))
 
+    @pytest.mark.parametrize("override,match", [
+        ("epochs=0", "epochs=0 must be an integer >= 1"),
+        ("batch_size=0", "batch_size=0 must be an integer >= 1"),
+        ("eval.batch_size=-1", "eval.batch_size=-1 must be"),
+        ("threads=0", "threads=0 must be"),
+        ("max_minutes=-5", "max_minutes=-5 must be >= 0"),
+    ])
+    def test_bad_count(self, synthetic_dataset, compose_train, tmp_path, override, match
+                       ) -> None:
+        with pytest.raises(ValueError, match=match):
+            tt.run(compose_train(synthetic_dataset, tmp_path, override))
+        assert not any(tmp_path.iterdir())  # nothing written
+
     def test_bad_loss_weight(self, synthetic_dataset, compose_train, tmp_path) -> None:
         with pytest.raises(ValueError, match="loss.edge_weight=-2 must be positive"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "loss.edge_weight=-2"))
