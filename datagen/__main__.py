@@ -10,7 +10,7 @@ from omegaconf import DictConfig, OmegaConf
 def main(cfg: DictConfig) -> None:
     from datagen.generate import run
 
-    out = run(OmegaConf.to_container(cfg, resolve=True), progress=bool(cfg.get("progress", True)))
+    out = run(OmegaConf.to_container(cfg, resolve=True), progress=bool(cfg.progress))
     print(f"dataset written to {out}")
 
 

@@ -34,6 +34,7 @@ from datagen.atomic import atomic_write_json, read_png
 from datagen.dataset import Camera, Dataset, Flight, World
 from datagen.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.edges import (
+    MODES,
     CnnSettings,
     EdgeExtractor,
     class_boundaries_only,
@@ -147,14 +148,9 @@ def select_flights(dataset: Dataset, wanted) -> list[str]:
     return wanted
 
 
-def prepare(cfg: DictConfig) -> Context:
-    """Open the dataset, sample the model edges, load or build the visibility grid."""
-    for mode in cfg.modes:
-        if mode not in ("none", "cnn", "oracle"):
-            raise ValueError(f"modes: unknown edge mode {mode!r}; use none, cnn, oracle")
-    for init in cfg.inits:
-        if init not in INITS:
-            raise ValueError(f"inits: unknown init {init!r}; use {INITS}")
+def check_run_lists(cfg: DictConfig) -> None:
+    """Raise ValueError naming the key when ``modes``, ``inits`` or ``seeds`` is empty, repeats
+    an entry or holds one that is not a known mode, a known init or a non-negative integer."""
     for key, example in (("modes", "[none,cnn,oracle]"), ("inits", "[tracking]"),
                          ("seeds", "[0,1,2]")):
         values = list(cfg[key] or [])
@@ -163,9 +159,20 @@ def prepare(cfg: DictConfig) -> Context:
                              f"{key}={example}")
         if len(set(map(str, values))) < len(values):
             raise ValueError(f"{key}={values} repeats an entry; give each once")
+    for mode in cfg.modes:
+        if mode not in MODES:
+            raise ValueError(f"modes: unknown edge mode {mode!r}; use {', '.join(MODES)}")
+    for init in cfg.inits:
+        if init not in INITS:
+            raise ValueError(f"inits: unknown init {init!r}; use {INITS}")
     for seed in cfg.seeds:
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise ValueError(f"seeds: {seed!r} is not a non-negative integer")
+
+
+def prepare(cfg: DictConfig) -> Context:
+    """Open the dataset, sample the model edges, load or build the visibility grid."""
+    check_run_lists(cfg)
     dataset = Dataset(cfg.dataset)
     select_flights(dataset, cfg.flight_names)
     world = dataset.world()
