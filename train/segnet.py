@@ -70,12 +70,31 @@ def pad_to_multiple(x: torch.Tensor, multiple: int) -> tuple[torch.Tensor, tuple
     return x, (h, w)
 
 
-def _conv_bn_relu(cin: int, cout: int) -> nn.Sequential:
+def _conv_bn_relu(cin: int, cout: int, dilation: int = 1) -> nn.Sequential:
     return nn.Sequential(
-        nn.Conv2d(cin, cout, 3, padding=1, bias=False),
+        nn.Conv2d(cin, cout, 3, padding=dilation, dilation=dilation, bias=False),
         nn.BatchNorm2d(cout),
         nn.ReLU(inplace=True),
     )
+
+
+#: Dilation of the ``context_layers`` convolutions: at the bottleneck of the compact model
+#: (10 x 8 cells for a 320 x 240 image at half resolution) three of them see the whole map.
+CONTEXT_DILATION = 2
+
+
+def context_block(channels: int, layers: int) -> nn.Sequential:
+    """Residual branch at the bottleneck: ``layers`` dilated 3x3 convolutions, the last one
+    with BatchNorm and no ReLU, its BatchNorm scale set to zero by the caller so the branch
+    starts as nothing (a trained network gains it without changing its function).
+
+    Shapes: (B, channels, h, w) -> (B, channels, h, w).
+    """
+    d = CONTEXT_DILATION
+    body = [_conv_bn_relu(channels, channels, d) for _ in range(layers - 1)]
+    body += [nn.Conv2d(channels, channels, 3, padding=d, dilation=d, bias=False),
+             nn.BatchNorm2d(channels)]
+    return nn.Sequential(*body)
 
 
 def window_element(x: torch.Tensor, dy: int, dx: int) -> torch.Tensor:
@@ -187,6 +206,11 @@ class SegNet(nn.Module):
         head_channels: hidden channels of the "refine" head.
         head_layers: hidden layers of the "refine" head (1: two 3x3 convolutions, a 5x5 view;
             each more adds a 3x3 convolution and 2 pixels of reach).
+        context_layers: dilated 3x3 convolutions (``CONTEXT_DILATION``) on the deepest pooled
+            map, added to it as a residual between the encoder and the decoder: context from
+            the whole image (a door reaches the floor, a poster does not) for a few percent
+            of the compute. 0 = none (the plain SegNet). The branch starts at zero, so
+            ``init_from`` a network without it starts as that network (docs/train.md).
         generator: draws the initial weights (He-normal convolutions); None = global RNG.
 
     Shapes:
@@ -211,6 +235,7 @@ class SegNet(nn.Module):
         head: str = "bilinear",
         head_channels: int = 8,
         head_layers: int = 1,
+        context_layers: int = 0,
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
@@ -239,6 +264,8 @@ class SegNet(nn.Module):
             raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
         if int(head_layers) < 1:
             raise ValueError(f"model.head_layers must be >= 1, got {head_layers}")
+        if int(context_layers) < 0:
+            raise ValueError(f"model.context_layers must be >= 0, got {context_layers}")
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -291,7 +318,13 @@ class SegNet(nn.Module):
             for _ in range(self.head_layers - 1):
                 layers += [nn.Conv2d(hc, hc, 3, padding=1), nn.ReLU(inplace=True)]
             self.refine_head = nn.Sequential(*layers, nn.Conv2d(hc, num_classes, 3, padding=1))
+        self.context_layers = int(context_layers)
+        self.context: nn.Module | None = None
+        if self.context_layers:
+            self.context = context_block(chans[-1], self.context_layers)
         self._init_weights(generator)
+        if self.context is not None:  # the residual branch starts as nothing
+            nn.init.zeros_(self.context[-1].weight)
         if self.refine_head is not None:  # the head starts as the identity: plain bilinear logits
             nn.init.zeros_(self.refine_head[-1].weight)
             nn.init.zeros_(self.refine_head[-1].bias)
@@ -479,6 +512,8 @@ class SegNet(nn.Module):
                 x = x.flatten(2).gather(2, flat.flatten(2)).view(flat.shape)
                 idx = plane_index_to_code(flat) if window else flat
             pooled_idx.append(idx)
+        if self.context is not None:
+            x = x + self.context(x)
         for stage, idx, feat in zip(
             self.decoder, reversed(pooled_idx), reversed(features), strict=True
         ):
@@ -496,7 +531,7 @@ class SegNet(nn.Module):
             f"num_classes={self.num_classes}, stages={self.stages}, channels={self.channels}, "
             f"convs_per_stage={self.convs_per_stage}, auto_pad={self.auto_pad}, "
             f"pooling={self.pooling}, downsample={self.downsample}, skip={self.skip}, "
-            f"stem={self.stem}, head={self.head}"
+            f"stem={self.stem}, head={self.head}, context_layers={self.context_layers}"
         )
 
 
@@ -529,6 +564,7 @@ def model_kwargs(model_cfg: dict) -> dict:
         "head",
         "head_channels",
         "head_layers",
+        "context_layers",
     )
     out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
     for k in ("convs_per_stage", "mean", "std"):

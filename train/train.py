@@ -88,6 +88,7 @@ HASH_DEFAULTS = {
     "model.head": "bilinear",
     "model.head_channels": 8,
     "model.head_layers": 1,
+    "model.context_layers": 0,
     "loss.boundary_weight": 1.0,
     "loss.edge_weight": 1.0,
     "loss.edge_threshold": 0.03,
@@ -207,7 +208,8 @@ def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes
     Args:
         model: the freshly built network (same ``model.*`` settings as the source, but for
             a finer ``downsample`` with the ``unshuffle`` stem: the source's stem convolution
-            is carried over by ``segnet.finer_unshuffle_stem``).
+            is carried over by ``segnet.finer_unshuffle_stem``; and for ``context_layers``
+            on a source without them: the new branch keeps its zero start).
         source: a model folder made by ``python -m train`` or its ``checkpoint_best.pt``.
         mcfg: this run's ``model`` config; num_classes: this dataset's class count.
 
@@ -232,6 +234,11 @@ def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes
             and d_from % d_to == 0):  # the same network at a finer resolution
         state = {**state, STEM_CONV_KEY: finer_unshuffle_stem(state[STEM_CONV_KEY], d_from, d_to)}
         log.info("init_from: the unshuffle stem carried from downsample %d to %d", d_from, d_to)
+    if int(theirs.get("context_layers", 0)) == 0 and model.context is not None:
+        # a context branch added to a trained network: it starts at zero (SegNet docstring)
+        state = {**state, **{f"context.{k}": v for k, v in model.context.state_dict().items()}}
+        log.info("init_from: a %d-layer context branch added at the bottleneck",
+                 model.context_layers)
     try:
         model.load_state_dict(state)  # refuses other layer shapes or class counts
     except RuntimeError as err:

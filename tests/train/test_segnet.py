@@ -235,6 +235,29 @@ class TestForward:
         with pytest.raises(ValueError, match="model.head_layers"):
             _tiny(head_layers=0, **kw)
 
+    def test_context_layers(self) -> None:
+        """context_layers=2: a residual branch of two dilated convolutions at the bottleneck.
+        It starts at zero (the same function as the network without it); with weights it
+        changes the output everywhere (a bottleneck cell's view is the whole image); it adds
+        no pooling stage; a negative count is refused."""
+        plain = _tiny(skip="add")
+        ctx = _tiny(skip="add", context_layers=2)
+        assert plain.context is None and "context_layers=2" in repr(ctx)
+        assert sum(isinstance(c, nn.Conv2d) for c in ctx.context.modules()) == 2
+        assert all(c.dilation == (2, 2) for c in ctx.context.modules() if isinstance(c, nn.Conv2d))
+        ctx.load_state_dict({**plain.state_dict(),
+                             **{f"context.{k}": v for k, v in ctx.context.state_dict().items()}})
+        x = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(1))
+        with torch.no_grad():
+            torch.testing.assert_close(ctx(x), plain(x))
+            out, idx = ctx.forward_with_indices(x)
+            assert len(idx) == ctx.stages == 3 and out.shape == (1, 5, 64, 96)
+            torch.nn.init.ones_(ctx.context[-1].weight)  # the last BatchNorm's scale
+            diff = (ctx(x) - plain(x)).abs().amax(dim=1)
+            assert (diff > 0).float().mean() > 0.9
+        with pytest.raises(ValueError, match="model.context_layers"):
+            _tiny(context_layers=-1)
+
     def test_skip_add_uses_encoder_features(self) -> None:
         """skip="add" changes the output of the same weights; "none" is plain SegNet."""
         plain, added = _tiny(), _tiny(skip="add")

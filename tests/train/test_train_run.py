@@ -356,6 +356,21 @@ def test_init_from_a_coarser_unshuffle_network(tmp_path) -> None:
         tt.load_init_weights(SegNet(num_classes=5, **wider), tmp_path, wider, 5)
 
 
+def test_init_from_adds_a_context_branch(tmp_path) -> None:
+    """init_from a network without context_layers into one with them: every trained weight is
+    carried, the branch starts at zero, so the new network computes what the old one did."""
+    mcfg = dict(width=0.125, stages=3, convs_per_stage=[1, 1, 2], skip="add")
+    old = SegNet(num_classes=5, **mcfg).eval()
+    torch.save({"model": old.state_dict(), "model_kwargs": dict(mcfg), "num_classes": 5},
+               tmp_path / "checkpoint_best.pt")
+    new_cfg = {**mcfg, "context_layers": 2}
+    new = SegNet(num_classes=5, **new_cfg).eval()
+    tt.load_init_weights(new, tmp_path, new_cfg, 5)
+    x = torch.rand(2, 3, 32, 48, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        torch.testing.assert_close(new(x), old(x))
+
+
 class TestBadInput:
     def test_init_from_missing_or_other_network(
         self, trained, synthetic_dataset, compose_train, tmp_path
