@@ -90,11 +90,9 @@ def context_block(channels: int, layers: int) -> nn.Sequential:
 
     Shapes: (B, channels, h, w) -> (B, channels, h, w).
     """
-    d = CONTEXT_DILATION
-    body = [_conv_bn_relu(channels, channels, d) for _ in range(layers - 1)]
-    body += [nn.Conv2d(channels, channels, 3, padding=d, dilation=d, bias=False),
-             nn.BatchNorm2d(channels)]
-    return nn.Sequential(*body)
+    body = [_conv_bn_relu(channels, channels, CONTEXT_DILATION) for _ in range(layers)]
+    conv, bn, _relu = body[-1]
+    return nn.Sequential(*body[:-1], conv, bn)
 
 
 def window_element(x: torch.Tensor, dy: int, dx: int) -> torch.Tensor:
