@@ -48,9 +48,9 @@ from omegaconf import OmegaConf
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from datagen.atomic import read_png  # noqa: E402
-from datagen.classes import STRUCTURAL  # noqa: E402
-from datagen.dataset import Dataset  # noqa: E402
+from core.atomic import read_png  # noqa: E402
+from core.classes import STRUCTURAL  # noqa: E402
+from core.dataset import Dataset  # noqa: E402
 from localize.edges import (  # noqa: E402
     EdgeExtractor,
     EdgeImage,

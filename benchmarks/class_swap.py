@@ -30,8 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import localize.runner as runner  # noqa: E402
-from datagen import classes as C  # noqa: E402
-from datagen.atomic import read_png  # noqa: E402
+from core import classes as C  # noqa: E402
+from core.atomic import read_png  # noqa: E402
 from localize.edges import EdgeExtractor  # noqa: E402
 
 

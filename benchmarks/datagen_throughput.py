@@ -25,7 +25,7 @@ import json, sys, time
 sys.path.insert(0, {root!r})
 from tests.helpers import compose_config
 import datagen.generate as gen
-from datagen.variant import choose_variant
+from core.variant import choose_variant
 variant = choose_variant({variant!r})
 n = {images}
 cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "splits.test=0",

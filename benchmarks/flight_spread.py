@@ -30,7 +30,7 @@ from hydra import compose, initialize_config_dir
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from datagen.dataset import SPLITS  # noqa: E402
+from core.dataset import SPLITS  # noqa: E402
 from datagen.generate import run as render  # noqa: E402
 from localize.runner import run as localize  # noqa: E402
 

@@ -37,8 +37,8 @@ from threadpoolctl import threadpool_limits
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from datagen.atomic import read_png  # noqa: E402
-from datagen.poses import xyzyaw_from_pose  # noqa: E402
+from core.atomic import read_png  # noqa: E402
+from core.poses import xyzyaw_from_pose  # noqa: E402
 from localize.edges import EdgeExtractor  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.particle_filter import ParticleFilter, odometry_increment  # noqa: E402

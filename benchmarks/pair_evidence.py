@@ -33,7 +33,7 @@ from omegaconf import OmegaConf
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from datagen.atomic import read_png  # noqa: E402
+from core.atomic import read_png  # noqa: E402
 from localize.edges import EdgeExtractor, pair_name  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.particle_filter import estimate as estimate_pose  # noqa: E402

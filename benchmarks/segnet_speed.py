@@ -36,7 +36,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from datagen.classes import as_json
+from core.classes import as_json
 from train.export import onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter
 from train.quantize import INT8_NAME, quantize_segnet

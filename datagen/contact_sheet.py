@@ -12,9 +12,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from datagen import classes as C
-from datagen.atomic import read_png, write_png
-from datagen.dataset import Dataset
+from core import classes as C
+from core.atomic import read_png, write_png
+from core.dataset import Dataset
 
 
 def structural_boundaries(label: np.ndarray) -> np.ndarray:

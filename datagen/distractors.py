@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from datagen.poses import pose_from_xyzyaw, wrap_angle
+from core.poses import pose_from_xyzyaw, wrap_angle
 
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
 MAX_HEIGHT = 1.8  # m, tallest clutter object

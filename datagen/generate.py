@@ -27,13 +27,13 @@ import numpy as np
 from tqdm import tqdm
 
 from datagen import appearance, distractors, trajectories
-from datagen import classes as C
-from datagen.atomic import atomic_write_json, write_png
-from datagen.camera import intrinsics
-from datagen.config import drop_defaults
-from datagen.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
+from core import classes as C
+from core.atomic import atomic_write_json, write_png
+from core.camera import intrinsics
+from core.config import drop_defaults
+from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from datagen.pipeline import Pipeline
-from datagen.poses import pose_from_xyz_rpy, write_tum
+from core.poses import pose_from_xyz_rpy, write_tum
 from datagen.world import MAIN, OPENING, CorridorModel, build_world, recess_mouths
 
 log = logging.getLogger(__name__)
@@ -468,7 +468,7 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
 
 def run(cfg: Mapping, progress: bool = True) -> Path:
     """Render (this shard of) a dataset; returns the dataset directory."""
-    from datagen.variant import choose_variant
+    from core.variant import choose_variant
 
     job = prepare(cfg)
     check_existing(job.cfg, job.out)

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from datagen import classes as C
-from datagen.camera import mitsuba_to_world
-from datagen.dataset import Camera
+from core import classes as C
+from core.camera import mitsuba_to_world
+from core.dataset import Camera
 from datagen.denoise import denoise, segment_ids
 from datagen.world import CorridorModel
 
@@ -170,7 +170,7 @@ class CorridorRenderer:
         if abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0] or abs(K[0, 2] - (camera.width - 1) / 2) > 1e-6 \
                 or abs(K[1, 2] - (camera.height - 1) / 2) > 1e-6:
             raise ValueError("camera: the renderer needs square pixels and a centred principal "
-                             "point (use datagen.camera.intrinsics)")
+                             "point (use core.camera.intrinsics)")
         hfov = math.degrees(2 * math.atan(camera.width / 2 / K[0, 0]))
         self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]

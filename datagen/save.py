@@ -1,4 +1,4 @@
-"""Write a built world to ``<dataset>/world/`` (see datagen.dataset for the layout)."""
+"""Write a built world to ``<dataset>/world/`` (see core.dataset for the layout)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from datagen import classes as C
-from datagen.atomic import atomic_write_bytes, atomic_write_json
+from core import classes as C
+from core.atomic import atomic_write_bytes, atomic_write_json
 from datagen.world import CorridorModel
 
 

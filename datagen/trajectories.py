@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from datagen.distractors import sample_in_boxes
-from datagen.poses import pose_from_xyz_rpy, wrap_angle
+from core.poses import pose_from_xyz_rpy, wrap_angle
 
 GRAVITY = 9.81  # m/s^2
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from datagen import classes as C
-from datagen.dataset import World
+from core import classes as C
+from core.dataset import World
 from datagen.edges import extract_edges
 
 # Kinds of free-space boxes.

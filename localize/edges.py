@@ -25,8 +25,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from datagen import classes as C
-from datagen.config import reject_unknown_keys
+from core import classes as C
+from core.config import reject_unknown_keys
 
 log = logging.getLogger(__name__)
 

@@ -69,8 +69,8 @@ from dataclasses import dataclass, fields
 import cv2
 import numpy as np
 
-from datagen.config import reject_unknown_keys
-from datagen.dataset import Camera
+from core.config import reject_unknown_keys
+from core.dataset import Camera
 from localize.edges import EdgeImage, edge_normal_angle
 from localize.projection import (
     ModelSamples,

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from datagen.poses import wrap_angle
+from core.poses import wrap_angle
 
 
 def position_errors(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:

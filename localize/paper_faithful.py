@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from datagen.dataset import Camera, World
+from core.dataset import Camera, World
 from localize.edges import EdgeImage, label_edges
 from localize.likelihood import LikelihoodParams
 from localize.projection import cam_from_world

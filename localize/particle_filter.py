@@ -21,8 +21,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 from scipy.special import logsumexp
 
-from datagen.config import reject_unknown_keys
-from datagen.poses import wrap_angle, xyzyaw_from_pose
+from core.config import reject_unknown_keys
+from core.poses import wrap_angle, xyzyaw_from_pose
 
 
 @dataclass(frozen=True)

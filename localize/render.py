@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-from datagen import classes as C
-from datagen.camera import mitsuba_to_world
-from datagen.dataset import Camera, World
+from core import classes as C
+from core.camera import mitsuba_to_world
+from core.dataset import Camera, World
 
 
 class ModelRenderer:
@@ -26,7 +26,7 @@ class ModelRenderer:
     """
 
     def __init__(self, world: World, camera: Camera, variant: str = "auto"):
-        from datagen.variant import choose_variant
+        from core.variant import choose_variant
 
         choose_variant(variant)
         import mitsuba as mi

@@ -17,8 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from datagen.atomic import atomic_write, atomic_write_json, atomic_write_text, read_png  # noqa: E402
-from datagen.classes import colorize  # noqa: E402
+from core.atomic import atomic_write, atomic_write_json, atomic_write_text, read_png  # noqa: E402
+from core.classes import colorize  # noqa: E402
 from localize.metrics import convergence_frame, error_stats, timing_stats  # noqa: E402
 
 log = logging.getLogger(__name__)

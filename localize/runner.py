@@ -30,9 +30,9 @@ from omegaconf import DictConfig, OmegaConf
 from threadpoolctl import ThreadpoolController
 from tqdm import tqdm
 
-from datagen.atomic import atomic_write_json, read_png
-from datagen.dataset import Camera, Dataset, Flight, World
-from datagen.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
+from core.atomic import atomic_write_json, read_png
+from core.dataset import Camera, Dataset, Flight, World
+from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.edges import (
     MODES,
     CnnSettings,

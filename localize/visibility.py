@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.atomic import atomic_write
-from datagen.dataset import World
+from core.atomic import atomic_write
+from core.dataset import World
 
 log = logging.getLogger(__name__)
 
@@ -111,7 +111,7 @@ def occluded(world: World, origins: np.ndarray, targets: np.ndarray, eps: float 
     Returns:
         (G, P) bool, True where the target is hidden from the origin.
     """
-    from datagen.variant import choose_variant
+    from core.variant import choose_variant
 
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     targets = np.asarray(targets, dtype=np.float64).reshape(-1, 3)

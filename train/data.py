@@ -1,6 +1,6 @@
 """Dataset splits in memory and joint image/label augmentation on batches.
 
-A split is read once through ``datagen.dataset.Dataset`` into uint8 tensors (the demo dataset
+A split is read once through ``core.dataset.Dataset`` into uint8 tensors (the demo dataset
 is a few hundred MB at most), so an epoch is pure tensor work. Augmentation runs on a whole
 batch at once with kornia functions and draws every random number from an explicit
 ``torch.Generator``, so a resumed run sees the same batches as an uninterrupted one.
@@ -20,9 +20,9 @@ from kornia.filters import gaussian_blur2d
 from kornia.geometry.transform import crop_and_resize
 from tqdm import tqdm
 
-from datagen.atomic import read_png
-from datagen.config import reject_unknown_keys
-from datagen.dataset import Dataset
+from core.atomic import read_png
+from core.config import reject_unknown_keys
+from core.dataset import Dataset
 
 IGNORE = 255
 

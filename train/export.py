@@ -32,7 +32,7 @@ import onnx
 import torch
 from torch import nn
 
-from datagen.atomic import atomic_write
+from core.atomic import atomic_write
 from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, add_label_output, ort_session
 from train.segnet import SegNet
 

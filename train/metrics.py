@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from datagen.atomic import atomic_write
+from core.atomic import atomic_write
 
 IGNORE = 255
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import onnx
 
-from datagen.atomic import read_png, write_png
+from core.atomic import read_png, write_png
 from train.refine import GuidedRefine, refine_logits_np
 from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, ort_session, read_metadata
 

@@ -33,8 +33,8 @@ from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantTy
 from onnxruntime.quantization.shape_inference import quant_pre_process
 from tqdm import tqdm
 
-from datagen.atomic import atomic_write, atomic_write_json, read_png
-from datagen.dataset import Dataset
+from core.atomic import atomic_write, atomic_write_json, read_png
+from core.dataset import Dataset
 from train.metrics import confusion_matrix, metrics_json
 from train.predict import OnnxSegmenter, network_input
 from train.runtime import INPUT_NAME, read_metadata

@@ -26,8 +26,8 @@ from pathlib import Path
 import onnx
 import torch
 
-from datagen.atomic import atomic_write_json
-from datagen.dataset import Dataset
+from core.atomic import atomic_write_json
+from core.dataset import Dataset
 from train.data import to_float
 from train.export import ParityReport, export_checked
 from train.quantize import (

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from datagen.config import reject_unknown_keys
+from core.config import reject_unknown_keys
 
 
 @dataclass(frozen=True)

@@ -31,9 +31,9 @@ from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
-from datagen.atomic import atomic_write, atomic_write_json, atomic_write_text
-from datagen.config import drop_defaults, drop_key
-from datagen.dataset import Dataset
+from core.atomic import atomic_write, atomic_write_json, atomic_write_text
+from core.config import drop_defaults, drop_key
+from core.dataset import Dataset
 from train.data import (
     AugmentConfig,
     SplitData,

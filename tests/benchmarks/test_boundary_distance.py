@@ -12,7 +12,7 @@ from benchmarks.boundary_distance import (
     pair_distances,
     signed_offsets,
 )
-from datagen import classes as C
+from core import classes as C
 from localize.edges import EdgeExtractor, pair_code
 
 CFG = {"labels": {"dilate_px": 0, "median": 0},

@@ -7,8 +7,8 @@ import pytest
 
 import localize.runner as runner
 from benchmarks.class_swap import install, report_name, swap_labels
-from datagen import classes as C
-from datagen.atomic import write_png
+from core import classes as C
+from core.atomic import write_png
 from localize.edges import EdgeExtractor
 
 CFG = {"labels": {"dilate_px": 0, "median": 0}, "cnn": {"snap_px": 0, "prior_correction": 0.0}}

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import datagen.generate as gen
-from datagen import classes as C
-from datagen.atomic import read_png
-from datagen.dataset import Dataset
+from core import classes as C
+from core.atomic import read_png
+from core.dataset import Dataset
 from tests.helpers import compose_config
 
 SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",

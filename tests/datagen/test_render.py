@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from datagen import appearance
-from datagen import classes as C
+from core import classes as C
 from datagen.generate import make_camera
-from datagen.poses import pose_from_xyz_rpy
+from core.poses import pose_from_xyz_rpy
 from datagen.world import build_world
 from tests.helpers import compose_config
 
@@ -18,7 +18,7 @@ from tests.helpers import compose_config
 def view():
     """A 160x120 render of the default corridor from a tilted pose looking down +Y."""
     from datagen.render import CorridorRenderer
-    from datagen.variant import choose_variant
+    from core.variant import choose_variant
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=160", "camera.height=120"])
@@ -45,7 +45,7 @@ def _boundary_distance(label: np.ndarray) -> np.ndarray:
 
 
 def _visible_projection(model, camera, world_from_cam, depth, points):
-    from datagen.camera import project
+    from core.camera import project
 
     uv, z = project(camera.K, np.linalg.inv(world_from_cam), points)
     H, W = depth.shape
@@ -99,7 +99,7 @@ class TestRender:
         seg = w.segments[w.segment_classes[:, 0] != w.segment_classes[:, 1]]
         t = np.linspace(0, 1, 200)[None, :, None]
         pts = (seg[:, :1] * (1 - t) + seg[:, 1:] * t).reshape(-1, 3)
-        from datagen.camera import project
+        from core.camera import project
 
         uv, z = project(camera.K, np.linalg.inv(T), pts)
         uv[:, 0] = camera.width - 1 - uv[:, 0]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from datagen import classes as C
+from core import classes as C
 from datagen.edges import extract_edges
 from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces, recess_mouths
 from tests.helpers import compose_config

@@ -14,10 +14,10 @@ from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig
 from onnx import TensorProto, helper
 
-from datagen import classes as C
-from datagen.atomic import read_png, write_png
-from datagen.camera import intrinsics
-from datagen.dataset import Camera
+from core import classes as C
+from core.atomic import read_png, write_png
+from core.camera import intrinsics
+from core.dataset import Camera
 from datagen.world import build_world
 from tests.helpers import CONF, compose_config
 

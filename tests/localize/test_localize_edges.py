@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from datagen import classes as C
+from core import classes as C
 from localize.edges import (
     CnnSettings,
     EdgeExtractor,

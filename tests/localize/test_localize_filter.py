@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.poses import pose_from_xyz_rpy, pose_from_xyzyaw, wrap_angle, xyzyaw_from_pose
+from core.poses import pose_from_xyz_rpy, pose_from_xyzyaw, wrap_angle, xyzyaw_from_pose
 from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
 from localize.particle_filter import (
     FilterParams,

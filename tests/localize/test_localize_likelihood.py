@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from datagen import classes as C
+from core import classes as C
 from localize.edges import EdgeImage, label_edges, pair_code
 from localize.likelihood import (
     EdgeLikelihood,
@@ -218,9 +218,9 @@ def test_class_pairs_peak_and_need_sample_pairs(model, camera, rendered, small_w
 
 def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     """Oracle edges of a flight frame of the tiny dataset: the true pose beats its neighbours."""
-    from datagen.atomic import read_png
-    from datagen.dataset import Dataset
-    from datagen.poses import xyzyaw_from_pose
+    from core.atomic import read_png
+    from core.dataset import Dataset
+    from core.poses import xyzyaw_from_pose
     from localize.projection import tilt_from_pose
 
     ds = Dataset(tiny_dataset)

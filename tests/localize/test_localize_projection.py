@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.camera import project
+from core.camera import project
 from localize.projection import (
     ModelSamples,
     cam_from_world,
@@ -25,7 +25,7 @@ STATE = np.array([[0.3, 0.6, 1.3, np.deg2rad(95.0)]])
 
 
 def tilt(roll_deg: float = 2.0, pitch_deg: float = -3.0) -> np.ndarray:
-    from datagen.poses import pose_from_xyz_rpy
+    from core.poses import pose_from_xyz_rpy
 
     return tilt_from_pose(pose_from_xyz_rpy(np.zeros((1, 3)),
                                             np.deg2rad([[roll_deg, pitch_deg, 40.0]]))[0])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from datagen.poses import read_tum
+from core.poses import read_tum
 from localize.likelihood import LikelihoodParams
 from localize.particle_filter import FilterParams
 from localize.runner import RunSpec, mode_likelihood_params, run
@@ -206,7 +206,7 @@ class TestBadInput:
             run(cfg)
 
     def test_model_classes_mismatch(self, tiny_dataset, tmp_path):
-        from datagen import classes as C
+        from core import classes as C
         from tests.localize.conftest import palette_segnet
 
         other = C.as_json()  # same count, one class renamed: a model of another dataset

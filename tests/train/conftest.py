@@ -10,9 +10,9 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig
 
-from datagen import classes as C
-from datagen.atomic import atomic_write_json, write_png
-from datagen.camera import intrinsics
+from core import classes as C
+from core.atomic import atomic_write_json, write_png
+from core.camera import intrinsics
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 HEIGHT, WIDTH = 48, 64  # not a multiple of 32: exercises the padding

@@ -10,8 +10,8 @@ import onnx
 import pytest
 
 import train.train as tt
-from datagen.atomic import read_png
-from datagen.dataset import Dataset
+from core.atomic import read_png
+from core.dataset import Dataset
 from train.predict import OnnxSegmenter
 from train.quantize import (
     INT8_NAME,

@@ -11,8 +11,8 @@ import onnx
 import pytest
 
 import train.train as tt
-from datagen.atomic import read_png
-from datagen.dataset import Dataset
+from core.atomic import read_png
+from core.dataset import Dataset
 from train.export import ParityError, to_onnx_proto
 from train.predict import OnnxSegmenter
 from train.reexport import default_tolerance, main, reexport

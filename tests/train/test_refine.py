@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from datagen.classes import as_json
+from core.classes import as_json
 from train.export import export_checked, onnx_metadata
 from train.predict import OnnxSegmenter
 from train.refine import GuidedRefine, refine_logits, refine_logits_np

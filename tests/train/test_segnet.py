@@ -171,8 +171,10 @@ class TestForward:
         x = torch.rand(2, 3, 32, 48, generator=torch.Generator().manual_seed(1))
         big = x.repeat_interleave(2, dim=2).repeat_interleave(2, dim=3)
         with torch.no_grad():
+            # float32 sums in another order: 1e-5 of rounding is seen on some hosts
             torch.testing.assert_close(fine.forward_network_resolution(x),
-                                       coarse.forward_network_resolution(big))
+                                       coarse.forward_network_resolution(big),
+                                       atol=1e-4, rtol=1e-4)
         w = torch.rand(4, 48, 3, 3)
         torch.testing.assert_close(finer_unshuffle_stem(w, 4, 4), w)
         torch.testing.assert_close(finer_unshuffle_stem(w, 4, 1), w.reshape(4, 3, 16, 3, 3)

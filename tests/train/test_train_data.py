@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import torch
 
-from datagen import classes as C
-from datagen.atomic import write_png
-from datagen.dataset import Dataset
+from core import classes as C
+from core.atomic import write_png
+from core.dataset import Dataset
 from train.data import (
     AugmentConfig,
     SplitData,

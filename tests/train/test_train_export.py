@@ -10,7 +10,7 @@ import onnx
 import pytest
 import torch
 
-from datagen.classes import as_json
+from core.classes import as_json
 from train.export import ParityError, check_parity, export_checked, onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter, main
 from train.runtime import add_label_output, ort_session, read_metadata
@@ -222,7 +222,7 @@ class TestPredictor:
             OnnxSegmenter(exported[0].parent / "missing.onnx")
 
     def test_cli_writes_overlay(self, exported, tmp_path: Path) -> None:
-        from datagen.atomic import read_png, write_png
+        from core.atomic import read_png, write_png
 
         img = tmp_path / "frame.png"
         write_png(img, np.random.default_rng(1).integers(0, 256, (H, W, 3), dtype=np.uint8))

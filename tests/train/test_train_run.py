@@ -13,7 +13,7 @@ import torch
 from omegaconf import OmegaConf
 
 import train.train as tt
-from datagen.dataset import Dataset
+from core.dataset import Dataset
 from train.data import AugmentConfig, downsample_split, load_split, to_float
 from train.losses import median_frequency_weights, segmentation_loss
 from train.runtime import read_metadata
@@ -391,7 +391,7 @@ class TestBadInput:
             tt.run(compose_train(synthetic_dataset, tmp_path, "model.num_classes=5"))
 
     def test_wrong_image_size(self, make_dataset, compose_train, tmp_path) -> None:
-        from datagen.atomic import write_png
+        from core.atomic import write_png
 
         root = make_dataset(tmp_path / "ds", {"train": 2, "val": 1, "test": 1})
         write_png(

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.poses import read_tum
+from core.poses import read_tum
 
 SCHEMA_VERSION = 1
 SPLITS = ("train", "val", "test")
