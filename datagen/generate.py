@@ -26,14 +26,14 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from datagen import appearance, distractors, trajectories
 from core import classes as C
 from core.atomic import atomic_write_json, write_png
 from core.camera import intrinsics
 from core.config import drop_defaults
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
-from datagen.pipeline import Pipeline
 from core.poses import pose_from_xyz_rpy, write_tum
+from datagen import appearance, distractors, trajectories
+from datagen.pipeline import Pipeline
 from datagen.world import MAIN, OPENING, CorridorModel, build_world, recess_mouths
 
 log = logging.getLogger(__name__)

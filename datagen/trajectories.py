@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from datagen.distractors import sample_in_boxes
 from core.poses import pose_from_xyz_rpy, wrap_angle
+from datagen.distractors import sample_in_boxes
 
 GRAVITY = 9.81  # m/s^2
 

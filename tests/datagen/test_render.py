@@ -6,10 +6,10 @@ import cv2
 import numpy as np
 import pytest
 
-from datagen import appearance
 from core import classes as C
-from datagen.generate import make_camera
 from core.poses import pose_from_xyz_rpy
+from datagen import appearance
+from datagen.generate import make_camera
 from datagen.world import build_world
 from tests.helpers import compose_config
 
@@ -17,8 +17,8 @@ from tests.helpers import compose_config
 @pytest.fixture(scope="module")
 def view():
     """A 160x120 render of the default corridor from a tilted pose looking down +Y."""
-    from datagen.render import CorridorRenderer
     from core.variant import choose_variant
+    from datagen.render import CorridorRenderer
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=160", "camera.height=120"])

@@ -9,8 +9,8 @@ import pytest
 from omegaconf import OmegaConf
 from scipy.spatial.transform import Rotation
 
-from datagen import trajectories as TR
 from core.poses import xyzyaw_from_pose
+from datagen import trajectories as TR
 
 CONF = Path(__file__).resolve().parents[2] / "conf" / "flights" / "default.yaml"
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
