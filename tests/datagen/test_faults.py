@@ -54,7 +54,7 @@ def child(out: Path, *extra: str, gate: Path | None = None) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def wait_started(gate: Path, proc: subprocess.Popen, timeout: float = 120) -> None:
+def wait_started(gate: Path, proc: subprocess.Popen, timeout: float = 300) -> None:
     deadline = time.monotonic() + timeout
     while not Path(f"{gate}.started").exists():
         assert proc.poll() is None, proc.communicate()[1][-2000:]
