@@ -418,7 +418,10 @@ def check_resume(out: Path, cfg: DictConfig) -> Claim:
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)
     path = out / "config.json"
     if not conf["onnx_sha256"] and path.is_file():  # no cnn run now: keep the runs' digest
-        conf["onnx_sha256"] = json.loads(path.read_text()).get("onnx_sha256")
+        try:
+            conf["onnx_sha256"] = json.loads(path.read_text()).get("onnx_sha256")
+        except json.JSONDecodeError:
+            pass  # claim_output names the broken file
     return claim_output(out, conf, REPORT_POLICY, overwrite=bool(cfg.overwrite))
 
 
