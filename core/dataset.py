@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic import png_complete
 from core.poses import read_tum
 
 SCHEMA_VERSION = 1
@@ -107,16 +108,69 @@ class Dataset:
                       np.array(c["body_from_cam"]))
 
     def split(self, name: str) -> tuple[list[Path], list[Path]]:
-        """Paired (rgb, label) image paths of a split, sorted by frame index."""
+        """Paired (rgb, label) image paths of a split, by frame index.
+
+        Raises:
+            FileNotFoundError: a frame dataset.json counts is missing (naming the split, the
+                counts and the datagen command that renders it).
+            ValueError: a frame's PNG is cut short (naming the file and the fix).
+        """
         if name not in SPLITS:
             raise ValueError(f"unknown split {name!r}; expected one of {SPLITS}")
-        rgb = sorted((self.root / name / "rgb").glob("*.png"))
-        label = [self.root / name / "label" / p.name for p in rgb]
-        missing = [p for p in label if not p.is_file()]
-        if missing:
-            raise FileNotFoundError(f"label images missing for {len(missing)} frames, e.g. "
-                                    f"{missing[0]}; re-run datagen to finish the dataset")
+        counts = self.meta.get("counts", {})
+        if name not in counts:
+            raise ValueError(f"{self.root / 'dataset.json'} has no counts.{name}; regenerate "
+                             "the dataset with this version of datagen")
+        d = self.root / name
+        n = int(counts[name])
+        rgb = [d / "rgb" / frame_name(i) for i in range(n)]
+        label = [d / "label" / frame_name(i) for i in range(n)]
+        self.check_frames(f"split {name!r}", rgb, label)
         return rgb, label
+
+    def check_frames(self, what: str, rgb: list[Path], label: list[Path]) -> None:
+        """Raise if a frame's rgb or label PNG is missing or cut short (see ``split``).
+
+        Args:
+            what: the frames' name for the message, e.g. ``"split 'train'"``.
+            rgb, label: (N,) paths of frames 0..N-1 that dataset.json counts.
+        """
+        n = len(rgb)
+        missing = np.array([not (a.is_file() and b.is_file())
+                            for a, b in zip(rgb, label, strict=True)], dtype=bool)
+        if missing.any():
+            idx = np.flatnonzero(missing)
+            first = next(p for p in (rgb[idx[0]], label[idx[0]]) if not p.is_file())
+            raise FileNotFoundError(
+                f"{self.root}: {what} has {n - len(idx)} of the {n} frames "
+                f"{self.root / 'dataset.json'} counts; {len(idx)} missing (frames "
+                f"{_ranges(idx)}, e.g. {first}). Render them: {self.datagen_command(idx, n)} "
+                "(datagen re-run with the dataset's config renders only what is missing).")
+        broken = [p for p in (*rgb, *label) if not png_complete(p)]
+        if broken:
+            frames = np.array([int(p.stem) for p in broken])
+            raise ValueError(
+                f"{self.root}: {what} has {len(broken)} cut-short PNG(s), e.g. {broken[0]} "
+                "(no IEND chunk at its end: a killed copy or a full disk?). Re-render them: "
+                f"{self.datagen_command(frames, n)} (datagen's resume re-renders broken "
+                "frames).")
+
+    def datagen_command(self, frames: np.ndarray, n: int) -> str:
+        """The datagen command that renders ``frames`` (indices) of a split or flight of ``n``
+        frames: the command the dataset was made with (dataset.json's ``command``), for the
+        shards holding those frames if it was rendered in shards (``stats/``)."""
+        base = self.meta.get("command")
+        if not base:
+            return (f"`python -m datagen out_dir={self.root}` with the config in "
+                    f"{self.root / 'dataset.json'} ('generator')")
+        totals = {int(p.stem.rsplit("-", 1)[-1])
+                  for p in (self.root / "stats").glob("shard-*-of-*.json")}
+        if len(totals) != 1 or totals == {1} or n == 0:
+            return f"`{base}`"
+        num = totals.pop()
+        starts = np.arange(num) * n // num
+        shards = np.unique(np.searchsorted(starts, frames, side="right") - 1)
+        return " and ".join(f"`{base} shard={k} num_shards={num}`" for k in shards)
 
     def split_poses(self, name: str) -> np.ndarray:
         """(N, 4, 4) world_from_body of a split's frames."""
@@ -135,6 +189,7 @@ class Dataset:
         _, odo = read_tum(d / "odometry.txt")
         rgb = [d / "rgb" / frame_name(i) for i in range(len(t))]
         label = [d / "label" / frame_name(i) for i in range(len(t))]
+        self.check_frames(f"flight {name!r}", rgb, label)
         return Flight(name, rgb, label, t, gt, odo, read_json(d / "flight.json"))
 
     def world(self) -> World:
@@ -156,3 +211,11 @@ def load_world(world_dir: str | Path) -> World:
         free_boxes=np.array(info["free_space"]["boxes"], dtype=np.float64).reshape(-1, 4),
         z_range=np.array(info["free_space"]["z_range"], dtype=np.float64), info=info,
     )
+
+
+def _ranges(idx: np.ndarray, limit: int = 4) -> str:
+    """``"0-3, 7, 9-10"`` for sorted indices (at most ``limit`` runs)."""
+    cuts = np.flatnonzero(np.diff(idx) != 1) + 1
+    runs = [(int(r[0]), int(r[-1])) for r in np.split(idx, cuts)]
+    text = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:limit])
+    return text + (", ..." if len(runs) > limit else "")

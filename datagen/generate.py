@@ -15,7 +15,6 @@ import json
 import logging
 import math
 import platform
-import shutil
 import time
 import zlib
 from collections.abc import Mapping
@@ -27,10 +26,10 @@ import numpy as np
 from tqdm import tqdm
 
 from core import classes as C
-from core.atomic import atomic_write_json, write_png
+from core.atomic import atomic_write_json, png_complete, remove_temp_files, write_png
 from core.camera import intrinsics
-from core.config import drop_defaults
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
+from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from datagen import appearance, distractors, trajectories
 from datagen.pipeline import Pipeline
@@ -41,10 +40,14 @@ log = logging.getLogger(__name__)
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
 # Keys that do not change the dataset's content (left out of the config hash).
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "pipeline", "progress")
-#: Keys added after datasets were made, with the value that renders what was rendered before
-#: them: left out of the hash at that value, so those datasets keep their hash.
-HASH_DEFAULTS = {"training.flight_views": 0.0, "render.denoise_frames": False,
-                 "training.opening_views": 0.0, "training.opening_distance": [0.4, 2.5]}
+#: A dataset folder belongs to its ``generator`` config (core.outputs). Split counts and the
+#: rendered flights may grow: a frame depends only on (seed, split, index) and a flight on
+#: (seed, name), so the frames there are the ones the larger config renders. A flight's
+#: ``num_frames`` may not: its trajectory spans the flight's whole duration. Shards of one
+#: config render side by side.
+DATASET_POLICY = FolderPolicy(record="dataset.json", section="generator",
+                              grow=("splits", "render_flights"),
+                              results=("*/rgb", "flights/*/rgb"), concurrent=True)
 
 
 def rng_for(seed: int, *keys: int) -> np.random.Generator:
@@ -58,11 +61,8 @@ def flight_stream(name: str) -> int:
 
 def content_config(cfg: Mapping) -> dict:
     """The keys of cfg that decide the dataset's content (dataset.json's ``generator``): all
-    but ``NON_CONTENT_KEYS``, and the ``HASH_DEFAULTS`` keys at their earlier behaviour (a
-    copy; cfg is not changed)."""
-    out = copy.deepcopy({k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS})
-    drop_defaults(out, HASH_DEFAULTS)
-    return out
+    but ``NON_CONTENT_KEYS`` (a copy; cfg is not changed)."""
+    return copy.deepcopy({k: v for k, v in cfg.items() if k not in NON_CONTENT_KEYS})
 
 
 def config_hash(cfg: Mapping) -> str:
@@ -163,12 +163,11 @@ def poses_of_split(cfg: Mapping, model: CorridorModel, split: str) -> np.ndarray
     (``trajectories.sample_training_poses``).
     """
     tr, world = cfg["training"], model.world
-    share = float(tr.get("flight_views", HASH_DEFAULTS["training.flight_views"]))
-    close = float(tr.get("opening_views", HASH_DEFAULTS["training.opening_views"]))
+    share, close = float(tr["flight_views"]), float(tr["opening_views"])
     for key, v in (("flight_views", share), ("opening_views", close)):
         if not 0.0 <= v <= 1.0:
             raise ValueError(f"training.{key}={v} must be a share in [0, 1]")
-    distance = tuple(tr.get("opening_distance", HASH_DEFAULTS["training.opening_distance"]))
+    distance = tuple(tr["opening_distance"])
     mouths = recess_mouths(model.boxes)
     presets = list(cfg["flights"].values())
     stream = SPLIT_STREAM[split]
@@ -249,6 +248,7 @@ def write_metadata(job: Job, variant: str) -> None:
         "counts": {**{s: int(cfg["splits"].get(s, 0)) for s in SPLITS},
                    "flights": {k: int(v["groundtruth"].shape[0]) for k, v in job.flights.items()}},
         "generator": content_config(cfg),
+        "command": datagen_command(),
         "software": software_versions(variant),
     }
     save_world(out / "world", job.model)
@@ -267,50 +267,38 @@ def write_metadata(job: Job, variant: str) -> None:
     atomic_write_json(out / "dataset.json", meta)
 
 
-def check_existing(cfg: Mapping, out: Path) -> None:
-    """Refuse to mix two configs in one output directory (before any rendering).
+def datagen_command() -> str | None:
+    """``python -m datagen <overrides>`` of this Hydra run without the per-run keys (shard,
+    num_shards, overwrite, pipeline, progress); None outside Hydra."""
+    from hydra.core.hydra_config import HydraConfig
 
-    One change is allowed: more frames in a split (``splits.train=12800`` on a dataset of
-    6400). A frame depends only on the seed, its split and its index, so the frames already
-    there are the ones the larger config would render, and only the new ones are rendered
-    (with ``overwrite=true`` too: deleting them would only render them again).
-    """
-    meta = out / "dataset.json"
-    if not meta.is_file():
-        return
-    old_meta = json.loads(meta.read_text())
-    old = old_meta.get("config_hash")
-    if old == config_hash(cfg):
-        return
-    grown = _grown_splits(old_meta.get("generator"), cfg)
-    if grown:  # even with overwrite=true: the frames there are the ones it would render
-        log.info("%s: growing %s; the frames already rendered are kept", out, grown)
-        return
-    if cfg.get("overwrite"):
-        log.warning("overwrite=true: deleting %s, made with another config", out)
-        shutil.rmtree(out)
-        return
-    raise ValueError(f"{out} holds a dataset made with another config (hash {old}, now "
-                     f"{config_hash(cfg)}). Use another name=..., or overwrite=true to replace it "
-                     "(only raising splits.<split> counts re-uses an existing dataset).")
+    if not HydraConfig.initialized():
+        return None
+    per_run = set(NON_CONTENT_KEYS) - {"out_dir"}
+    keep = [o for o in HydraConfig.get().overrides.task
+            if o.lstrip("+~").split("=")[0] not in per_run]
+    return " ".join(["python -m datagen", *keep])
 
 
-def _grown_splits(old: Mapping | None, cfg: Mapping) -> str:
-    """'train 6400 -> 12800, ...' if cfg differs from the old generator config only by larger
-    split counts, else ''."""
-    new = json.loads(json.dumps(content_config(cfg)))  # as dataset.json stores it
-    if not old or {**old, "splits": None} != {**new, "splits": None}:
-        return ""
-    before = {s: int(old["splits"].get(s, 0)) for s in SPLITS}
-    after = {s: int(new["splits"].get(s, 0)) for s in SPLITS}
-    if any(after[s] < before[s] for s in SPLITS):
-        return ""
-    return ", ".join(f"{s} {before[s]} -> {after[s]}" for s in SPLITS if after[s] != before[s])
+def claim_dataset(job: Job, variant: str) -> Claim:
+    """Claim the dataset folder for this config (core.outputs, ``DATASET_POLICY``) and write
+    its metadata: resume or grow a dataset of this config, refuse one of another (unless
+    ``overwrite=true``), wait briefly for and then refuse a run of another config that holds
+    it. Alone in the folder, delete the temporary files killed writes left."""
+    claim = claim_output(job.out, {"generator": content_config(job.cfg)}, DATASET_POLICY,
+                         overwrite=bool(job.cfg.get("overwrite")),
+                         write=lambda: write_metadata(job, variant))
+    if claim.alone:
+        stale = remove_temp_files(job.out)
+        if stale:
+            log.info("%s: removed %d temporary files of killed writes", job.out, len(stale))
+    return claim
 
 
 def frame_done(d: Path, index: int, depth: bool) -> bool:
+    """Whether frame ``index`` is there and sound (each PNG ends with its IEND chunk)."""
     names = ["rgb", "label"] + (["depth"] if depth else [])
-    return all((d / sub / frame_name(index)).is_file() for sub in names)
+    return all(png_complete(d / sub / frame_name(index)) for sub in names)
 
 
 def write_frame(d: Path, index: int, rgb: np.ndarray, label: np.ndarray,
@@ -338,9 +326,7 @@ def _new_renderer(job: Job, textures, clutter, people):
     from datagen.render import CorridorRenderer
 
     return CorridorRenderer(job.model, job.camera, textures, clutter, people,
-                            max_depth=int(job.cfg["render"]["max_depth"]),
-                            denoise_frames=bool(job.cfg["render"].get(
-                                "denoise_frames", HASH_DEFAULTS["render.denoise_frames"])))
+                            max_depth=int(job.cfg["render"]["max_depth"]))
 
 
 def _dress(job: Job, renderer, rng: np.random.Generator, preset: Mapping,
@@ -471,14 +457,13 @@ def run(cfg: Mapping, progress: bool = True) -> Path:
     from core.variant import choose_variant
 
     job = prepare(cfg)
-    check_existing(job.cfg, job.out)
     variant = choose_variant(job.cfg["render"]["variant"])
-    write_metadata(job, variant)
-    t0 = time.perf_counter()
-    counts = {s: render_split(job, s, progress) for s in SPLITS if len(job.split_poses[s])}
-    counts.update({f"flight:{n}": render_flight(job, n, progress) for n in job.flights})
-    seconds = time.perf_counter() - t0
-    write_stats(job, variant, counts, seconds)
+    with claim_dataset(job, variant):
+        t0 = time.perf_counter()
+        counts = {s: render_split(job, s, progress) for s in SPLITS if len(job.split_poses[s])}
+        counts.update({f"flight:{n}": render_flight(job, n, progress) for n in job.flights})
+        seconds = time.perf_counter() - t0
+        write_stats(job, variant, counts, seconds)
     return job.out
 
 

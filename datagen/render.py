@@ -161,7 +161,7 @@ class CorridorRenderer:
 
     def __init__(self, model: CorridorModel, camera: Camera, textures: Mapping[str, np.ndarray],
                  clutter: Sequence[trimesh.Trimesh] = (), people: Sequence[trimesh.Trimesh] = (),
-                 max_depth: int = 3, denoise_frames: bool = True):
+                 max_depth: int = 3):
         import mitsuba as mi
 
         self.mi = mi
@@ -239,7 +239,7 @@ class CorridorRenderer:
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
         # Albedo in its own pass: an aov integrator wrapping the path tracer is ~5x slower.
         self.albedo = mi.load_dict({"type": "aov", "aovs": "al:albedo"})
-        lut, raw = self._class_lookup(denoise_frames)
+        lut, raw = self._class_lookup()
         self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
         # Ray length -> z depth factor per pixel: z = t / |K^-1 [u, v, 1]|.
         u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
@@ -247,15 +247,13 @@ class CorridorRenderer:
                         dtype=float)], axis=-1)
         self.developer = Developer(lut, raw, np.linalg.norm(rays, axis=-1))
 
-    def _class_lookup(self, denoise_frames: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def _class_lookup(self) -> tuple[np.ndarray, np.ndarray]:
         """Map aov ``shape_index`` values to class ids, and to whether the denoiser keeps the
         shape's pixels as rendered (built right after loading): (S,) uint8, (S,) bool.
 
-        Kept raw are the emitters (the ceiling lights and the window's outdoor view: their
-        radiance is not shading); with ``denoise_frames=False`` also the window's frame faces
-        (its jambs, head and sill, labelled window), as datagen did before 2026-11-25: they
-        are diffuse surfaces, and raw they show the path tracer's noise as a speckled band
-        around every window."""
+        Kept raw are the emitters only (the ceiling lights and the window's outdoor view: their
+        radiance is not shading); the window's frame faces (its jambs, head and sill,
+        labelled window) are diffuse surfaces and denoised like the others."""
         mi = self.mi
         shapes = list(self.scene.shapes())
         lut = np.zeros(len(shapes) + 2, dtype=np.uint8)
@@ -266,8 +264,7 @@ class CorridorRenderer:
                 lut = np.concatenate([lut, np.zeros(index + 1 - len(lut), dtype=np.uint8)])
                 raw = np.concatenate([raw, np.zeros(index + 1 - len(raw), dtype=bool)])
             lut[index] = self.class_of[shape.id()]
-            raw[index] = shape.is_emitter() or (not denoise_frames
-                                                and lut[index] == C.WINDOW)
+            raw[index] = shape.is_emitter()
         return lut, raw
 
     # --- per-frame state (applied to the scene by the next ``render``) ----------------------

@@ -336,6 +336,13 @@ def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
 # --- report ----------------------------------------------------------------------------------
 
 
+def versus_paper(error_m: float, paper_m: float) -> str:
+    """``"3.5x better"`` when ``error_m`` is 3.5 times smaller than the paper's ``paper_m``,
+    ``"3.5x worse"`` when 3.5 times larger (both mean errors in metres)."""
+    ratio = paper_m / max(error_m, 1e-9)
+    return f"{ratio:.1f}x better" if ratio >= 1.0 else f"{1.0 / ratio:.1f}x worse"
+
+
 def _fmt(v, digits: int = 3) -> str:
     if v is None:
         return "-"
@@ -380,7 +387,7 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
                 f"| {flight} | {mode} | {_fmt(s['mean_position_error_m'])} | "
                 f"{_fmt(s['median_m'])} | {_fmt(s['rmse_m'])} | {_fmt(s['p95_m'])} | "
                 f"{_fmt(s['mean_yaw_error_deg'], 2)} | {_fmt(100 * s['failure_rate'], 1)}% | "
-                f"{paper_err / max(s['mean_position_error_m'], 1e-9):.1f}x better |")
+                f"{versus_paper(s['mean_position_error_m'], paper_err)} |")
     lines += ["", f"Failures: frames with an error above {cfg.metrics.failure_threshold_m} m.",
               ""]
     glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()

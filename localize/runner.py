@@ -15,7 +15,6 @@ file exist, so a stopped job resumes where it was (``overwrite=true`` re-runs ev
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import logging
@@ -32,6 +31,7 @@ from tqdm import tqdm
 
 from core.atomic import atomic_write_json, read_png
 from core.dataset import Camera, Dataset, Flight, World
+from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.edges import (
     MODES,
@@ -361,6 +361,7 @@ def paper_faithful_runs(ctx: Context) -> None:
         run_pass(sub_ctx, flight, mode, todo, make_loglik=make, num_particles=n)
 
 
+@releases_claims
 def run(cfg: DictConfig) -> Path:
     """Run every flight x mode x init x seed (skipping finished runs) and write the report.
 
@@ -371,9 +372,7 @@ def run(cfg: DictConfig) -> Path:
 
     ctx = prepare(cfg)
     out = ctx.out_dir
-    out.mkdir(parents=True, exist_ok=True)
-    stored = check_resume(out, cfg)
-    atomic_write_json(out / "config.json", stored)
+    check_resume(out, cfg)
     for name in select_flights(ctx.dataset, cfg.flight_names):
         flight = ctx.dataset.flight(name)
         for mode in cfg.modes:
@@ -389,55 +388,41 @@ def run(cfg: DictConfig) -> Path:
 
 
 # Settings a finished run's trajectory depends on; the others (modes, seeds, inits, flights)
-# only choose which runs exist, so they may change between resumes.
+# only choose which runs exist, so they may change between resumes. The segnet.onnx digest
+# may be set where no cnn run had one.
 RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_edges",
-               "visibility")
+               "visibility", "onnx_sha256")
 # settings under RESULT_KEYS that change only how fast the results come, not the results
-SPEED_ONLY = (("filter", "likelihood", "workers"), ("filter", "likelihood", "chunk"))
+SPEED_ONLY = ("filter.likelihood.workers", "filter.likelihood.chunk")
+#: A report folder belongs to its result settings (core.outputs); one run at a time.
+REPORT_POLICY = FolderPolicy(record="config.json", keys=RESULT_KEYS, grow=("onnx_sha256",),
+                             speed_only=SPEED_ONLY, results=("runs",))
 
 
-def result_settings(conf: dict, key: str):
-    """A copy of ``conf[key]`` without its ``SPEED_ONLY`` settings."""
-    value = copy.deepcopy(conf.get(key))
-    for first, *middle, last in SPEED_ONLY:
-        if first != key:
-            continue
-        node = value
-        for part in middle:
-            node = node.get(part) if isinstance(node, dict) else None
-        if isinstance(node, dict):
-            node.pop(last, None)
-    return value
+def result_settings(conf: dict) -> dict:
+    """The settings of ``conf`` (a config.json) its runs' results depend on (dotted keys)."""
+    return REPORT_POLICY.settings(conf)
 
 
-def check_resume(out: Path, cfg: DictConfig) -> dict:
-    """The config to store in ``out/config.json``, after checking that the runs already in
-    ``out`` were made with the same result-affecting settings and the same segnet.onnx bytes.
+def check_resume(out: Path, cfg: DictConfig) -> Claim:
+    """Claim ``out`` for this config and write ``out/config.json`` (the whole config and the
+    segnet.onnx digest): the runs already in ``out`` must come from the same result settings
+    and segnet.onnx bytes (``REPORT_POLICY``).
 
-    With ``overwrite=true`` a mismatch only warns (every run is re-done anyway); otherwise it
-    raises naming the differing keys.
+    With ``overwrite=true`` a folder of other settings is emptied (every run is re-done);
+    otherwise it raises naming the differing keys.
     """
     conf = OmegaConf.to_container(cfg, resolve=True)
     onnx_path = Path(str(cfg.onnx_model))
     conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)
     path = out / "config.json"
-    if not path.is_file() or not (out / "runs").is_dir():
-        return conf
-    old = json.loads(path.read_text())
-    both_hashed = conf["onnx_sha256"] and old.get("onnx_sha256")
-    keys = [*RESULT_KEYS, "onnx_sha256"] if both_hashed else list(RESULT_KEYS)
-    diff = [k for k in keys if result_settings(old, k) != result_settings(conf, k)]
-    if diff and not cfg.overwrite:
-        raise RuntimeError(f"{out} holds runs made with other settings ({', '.join(diff)} differ "
-                           f"from {path}); pass overwrite=true to re-run them, or pick another "
-                           f"name=...")
-    if diff:
-        log.warning("overwrite=true: %s differ from %s; re-running the runs of this config",
-                    ", ".join(diff), path)
-    if not conf["onnx_sha256"]:
-        conf["onnx_sha256"] = old.get("onnx_sha256")
-    return conf
+    if not conf["onnx_sha256"] and path.is_file():  # no cnn run now: keep the runs' digest
+        try:
+            conf["onnx_sha256"] = json.loads(path.read_text()).get("onnx_sha256")
+        except json.JSONDecodeError:
+            pass  # claim_output names the broken file
+    return claim_output(out, conf, REPORT_POLICY, overwrite=bool(cfg.overwrite))
 
 
 def load_runs(out_dir: Path) -> list[dict]:

@@ -10,7 +10,7 @@ Output folder ``<out_root>/<name>/``:
 - ``segnet.onnx``: the best checkpoint exported and checked with onnxruntime.
 
 Re-running with the same config resumes from ``checkpoint_last.pt``; a folder made with
-another config is refused unless ``overwrite=true``.
+another config is refused unless ``overwrite=true`` (core.outputs; docs/outputs.md).
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
 from core.atomic import atomic_write, atomic_write_json, atomic_write_text
-from core.config import drop_defaults, drop_key
 from core.dataset import Dataset
+from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
 from train.data import (
     AugmentConfig,
     SplitData,
@@ -81,32 +81,10 @@ HASH_EXCLUDE = (
     "eval.refine",
     "export",
 )
-#: Keys added after models were trained, with the value that gives the earlier behaviour: left
-#: out of the hash at that value, so folders trained before them keep their hash and resume.
-HASH_DEFAULTS = {
-    "model.stem": "average",
-    "model.head": "bilinear",
-    "model.head_channels": 8,
-    "model.head_layers": 1,
-    "model.context_layers": 0,
-    "loss.boundary_weight": 1.0,
-    "loss.edge_weight": 1.0,
-    "loss.edge_threshold": 0.03,
-    "loss.resolution": "network",
-    "init_from": None,
-}
-#: Files of an output folder that ``overwrite=true`` removes.
-OUTPUT_FILES = (
-    "config.json",
-    "checkpoint_last.pt",
-    "checkpoint_best.pt",
-    "train_log.csv",
-    "metrics.json",
-    "confusion.png",
-    "segnet.onnx",
-    INT8_NAME,
-    QUANTIZE_REPORT,
-)
+#: A model folder belongs to its training config and dataset.json (core.outputs): config.json
+#: holds them; one run at a time.
+MODEL_POLICY = FolderPolicy(record="config.json", keys=("config", "dataset_digest"),
+                            results=("checkpoint_*.pt", "segnet.onnx", "metrics.json"))
 
 
 # ----------------------------------------------------------------------------- config, resume
@@ -116,10 +94,7 @@ def training_config(cfg: DictConfig) -> dict:
     """The part of the config that determines the trained weights (resolved, plain dict)."""
     d = OmegaConf.to_container(cfg, resolve=True)
     d.pop("hydra", None)
-    for key in HASH_EXCLUDE:
-        drop_key(d, key)
-    drop_defaults(d, HASH_DEFAULTS)  # keys added later, at their old behaviour
-    return d
+    return without(d, HASH_EXCLUDE)
 
 
 def _loss_resolution(cfg: DictConfig) -> str:
@@ -153,48 +128,23 @@ def resolve_precision(precision: str) -> bool:
     return precision == "bf16"
 
 
-def _flatten(d: dict, prefix: str = "") -> dict:
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
-def prepare_output(out_dir: Path, info: dict, overwrite: bool) -> None:
-    """Make sure ``out_dir`` belongs to this config; clear it if ``overwrite``.
+def prepare_output(out_dir: Path, info: dict, overwrite: bool) -> Claim:
+    """Claim ``out_dir`` for this config (``MODEL_POLICY``) and write its config.json.
 
     Args:
         out_dir: the model folder.
         info: {"config_hash", "config", "dataset_digest"} of this run.
-        overwrite: remove the files of a folder made with another config instead of failing.
+        overwrite: empty a folder made with another config instead of failing.
+
+    Returns:
+        The claim: the folder stays locked until ``run`` returns.
+
+    Raises:
+        core.outputs.OutputFolderError: the folder holds another config's model (naming the
+            differing keys) and not ``overwrite``.
+        core.outputs.FolderBusy: another run writes the folder.
     """
-    stored_path = out_dir / "config.json"
-    if stored_path.is_file():
-        stored = json.loads(stored_path.read_text())
-        if stored.get("config_hash") != info["config_hash"]:
-            if not overwrite:
-                a, b = _flatten(stored.get("config", {})), _flatten(info["config"])
-                diff = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
-                if stored.get("dataset_digest") != info["dataset_digest"]:
-                    diff.append("<dataset.json contents>")
-                raise RuntimeError(
-                    f"{out_dir} was made with another config (hash {stored.get('config_hash')} "
-                    f"vs {info['config_hash']}; differing: {', '.join(diff) or 'unknown'}). "
-                    f"Pick another name=..., or pass overwrite=true to discard it."
-                )
-            log.warning("overwrite=true: removing the previous run in %s", out_dir)
-            for f in OUTPUT_FILES:
-                (out_dir / f).unlink(missing_ok=True)
-    elif (out_dir / "checkpoint_last.pt").is_file() and not overwrite:
-        raise RuntimeError(
-            f"{out_dir} has a checkpoint but no config.json; pass overwrite=true "
-            f"to discard it or pick another name=..."
-        )
-    out_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(stored_path, info)
+    return claim_output(out_dir, info, MODEL_POLICY, overwrite=overwrite)
 
 
 def save_torch(path: Path, obj: dict) -> None:
@@ -529,6 +479,7 @@ def check_counts(cfg: DictConfig) -> None:
         raise ValueError(f"max_minutes={minutes!r} must be >= 0 (null: no time budget)")
 
 
+@releases_claims
 def run(cfg: DictConfig) -> dict:
     """Train (or resume), evaluate the best checkpoint on the test split, export ONNX.
 
@@ -547,8 +498,7 @@ def run(cfg: DictConfig) -> dict:
         raise ValueError(
             "model.head=refine learns at the input's resolution: add loss.resolution=input"
         )
-    # the loss's pixel weights (a config from before a key existed: its old behaviour)
-    pixel_weights = {k: float(cfg.loss.get(k, HASH_DEFAULTS[f"loss.{k}"]))
+    pixel_weights = {k: float(cfg.loss[k])  # the loss's pixel weights
                      for k in ("boundary_weight", "edge_weight", "edge_threshold")}
     for key, value in pixel_weights.items():
         if not value > 0:

@@ -144,22 +144,22 @@ def test_render_is_develop_of_trace():
 
 def test_denoiser_keeps_only_emitters_raw():
     """The denoiser leaves the emitters as rendered (the ceiling lights, the window's outdoor
-    view) and smooths every diffuse surface, the window's frame faces too (labelled window);
-    ``denoise_frames=False`` leaves those frames raw, as datasets made before it were."""
+    view) and smooths every diffuse surface, the window's frame faces too (labelled window)."""
     from datagen.render import CorridorRenderer, shape_index
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
     tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     model = build_world(cfg["world"])
-    for denoise_frames in (True, False):
-        r = CorridorRenderer(model, camera, tex, denoise_frames=denoise_frames)
-        shapes = list(r.scene.shapes())
-        raw = r.developer.raw[[shape_index(r.mi, s, i) for i, s in enumerate(shapes)]]
-        emitter = np.array([s.is_emitter() for s in shapes])
-        frame = np.array([s.id() == "window_frame" for s in shapes])
-        assert emitter.sum() == r.num_lights + 1 and frame.sum() == 1  # lights, window view
-        np.testing.assert_array_equal(raw, emitter | (frame & (not denoise_frames)))
+    r = CorridorRenderer(model, camera, tex)
+    shapes = list(r.scene.shapes())
+    raw = r.developer.raw[[shape_index(r.mi, s, i) for i, s in enumerate(shapes)]]
+    emitter = np.array([s.is_emitter() for s in shapes])
+    frame = np.array([s.id() == "window_frame" for s in shapes])
+    assert emitter.sum() == r.num_lights + 1 and frame.sum() == 1  # lights, window view
+    assert r.developer.lut[shape_index(r.mi, shapes[int(np.argmax(frame))],
+                                       int(np.argmax(frame)))] == C.WINDOW
+    np.testing.assert_array_equal(raw, emitter)
 
 
 def test_develop_smooths_all_but_the_raw_shapes():

@@ -123,7 +123,7 @@ class TestEndToEnd:
         cfg, path = report
         stored = (path.parent / "config.json").read_text()
         other = OmegaConf.merge(cfg, {"filter": {"likelihood": {"k": 7.0}}})
-        with pytest.raises(RuntimeError, match=r"filter differ.*overwrite=true"):
+        with pytest.raises(RuntimeError, match=r"likelihood.k \(.* -> 7.0\).*overwrite=true"):
             run(other)
         assert (path.parent / "config.json").read_text() == stored
 

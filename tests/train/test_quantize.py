@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +15,7 @@ import pytest
 import train.train as tt
 from core.atomic import read_png
 from core.dataset import Dataset
+from core.outputs import LOCK_NAME, SETUP_LOCK_NAME
 from train.predict import OnnxSegmenter
 from train.quantize import (
     INT8_NAME,
@@ -47,7 +51,8 @@ def test_int8_segments_like_the_float_model(quantized, synthetic_dataset: Path) 
     int8 = model_dir / INT8_NAME
     assert int8.is_file()
     # no temporary files left beside the outputs
-    assert not [p for p in model_dir.iterdir() if p.name.startswith(".") or p.is_dir()]
+    assert not [p for p in model_dir.iterdir() if p.name not in (LOCK_NAME, SETUP_LOCK_NAME)
+                and (p.name.startswith(".") or p.is_dir())]
     meta, meta32 = read_metadata(int8), read_metadata(model_dir / "segnet.onnx")
     assert meta["quantization"]["calibration_images"] == 8
     assert {k: v for k, v in meta.items() if k != "quantization"} == meta32
@@ -86,3 +91,38 @@ def test_bad_input(tmp_path: Path, quantized) -> None:
         quantize_segnet(model_dir / "segnet.onnx", tmp_path / "x.onnx",
                         np.zeros((2, 10, 10, 3), np.uint8))
     assert not (tmp_path / "x.onnx").exists()
+
+
+#: Quantizes argv[1] into argv[2] and dies (SIGKILL) inside onnxruntime's quantize_static.
+KILLED = """
+import os, signal, sys
+import numpy as np
+import train.quantize as q
+from train.runtime import read_metadata
+import onnx
+meta = read_metadata(onnx.load(sys.argv[1], load_external_data=False))
+frames = np.zeros((1, int(meta["input_height"]), int(meta["input_width"]), 3), np.uint8)
+q.quantize_static = lambda *a, **k: os.kill(os.getpid(), signal.SIGKILL)
+q.quantize_segnet(sys.argv[1], sys.argv[2], frames)
+"""
+
+
+@pytest.mark.slow
+def test_killed_quantization_leaves_no_work_folder(tmp_path: Path, quantized) -> None:
+    """A quantization killed mid-way cannot clean up; the next one in that folder does, and
+    keeps the work folder of a quantization still running."""
+    model_dir, _ = quantized
+    src = tmp_path / "segnet.onnx"
+    src.write_bytes((model_dir / "segnet.onnx").read_bytes())
+    killed = subprocess.run([sys.executable, "-c", KILLED, str(src), str(tmp_path / "a.onnx")],
+                            cwd=Path(__file__).resolve().parents[2], capture_output=True)
+    assert killed.returncode == -9, killed.stderr[-2000:]
+    left = [p.name for p in tmp_path.iterdir() if p.is_dir()]
+    assert len(left) == 1 and "quantize" in left[0], left  # what the kill left
+    live = tmp_path / f".quantize.{os.getpid()}.running"
+    live.mkdir()
+    meta = read_metadata(onnx.load(str(src), load_external_data=False))
+    h, w = int(meta["input_height"]), int(meta["input_width"])
+    quantize_segnet(src, tmp_path / "b.onnx", np.zeros((2, h, w, 3), np.uint8))
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_dir()) == [live.name]
+    assert (tmp_path / "b.onnx").is_file()

@@ -11,7 +11,7 @@ import onnx
 import pytest
 
 import train.train as tt
-from core.atomic import read_png
+from core.atomic import is_temp, read_png
 from core.dataset import Dataset
 from train.export import ParityError, to_onnx_proto
 from train.predict import OnnxSegmenter
@@ -72,7 +72,7 @@ def test_failed_check_keeps_the_old_file(folder: Path, tmp_path: Path) -> None:
     with pytest.raises(ParityError, match="not written"):
         reexport(d, tolerance=-1.0)  # no graph can pass
     assert (d / "segnet.onnx").read_bytes() == before
-    assert not [p for p in d.iterdir() if p.name.startswith(".")]  # no temporary file left
+    assert not [p for p in d.iterdir() if is_temp(p)]  # no temporary file left
 
 
 def test_bad_input(folder: Path, make_dataset, tmp_path: Path) -> None:

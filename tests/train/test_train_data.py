@@ -180,6 +180,30 @@ class TestLoad:
         with pytest.raises(FileNotFoundError, match="split 'val'.*no images"):
             load_split(Dataset(root), "val", 8)
 
+    def test_missing_shard_is_not_trained_on(self, tmp_path: Path, make_dataset) -> None:
+        """Frames dataset.json counts but the folder lacks (a shard never rendered) stop the
+        loading, naming the split, the counts and the datagen command."""
+        root = make_dataset(tmp_path / "ds", {"train": 6, "val": 1, "test": 1})
+        for i in (4, 5):
+            (root / "train" / "rgb" / f"{i:06d}.png").unlink()
+            (root / "train" / "label" / f"{i:06d}.png").unlink()
+        with pytest.raises(FileNotFoundError, match=r"split 'train' has 4 of the 6 frames .*"
+                                                    r"frames 4-5.*python -m datagen"):
+            load_split(Dataset(root), "train", 8)
+
+    def test_temp_file_of_a_killed_write_is_ignored(self, tmp_path: Path, make_dataset) -> None:
+        root = make_dataset(tmp_path / "ds", {"train": 2, "val": 1, "test": 1})
+        (root / "train" / "rgb" / ".000001.png.k2j3h4g5.png").write_bytes(b"\x89PNG cut")
+        data = load_split(Dataset(root), "train", 8)
+        assert len(data) == 2 and [p.name for p in data.paths] == ["000000.png", "000001.png"]
+
+    def test_cut_short_png_named(self, tmp_path: Path, make_dataset) -> None:
+        root = make_dataset(tmp_path / "ds", {"train": 2, "val": 1, "test": 1})
+        bad = root / "train" / "rgb" / "000001.png"
+        bad.write_bytes(bad.read_bytes()[:100])
+        with pytest.raises(ValueError, match=rf"cut-short PNG.*{bad}.*re-renders broken"):
+            load_split(Dataset(root), "train", 8)
+
     def test_class_count_mismatch(self) -> None:
         assert check_classes(C.as_json(), None, "x/dataset.json") == 8
         assert check_classes(C.as_json(), 8, "x/dataset.json") == 8

@@ -1,0 +1,153 @@
+"""datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+import datagen.generate as gen
+from core.atomic import png_complete, read_png
+from core.dataset import Dataset
+from tests.datagen.test_generate import SMALL, small_cfg
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: A datagen run in its own process: argv[1] = JSON {out, overrides, gate}. With a gate it
+#: stops after its first frame until ``<gate>.go`` exists (``<gate>.started`` says so).
+CHILD = """
+import json, sys, time
+from pathlib import Path
+import datagen.generate as gen
+from tests.helpers import compose_config
+try:
+    import core.outputs
+    core.outputs.RUN_WAIT_S = 1.0
+except ImportError:
+    pass
+args = json.loads(sys.argv[1])
+cfg = compose_config("datagen", args["overrides"])
+if args["gate"]:
+    real, gate = gen.write_frame, args["gate"]
+    def paused(*a, **k):
+        real(*a, **k)
+        Path(gate + ".started").touch()
+        while not Path(gate + ".go").exists():
+            time.sleep(0.05)
+    gen.write_frame = paused
+gen.run(cfg, progress=False)
+"""
+
+
+def child(out: Path, *extra: str, gate: Path | None = None) -> subprocess.Popen:
+    args = {"overrides": [*SMALL, f"out_dir={out}", *extra], "gate": str(gate or "")}
+    return subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(args)], cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_started(gate: Path, proc: subprocess.Popen, timeout: float = 300) -> None:
+    deadline = time.monotonic() + timeout
+    while not Path(f"{gate}.started").exists():
+        assert proc.poll() is None, proc.communicate()[1][-2000:]
+        assert time.monotonic() < deadline, "the first run never wrote a frame"
+        time.sleep(0.1)
+
+
+def frames(root: Path) -> dict[str, np.ndarray]:
+    return {str(p.relative_to(root)): read_png(p, rgb=False)
+            for p in sorted(root.glob("**/*.png")) if not p.name.startswith(".")}
+
+
+@pytest.mark.slow
+class TestTwoRuns:
+    def test_other_seed_refused_while_the_first_writes(self, tmp_path: Path) -> None:
+        """A second run of another seed (even with overwrite=true) may not write into a folder
+        a run is writing: it waits briefly, then refuses naming the first run's pid; the
+        dataset is the first run's alone."""
+        out, gate = tmp_path / "ds", tmp_path / "gate"
+        first = child(out, gate=gate)
+        try:
+            wait_started(gate, first)
+            second = child(out, "seed=1", "overwrite=true")
+            _, err = second.communicate(timeout=300)
+            assert second.returncode != 0, "the second run must not write"
+            assert re.search(rf"another run is writing .*ds \(pid {first.pid}\); wait for it "
+                             r"or pick another name=", err), err[-2000:]
+        finally:
+            Path(f"{gate}.go").touch()
+            _, err = first.communicate(timeout=300)
+        assert first.returncode == 0, err[-2000:]
+        assert json.loads((out / "dataset.json").read_text())["seed"] == 0
+        gen.run(small_cfg(tmp_path / "ref"), progress=False)
+        got, ref = frames(out), frames(tmp_path / "ref")
+        assert sorted(got) == sorted(ref)
+        for k in ref:  # LLVM's threads may move a pixel by one level (docs/datagen.md)
+            np.testing.assert_allclose(got[k], ref[k], atol=1, err_msg=k)
+
+    def test_shards_of_one_config_write_side_by_side(self, tmp_path: Path) -> None:
+        out, gate = tmp_path / "ds", tmp_path / "gate"
+        first = child(out, "shard=0", "num_shards=2", gate=gate)
+        try:
+            wait_started(gate, first)
+            gen.run(small_cfg(out, "shard=1", "num_shards=2"), progress=False)
+        finally:
+            Path(f"{gate}.go").touch()
+            _, err = first.communicate(timeout=300)
+        assert first.returncode == 0, err[-2000:]
+        ds = Dataset(out)
+        assert len(ds.split("train")[0]) == 4 and len(ds.flight("cluttered").rgb) == 3
+
+
+@pytest.mark.slow
+def test_missing_shard_names_the_command_that_renders_it(tmp_path: Path) -> None:
+    """Shard 0 of 2 rendered by the real CLI: loading names the split, the counts and the exact
+    command of shard 1; that command finishes the dataset."""
+    out = tmp_path / "ds"
+    cli = [sys.executable, "-m", "datagen", *SMALL, f"out_dir={out}", "progress=false"]
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    subprocess.run([*cli, "shard=0", "num_shards=2"], cwd=tmp_path, env=env, check=True,
+                   capture_output=True)
+    with pytest.raises(FileNotFoundError) as err:
+        Dataset(out).split("train")
+    msg = str(err.value)
+    assert "split 'train' has 2 of the 4 frames" in msg, msg
+    command = re.findall(r"`([^`]*)`", msg)
+    assert len(command) == 1 and command[0].endswith("shard=1 num_shards=2"), msg
+    assert "progress" not in command[0]
+    argv = shlex.split(command[0])
+    assert argv[:3] == ["python", "-m", "datagen"]
+    subprocess.run([sys.executable, *argv[1:]], cwd=tmp_path, env=env, check=True,
+                   capture_output=True)
+    assert len(Dataset(out).split("train")[0]) == 4
+
+
+@pytest.mark.slow
+def test_resume_mends_killed_writes(tmp_path: Path) -> None:
+    """A temp file of a killed write and a cut-short PNG: loading ignores the first and names
+    the second; the resumed run deletes the first and renders the second again."""
+    out = tmp_path / "ds"
+    cfg = small_cfg(out, "render_flights=[]")
+    gen.run(cfg, progress=False)
+    label = out / "train" / "label" / "000001.png"
+    good = label.read_bytes()
+    label.write_bytes(good[: len(good) // 2])
+    temp = out / "train" / "rgb" / ".000002.png.k2j3h4g5.png"
+    temp.write_bytes(b"\x89PNG half a frame")
+    with pytest.raises(ValueError, match=rf"cut-short PNG.*{label}.*python -m datagen"):
+        Dataset(out).split("train")
+    gen.run(cfg, progress=False)
+    assert not temp.exists(), "the resumed run deletes stale temp files"
+    assert png_complete(label)
+    again = read_png(label, rgb=False)
+    np.testing.assert_array_equal(again, cv2.imdecode(np.frombuffer(good, np.uint8),
+                                                      cv2.IMREAD_UNCHANGED))
+    assert len(Dataset(out).split("train")[0]) == 4
