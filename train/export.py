@@ -398,3 +398,19 @@ def export_checked(
     data = proto.SerializeToString()
     atomic_write(path, lambda p: p.write_bytes(data))
     return report
+
+
+def update_metadata(path: str | Path, extra: dict) -> None:
+    """Add or replace metadata_props of an ONNX file (values JSON-encoded), atomically; the
+    graph is left as it is.
+
+    Args:
+        path: the .onnx file.
+        extra: keys and values to record (``onnx_metadata``'s convention).
+    """
+    proto = onnx.load(str(path), load_external_data=False)
+    props = {p.key: p.value for p in proto.metadata_props}
+    props.update({k: json.dumps(v) for k, v in extra.items()})
+    onnx.helper.set_model_props(proto, props)
+    data = proto.SerializeToString()
+    atomic_write(path, lambda p: p.write_bytes(data))

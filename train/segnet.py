@@ -196,13 +196,13 @@ class SegNet(nn.Module):
             ``F.pixel_unshuffle``; the first convolution sees the full-resolution image, e.g.
             where in its block a thin frame or an edge lies, for ~1.2x the compute).
         head: how a downsampled network's logits reach the input resolution: "bilinear"
-            (upsampled, nothing learned) or "refine" (upsampled, then a learned residual from
+            (upsampled, nothing learned) or "sharpen" (upsampled, then a learned residual from
             two 3x3 convolutions at full resolution on the upsampled logits and the image:
             the network learns where, between the image's pixels, a class boundary lies, e.g.
             a window's outline on its frame's outer edge; trained with ``loss.resolution:
             input``).
-        head_channels: hidden channels of the "refine" head.
-        head_layers: hidden layers of the "refine" head (1: two 3x3 convolutions, a 5x5 view;
+        head_channels: hidden channels of the "sharpen" head.
+        head_layers: hidden layers of the "sharpen" head (1: two 3x3 convolutions, a 5x5 view;
             each more adds a 3x3 convolution and 2 pixels of reach).
         context_layers: dilated 3x3 convolutions (``CONTEXT_DILATION``) on the deepest pooled
             map, added to it as a residual between the encoder and the decoder: context from
@@ -251,11 +251,11 @@ class SegNet(nn.Module):
             raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
         if stem not in ("average", "unshuffle"):
             raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
-        if head not in ("bilinear", "refine"):
-            raise ValueError(f"model.head must be 'bilinear' or 'refine', got {head!r}")
-        if head == "refine" and downsample > 1 and stem != "unshuffle":
+        if head not in ("bilinear", "sharpen"):
+            raise ValueError(f"model.head must be 'bilinear' or 'sharpen', got {head!r}")
+        if head == "sharpen" and downsample > 1 and stem != "unshuffle":
             raise ValueError(
-                "model.head=refine needs model.stem=unshuffle: the head works on the "
+                "model.head=sharpen needs model.stem=unshuffle: the head works on the "
                 "full-resolution image, which the average stem's training never sees"
             )
         if int(head_channels) < 1:
@@ -309,13 +309,13 @@ class SegNet(nn.Module):
         self.head = head
         self.head_channels = int(head_channels)
         self.head_layers = int(head_layers)
-        self.refine_head: nn.Module | None = None
-        if head == "refine":
+        self.sharpen_head: nn.Module | None = None
+        if head == "sharpen":
             hc = self.head_channels
             layers = [nn.Conv2d(num_classes + 3, hc, 3, padding=1), nn.ReLU(inplace=True)]
             for _ in range(self.head_layers - 1):
                 layers += [nn.Conv2d(hc, hc, 3, padding=1), nn.ReLU(inplace=True)]
-            self.refine_head = nn.Sequential(*layers, nn.Conv2d(hc, num_classes, 3, padding=1))
+            self.sharpen_head = nn.Sequential(*layers, nn.Conv2d(hc, num_classes, 3, padding=1))
         self.context_layers = int(context_layers)
         self.context: nn.Module | None = None
         if self.context_layers:
@@ -323,9 +323,9 @@ class SegNet(nn.Module):
         self._init_weights(generator)
         if self.context is not None:  # the residual branch starts as nothing
             nn.init.zeros_(self.context[-1].weight)
-        if self.refine_head is not None:  # the head starts as the identity: plain bilinear logits
-            nn.init.zeros_(self.refine_head[-1].weight)
-            nn.init.zeros_(self.refine_head[-1].bias)
+        if self.sharpen_head is not None:  # the head starts as the identity: plain bilinear logits
+            nn.init.zeros_(self.sharpen_head[-1].weight)
+            nn.init.zeros_(self.sharpen_head[-1].bias)
 
     def set_flip_average(self, on: bool) -> SegNet:
         """Average the logits of the image and its mirror image (test-time flip); returns self.
@@ -449,17 +449,17 @@ class SegNet(nn.Module):
         Args:
             logits: (B, C, H / d, W / d) logits at the network's resolution.
             image: (B, 3, H, W) float32 RGB in [0, 1] that the logits are for (used by the
-                "refine" head only).
+                "sharpen" head only).
 
         Returns:
-            (B, C, H, W) logits: bilinear, plus the refine head's residual.
+            (B, C, H, W) logits: bilinear, plus the sharpen head's residual.
         """
         if self.downsample > 1:
             logits = F.interpolate(logits, size=image.shape[-2:], mode="bilinear",
                                    align_corners=False)
-        if self.refine_head is None:
+        if self.sharpen_head is None:
             return logits
-        return logits + self.refine_head(torch.cat([logits, (image - self.mean) / self.std], 1))
+        return logits + self.sharpen_head(torch.cat([logits, (image - self.mean) / self.std], 1))
 
     @property
     def training_factor(self) -> int:
