@@ -18,10 +18,16 @@ import json
 from pathlib import Path
 
 import numpy as np
-import onnx
 
 from core.atomic import read_png, write_png
-from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, ort_session, read_metadata
+from train.runtime import (
+    INPUT_NAME,
+    LABELS_NAME,
+    OUTPUT_NAME,
+    load_onnx,
+    ort_session,
+    read_metadata,
+)
 
 DEFAULT_MODEL = Path("outputs/models/demo/segnet.onnx")
 
@@ -56,11 +62,7 @@ class OnnxSegmenter:
 
     def __init__(self, path: str | Path, threads: int = 2) -> None:
         path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"ONNX model not found: {path}. Train and export one with `python -m train`."
-            )
-        proto = onnx.load(str(path), load_external_data=False)
+        proto = load_onnx(path)  # a missing or non-ONNX file: an error that names it
         self.metadata = read_metadata(proto)
         for key in ("classes", "input_height", "input_width"):
             if key not in self.metadata:

@@ -67,12 +67,10 @@ from train.metrics import metrics_json, plot_confusion, scores
 from train.optim import make_ema, make_optimizer, make_scheduler
 from train.quantize import CALIBRATION, INT8_NAME, int8_summary, quantize_model_dir
 from train.quantize import REPORT_NAME as QUANTIZE_REPORT
+from train.runtime import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from train.segnet import SegNet, build_segnet, count_parameters
 
 log = logging.getLogger(__name__)
-
-#: The model folder's record of the localize settings it is tuned for (``localize`` key).
-LOCALIZE_NAME = "localize.yaml"
 
 #: Config keys that do not change what is trained (left out of the config hash).
 HASH_EXCLUDE = (
@@ -112,7 +110,7 @@ OUTPUT_FILES = (
     "metrics.json",
     "confusion.png",
     "segnet.onnx",
-    LOCALIZE_NAME,
+    LOCALIZE_SETTINGS_NAME,
     INT8_NAME,
     QUANTIZE_REPORT,
 )
@@ -429,11 +427,11 @@ class Job:
 
 def write_localize_settings(out_dir: Path, settings: dict) -> Path:
     """Write the model folder's ``localize.yaml`` (``python -m localize`` reads it)."""
-    path = out_dir / LOCALIZE_NAME
+    path = out_dir / LOCALIZE_SETTINGS_NAME
     text = ("# The localize settings this model is tuned for (python -m train's `localize` key).\n"
             "# python -m localize onnx_model=<this folder>/segnet.onnx applies them, under the\n"
             "# keys its command line gives.\n" + OmegaConf.to_yaml(OmegaConf.create(settings)))
-    with disk_space_guard(out_dir, LOCALIZE_NAME):
+    with disk_space_guard(out_dir, LOCALIZE_SETTINGS_NAME):
         atomic_write_text(path, text)
     return path
 
@@ -640,7 +638,7 @@ def export_onnx(job: Job, model: SegNet, test_data: SplitData, metrics: dict) ->
         model, job.classes, parity_images.shape[2], parity_images.shape[3],
         job.info["config_hash"], pooling=pooling,
         extra={"flip_average": model.flip_average, "class_weights": job.class_weights,
-               "localize": job.localize},
+               LOCALIZE_METADATA_KEY: job.localize},
     )
     try:
         with disk_space_guard(out_dir, onnx_path.name):
