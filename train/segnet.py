@@ -166,6 +166,44 @@ def plane_index_to_code(index: torch.Tensor) -> torch.Tensor:
     return ((index // w2) % 2 * 2 + index % w2 % 2).to(torch.uint8)
 
 
+def sharpen_block(num_classes: int, channels: int, layers: int) -> nn.Sequential:
+    """The sharpen head's convolutions: (B, C + 3, H, W) upsampled logits and normalized image
+    -> (B, C, H, W) residual logits; ``layers`` hidden 3x3 convolutions of ``channels``, then
+    one to the classes."""
+    convs = [nn.Conv2d(num_classes + 3, channels, 3, padding=1), nn.ReLU(inplace=True)]
+    for _ in range(layers - 1):
+        convs += [nn.Conv2d(channels, channels, 3, padding=1), nn.ReLU(inplace=True)]
+    return nn.Sequential(*convs, nn.Conv2d(channels, num_classes, 3, padding=1))
+
+
+def _check_options(num_classes: int, width: float, downsample: int, skip: str, stem: str,
+                   head: str, head_channels: int, head_layers: int, context_layers: int) -> None:
+    """Raise ValueError naming the ``model.*`` key of a SegNet option out of range."""
+    if num_classes < 2:
+        raise ValueError(f"num_classes must be >= 2, got {num_classes}")
+    if width <= 0:
+        raise ValueError(f"model.width must be positive, got {width}")
+    if downsample < 1 or downsample & (downsample - 1):
+        raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
+    if skip not in ("none", "add"):
+        raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
+    if stem not in ("average", "unshuffle"):
+        raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
+    if head not in ("bilinear", "sharpen"):
+        raise ValueError(f"model.head must be 'bilinear' or 'sharpen', got {head!r}")
+    if head == "sharpen" and downsample > 1 and stem != "unshuffle":
+        raise ValueError(
+            "model.head=sharpen needs model.stem=unshuffle: the head works on the "
+            "full-resolution image, which the average stem's training never sees"
+        )
+    if int(head_channels) < 1:
+        raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
+    if int(head_layers) < 1:
+        raise ValueError(f"model.head_layers must be >= 1, got {head_layers}")
+    if int(context_layers) < 0:
+        raise ValueError(f"model.context_layers must be >= 0, got {context_layers}")
+
+
 class SegNet(nn.Module):
     """SegNet encoder-decoder with pooling-index upsampling.
 
@@ -240,30 +278,9 @@ class SegNet(nn.Module):
         base = vgg_stages(vgg)
         if not 1 <= stages <= len(base):
             raise ValueError(f"model.stages must be in 1..{len(base)}, got {stages}")
-        if num_classes < 2:
-            raise ValueError(f"num_classes must be >= 2, got {num_classes}")
-        if width <= 0:
-            raise ValueError(f"model.width must be positive, got {width}")
         downsample = int(downsample)
-        if downsample < 1 or downsample & (downsample - 1):
-            raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
-        if skip not in ("none", "add"):
-            raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
-        if stem not in ("average", "unshuffle"):
-            raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
-        if head not in ("bilinear", "sharpen"):
-            raise ValueError(f"model.head must be 'bilinear' or 'sharpen', got {head!r}")
-        if head == "sharpen" and downsample > 1 and stem != "unshuffle":
-            raise ValueError(
-                "model.head=sharpen needs model.stem=unshuffle: the head works on the "
-                "full-resolution image, which the average stem's training never sees"
-            )
-        if int(head_channels) < 1:
-            raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
-        if int(head_layers) < 1:
-            raise ValueError(f"model.head_layers must be >= 1, got {head_layers}")
-        if int(context_layers) < 0:
-            raise ValueError(f"model.context_layers must be >= 0, got {context_layers}")
+        _check_options(num_classes, width, downsample, skip, stem, head, head_channels,
+                       head_layers, context_layers)
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -311,11 +328,7 @@ class SegNet(nn.Module):
         self.head_layers = int(head_layers)
         self.sharpen_head: nn.Module | None = None
         if head == "sharpen":
-            hc = self.head_channels
-            layers = [nn.Conv2d(num_classes + 3, hc, 3, padding=1), nn.ReLU(inplace=True)]
-            for _ in range(self.head_layers - 1):
-                layers += [nn.Conv2d(hc, hc, 3, padding=1), nn.ReLU(inplace=True)]
-            self.sharpen_head = nn.Sequential(*layers, nn.Conv2d(hc, num_classes, 3, padding=1))
+            self.sharpen_head = sharpen_block(num_classes, self.head_channels, self.head_layers)
         self.context_layers = int(context_layers)
         self.context: nn.Module | None = None
         if self.context_layers:

@@ -214,6 +214,33 @@ class EpochResult:
     stopped: bool
 
 
+def training_logits(model: SegNet, x: torch.Tensor, label_size: tuple[int, int],
+                    full_labels: bool, bf16: bool) -> torch.Tensor:
+    """The logits a training step's loss is taken on, float32.
+
+    Args:
+        model: the network (train mode).
+        x: (B, 3, h, w) float32 augmented images at the training resolution.
+        label_size: (H, W) of the step's labels.
+        full_labels: ``loss.resolution: input``: the logits brought to the labels' (input)
+            resolution as at inference (bilinear, then the sharpen head where there is one;
+            the head costs 1.5x a step's time); else at the network's resolution.
+        bf16: the forward pass in bfloat16 autocast.
+
+    Returns:
+        (B, C, H, W) logits at the labels' resolution.
+    """
+    head = full_labels and model.sharpen_head is not None  # full-resolution x (unshuffle stem)
+    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+        logits = model.forward_network_resolution(x)
+        if head:
+            logits = model.to_input_resolution(logits, x)
+    logits = logits.float()
+    if full_labels and not head:  # as at inference: bilinear to the input's resolution
+        logits = F.interpolate(logits, size=label_size, mode="bilinear", align_corners=False)
+    return logits
+
+
 def train_one_epoch(
     model: SegNet,
     data: SplitData,
@@ -278,15 +305,7 @@ def train_one_epoch(
         if not full_labels and model.training_factor != model.downsample:
             y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
         x = x.contiguous(memory_format=torch.channels_last)
-        head = full_labels and model.sharpen_head is not None  # full-resolution x (unshuffle stem)
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-            logits = model.forward_network_resolution(x)
-            if head:  # as at inference: bilinear, then the learned head (1.5x a step's time)
-                logits = model.to_input_resolution(logits, x)
-        logits = logits.float()
-        if full_labels and not head:  # as at inference: bilinear to the input's resolution
-            logits = F.interpolate(logits, size=y.shape[-2:], mode="bilinear",
-                                   align_corners=False)
+        logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16)
         edges = (image_edge_mask(x, edge_threshold, tuple(y.shape[-2:]))
                  if edge_weight != 1.0 else None)
         loss = segmentation_loss(logits, y, class_weights, boundary_weight, edge_weight, edges)
@@ -301,7 +320,6 @@ def train_one_epoch(
         bar.set_postfix(loss=f"{total / steps:.3f}")
     bar.close()
     return EpochResult(total / max(steps, 1), steps, stopped)
-
 
 
 def _write_log(path: Path, history: list[dict]) -> None:
