@@ -702,6 +702,7 @@ def run_metrics(job: Job, state: dict, model: SegNet, best: dict, images: dict) 
         "threads": int(job.cfg.threads),
         "flip_average": model.flip_average,
         "localize": job.localize,
+        "run_seconds": None,  # the whole run's wall time (``finish``)
     }
 
 
@@ -759,7 +760,6 @@ def finish(job: Job, state: dict, t_start: float) -> dict:
                            bool(job.cfg.progress))
     images = {"train": n_train, "val": len(job.val_data), "test": len(test_data)}
     metrics = run_metrics(job, state, model, best, images)
-    metrics["run_seconds"] = None
     onnx_path = export_onnx(job, model, test_data, metrics)
     metrics["test"] = test = score_graph(job, onnx_path, test_data)
     metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
