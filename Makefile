@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.installed
 
-.PHONY: setup llvm test test-fast demo lint bench contact-sheet clean
+.PHONY: setup llvm test test-fast demo best lint bench contact-sheet clean
 
 setup: $(STAMP)
 
@@ -59,6 +59,17 @@ demo: setup
 	$(PY) -m train$(if $(DEMO_MINUTES), finish_by=$$(( $(DEMO_END) > $(DEMO_FLOOR) ? $(DEMO_END) : $(DEMO_FLOOR) )))
 	$(PY) -m localize
 	@echo "report: outputs/reports/demo/report.md"
+
+# The best SegNet: the recipe chain of conf/experiment/ (usrhbw6 -> usrhbw6nw -> hr2 -> hr3 ->
+# hr3c, each stage starting from the previous one's weights; about 6 hours on 2 cores) on the
+# demo's dataset, then localize with it: its model folder carries the localize settings it is
+# tuned for (docs/recipes.md). Interrupted, `make best` again resumes where it stopped.
+BEST_CHAIN := usrhbw6 usrhbw6nw hr2 hr3 hr3c
+best: setup
+	$(PY) -m datagen
+	set -e; for stage in $(BEST_CHAIN); do $(PY) -m train experiment=$$stage; done
+	$(PY) -m localize name=best onnx_model=outputs/models/hr3c/segnet.onnx
+	@echo "report: outputs/reports/best/report.md"
 
 contact-sheet: setup
 	$(PY) -m datagen.contact_sheet outputs/datasets/demo docs/img/contact_sheet.png

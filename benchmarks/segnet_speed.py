@@ -6,15 +6,14 @@ Usage::
     python benchmarks/segnet_speed.py --model segnet_small --height 240 --width 320
     python benchmarks/segnet_speed.py --model-dir outputs/models/demo --runs 50 --threads 2
     python benchmarks/segnet_speed.py --model-dir none model.downsample=2 model.stem=unshuffle \
-        model.head=refine      # the README's hr2 network, random weights
+        model.head=sharpen      # the README's hr2 network, random weights
 
 With a trained model folder (checkpoint_best.pt + segnet.onnx) both runtimes use its weights;
 otherwise a randomly initialised model of the given config is exported to a temporary file
 (speed does not depend on the weights). Prints the median and 90th percentile wall time per
 frame over ``--runs`` runs after warm-up, and the process CPU time per frame, which is less
 sensitive to other jobs on a shared machine. Timings are for batch 1 unless --batch is given.
-``onnxruntime_refined`` adds the guided refinement (train/refine.py) that ``train.predict``
-applies; the localizer uses the network alone. ``onnxruntime_int8`` is the int8 copy
+``onnxruntime_int8`` is the int8 copy
 (``train.quantize``): the model folder's ``segnet_int8.onnx`` if there is one, else the timed
 graph quantized here with random calibration frames (speed does not depend on the ranges).
 """
@@ -37,13 +36,12 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from core.classes import as_json
+from train.checkpoint import load_checkpoint
 from train.export import onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter
 from train.quantize import INT8_NAME, quantize_segnet
-from train.refine import GuidedRefine
 from train.runtime import read_metadata
 from train.segnet import SegNet, build_segnet, count_parameters
-from train.train import load_checkpoint
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 
@@ -101,7 +99,7 @@ def main() -> None:
     )
     ap.add_argument("--model", default="segnet_small", help="conf/model/<name>.yaml fallback")
     ap.add_argument("overrides", nargs="*", help="conf/train.yaml overrides of the fallback "
-                    "model, e.g. model.downsample=2 model.stem=unshuffle model.head=refine")
+                    "model, e.g. model.downsample=2 model.stem=unshuffle model.head=sharpen")
     ap.add_argument("--height", type=int, default=240)
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--runs", type=int, default=30)
@@ -119,9 +117,7 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         model, onnx_path, source = build_model(args, Path(tmp))
-        seg = OnnxSegmenter(onnx_path, threads=args.threads, refine=False)  # the network
-        refined = OnnxSegmenter(onnx_path, threads=args.threads)  # + the model's refinement
-        refined.refine = refined.refine or GuidedRefine()  # (default settings if it has none)
+        seg = OnnxSegmenter(onnx_path, threads=args.threads)  # the network
         h, w = seg.input_size
         rng = np.random.default_rng(0)
         rgb = rng.integers(0, 256, (args.batch, h, w, 3), dtype=np.uint8)
@@ -133,14 +129,13 @@ def main() -> None:
             results["torch"] = timed(lambda: model(x), args.runs)
         results["onnxruntime"] = timed(lambda: seg.logits(rgb), args.runs)
         results["onnxruntime_predict"] = timed(lambda: seg.predict(rgb), args.runs)
-        results["onnxruntime_refined"] = timed(lambda: refined.labels(rgb), args.runs)
-        seg1 = OnnxSegmenter(onnx_path, threads=1, refine=False)
+        seg1 = OnnxSegmenter(onnx_path, threads=1)
         results["onnxruntime_1thread"] = timed(lambda: seg1.logits(rgb), args.runs)
         int8_path = onnx_path.parent / INT8_NAME
         if not int8_path.is_file():
             int8_path = Path(tmp) / INT8_NAME
             quantize_segnet(onnx_path, int8_path, rng.integers(0, 256, (8, h, w, 3), np.uint8))
-        seg8 = OnnxSegmenter(int8_path, threads=args.threads, refine=False)
+        seg8 = OnnxSegmenter(int8_path, threads=args.threads)
         results["onnxruntime_int8"] = timed(lambda: seg8.logits(rgb), args.runs)
         load1 = os.getloadavg()[0]
 

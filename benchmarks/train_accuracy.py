@@ -49,11 +49,6 @@ def main() -> int:
         print(f"  {name:<28}{value:>10.4g}  {target:<10}{flag}")
     print("  per-class IoU: " + ", ".join(
         f"{k} {v:.3f}" for k, v in test["per_class_iou"].items() if v is not None))
-    net = m.get("test_network")
-    if m.get("refine") and net:
-        print(f"  (test figures include the guided refinement {m['refine']}; the network "
-              f"alone: pixel accuracy {net['pixel_accuracy']:.4f}, class accuracy "
-              f"{net['class_accuracy']:.4f}, mean IoU {net['mean_iou']:.4f})")
     return 0 if all(ok for *_, ok in rows if ok is not None) else 1
 
 

@@ -55,7 +55,6 @@ class CnnSettings:
         refine_low, refine_high: their Canny hysteresis thresholds (mode none has its own,
             ``edges.canny``).
         refine_colour: their Canny runs on the colour image, not the grey one.
-        guided_refine: the segmenter's guided refinement of its probabilities (``load_segmenter``).
     """
 
     prior_correction: float = 0.75
@@ -71,7 +70,6 @@ class CnnSettings:
     refine_low: float = 25.0
     refine_high: float = 75.0
     refine_colour: bool = True
-    guided_refine: bool = False
 
     def __post_init__(self) -> None:
         if self.refine not in REFINES:
@@ -436,17 +434,12 @@ def check_classes(model_classes: list[dict], dataset_classes: list[dict], where:
             "(python -m train dataset=...) or localize with the dataset it was trained on.")
 
 
-def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int = 2,
-                   refine: bool = False):
+def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int = 2):
     """Open ``segnet.onnx`` with ``train.predict.OnnxSegmenter`` and check its class list.
-
-    Args:
-        refine: apply the model's guided refinement (``train.refine``); off by default, the
-            network's boundaries track better (``edges.cnn.guided_refine``, docs/localize.md).
 
     Raises:
         FileNotFoundError: the model file is missing (says how to make it).
-        ValueError: its classes do not match the dataset's.
+        ValueError: it is not an ONNX model, or its classes do not match the dataset's.
     """
     path = Path(path)
     if not path.is_file():
@@ -456,7 +449,7 @@ def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int =
             "modes).")
     from train.predict import OnnxSegmenter
 
-    seg = OnnxSegmenter(str(path), threads=threads, refine=refine)
+    seg = OnnxSegmenter(str(path), threads=threads)
     classes = seg.classes
     if isinstance(classes, str):
         classes = json.loads(classes)

@@ -181,7 +181,7 @@ def prepare(cfg: DictConfig) -> Context:
     fparams, lparams = filter_settings(cfg)
     for mode in cfg.modes:  # fail before any run on a bad per-mode setting
         mode_likelihood_params(lparams, fparams, mode)
-    cnn = CnnSettings.from_cfg(OmegaConf.to_container(cfg.edges, resolve=True).get("cnn"))
+    CnnSettings.from_cfg(OmegaConf.to_container(cfg.edges, resolve=True).get("cnn"))  # checked
     samples = sample_segments(world.segments, float(cfg.model_edges.spacing))
     v = cfg.visibility
     vis = load_or_build(world, samples.points, out_dir / "cache", float(v.cell_xy),
@@ -195,8 +195,7 @@ def prepare(cfg: DictConfig) -> Context:
             models["class_change"] = (sub, vis.select(cols))
     segmenter = None
     if "cnn" in cfg.modes:
-        segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads),
-                                   cnn.guided_refine)
+        segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads))
     return Context(cfg, dataset, camera, world, models, fparams, lparams, out_dir, segmenter)
 
 

@@ -267,7 +267,14 @@ def check_parity(
     )
     if raw <= 1e-4:
         return report
+    return _align_pooling(model, sess, images, report, threads, batch_size, exported)
 
+
+def _align_pooling(model: SegNet, sess, images: torch.Tensor, report: ParityReport,
+                   threads: int, batch_size: int, exported: SegNet | None) -> ParityReport:
+    """``check_parity``'s second pass: torch re-run with onnxruntime's pooling choices, the
+    flipped windows counted and their value gap measured; ``report`` updated and returned."""
+    n, raw = images.shape[0], report.raw_max_abs_diff
     h, w = images.shape[-2:]
     aux = to_onnx_proto(
         _WithIndices(exported or model),
@@ -398,3 +405,19 @@ def export_checked(
     data = proto.SerializeToString()
     atomic_write(path, lambda p: p.write_bytes(data))
     return report
+
+
+def update_metadata(path: str | Path, extra: dict) -> None:
+    """Add or replace metadata_props of an ONNX file (values JSON-encoded), atomically; the
+    graph is left as it is.
+
+    Args:
+        path: the .onnx file.
+        extra: keys and values to record (``onnx_metadata``'s convention).
+    """
+    proto = onnx.load(str(path), load_external_data=False)
+    props = {p.key: p.value for p in proto.metadata_props}
+    props.update({k: json.dumps(v) for k, v in extra.items()})
+    onnx.helper.set_model_props(proto, props)
+    data = proto.SerializeToString()
+    atomic_write(path, lambda p: p.write_bytes(data))

@@ -1,9 +1,5 @@
 """Segment images with an exported segnet.onnx (onnxruntime runs the network).
 
-When the model was trained with the guided refinement on (``eval.refine``, recorded in the
-file's metadata), the class probabilities are then guided-filtered with the image
-(``train.refine``, kornia: torch is imported then); ``refine=False`` gives the network alone.
-
 API::
 
     seg = OnnxSegmenter("outputs/models/demo/segnet.onnx", threads=2)
@@ -22,11 +18,16 @@ import json
 from pathlib import Path
 
 import numpy as np
-import onnx
 
 from core.atomic import read_png, write_png
-from train.refine import GuidedRefine, refine_logits_np
-from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, ort_session, read_metadata
+from train.runtime import (
+    INPUT_NAME,
+    LABELS_NAME,
+    OUTPUT_NAME,
+    load_onnx,
+    ort_session,
+    read_metadata,
+)
 
 DEFAULT_MODEL = Path("outputs/models/demo/segnet.onnx")
 
@@ -50,8 +51,6 @@ class OnnxSegmenter:
     Args:
         path: segnet.onnx written by ``python -m train``.
         threads: onnxruntime intra-op threads.
-        refine: apply the model's guided refinement (its metadata key ``refine``), if it has
-            one. False: the network's own output.
 
     Attributes:
         classes: the class list (dicts with id, name, color, structural).
@@ -61,13 +60,9 @@ class OnnxSegmenter:
         metadata: all decoded metadata.
     """
 
-    def __init__(self, path: str | Path, threads: int = 2, refine: bool = True) -> None:
+    def __init__(self, path: str | Path, threads: int = 2) -> None:
         path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"ONNX model not found: {path}. Train and export one with `python -m train`."
-            )
-        proto = onnx.load(str(path), load_external_data=False)
+        proto = load_onnx(path)  # a missing or non-ONNX file: an error that names it
         self.metadata = read_metadata(proto)
         for key in ("classes", "input_height", "input_width"):
             if key not in self.metadata:
@@ -82,8 +77,6 @@ class OnnxSegmenter:
             [c["id"] for c in self.classes if c.get("structural")], dtype=np.int64
         )
         self.input_size = (int(self.metadata["input_height"]), int(self.metadata["input_width"]))
-        settings = self.metadata.get("refine")
-        self.refine = GuidedRefine(**settings) if refine and settings else None
         self.session = ort_session(proto.SerializeToString(), threads)
         outputs = {o.name: o for o in self.session.get_outputs()}
         if OUTPUT_NAME not in outputs:
@@ -119,7 +112,7 @@ class OnnxSegmenter:
         return network_input(batch), single
 
     def logits(self, rgb: np.ndarray) -> np.ndarray:
-        """Logits: the network's, or with ``refine``, the log of the refined probabilities.
+        """The network's logits.
 
         Args:
             rgb: (H, W, 3) or (N, H, W, 3) uint8 RGB.
@@ -129,15 +122,7 @@ class OnnxSegmenter:
         """
         x, single = self._to_input(rgb)
         out = self.session.run([OUTPUT_NAME], {INPUT_NAME: x})[0]
-        if self.refine is not None:
-            out = refine_logits_np(rgb[None] if single else rgb, out, self.refine)
         return out[0] if single else out
-
-    @property
-    def _graph_labels(self) -> bool:
-        """Whether labels come from the graph's ``labels`` output (it has one and no
-        refinement changes the logits)."""
-        return self.has_labels_output and self.refine is None
 
     def logits_and_labels(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``logits(rgb)`` and ``labels(rgb)`` from one run of the graph.
@@ -145,7 +130,7 @@ class OnnxSegmenter:
         Returns:
             (C, H, W) or (N, C, H, W) float32 and (H, W) or (N, H, W) uint8.
         """
-        if not self._graph_labels:
+        if not self.has_labels_output:
             z = self.logits(rgb)
             return z, z.argmax(0 if z.ndim == 3 else 1).astype(np.uint8)
         x, single = self._to_input(rgb)
@@ -154,9 +139,9 @@ class OnnxSegmenter:
 
     def labels(self, rgb: np.ndarray) -> np.ndarray:
         """Class labels only (no softmax): (H, W, 3) or (N, H, W, 3) uint8 RGB ->
-        (H, W) or (N, H, W) uint8. The graph's own ``labels`` output where it has one and no
-        refinement applies; else the argmax of ``logits``."""
-        if not self._graph_labels:
+        (H, W) or (N, H, W) uint8. The graph's own ``labels`` output where it has one, else
+        the argmax of ``logits``."""
+        if not self.has_labels_output:
             return self.logits_and_labels(rgb)[1]
         x, single = self._to_input(rgb)
         out = self.session.run([LABELS_NAME], {INPUT_NAME: x})[0]  # the logits not copied out
@@ -203,10 +188,8 @@ def main(argv: list[str] | None = None) -> Path:
     ap.add_argument("--labels", type=Path, default=None, help="also write the label map here")
     ap.add_argument("--alpha", type=float, default=0.5, help="overlay opacity of the colours")
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--no-refine", action="store_true",
-                    help="skip the model's guided refinement (the network's output alone)")
     args = ap.parse_args(argv)
-    seg = OnnxSegmenter(args.model, threads=args.threads, refine=not args.no_refine)
+    seg = OnnxSegmenter(args.model, threads=args.threads)
     rgb = read_png(args.image)
     labels, probs = seg.predict(rgb)
     out = args.out or Path("outputs/predict") / f"{args.image.stem}_overlay.png"

@@ -182,8 +182,8 @@ def compare_on_split(fp32: str | Path, int8: str | Path, rgb_paths: list[Path],
         ``{"fp32": metrics_json, "int8": metrics_json, "label_agreement": fraction of pixels
         both give the same label, "images": N}``.
     """
-    a = OnnxSegmenter(fp32, threads=threads, refine=False)
-    b = OnnxSegmenter(int8, threads=threads, refine=False)
+    a = OnnxSegmenter(fp32, threads=threads)
+    b = OnnxSegmenter(int8, threads=threads)
     c = a.num_classes
     cms = [torch.zeros((c, c), dtype=torch.int64), torch.zeros((c, c), dtype=torch.int64)]
     same = total = 0

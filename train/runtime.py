@@ -11,6 +11,34 @@ import onnxruntime as ort
 INPUT_NAME = "image"
 OUTPUT_NAME = "logits"
 LABELS_NAME = "labels"
+#: The model folder's file of the localize settings its model is tuned for (beside segnet.onnx).
+LOCALIZE_SETTINGS_NAME = "localize.yaml"
+#: The metadata key of the same settings in the ONNX file (a JSON object).
+LOCALIZE_METADATA_KEY = "localize"
+
+
+def load_onnx(path: str | Path) -> onnx.ModelProto:
+    """Read an ONNX model file (its external data not loaded), refusing other files.
+
+    Raises:
+        FileNotFoundError: there is no such file.
+        ValueError: the file is not an ONNX model (names it and what to pass instead).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"ONNX model not found: {path}. Train and export one with "
+                                "`python -m train`.")
+    try:
+        proto = onnx.load(str(path), load_external_data=False)
+        reason = "" if len(proto.graph.node) else "no graph in it"
+    except Exception as err:  # protobuf's DecodeError and friends: not a serialized ModelProto
+        reason = f"{type(err).__name__}: {err}"
+    if reason:
+        raise ValueError(
+            f"{path} is not an ONNX model ({reason}). Give the segnet.onnx (or segnet_int8.onnx) "
+            "of a model folder written by `python -m train`, e.g. "
+            "onnx_model=outputs/models/demo/segnet.onnx")
+    return proto
 
 
 def add_label_output(proto: onnx.ModelProto) -> onnx.ModelProto:
@@ -63,7 +91,7 @@ def ort_session(model: str | Path | bytes, threads: int = 2) -> ort.InferenceSes
 def read_metadata(model: onnx.ModelProto | str | Path) -> dict:
     """Decoded metadata_props of an ONNX file or model (JSON values parsed)."""
     if not isinstance(model, onnx.ModelProto):
-        model = onnx.load(str(model), load_external_data=False)
+        model = load_onnx(model)
     out = {}
     for p in model.metadata_props:
         try:
@@ -71,3 +99,34 @@ def read_metadata(model: onnx.ModelProto | str | Path) -> dict:
         except json.JSONDecodeError:
             out[p.key] = p.value
     return out
+
+
+def model_localize_settings(onnx_path: str | Path) -> tuple[dict, str | None]:
+    """The localize settings a model carries (``python -m train``'s ``localize`` key).
+
+    From the model folder's ``localize.yaml`` beside the file (shared by segnet.onnx and its
+    int8 copy), else from the file's metadata key ``localize``.
+
+    Args:
+        onnx_path: a segnet.onnx (or its int8 copy).
+
+    Returns:
+        The settings, nested as in conf/localize.yaml ({} when the model carries none, or the
+        file does not exist), and where they were read (None when nowhere).
+    """
+    import yaml
+
+    onnx_path = Path(onnx_path)
+    folder_file = onnx_path.parent / LOCALIZE_SETTINGS_NAME
+    if folder_file.is_file():
+        settings = yaml.safe_load(folder_file.read_text()) or {}
+        source = str(folder_file)
+    elif onnx_path.is_file():
+        settings = read_metadata(onnx_path).get(LOCALIZE_METADATA_KEY) or {}
+        source = f"{onnx_path} (metadata key {LOCALIZE_METADATA_KEY!r})"
+    else:
+        return {}, None
+    if not isinstance(settings, dict):
+        raise ValueError(f"{source}: the localize settings must be a mapping of "
+                         f"conf/localize.yaml keys, got {settings!r}; re-train or fix the file")
+    return settings, source

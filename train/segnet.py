@@ -166,6 +166,44 @@ def plane_index_to_code(index: torch.Tensor) -> torch.Tensor:
     return ((index // w2) % 2 * 2 + index % w2 % 2).to(torch.uint8)
 
 
+def sharpen_block(num_classes: int, channels: int, layers: int) -> nn.Sequential:
+    """The sharpen head's convolutions: (B, C + 3, H, W) upsampled logits and normalized image
+    -> (B, C, H, W) residual logits; ``layers`` hidden 3x3 convolutions of ``channels``, then
+    one to the classes."""
+    convs = [nn.Conv2d(num_classes + 3, channels, 3, padding=1), nn.ReLU(inplace=True)]
+    for _ in range(layers - 1):
+        convs += [nn.Conv2d(channels, channels, 3, padding=1), nn.ReLU(inplace=True)]
+    return nn.Sequential(*convs, nn.Conv2d(channels, num_classes, 3, padding=1))
+
+
+def _check_options(num_classes: int, width: float, downsample: int, skip: str, stem: str,
+                   head: str, head_channels: int, head_layers: int, context_layers: int) -> None:
+    """Raise ValueError naming the ``model.*`` key of a SegNet option out of range."""
+    if num_classes < 2:
+        raise ValueError(f"num_classes must be >= 2, got {num_classes}")
+    if width <= 0:
+        raise ValueError(f"model.width must be positive, got {width}")
+    if downsample < 1 or downsample & (downsample - 1):
+        raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
+    if skip not in ("none", "add"):
+        raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
+    if stem not in ("average", "unshuffle"):
+        raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
+    if head not in ("bilinear", "sharpen"):
+        raise ValueError(f"model.head must be 'bilinear' or 'sharpen', got {head!r}")
+    if head == "sharpen" and downsample > 1 and stem != "unshuffle":
+        raise ValueError(
+            "model.head=sharpen needs model.stem=unshuffle: the head works on the "
+            "full-resolution image, which the average stem's training never sees"
+        )
+    if int(head_channels) < 1:
+        raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
+    if int(head_layers) < 1:
+        raise ValueError(f"model.head_layers must be >= 1, got {head_layers}")
+    if int(context_layers) < 0:
+        raise ValueError(f"model.context_layers must be >= 0, got {context_layers}")
+
+
 class SegNet(nn.Module):
     """SegNet encoder-decoder with pooling-index upsampling.
 
@@ -196,13 +234,13 @@ class SegNet(nn.Module):
             ``F.pixel_unshuffle``; the first convolution sees the full-resolution image, e.g.
             where in its block a thin frame or an edge lies, for ~1.2x the compute).
         head: how a downsampled network's logits reach the input resolution: "bilinear"
-            (upsampled, nothing learned) or "refine" (upsampled, then a learned residual from
+            (upsampled, nothing learned) or "sharpen" (upsampled, then a learned residual from
             two 3x3 convolutions at full resolution on the upsampled logits and the image:
             the network learns where, between the image's pixels, a class boundary lies, e.g.
             a window's outline on its frame's outer edge; trained with ``loss.resolution:
             input``).
-        head_channels: hidden channels of the "refine" head.
-        head_layers: hidden layers of the "refine" head (1: two 3x3 convolutions, a 5x5 view;
+        head_channels: hidden channels of the "sharpen" head.
+        head_layers: hidden layers of the "sharpen" head (1: two 3x3 convolutions, a 5x5 view;
             each more adds a 3x3 convolution and 2 pixels of reach).
         context_layers: dilated 3x3 convolutions (``CONTEXT_DILATION``) on the deepest pooled
             map, added to it as a residual between the encoder and the decoder: context from
@@ -240,30 +278,9 @@ class SegNet(nn.Module):
         base = vgg_stages(vgg)
         if not 1 <= stages <= len(base):
             raise ValueError(f"model.stages must be in 1..{len(base)}, got {stages}")
-        if num_classes < 2:
-            raise ValueError(f"num_classes must be >= 2, got {num_classes}")
-        if width <= 0:
-            raise ValueError(f"model.width must be positive, got {width}")
         downsample = int(downsample)
-        if downsample < 1 or downsample & (downsample - 1):
-            raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
-        if skip not in ("none", "add"):
-            raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
-        if stem not in ("average", "unshuffle"):
-            raise ValueError(f"model.stem must be 'average' or 'unshuffle', got {stem!r}")
-        if head not in ("bilinear", "refine"):
-            raise ValueError(f"model.head must be 'bilinear' or 'refine', got {head!r}")
-        if head == "refine" and downsample > 1 and stem != "unshuffle":
-            raise ValueError(
-                "model.head=refine needs model.stem=unshuffle: the head works on the "
-                "full-resolution image, which the average stem's training never sees"
-            )
-        if int(head_channels) < 1:
-            raise ValueError(f"model.head_channels must be >= 1, got {head_channels}")
-        if int(head_layers) < 1:
-            raise ValueError(f"model.head_layers must be >= 1, got {head_layers}")
-        if int(context_layers) < 0:
-            raise ValueError(f"model.context_layers must be >= 0, got {context_layers}")
+        _check_options(num_classes, width, downsample, skip, stem, head, head_channels,
+                       head_layers, context_layers)
         base = base[:stages]
         if convs_per_stage is None:
             convs_per_stage = [len(s) for s in base]
@@ -309,13 +326,9 @@ class SegNet(nn.Module):
         self.head = head
         self.head_channels = int(head_channels)
         self.head_layers = int(head_layers)
-        self.refine_head: nn.Module | None = None
-        if head == "refine":
-            hc = self.head_channels
-            layers = [nn.Conv2d(num_classes + 3, hc, 3, padding=1), nn.ReLU(inplace=True)]
-            for _ in range(self.head_layers - 1):
-                layers += [nn.Conv2d(hc, hc, 3, padding=1), nn.ReLU(inplace=True)]
-            self.refine_head = nn.Sequential(*layers, nn.Conv2d(hc, num_classes, 3, padding=1))
+        self.sharpen_head: nn.Module | None = None
+        if head == "sharpen":
+            self.sharpen_head = sharpen_block(num_classes, self.head_channels, self.head_layers)
         self.context_layers = int(context_layers)
         self.context: nn.Module | None = None
         if self.context_layers:
@@ -323,9 +336,9 @@ class SegNet(nn.Module):
         self._init_weights(generator)
         if self.context is not None:  # the residual branch starts as nothing
             nn.init.zeros_(self.context[-1].weight)
-        if self.refine_head is not None:  # the head starts as the identity: plain bilinear logits
-            nn.init.zeros_(self.refine_head[-1].weight)
-            nn.init.zeros_(self.refine_head[-1].bias)
+        if self.sharpen_head is not None:  # the head starts as the identity: plain bilinear logits
+            nn.init.zeros_(self.sharpen_head[-1].weight)
+            nn.init.zeros_(self.sharpen_head[-1].bias)
 
     def set_flip_average(self, on: bool) -> SegNet:
         """Average the logits of the image and its mirror image (test-time flip); returns self.
@@ -449,17 +462,17 @@ class SegNet(nn.Module):
         Args:
             logits: (B, C, H / d, W / d) logits at the network's resolution.
             image: (B, 3, H, W) float32 RGB in [0, 1] that the logits are for (used by the
-                "refine" head only).
+                "sharpen" head only).
 
         Returns:
-            (B, C, H, W) logits: bilinear, plus the refine head's residual.
+            (B, C, H, W) logits: bilinear, plus the sharpen head's residual.
         """
         if self.downsample > 1:
             logits = F.interpolate(logits, size=image.shape[-2:], mode="bilinear",
                                    align_corners=False)
-        if self.refine_head is None:
+        if self.sharpen_head is None:
             return logits
-        return logits + self.refine_head(torch.cat([logits, (image - self.mean) / self.std], 1))
+        return logits + self.sharpen_head(torch.cat([logits, (image - self.mean) / self.std], 1))
 
     @property
     def training_factor(self) -> int:

@@ -184,11 +184,11 @@ class TestForward:
         with pytest.raises(ValueError, match="48 channels"):
             finer_unshuffle_stem(w, 2, 1)
 
-    def test_refine_head(self) -> None:
-        """head="refine": starts as plain bilinear logits (zero residual); once trained, its
+    def test_sharpen_head(self) -> None:
+        """head="sharpen": starts as plain bilinear logits (zero residual); once trained, its
         residual reads the full-resolution image, so a change within one 2x2 block moves the
         logits at that pixel."""
-        m = _tiny(downsample=2, skip="add", stem="unshuffle", head="refine").eval()
+        m = _tiny(downsample=2, skip="add", stem="unshuffle", head="sharpen").eval()
         plain = _tiny(downsample=2, skip="add", stem="unshuffle").eval()
         plain.load_state_dict(m.state_dict(), strict=False)
         x = torch.rand(2, 3, 32, 48)
@@ -196,7 +196,7 @@ class TestForward:
             torch.testing.assert_close(m(x), plain(x))
             low = m.forward_network_resolution(x)
             torch.testing.assert_close(m.to_input_resolution(low, x), m(x))
-            torch.nn.init.normal_(m.refine_head[-1].weight, std=0.1)
+            torch.nn.init.normal_(m.sharpen_head[-1].weight, std=0.1)
             assert not torch.allclose(m(x), plain(x))
             y = x.clone()
             y[:, :, 10, 10] += 0.5
@@ -204,26 +204,26 @@ class TestForward:
             assert diff[10, 10] > 0  # the head sees the full-resolution pixel ...
             diff[8:13, 8:13] = 0
             assert diff.max() == 0  # ... and only within its 5x5 reach
-        assert "head=refine" in repr(m)
-        with pytest.raises(ValueError, match="model.head=refine needs model.stem=unshuffle"):
-            _tiny(downsample=2, head="refine")
+        assert "head=sharpen" in repr(m)
+        with pytest.raises(ValueError, match="model.head=sharpen needs model.stem=unshuffle"):
+            _tiny(downsample=2, head="sharpen")
         with pytest.raises(ValueError, match="model.head"):
             _tiny(head="cubic")
-        assert _tiny(head="refine").refine_head is not None  # full resolution: any stem
+        assert _tiny(head="sharpen").sharpen_head is not None  # full resolution: any stem
 
-    def test_refine_head_layers(self) -> None:
+    def test_sharpen_head_layers(self) -> None:
         """head_layers=2: one more hidden 3x3 convolution, so a pixel reaches 7x7 logits; the
         head still starts as the identity, and 0 layers is refused."""
-        kw = dict(downsample=2, skip="add", stem="unshuffle", head="refine", head_channels=4)
+        kw = dict(downsample=2, skip="add", stem="unshuffle", head="sharpen", head_channels=4)
         m = _tiny(head_layers=2, **kw).eval()
-        assert sum(isinstance(c, nn.Conv2d) for c in m.refine_head) == 3
+        assert sum(isinstance(c, nn.Conv2d) for c in m.sharpen_head) == 3
         g = torch.Generator().manual_seed(0)  # random weights can leave a path dead (ReLU)
         x = torch.rand(1, 3, 32, 48, generator=g)
         with torch.no_grad():
             low = m.forward_network_resolution(x)
             bilinear = nn.functional.interpolate(low, size=(32, 48), mode="bilinear")
             torch.testing.assert_close(m.to_input_resolution(low, x), bilinear)
-            for p in m.refine_head.parameters():
+            for p in m.sharpen_head.parameters():
                 torch.nn.init.normal_(p, std=0.3, generator=g)
             y = x.clone()
             y[:, :, 10, 10] += 0.5

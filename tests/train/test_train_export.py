@@ -104,14 +104,14 @@ class TestExport:
 
     @pytest.mark.parametrize(("stem", "head"),
                              [("average", "bilinear"), ("unshuffle", "bilinear"),
-                              ("unshuffle", "refine")])
+                              ("unshuffle", "sharpen")])
     def test_downsampled_model_parity(
         self, images: torch.Tensor, tmp_path: Path, stem: str, head: str
     ) -> None:
         m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=2, stem=stem,
                    head=head, generator=torch.Generator().manual_seed(3)).eval()
-        if m.refine_head is not None:  # a head that does something (it starts at zero)
-            torch.nn.init.normal_(m.refine_head[-1].weight, std=0.1, generator=torch.Generator())
+        if m.sharpen_head is not None:  # a head that does something (it starts at zero)
+            torch.nn.init.normal_(m.sharpen_head[-1].weight, std=0.1, generator=torch.Generator())
         path = tmp_path / "ds.onnx"
         meta = onnx_metadata(m, as_json(), H, W, "ds")
         report = export_checked(m, path, images, meta, tolerance=1e-4, threads=1, batch_size=5)

@@ -14,8 +14,11 @@ from omegaconf import OmegaConf
 
 import train.train as tt
 from core.dataset import Dataset
+from train.budget import MIN_FINISH_BY_SECONDS, fit_epochs, training_budget
+from train.checkpoint import load_init_weights
 from train.data import AugmentConfig, downsample_split, load_split, to_float
 from train.losses import median_frequency_weights, segmentation_loss
+from train.optim import make_ema, make_optimizer, make_scheduler
 from train.runtime import read_metadata
 from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 
@@ -55,13 +58,13 @@ def test_loss_falls(synthetic_dataset: Path, bf16: bool) -> None:
 
 @pytest.mark.parametrize(("stem", "full_labels", "head"),
                          [("average", False, "bilinear"), ("unshuffle", False, "bilinear"),
-                          ("average", True, "bilinear"), ("unshuffle", True, "refine")])
+                          ("average", True, "bilinear"), ("unshuffle", True, "sharpen")])
 def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
                                      full_labels: bool, head: str) -> None:
     """The training loop at a quarter resolution: images box-averaged once (average stem) or
     kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle);
     or the labels kept whole and the loss taken on upsampled logits (loss.resolution: input),
-    through the learned full-resolution head (model.head: refine), which then trains too. The
+    through the learned full-resolution head (model.head: sharpen), which then trains too. The
     unshuffle runs weigh image edges inside one class (loss.edge_weight), their edge masks at
     the labels' resolution, coarser or the same."""
     model = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=4, stem=stem,
@@ -80,18 +83,18 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
                                  edge_weight=3.0 if stem == "unshuffle" else 1.0).loss
               for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
-    if model.refine_head is not None:
-        assert model.refine_head[-1].weight.abs().sum() > 0  # was zero: the head learned
+    if model.sharpen_head is not None:
+        assert model.sharpen_head[-1].weight.abs().sum() > 0  # was zero: the head learned
 
 
 def test_weight_average() -> None:
     """make_ema: the first update copies, later ones move by 1 - decay (warmed up)."""
     m = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1],
                generator=torch.Generator().manual_seed(0))
-    assert tt.make_ema(m, 0.0) is None
+    assert make_ema(m, 0.0) is None
     with pytest.raises(ValueError, match="ema_decay=1.5"):
-        tt.make_ema(m, 1.5)
-    ema = tt.make_ema(m, 0.99)
+        make_ema(m, 1.5)
+    ema = make_ema(m, 0.99)
     p, e = next(m.parameters()), next(ema.module.parameters())
     rm, erm = m.encoder[0][0][1].running_mean, ema.module.encoder[0][0][1].running_mean
     ema.update_parameters(m)
@@ -125,13 +128,13 @@ def test_resolve_precision() -> None:
 
 def test_fit_epochs() -> None:
     # 21 epochs of 85 s do not fit 10 minutes: 7 do.
-    assert tt.fit_epochs(21, 1, 85.0, 600.0, 85.0) == 7
-    assert tt.fit_epochs(21, 3, 120.0, 1080.0, 40.0) == 21  # 40 s each: all fit
-    assert tt.fit_epochs(21, 5, 500.0, 300.0, 100.0) == 5  # never before the epochs done
-    assert tt.fit_epochs(21, 1, 85.0, math.inf, 85.0) == 21
+    assert fit_epochs(21, 1, 85.0, 600.0, 85.0) == 7
+    assert fit_epochs(21, 3, 120.0, 1080.0, 40.0) == 21  # 40 s each: all fit
+    assert fit_epochs(21, 5, 500.0, 300.0, 100.0) == 5  # never before the epochs done
+    assert fit_epochs(21, 1, 85.0, math.inf, 85.0) == 21
     # a slow first epoch (warm-up) then 60 s each: the epochs left are timed at the latest,
     # so the schedule grows back (the mean, 72 s, would give 14)
-    assert tt.fit_epochs(21, 2, 145.0, 1080.0, 60.0) == 17
+    assert fit_epochs(21, 2, 145.0, 1080.0, 60.0) == 17
 
 
 def test_fit_epochs_does_not_flip_flop() -> None:
@@ -139,12 +142,12 @@ def test_fit_epochs_does_not_flip_flop() -> None:
     10 of them. The span shrinks at once when it no longer fits, and grows back only when a
     whole extra epoch fits with half an epoch to spare."""
     budget = 600.0 + 5.95 * 60.0
-    assert tt.fit_epochs(21, 10, 600.0, budget, 60.0, current=16) == 15  # 16 does not fit
-    assert tt.fit_epochs(21, 10, 600.0, budget, 58.0, current=15) == 15  # 16.2: not by 0.5
-    assert tt.fit_epochs(21, 10, 600.0, budget, 50.0, current=15) == 16  # 17.1: 16 more
-    assert tt.fit_epochs(21, 10, 600.0, budget, 46.0, current=15) == 17  # 17.8
-    assert tt.fit_epochs(21, 10, 600.0, budget, 58.0) == 16  # no hysteresis without current
-    assert tt.fit_epochs(21, 10, 600.0, math.inf, 58.0, current=15) == 21
+    assert fit_epochs(21, 10, 600.0, budget, 60.0, current=16) == 15  # 16 does not fit
+    assert fit_epochs(21, 10, 600.0, budget, 58.0, current=15) == 15  # 16.2: not by 0.5
+    assert fit_epochs(21, 10, 600.0, budget, 50.0, current=15) == 16  # 17.1: 16 more
+    assert fit_epochs(21, 10, 600.0, budget, 46.0, current=15) == 17  # 17.8
+    assert fit_epochs(21, 10, 600.0, budget, 58.0) == 16  # no hysteresis without current
+    assert fit_epochs(21, 10, 600.0, math.inf, 58.0, current=15) == 21
 
 
 def test_make_scheduler_respans_in_place() -> None:
@@ -153,7 +156,7 @@ def test_make_scheduler_respans_in_place() -> None:
     cfg = {"name": "adamw", "lr": 3e-3, "weight_decay": 1e-4, "warmup": 0.1}
 
     def stepped(total: int, steps: int):
-        opt, sched = tt.make_optimizer(torch.nn.Linear(2, 2), cfg, total)
+        opt, sched = make_optimizer(torch.nn.Linear(2, 2), cfg, total)
         for _ in range(steps):
             opt.step()
             sched.step()
@@ -162,7 +165,7 @@ def test_make_scheduler_respans_in_place() -> None:
     opt, sched = stepped(100, 30)
     _, ref = stepped(60, 30)
     assert sched.get_last_lr()[0] != pytest.approx(ref.get_last_lr()[0])
-    sched = tt.make_scheduler(opt, cfg, 60, sched.last_epoch)
+    sched = make_scheduler(opt, cfg, 60, sched.last_epoch)
     assert opt.param_groups[0]["lr"] == pytest.approx(ref.get_last_lr()[0])
     for _ in range(29):
         opt.step()
@@ -173,13 +176,13 @@ def test_make_scheduler_respans_in_place() -> None:
 def test_training_budget() -> None:
     now = time.time()
     cfg = OmegaConf.create({"max_minutes": 10.0, "finish_by": None})
-    assert tt.training_budget(cfg, 0.0) == 600.0
+    assert training_budget(cfg, 0.0) == 600.0
     cfg.finish_by = now + 300.0  # sooner than max_minutes: 300 s more
-    assert tt.training_budget(cfg, 50.0) == pytest.approx(350.0, abs=5.0)
+    assert training_budget(cfg, 50.0) == pytest.approx(350.0, abs=5.0)
     cfg.finish_by = now - 60.0  # already past: a minimum to end with a model
-    assert tt.training_budget(cfg, 0.0) == pytest.approx(tt.MIN_FINISH_BY_SECONDS, abs=5.0)
+    assert training_budget(cfg, 0.0) == pytest.approx(MIN_FINISH_BY_SECONDS, abs=5.0)
     cfg.max_minutes, cfg.finish_by = None, None
-    assert tt.training_budget(cfg, 0.0) == math.inf
+    assert training_budget(cfg, 0.0) == math.inf
 
 
 @pytest.mark.slow
@@ -212,9 +215,6 @@ class TestRun:
         quant = json.loads((out / "quantize.json").read_text())
         assert on_disk["int8"]["label_agreement"] == quant["label_agreement"] > 0.5
         assert on_disk["int8"]["mean_iou"] == quant["int8"]["mean_iou"]
-        # Test metrics of the shipped segmenter (refined) and of the network alone.
-        assert on_disk["refine"] == {"kernel_size": 45, "eps": 1e-5, "subsample": 4}
-        assert 0.0 <= on_disk["test_network"]["mean_iou"] <= 1.0
         assert on_disk["train_seconds"] > 0.0
         rows = list(csv.DictReader((out / "train_log.csv").open()))
         assert [int(r["epoch"]) for r in rows] == [1, 2]
@@ -225,7 +225,10 @@ class TestRun:
             == json.loads((out / "config.json").read_text())["config_hash"]
         )
         assert (meta["input_height"], meta["input_width"]) == (48, 64)
-        assert meta["refine"] == on_disk["refine"]
+        assert meta["test_metrics"] == {k: test[k] for k in ("pixel_accuracy", "class_accuracy",
+                                                             "mean_iou")}
+        assert meta["localize"] == on_disk["localize"] == {}
+        assert (out / "localize.yaml").is_file()
         # The loss's class weights, by class name, for localize's prior correction.
         assert meta["class_weights"] == on_disk["class_weights"]
         assert set(on_disk["class_weights"]) == set(test["per_class_iou"])
@@ -324,13 +327,13 @@ def test_init_from_a_coarser_unshuffle_network(tmp_path) -> None:
     """init_from a downsample-4 unshuffle network into a downsample-2 one carries the stem
     (segnet.finer_unshuffle_stem) and every other weight as it is; another width is refused."""
     mcfg = dict(width=0.125, stages=3, convs_per_stage=[1, 1, 2], skip="add", stem="unshuffle",
-                head="refine", downsample=4)
+                head="sharpen", downsample=4)
     coarse = SegNet(num_classes=5, **mcfg)
     torch.save({"model": coarse.state_dict(), "model_kwargs": dict(mcfg), "num_classes": 5},
                tmp_path / "checkpoint_best.pt")
     fine_cfg = {**mcfg, "downsample": 2}
     fine = SegNet(num_classes=5, **fine_cfg)
-    assert tt.load_init_weights(fine, tmp_path, fine_cfg, 5) == tmp_path / "checkpoint_best.pt"
+    assert load_init_weights(fine, tmp_path, fine_cfg, 5) == tmp_path / "checkpoint_best.pt"
     for k, v in coarse.state_dict().items():
         if k != STEM_CONV_KEY:
             torch.testing.assert_close(fine.state_dict()[k], v)
@@ -338,7 +341,7 @@ def test_init_from_a_coarser_unshuffle_network(tmp_path) -> None:
                                finer_unshuffle_stem(coarse.state_dict()[STEM_CONV_KEY], 4, 2))
     wider = {**fine_cfg, "width": 0.25}
     with pytest.raises(ValueError, match="downsample=4 there, 2 here; width=0.125 there"):
-        tt.load_init_weights(SegNet(num_classes=5, **wider), tmp_path, wider, 5)
+        load_init_weights(SegNet(num_classes=5, **wider), tmp_path, wider, 5)
 
 
 def test_init_from_adds_a_context_branch(tmp_path) -> None:
@@ -350,7 +353,7 @@ def test_init_from_adds_a_context_branch(tmp_path) -> None:
                tmp_path / "checkpoint_best.pt")
     new_cfg = {**mcfg, "context_layers": 2}
     new = SegNet(num_classes=5, **new_cfg).eval()
-    tt.load_init_weights(new, tmp_path, new_cfg, 5)
+    load_init_weights(new, tmp_path, new_cfg, 5)
     x = torch.rand(2, 3, 32, 48, generator=torch.Generator().manual_seed(0))
     with torch.no_grad():
         torch.testing.assert_close(new(x), old(x))
@@ -411,10 +414,10 @@ class TestBadInput:
         with pytest.raises(ValueError, match="loss.resolution='full': use network or input"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "loss.resolution=full"))
 
-    def test_refine_head_needs_input_resolution(self, synthetic_dataset, compose_train,
+    def test_sharpen_head_needs_input_resolution(self, synthetic_dataset, compose_train,
                                                 tmp_path) -> None:
-        with pytest.raises(ValueError, match="model.head=refine .* loss.resolution=input"):
-            tt.run(compose_train(synthetic_dataset, tmp_path, "model.head=refine",
+        with pytest.raises(ValueError, match="model.head=sharpen .* loss.resolution=input"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "model.head=sharpen",
                                  "model.stem=unshuffle"))
         assert not (tmp_path / "demo").exists()  # failed before writing anything
 

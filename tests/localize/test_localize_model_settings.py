@@ -1,0 +1,147 @@
+"""``python -m localize`` takes the localize settings a model carries (its folder's
+localize.yaml or its ONNX metadata) under the command line's overrides; a file that is not an
+ONNX model is named as such."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+import localize.__main__ as lm
+from localize.edges import load_segmenter
+from tests.helpers import CONF
+from tests.localize.conftest import palette_segnet
+from train.predict import OnnxSegmenter
+
+#: What conf/experiment/hr3c.yaml carries.
+HR3C = {"filter": {"mode_likelihood": {"cnn": {"k": 50.0}}},
+        "edges": {"cnn": {"prior_correction": 0.0, "snap_nearest": True, "refine": "none",
+                          "snap_px": 1}}}
+
+
+def composed(overrides: list[str]):
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        return compose("localize", overrides=overrides)
+
+
+@pytest.fixture
+def carrying(tmp_path: Path) -> Path:
+    """A model folder whose segnet.onnx carries hr3c's settings in its metadata only."""
+    (tmp_path / "m").mkdir()
+    return palette_segnet(tmp_path / "m" / "segnet.onnx", 12, 16,
+                          extra_metadata={"localize": HR3C})
+
+
+class TestApplyModelSettings:
+    def test_from_metadata(self, carrying: Path, caplog) -> None:
+        overrides = [f"onnx_model={carrying}"]
+        cfg = composed(overrides)
+        with caplog.at_level(logging.INFO, logger="localize.__main__"):
+            taken = lm.apply_model_settings(cfg, overrides)
+        assert cfg.filter.mode_likelihood.cnn.k == 50.0
+        assert cfg.filter.mode_likelihood.cnn.orientation_bins == 12  # merged, not replaced
+        assert cfg.edges.cnn.snap_px == 1 and cfg.edges.cnn.snap_nearest is True
+        assert cfg.edges.cnn.refine == "none" and cfg.edges.cnn.prior_correction == 0.0
+        assert taken["edges.cnn.snap_px"] == 1 and len(taken) == 5
+        assert "settings from the model" in caplog.text and "edges.cnn.snap_px=1" in caplog.text
+        assert "metadata key 'localize'" in caplog.text
+
+    def test_command_line_wins(self, carrying: Path, caplog) -> None:
+        """A key the command line gives keeps its value; a group choice (filter=paper) covers
+        every key under it; the other settings still come from the model."""
+        overrides = [f"onnx_model={carrying}", "edges.cnn.snap_px=3", "filter=paper"]
+        cfg = composed(overrides)
+        paper_k = cfg.filter.mode_likelihood.cnn.k
+        with caplog.at_level(logging.INFO, logger="localize.__main__"):
+            taken = lm.apply_model_settings(cfg, overrides)
+        assert cfg.edges.cnn.snap_px == 3
+        assert cfg.filter.mode_likelihood.cnn.k == paper_k != 50.0
+        assert cfg.edges.cnn.refine == "none"  # from the model
+        assert set(taken) == {"edges.cnn.prior_correction", "edges.cnn.snap_nearest",
+                              "edges.cnn.refine"}
+        assert "kept over the model's for: filter.mode_likelihood.cnn.k edges.cnn.snap_px" \
+            in caplog.text
+
+    def test_folder_file_before_metadata(self, carrying: Path) -> None:
+        """localize.yaml beside the graph (shared with its int8 copy) is read first."""
+        (carrying.parent / "localize.yaml").write_text("edges:\n  cnn:\n    snap_px: 4\n")
+        overrides = [f"onnx_model={carrying}"]
+        cfg = composed(overrides)
+        assert lm.apply_model_settings(cfg, overrides) == {"edges.cnn.snap_px": 4}
+        assert cfg.edges.cnn.snap_px == 4
+        assert cfg.filter.mode_likelihood.cnn.k == 40.0  # conf/filter/default.yaml's
+
+    def test_model_without_settings(self, tmp_path: Path) -> None:
+        plain = palette_segnet(tmp_path / "segnet.onnx", 12, 16)
+        for path in (plain, tmp_path / "absent" / "segnet.onnx"):
+            overrides = [f"onnx_model={path}"]
+            cfg = composed(overrides)
+            assert lm.apply_model_settings(cfg, overrides) == {}
+            assert cfg == composed(overrides)
+
+    def test_unknown_section_names_the_file(self, carrying: Path) -> None:
+        (carrying.parent / "localize.yaml").write_text("edgez:\n  cnn:\n    snap_px: 4\n")
+        overrides = [f"onnx_model={carrying}"]
+        with pytest.raises(ValueError, match=r"localize.yaml: edgez.cnn.snap_px is not a "
+                                             r"localize setting"):
+            lm.apply_model_settings(composed(overrides), overrides)
+
+    def test_not_a_mapping(self, carrying: Path) -> None:
+        (carrying.parent / "localize.yaml").write_text("- 1\n")
+        overrides = [f"onnx_model={carrying}"]
+        with pytest.raises(ValueError, match="localize.yaml: the localize settings must be a "
+                                             "mapping"):
+            lm.apply_model_settings(composed(overrides), overrides)
+
+
+def test_override_keys() -> None:
+    assert lm.override_keys(["a.b=1", "+c.d=[1,2]", "++e=x", "~f.g", "filter=paper",
+                             "hydra.run.dir=/x", "db@pkg=mysql"]) == \
+        ["a.b", "c.d", "e", "f.g", "filter", "db"]
+
+
+def test_main_reads_the_command_line(carrying: Path, tmp_path: Path, monkeypatch) -> None:
+    """The entry point takes the overrides from HydraConfig (as ``python -m localize`` sets
+    it) and hands the merged config to run."""
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import open_dict
+
+    seen = {}
+
+    def fake_run(cfg):
+        seen["cfg"] = cfg
+        return tmp_path / "report.md"
+
+    monkeypatch.setattr(lm, "run", fake_run)
+    overrides = [f"onnx_model={carrying}", "edges.cnn.snap_px=2"]
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose("localize", overrides=overrides, return_hydra_config=True)
+    HydraConfig.instance().set_config(cfg)
+    with open_dict(cfg):
+        del cfg["hydra"]
+    try:
+        lm.main.__wrapped__(cfg)
+    finally:
+        HydraConfig.instance().cfg = None
+    cfg = seen["cfg"]
+    assert cfg.edges.cnn.snap_px == 2 and cfg.filter.mode_likelihood.cnn.k == 50.0
+    assert cfg.edges.cnn.refine == "none"
+
+
+class TestNotAnOnnxFile:
+    @pytest.mark.parametrize("content", [b"name: demo\nseed: 0\n", b"\x89PNG\r\n\x1a\n" + bytes(64),
+                                         b""])
+    def test_named(self, tmp_path: Path, content: bytes) -> None:
+        path = tmp_path / "segnet.onnx"
+        path.write_bytes(content)
+        with pytest.raises(ValueError, match=rf"{path} is not an ONNX model .*onnx_model="):
+            OnnxSegmenter(path)
+        with pytest.raises(ValueError, match=rf"{path} is not an ONNX model"):
+            load_segmenter(path, [])
+
+    def test_missing(self, tmp_path: Path) -> None:
+        with pytest.raises(FileNotFoundError, match="not found"):
+            OnnxSegmenter(tmp_path / "none.onnx")

@@ -1,0 +1,104 @@
+"""conf/experiment/: the recipe chain usrhbw6 -> usrhbw6nw -> hr2 -> hr3 -> hr3c composes, each
+stage starting from the previous one's folder and carrying its localize settings; a tiny chain
+of two stages trains through init_from and hands its settings to localize."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+import yaml
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+import train.train as tt
+from tests.train.conftest import CONF_DIR, TINY_OVERRIDES
+from train.runtime import read_metadata
+
+CHAIN = ["usrhbw6", "usrhbw6nw", "hr2", "hr3", "hr3c"]
+
+
+def compose_experiment(name: str, *overrides: str):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return compose("train", overrides=[f"experiment={name}", *overrides])
+
+
+def test_every_experiment_file_is_in_the_chain() -> None:
+    assert sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")) == sorted(CHAIN)
+
+
+@pytest.mark.parametrize("stage", range(len(CHAIN)), ids=CHAIN)
+def test_experiment_composes(stage: int) -> None:
+    """Each stage names its folder, starts from the previous stage's, keeps the recipe's
+    network and carries localize settings of conf/localize.yaml's sections."""
+    cfg = compose_experiment(CHAIN[stage], "out_root=/models")
+    assert cfg.name == CHAIN[stage]
+    assert cfg.init_from == (None if stage == 0 else f"/models/{CHAIN[stage - 1]}")
+    assert (cfg.model.stem, cfg.model.head, cfg.loss.resolution) == ("unshuffle", "sharpen",
+                                                                      "input")
+    assert cfg.loss.boundary_weight == 6.0
+    assert cfg.model.downsample == (4 if stage < 2 else 2)
+    assert cfg.model.context_layers == (3 if CHAIN[stage] == "hr3c" else 0)
+    assert cfg.loss.class_weighting == ("median_frequency" if stage == 0 else "none")
+    settings = OmegaConf.to_container(cfg.localize)
+    assert set(settings) == {"filter", "edges"}
+    assert settings["edges"]["cnn"]["prior_correction"] == 0.0
+    assert compose_experiment(CHAIN[stage], "epochs=3").epochs == 3  # the command line wins
+
+
+def test_hr3c_localize_settings() -> None:
+    cfg = compose_experiment("hr3c")
+    assert OmegaConf.to_container(cfg.localize) == {
+        "filter": {"mode_likelihood": {"cnn": {"k": 50.0}}},
+        "edges": {"cnn": {"prior_correction": 0.0, "snap_nearest": True, "refine": "none",
+                          "snap_px": 1}},
+    }
+    assert cfg.init_from == "outputs/models/hr3"
+
+
+def test_localize_settings_left_out_of_the_hash() -> None:
+    """Re-tuning a model's localize settings does not make its folder another config."""
+    a = tt.training_config(compose_experiment("hr3"))
+    b = tt.training_config(compose_experiment("hr3", "localize.edges.cnn.refine=union"))
+    assert a == b and "localize" not in a
+
+
+def test_bad_localize_section(synthetic_dataset, compose_train, tmp_path) -> None:
+    with pytest.raises(ValueError, match="localize=3 must be a mapping"):
+        tt.run(compose_train(synthetic_dataset, tmp_path, "localize=3"))
+    assert not (tmp_path / "demo").exists()
+
+
+@pytest.mark.slow
+def test_tiny_chain(synthetic_dataset: Path, tmp_path: Path) -> None:
+    """usrhbw6 then usrhbw6nw, a few steps each: the second starts from the first's weights
+    (at a vanishing learning rate it keeps them), each folder carries its stage's settings,
+    and localize's config takes them."""
+    import localize.__main__ as lm
+
+    tiny = [f"dataset={synthetic_dataset}", f"out_root={tmp_path}", *TINY_OVERRIDES,
+            "epochs=1", "data.limit=8", "export.int8=false", "model.head_channels=4"]
+    first = tt.run(compose_experiment("usrhbw6", *tiny))
+    assert first["localize"]["filter"]["mode_likelihood"]["cnn"]["k"] == 25.0
+    second = tt.run(compose_experiment("usrhbw6nw", *tiny, "optim.lr=1e-12",
+                                       "export.tolerance=1e-4"))
+    src = torch.load(tmp_path / "usrhbw6" / "checkpoint_best.pt", weights_only=False)["model"]
+    dst = torch.load(tmp_path / "usrhbw6nw" / "checkpoint_best.pt", weights_only=False)["model"]
+    convs = [k for k, v in src.items() if k.endswith("weight") and v.dim() == 4]
+    for k in convs:
+        torch.testing.assert_close(dst[k], src[k], rtol=1e-4, atol=1e-5)
+    config = json.loads((tmp_path / "usrhbw6nw" / "config.json").read_text())["config"]
+    assert config["init_from"] == str(tmp_path / "usrhbw6")
+    assert second["class_weights"] is None  # the stage's loss.class_weighting=none
+
+    onnx_path = tmp_path / "usrhbw6nw" / "segnet.onnx"
+    carried = yaml.safe_load((tmp_path / "usrhbw6nw" / "localize.yaml").read_text())
+    assert carried == read_metadata(onnx_path)["localize"] == second["localize"]
+    assert carried["edges"]["cnn"]["snap_nearest"] is True
+    overrides = [f"onnx_model={onnx_path}"]
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose("localize", overrides=overrides)
+    lm.apply_model_settings(cfg, overrides)
+    assert cfg.filter.mode_likelihood.cnn.k == 50.0 and cfg.edges.cnn.snap_nearest is True
