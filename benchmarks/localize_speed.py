@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 from hydra import compose, initialize_config_dir
-from omegaconf import OmegaConf
 from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,11 +38,10 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import read_png  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
-from localize.edges import EdgeExtractor  # noqa: E402
-from localize.likelihood import EdgeLikelihood  # noqa: E402
-from localize.particle_filter import ParticleFilter, odometry_increment  # noqa: E402
+from localize.localizer import Localizer  # noqa: E402
+from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
-from localize.runner import mode_likelihood_params, prepare  # noqa: E402
+from localize.runner import prepare  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0
@@ -78,14 +76,10 @@ def main() -> int:
     ctx = prepare(cfg)
     flight = ctx.dataset.flight(args.flight)
     T = min(args.frames, len(flight.timestamps))
-    samples, vis = ctx.model_for(args.mode)
-    lp = mode_likelihood_params(ctx.likelihood_params, ctx.filter_params, args.mode)  # as runs do
-    lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
-    extractor = EdgeExtractor(args.mode, OmegaConf.to_container(cfg.edges, resolve=True),
-                              ctx.segmenter)
-    pf = ParticleFilter(ctx.filter_params.for_mode(args.mode), ctx.world.free_boxes,
-                        ctx.world.z_range, np.random.default_rng(0))
-    pf.init_tracking(xyzyaw_from_pose(flight.groundtruth[:1])[0])
+    loc = Localizer(ctx.world, ctx.camera, ctx.front_end(args.mode), ctx.settings,
+                    np.random.default_rng(0), model=ctx.model_for(args.mode))
+    loc.reset(flight.groundtruth[0])
+    lik = loc.likelihood
     frames = [read_png(flight.rgb[t]) for t in range(T)]
     labels = [read_png(flight.label[t], rgb=False) for t in range(T)]
     t_seg, t_pre, t_filter, t_frame = [], [], [], []
@@ -93,30 +87,24 @@ def main() -> int:
     load0 = os.getloadavg()[0]
     for t in range(T):
         a = time.perf_counter()
-        lab, conf = (extractor.segment(frames[t]) if args.mode == "cnn" else (labels[t], None))
-        b = time.perf_counter()
-        edge = extractor.edges(frames[t], lab, conf)
-        obs = lik.observe(edge)
-        c = time.perf_counter()
-        tilt = tilt_from_pose(flight.odometry[t])
-        with threadpool_limits(limits=1, user_api="blas"):
-            if t:
-                pf.predict(odometry_increment(flight.odometry[t - 1], flight.odometry[t]))
-            pf.update(lambda s, obs=obs, tilt=tilt: lik.log_likelihood(s, obs, tilt))
+        frame = loc.front_end.frame(frames[t], labels[t])
+        delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
+        est = loc.step(frame, delta, flight.odometry[t], flight.timestamps[t])
         d = time.perf_counter()
-        edges.append((edge, obs, tilt))
+        tilt = tilt_from_pose(flight.odometry[t])
+        edges.append((frame.edge, frame.observation(lik)[0], tilt))
         if t == 0:
             continue  # warm-up (onnxruntime and numpy first calls)
-        t_seg.append((b - a) * 1e3)
-        t_pre.append((c - b) * 1e3)
-        t_filter.append((d - c) * 1e3)
+        t_seg.append(est.timing_ms["segmentation"])
+        t_pre.append(est.timing_ms["preprocessing"])
+        t_filter.append(est.timing_ms["filter"])
         t_frame.append((d - a) * 1e3)
 
     # Vectorized vs paper-faithful likelihood on the same particles.
     from localize.paper_faithful import PaperFaithfulLikelihood
 
     pc = cfg.paper_faithful
-    pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.likelihood_params,
+    pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
                                   hough=dict(pc.hough), samples_per_line=int(pc.samples_per_line),
                                   search_px=float(pc.search_px), variant=str(pc.render_variant))
     rng = np.random.default_rng(1)
@@ -136,7 +124,7 @@ def main() -> int:
         t_pf.append((c - b) * 1e3)
     load1 = os.getloadavg()[0]
 
-    n = ctx.filter_params.num_particles
+    n = ctx.settings.filter.num_particles
     res = {
         "flight": args.flight, "mode": args.mode, "frames": T - 1, "particles": n,
         "segmentation_ms": stats(t_seg), "preprocessing_ms": stats(t_pre),
