@@ -154,8 +154,9 @@ def edge_source(spec, segmenter=None, cnn: CnnSettings | None = None) -> EdgeSou
         return TrueLabels()
     if spec == "cnn":
         if segmenter is None:
-            raise ValueError("edge source 'cnn' needs a segmenter: pass segmenter="
-                             "localize.segmenter.load_segmenter(path, dataset classes)")
+            raise ValueError("edge source 'cnn' needs a segmenter: use FrontEnd('cnn', "
+                             "edges_cfg, segmenter=localize.segmenter.load_segmenter(path, "
+                             "dataset classes)) or SegmenterLabels(segmenter)")
         return SegmenterLabels(segmenter, cnn)
     raise ValueError(f"unknown edge source {spec!r}; use one of {MODES}, an EdgeSource or a "
                      "callable rgb -> labels")

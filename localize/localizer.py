@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from omegaconf import OmegaConf
 from threadpoolctl import ThreadpoolController
 
 from core.dataset import Camera, World
@@ -94,8 +95,6 @@ class Settings:
     @classmethod
     def from_cfg(cls, cfg) -> Settings:
         """From a composed localize config (a DictConfig or a plain mapping)."""
-        from omegaconf import OmegaConf
-
         conf = OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else cfg
         missing = [k for k in ("filter", "edges", "model_edges", "visibility") if k not in conf]
         if missing:
