@@ -277,3 +277,24 @@ def test_localizer_alone_steps_the_recorded_trajectory(reference_report, flat_da
         est.append(loc.step(None, delta, fl.odometry[t], fl.timestamps[t], labels=labels).state)
     stem = "oracle_seed0" if init == "tracking" else "oracle_global_seed0"
     np.testing.assert_allclose(checksum(est), REFERENCE[f"{flight}/{stem}"], rtol=0, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_runner_takes_a_wrapped_edge_source(flat_dataset, tmp_path):
+    """``run(cfg, source_wrappers)`` steps a mode with the source its wrapper makes: the true
+    labels through a label function give the oracle's own trajectory, blank labels another."""
+    base = [*QUICK, f"dataset={flat_dataset}", f"out_root={tmp_path}", "modes=[oracle]",
+            "inits=[tracking]", "max_frames=4", "flight_names=[cluttered]"]
+
+    def wrapped(fn):
+        return {"oracle": lambda own: LabelFunction(fn, mode="oracle", needs_truth=True)}
+
+    def estimate(name, wrappers=None):
+        path = run(localize_cfg([*base, f"name={name}"]), wrappers)
+        rec = RunSpec("cluttered", "oracle", "tracking", 0).paths(path.parent)[1]
+        return np.array(json.loads(rec.read_text())["estimate"])
+
+    plain = estimate("plain")
+    np.testing.assert_array_equal(estimate("same", wrapped(lambda rgb, truth: truth)), plain)
+    blank = estimate("blank", wrapped(lambda rgb, truth: np.full_like(truth, C.WALL)))
+    assert not np.array_equal(blank, plain)
