@@ -6,13 +6,14 @@ Usage::
     python benchmarks/boundary_distance.py --dataset outputs/datasets/big \
         --model outputs/models/big/segnet.onnx --step 4 edges.cnn.snap_band=true
 
-For every flight, every ``--step``-th frame: the localizer's cnn edges (``EdgeExtractor``, with
-the ``conf/localize.yaml`` edge settings and any overrides given) and the true label boundaries
-(the oracle's). For each true boundary pixel on a known pixel, the distance in pixels to the
-nearest cnn boundary pixel *of the same class pair* (capped at ``--cap``). Prints per flight and
-class pair the count of true boundary pixels, the mean distance, and the shares within 1 px and
-beyond 3 px. With the 1-pixel tolerance of the likelihood, what lies beyond ~3 px is a boundary
-the cnn mode misses or puts elsewhere (docs/localize.md, "part 6": door jambs).
+For every flight, every ``--step``-th frame: the localizer's cnn edges (a ``FrontEnd`` of the
+SegNet, with the ``conf/localize.yaml`` edge settings and any overrides given) and the true
+label boundaries (the oracle's). For each true boundary pixel on a known pixel, the distance
+in pixels to the nearest cnn boundary pixel *of the same class pair* (capped at ``--cap``).
+Prints per flight and class pair the count of true boundary pixels, the mean distance, and the
+shares within 1 px and beyond 3 px. With the 1-pixel tolerance of the likelihood, what lies
+beyond ~3 px is a boundary the cnn mode misses or puts elsewhere (docs/localize.md, "part 6":
+door jambs).
 
 Then the other way round, which side the cnn boundaries err to: for each cnn boundary pixel,
 its distance to the nearest true boundary pixel of the same pair, signed by the true class
@@ -52,28 +53,29 @@ from core.atomic import read_png  # noqa: E402
 from core.classes import STRUCTURAL  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from localize.edges import (  # noqa: E402
-    EdgeExtractor,
     EdgeImage,
     class_changes,
-    load_segmenter,
     pair_classes,
     pair_code,
     pair_name,
     structural_mask,
 )
+from localize.extractor import CnnSettings  # noqa: E402
+from localize.frontend import FrontEnd, SegmenterLabels  # noqa: E402
 from localize.likelihood import distance_to  # noqa: E402
+from localize.segmenter import LabelPredictor, load_segmenter  # noqa: E402
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 
 
-def frame_edges(cnn, oracle, rgb: np.ndarray,
+def frame_edges(cnn: FrontEnd, oracle: FrontEnd, rgb: np.ndarray,
                 labels: np.ndarray) -> tuple[EdgeImage, EdgeImage]:
-    """The cnn mode's and the true (oracle) edge images of a frame."""
-    pred, conf = cnn.segment(rgb)
-    return cnn.edges(rgb, pred, conf), oracle.edges(rgb, labels)
+    """The cnn mode's and the true (oracle) edge images of a frame (rgb (H, W, 3) uint8,
+    labels (H, W) uint8 true class ids), from the two modes' front ends."""
+    return cnn.frame(rgb).edge, oracle.frame(rgb, labels).edge
 
 
-def pair_distances(cnn, oracle, rgb: np.ndarray, labels: np.ndarray,
+def pair_distances(cnn: FrontEnd, oracle: FrontEnd, rgb: np.ndarray, labels: np.ndarray,
                    cap: float) -> dict[int, np.ndarray]:
     """Per class-pair code, the distances (n,) float32, px, from the frame's true boundary
     pixels to the nearest cnn boundary pixel of the same pair, capped at ``cap``."""
@@ -161,12 +163,12 @@ def distance_bands(offsets: np.ndarray) -> np.ndarray:
     return np.bincount(np.searchsorted(BANDS, a, side="right"), minlength=len(BANDS) + 1) / len(a)
 
 
-def decision_scores(cnn, rgb: np.ndarray) -> np.ndarray:
+def decision_scores(predictor: LabelPredictor, rgb: np.ndarray) -> np.ndarray:
     """(C, H, W) the scores the cnn mode's structural decision takes the argmax of: the
     logits, minus its prior correction when it has one."""
-    z = np.asarray(cnn.segmenter.logits(rgb), dtype=np.float32)
-    return z if cnn.log_prior is None else z - np.asarray(cnn.log_prior,
-                                                          np.float32)[:, None, None]
+    z = np.asarray(predictor.segmenter.logits(rgb), dtype=np.float32)
+    return z if predictor.log_prior is None else z - np.asarray(predictor.log_prior,
+                                                                np.float32)[:, None, None]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -184,8 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     with initialize_config_dir(str(CONF_DIR), version_base=None):
         cfg = compose("localize", overrides=list(args.overrides))
     edges_cfg = OmegaConf.to_container(cfg.edges, resolve=True)
-    cnn = EdgeExtractor("cnn", edges_cfg, load_segmenter(args.model, dataset.classes))
-    oracle = EdgeExtractor("oracle", edges_cfg)
+    source = SegmenterLabels(load_segmenter(args.model, dataset.classes),
+                             CnnSettings.from_cfg(edges_cfg.get("cnn")))
+    cnn, oracle = FrontEnd(source, edges_cfg), FrontEnd("oracle", edges_cfg)
     names = {int(c["id"]): c["name"] for c in dataset.classes}
     print(f"dataset {args.dataset}, model {args.model}, every {args.step} frames")
     pooled_side: dict[int, list[np.ndarray]] = {}
@@ -199,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
             labels = read_png(flight.label[t], rgb=False)
             rgb = read_png(flight.rgb[t])
             ec, eo = frame_edges(cnn, oracle, rgb, labels)
-            z = decision_scores(cnn, rgb)
+            z = decision_scores(source.predictor, rgb)
             for code, c in logit_crossings(z, labels, STRUCTURAL).items():
                 cross.setdefault(code, []).append(c)
             for code, d in true_to_cnn(ec, eo, args.cap).items():

@@ -29,10 +29,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import localize.runner as runner  # noqa: E402
 from core import classes as C  # noqa: E402
-from core.atomic import read_png  # noqa: E402
-from localize.edges import EdgeExtractor  # noqa: E402
+from localize.frontend import EdgeSource, LabelFunction  # noqa: E402
 
 
 def swap_labels(predicted: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> np.ndarray:
@@ -50,28 +48,16 @@ def swap_labels(predicted: np.ndarray, truth: np.ndarray, classes: np.ndarray) -
     return np.where(take, truth, predicted).astype(np.uint8)
 
 
-def install(classes: np.ndarray) -> None:
-    """Patch the runner so cnn mode's labels are ``swap_labels`` of the SegNet's and the true
-    ones of the frame being read (the frame's label image beside its ``rgb/`` image)."""
-    current: dict[str, Path] = {}
-    plain_read, plain_segment = runner.read_png, EdgeExtractor.segment
+def swapped_source(own: EdgeSource, classes: np.ndarray) -> LabelFunction:
+    """The cnn mode's edge source with ``classes`` taken from the truth: a label function of
+    the frame and its true labels, ``swap_labels`` of the SegNet's (``own``) and the true ones
+    (the SegNet's confidence kept)."""
 
-    def read(path, *args, **kwargs):
-        path = Path(path)
-        if path.parent.name == "rgb":
-            current["label"] = path.parent.parent / "label" / path.name
-        return plain_read(path, *args, **kwargs)
+    def labels(rgb: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        predicted, conf = own.labels(rgb, None)
+        return swap_labels(predicted, truth, classes), conf
 
-    def segment(self, rgb):
-        labels, conf = plain_segment(self, rgb)
-        if "label" not in current:
-            raise RuntimeError("class_swap: a frame was segmented before its rgb/ image was "
-                               "read, so its true labels are unknown")
-        truth = read_png(current["label"], rgb=False)
-        return swap_labels(labels, truth, classes), conf
-
-    runner.read_png = read
-    EdgeExtractor.segment = segment
+    return LabelFunction(labels, mode=own.mode, needs_truth=True)
 
 
 def main() -> None:
@@ -85,11 +71,11 @@ def main() -> None:
     unknown = sorted(set(names) - set(C.NAMES))
     if unknown or not names:
         ap.error(f"--swap {a.swap!r}: unknown class {unknown}; use names from {list(C.NAMES)}")
-    install(np.array([C.ID[n] for n in names]))
+    classes = np.array([C.ID[n] for n in names])
     import flight_spread  # noqa: E402  (benchmarks/ is on sys.path as the script's folder)
 
     sys.argv = [sys.argv[0], *report_name(rest, names)]
-    flight_spread.main()
+    flight_spread.main(source_wrappers={"cnn": lambda own: swapped_source(own, classes)})
 
 
 def report_name(args: list[str], names: list[str]) -> list[str]:

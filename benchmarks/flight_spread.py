@@ -101,7 +101,9 @@ def summarize(metrics: dict) -> list[str]:
     return rows
 
 
-def main() -> None:
+def main(source_wrappers=None) -> None:
+    """The command line; ``source_wrappers``: ``localize.runner.run``'s, per edge mode a
+    function of the mode's own edge source giving the one to use (benchmarks/class_swap.py)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dataset", type=Path, default=ROOT / "outputs/datasets/demo")
     ap.add_argument("--flights", type=int, default=3, help="new flights per preset")
@@ -124,7 +126,7 @@ def main() -> None:
                 "paper_faithful.enabled=false", *a.overrides])
         if suffix:  # the own flights' report beside the new ones' (a `name=` override too)
             cfg.name = f"{cfg.name}{suffix}"
-        reports.append(localize(cfg))
+        reports.append(localize(cfg, source_wrappers))
     metrics = merge_flights(*(json.loads((r.parent / "metrics.json").read_text())
                               for r in reports))
     own = " and its own" if a.own else ""

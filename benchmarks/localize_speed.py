@@ -6,7 +6,7 @@ Usage::
     python benchmarks/localize_speed.py            # conf/localize.yaml defaults
     python benchmarks/localize_speed.py filter.num_particles=1000 --frames 100
 
-Runs one tracking filter over the first ``--frames`` frames of a flight (default: paper) and
+Runs one tracking ``Localizer`` over the first ``--frames`` frames of a flight (default: paper) and
 times each stage on its own, as the paper's Table 1 does:
 
 - segmentation: ``segnet.onnx`` through onnxruntime (uint8 frame in, labels out);
@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 from hydra import compose, initialize_config_dir
-from omegaconf import OmegaConf
 from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,11 +38,10 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import read_png  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
-from localize.edges import EdgeExtractor  # noqa: E402
-from localize.likelihood import EdgeLikelihood  # noqa: E402
-from localize.particle_filter import ParticleFilter, odometry_increment  # noqa: E402
+from localize.localizer import Localizer  # noqa: E402
+from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
-from localize.runner import mode_likelihood_params, prepare  # noqa: E402
+from localize.runner import prepare  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0
@@ -53,6 +51,81 @@ def stats(ms: list[float]) -> dict:
     a = np.asarray(ms, dtype=np.float64)
     return {"median": float(np.median(a)), "mean": float(a.mean()), "p90": float(
         np.percentile(a, 90)), "max": float(a.max())}
+
+
+def time_frames(loc: Localizer, flight, T: int) -> tuple[dict[str, list[float]], list]:
+    """Step ``loc`` over the first T frames (read beforehand), the first one a warm-up.
+
+    Returns:
+        ms per frame of each stage (``segmentation``, ``preprocessing``, ``filter`` from the
+        estimates; ``frame``: the whole step, front end included) and, per frame, its edge
+        image, its tracking observation and tilt (for ``compare_likelihoods``).
+    """
+    frames = [read_png(flight.rgb[t]) for t in range(T)]
+    labels = [read_png(flight.label[t], rgb=False) for t in range(T)]
+    times = {k: [] for k in ("segmentation", "preprocessing", "filter", "frame")}
+    seen = []
+    for t in range(T):
+        a = time.perf_counter()
+        frame = loc.front_end.frame(frames[t], labels[t])
+        delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
+        est = loc.step(frame, delta, flight.odometry[t], flight.timestamps[t])
+        d = time.perf_counter()
+        seen.append((frame.edge, frame.observation(loc.likelihood)[0],
+                     tilt_from_pose(flight.odometry[t])))
+        if t == 0:
+            continue  # warm-up (onnxruntime and numpy first calls)
+        for k, v in est.timing_ms.items():
+            times[k].append(v)
+        times["frame"].append((d - a) * 1e3)
+    return times, seen
+
+
+def compare_likelihoods(ctx, loc: Localizer, seen: list, truth: np.ndarray, n: int,
+                        frames: int) -> tuple[list[float], list[float]]:
+    """ms of the vectorized and the paper-faithful likelihood of the same ``n`` particles
+    around the truth, on the first ``frames`` frames of ``seen`` (``time_frames``)."""
+    from localize.paper_faithful import PaperFaithfulLikelihood
+
+    pc = ctx.cfg.paper_faithful
+    pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
+                                  hough=dict(pc.hough), samples_per_line=int(pc.samples_per_line),
+                                  search_px=float(pc.search_px), variant=str(pc.render_variant))
+    rng = np.random.default_rng(1)
+    t_vec, t_pf = [], []
+    for t in range(min(frames, len(seen))):
+        edge, obs, tilt = seen[t]
+        states = truth[t] + rng.normal(0, 1, (n, 4)) * [0.1, 0.1, 0.05, 0.05]
+        pfl.log_likelihood(states[:2], edge, tilt)  # warm-up (kernel compilation)
+        a = time.perf_counter()
+        with threadpool_limits(limits=1, user_api="blas"):
+            loc.likelihood.log_likelihood(states, obs, tilt)
+        b = time.perf_counter()
+        pfl.log_likelihood(states, edge, tilt)
+        c = time.perf_counter()
+        t_vec.append((b - a) * 1e3)
+        t_pf.append((c - b) * 1e3)
+    return t_vec, t_pf
+
+
+def report(res: dict) -> None:
+    """Print the table of ``main``'s results."""
+    load0, load1 = res["load"]
+    print(f"localize speed: flight {res['flight']}, mode {res['mode']}, {res['frames']} frames, "
+          f"{res['particles']} particles; load average {load0:.2f} -> {load1:.2f}")
+    print(f"  {'stage':<16}{'median ms':>10}{'mean ms':>9}{'p90 ms':>9}{'max ms':>9}  target")
+    for key, target in (("segmentation_ms", ""), ("preprocessing_ms", ""),
+                        ("filter_ms", f"<= {TARGET_FILTER_MS:.0f}"),
+                        ("frame_ms", f"<= {TARGET_FRAME_MS:.0f}")):
+        s = res[key]
+        ok = "" if not target else (" PASS" if s["mean"] <= float(target[3:]) else " MISS")
+        print(f"  {key[:-3]:<16}{s['median']:>10.1f}{s['mean']:>9.1f}{s['p90']:>9.1f}"
+              f"{s['max']:>9.1f}  {target}{ok}")
+    lk = res["likelihood_ms"]
+    print(f"  likelihood of {lk['particles']} particles: vectorized "
+          f"{lk['vectorized']['median']:.2f} ms, paper-faithful "
+          f"{lk['paper_faithful']['median']:.0f} ms -> {lk['speedup']:.0f}x faster")
+    print(json.dumps(res))
 
 
 def main() -> int:
@@ -78,89 +151,23 @@ def main() -> int:
     ctx = prepare(cfg)
     flight = ctx.dataset.flight(args.flight)
     T = min(args.frames, len(flight.timestamps))
-    samples, vis = ctx.model_for(args.mode)
-    lp = mode_likelihood_params(ctx.likelihood_params, ctx.filter_params, args.mode)  # as runs do
-    lik = EdgeLikelihood(samples, ctx.camera, lp, vis)
-    extractor = EdgeExtractor(args.mode, OmegaConf.to_container(cfg.edges, resolve=True),
-                              ctx.segmenter)
-    pf = ParticleFilter(ctx.filter_params.for_mode(args.mode), ctx.world.free_boxes,
-                        ctx.world.z_range, np.random.default_rng(0))
-    pf.init_tracking(xyzyaw_from_pose(flight.groundtruth[:1])[0])
-    frames = [read_png(flight.rgb[t]) for t in range(T)]
-    labels = [read_png(flight.label[t], rgb=False) for t in range(T)]
-    t_seg, t_pre, t_filter, t_frame = [], [], [], []
-    edges = []
+    loc = Localizer(ctx.world, ctx.camera, ctx.front_end(args.mode), ctx.settings,
+                    np.random.default_rng(0), model=ctx.model_for(args.mode))
+    loc.reset(flight.groundtruth[0])
     load0 = os.getloadavg()[0]
-    for t in range(T):
-        a = time.perf_counter()
-        lab, conf = (extractor.segment(frames[t]) if args.mode == "cnn" else (labels[t], None))
-        b = time.perf_counter()
-        edge = extractor.edges(frames[t], lab, conf)
-        obs = lik.observe(edge)
-        c = time.perf_counter()
-        tilt = tilt_from_pose(flight.odometry[t])
-        with threadpool_limits(limits=1, user_api="blas"):
-            if t:
-                pf.predict(odometry_increment(flight.odometry[t - 1], flight.odometry[t]))
-            pf.update(lambda s, obs=obs, tilt=tilt: lik.log_likelihood(s, obs, tilt))
-        d = time.perf_counter()
-        edges.append((edge, obs, tilt))
-        if t == 0:
-            continue  # warm-up (onnxruntime and numpy first calls)
-        t_seg.append((b - a) * 1e3)
-        t_pre.append((c - b) * 1e3)
-        t_filter.append((d - c) * 1e3)
-        t_frame.append((d - a) * 1e3)
-
-    # Vectorized vs paper-faithful likelihood on the same particles.
-    from localize.paper_faithful import PaperFaithfulLikelihood
-
-    pc = cfg.paper_faithful
-    pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.likelihood_params,
-                                  hough=dict(pc.hough), samples_per_line=int(pc.samples_per_line),
-                                  search_px=float(pc.search_px), variant=str(pc.render_variant))
-    rng = np.random.default_rng(1)
+    times, seen = time_frames(loc, flight, T)
     truth = xyzyaw_from_pose(flight.groundtruth[:T])
-    t_vec, t_pf = [], []
-    for t in range(min(args.pf_frames, T)):
-        edge, obs, tilt = edges[t]
-        states = truth[t] + rng.normal(0, 1, (args.pf_particles, 4)) * [0.1, 0.1, 0.05, 0.05]
-        pfl.log_likelihood(states[:2], edge, tilt)  # warm-up (kernel compilation)
-        a = time.perf_counter()
-        with threadpool_limits(limits=1, user_api="blas"):
-            lik.log_likelihood(states, obs, tilt)
-        b = time.perf_counter()
-        pfl.log_likelihood(states, edge, tilt)
-        c = time.perf_counter()
-        t_vec.append((b - a) * 1e3)
-        t_pf.append((c - b) * 1e3)
-    load1 = os.getloadavg()[0]
-
-    n = ctx.filter_params.num_particles
+    t_vec, t_pf = compare_likelihoods(ctx, loc, seen, truth, args.pf_particles, args.pf_frames)
     res = {
-        "flight": args.flight, "mode": args.mode, "frames": T - 1, "particles": n,
-        "segmentation_ms": stats(t_seg), "preprocessing_ms": stats(t_pre),
-        "filter_ms": stats(t_filter), "frame_ms": stats(t_frame),
+        "flight": args.flight, "mode": args.mode, "frames": T - 1,
+        "particles": ctx.settings.filter.num_particles,
+        **{f"{k}_ms": stats(v) for k, v in times.items()},
         "likelihood_ms": {"particles": args.pf_particles, "vectorized": stats(t_vec),
                           "paper_faithful": stats(t_pf),
                           "speedup": float(np.median(t_pf) / np.median(t_vec))},
-        "load": [load0, load1],
+        "load": [load0, os.getloadavg()[0]],
     }
-    print(f"localize speed: flight {args.flight}, mode {args.mode}, {T - 1} frames, "
-          f"{n} particles, 320x240; load average {load0:.2f} -> {load1:.2f}")
-    print(f"  {'stage':<16}{'median ms':>10}{'mean ms':>9}{'p90 ms':>9}{'max ms':>9}  target")
-    for key, target in (("segmentation_ms", ""), ("preprocessing_ms", ""),
-                        ("filter_ms", f"<= {TARGET_FILTER_MS:.0f}"),
-                        ("frame_ms", f"<= {TARGET_FRAME_MS:.0f}")):
-        s = res[key]
-        ok = "" if not target else (" PASS" if s["mean"] <= float(target[3:]) else " MISS")
-        print(f"  {key[:-3]:<16}{s['median']:>10.1f}{s['mean']:>9.1f}{s['p90']:>9.1f}"
-              f"{s['max']:>9.1f}  {target}{ok}")
-    lk = res["likelihood_ms"]
-    print(f"  likelihood of {args.pf_particles} particles: vectorized "
-          f"{lk['vectorized']['median']:.2f} ms, paper-faithful "
-          f"{lk['paper_faithful']['median']:.0f} ms -> {lk['speedup']:.0f}x faster")
-    print(json.dumps(res))
+    report(res)
     return 0
 
 

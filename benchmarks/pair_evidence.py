@@ -34,11 +34,13 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.atomic import read_png  # noqa: E402
-from localize.edges import EdgeExtractor, pair_name  # noqa: E402
+from localize.edges import pair_name  # noqa: E402
+from localize.frontend import Frame  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
+from localize.localizer import mode_likelihood_params  # noqa: E402
 from localize.particle_filter import estimate as estimate_pose  # noqa: E402
 from localize.projection import ModelSamples, tilt_from_pose  # noqa: E402
-from localize.runner import Context, load_runs, mode_likelihood_params, prepare  # noqa: E402
+from localize.runner import Context, load_runs, prepare  # noqa: E402
 from localize.visibility import VisibilityGrid  # noqa: E402
 
 
@@ -56,25 +58,22 @@ def pair_likelihoods(samples: ModelSamples, vis: VisibilityGrid, sample_pairs: n
     return out
 
 
-def evidence(liks: dict[str, EdgeLikelihood], edge, estimate: np.ndarray, truth: np.ndarray,
-             tilt: np.ndarray | None) -> dict[str, float]:
+def evidence(liks: dict[str, EdgeLikelihood], frame: Frame, estimate: np.ndarray,
+             truth: np.ndarray, tilt: np.ndarray | None) -> dict[str, float]:
     """``k * (score(estimate) - score(truth))`` per entry of ``liks`` for one frame.
 
     Args:
         liks: from ``pair_likelihoods``.
-        edge: the frame's ``EdgeImage``.
+        frame: the frame through its mode's front end (``FrontEnd.frame``); its score maps
+            are made once per map settings and class pairs (without ``class_pairs`` one set
+            serves every entry).
         estimate, truth: (4,) x, y, z (m), yaw (rad).
         tilt: (3, 3) roll/pitch of the frame (None: level).
     """
     states = np.stack([truth, estimate]).astype(np.float64)
-    out, observed = {}, {}
+    out = {}
     for key, lik in liks.items():
-        # the score maps depend on the pair codes only with class_pairs: without it, one
-        # observation serves every entry
-        codes = None if lik.pair_codes is None else tuple(lik.pair_codes.tolist())
-        if codes not in observed:
-            observed[codes] = lik.observe(edge)
-        score, _ = lik.scores(states, observed[codes], tilt)
+        score, _ = lik.scores(states, frame.observation(lik)[0], tilt)
         out[key] = float(lik.params.k * (score[1] - score[0]))
     return out
 
@@ -118,25 +117,23 @@ def main(argv: list[str] | None = None) -> int:
     frames = range(max(first, 0), min(end, len(truth)), max(args.every, 1))
     if not frames:
         raise SystemExit(f"--frames {first} {end}: no frame of the flight's {len(truth)} in range")
-    edges_cfg = OmegaConf.to_container(cfg.edges, resolve=True)
     names = {int(c["id"]): c["name"] for c in ctx.dataset.classes}
-    liks, extractors = {}, {}
+    liks, fronts = {}, {}
     for mode in args.edges:
-        samples, vis = ctx.model_for(mode)
-        params = mode_likelihood_params(ctx.likelihood_params,
-                                        ctx.filter_params.for_mode(mode), mode)
-        liks[mode] = pair_likelihoods(samples, vis, ctx.sample_pairs(samples), ctx.camera,
+        model = ctx.model_for(mode)
+        params = mode_likelihood_params(ctx.settings.likelihood,
+                                        ctx.settings.filter.for_mode(mode), mode)
+        liks[mode] = pair_likelihoods(model.samples, model.visibility, model.pairs, ctx.camera,
                                       params)
-        extractors[mode] = EdgeExtractor(mode, edges_cfg, ctx.segmenter)
+        fronts[mode] = ctx.front_end(mode)
     total = {m: {} for m in args.edges}
     for t in frames:
         rgb = read_png(flight.rgb[t])
+        true_labels = read_png(flight.label[t], rgb=False)
         tilt = tilt_from_pose(flight.odometry[t])
         row = []
-        for mode, ex in extractors.items():
-            labels = (ex.segment(rgb)[0] if mode == "cnn"
-                      else read_png(flight.label[t], rgb=False))
-            ev = evidence(liks[mode], ex.edges(rgb, labels), estimate[t], truth[t], tilt)
+        for mode, front in fronts.items():
+            ev = evidence(liks[mode], front.frame(rgb, true_labels), estimate[t], truth[t], tilt)
             for key, v in ev.items():
                 total[mode][key] = total[mode].get(key, 0.0) + v
             row.append(f"{mode} {ev['all']:+7.2f}")

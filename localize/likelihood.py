@@ -252,6 +252,57 @@ def _bin_masks(edges: np.ndarray, bins: int) -> np.ndarray:
     return masks
 
 
+class _ScoreMaps:
+    """How one frame's edges become score maps g(d) and evidence maps (see ``observe``).
+
+    Args:
+        known: (H, W) bool, where edges are known.
+        params: sigma, search_px, outlier.
+    """
+
+    def __init__(self, known: np.ndarray, params: LikelihoodParams):
+        self.known = known
+        self.unknown = ~known
+        s2 = 2.0 * float(params.sigma) ** 2
+        self.g_far = np.float32(np.exp(-1.0 / s2))
+        # often no unknown pixel (no object in view): their handling is skipped
+        self.any_unknown = bool(self.unknown.any())
+        self.dist_unknown = distance_to(self.unknown) if self.any_unknown else None
+        self.reach = np.float32(params.search_px)
+        # g = exp(scale * min(d, reach)^2)
+        self.scale = np.float32(-1.0 / (s2 * float(self.reach) ** 2))
+        self.eps = np.float32(params.outlier)
+
+    def score(self, m: np.ndarray, g0b: np.float32 | None, out: np.ndarray) -> np.float32:
+        """g(d) (H, W) of the edges ``m`` into ``out``; returns the chance level: ``g0b``, or
+        when None the mean score of a known pixel."""
+        d = distance_to(m)
+        np.minimum(d, self.reach, out=out)  # d truncated at search_px, then / search_px below
+        out *= out
+        out *= self.scale
+        np.exp(out, out=out)
+        if not self.any_unknown:
+            return np.float32(out.mean()) if g0b is None else g0b
+        known = self.known
+        hidden = (d > self.dist_unknown) & known  # the nearest edge may hide behind an object
+        if g0b is None:
+            g0b = np.float32(out[known].mean() if known.any() else self.g_far)
+        np.maximum(out, g0b, out=out, where=hidden)
+        np.copyto(out, g0b, where=self.unknown)
+        return g0b
+
+    def evidence(self, g: np.ndarray, g0b: np.float32, out: np.ndarray) -> None:
+        """e map from a g map into ``out``: ``log(g + eps) - log(g0 + eps)``, exactly 0 on
+        unknown pixels and nudged off 0 elsewhere."""
+        np.add(g, self.eps, out=out)
+        np.log(out, out=out)
+        out -= np.log(g0b + self.eps)
+        np.copyto(out, np.float32(1e-7),
+                  where=(out == 0) & self.known if self.any_unknown else out == 0)
+        if self.any_unknown:
+            np.copyto(out, np.float32(0.0), where=self.unknown)
+
+
 def observe(edge: EdgeImage, params: LikelihoodParams,
             pair_codes: np.ndarray | None = None) -> Observation:
     """Score maps g(d) of an edge image (see the module docstring).
@@ -268,69 +319,31 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     """
     H, W = edge.edges.shape
     B = int(params.orientation_bins)
-    edges = edge.edges & edge.known
-    known = edge.known
-    unknown = ~known
-    masks = _bin_masks(edges, B)
-    s2 = 2.0 * float(params.sigma) ** 2
-    g_far = np.float32(np.exp(-1.0 / s2))
-    any_unknown = bool(unknown.any())  # often none (no object in view): skip their handling
-    dist_unknown = distance_to(unknown) if any_unknown else None
-    reach = np.float32(params.search_px)
-    scale = np.float32(-1.0 / (s2 * float(reach) ** 2))  # g = exp(scale * min(d, reach)^2)
-
-    def score(m: np.ndarray, g0b: np.float32 | None, out: np.ndarray) -> np.float32:
-        """g(d) (H, W) of the edges ``m`` into ``out``; returns the chance level g0b."""
-        d = distance_to(m)
-        np.minimum(d, reach, out=out)  # d truncated at search_px, then / search_px below
-        out *= out
-        out *= scale
-        np.exp(out, out=out)
-        if not any_unknown:
-            return np.float32(out.mean()) if g0b is None else g0b
-        hidden = (d > dist_unknown) & known  # the nearest edge may hide behind an object
-        if g0b is None:
-            g0b = np.float32(out[known].mean() if known.any() else g_far)
-        np.maximum(out, g0b, out=out, where=hidden)
-        np.copyto(out, g0b, where=unknown)
-        return g0b
-
+    masks = _bin_masks(edge.edges & edge.known, B)
+    maps = _ScoreMaps(edge.known, params)
     paired = (params.class_pairs and edge.pairs is not None and pair_codes is not None
               and len(pair_codes) > 0)
-    n_pairs = len(pair_codes) if paired else 1
-    n = n_pairs * len(masks)
+    n = (len(pair_codes) if paired else 1) * len(masks)
     # flat buffers with one trailing 0 that invalid samples read
     g_flat = np.empty(n * H * W + 1, dtype=np.float32)
     e_flat = np.empty(n * H * W + 1, dtype=np.float32)
     g_flat[-1] = e_flat[-1] = 0.0
     g = g_flat[:-1].reshape(n, H, W)
     e = e_flat[:-1].reshape(n, H, W)
-    eps = np.float32(params.outlier)
-
-    def evidence(i: int, g0b: np.float32) -> None:
-        """e map i from g map i: ``log(g + eps) - log(g0 + eps)``, exactly 0 on unknown
-        pixels and nudged off 0 elsewhere."""
-        out = e[i]
-        np.add(g[i], eps, out=out)
-        np.log(out, out=out)
-        out -= np.log(g0b + eps)
-        np.copyto(out, np.float32(1e-7), where=(out == 0) & known if any_unknown else out == 0)
-        if any_unknown:
-            np.copyto(out, np.float32(0.0), where=unknown)
 
     def plain_bin(b: int) -> np.float32:
         """Map b of all edges; its chance level (with class pairs only that, as scratch:
         pair q = 0's maps overwrite it)."""
-        g0b = score(masks[b], None, g[b])
+        g0b = maps.score(masks[b], None, g[b])
         if not paired:
-            evidence(b, g0b)
+            maps.evidence(g[b], g0b, e[b])
         return g0b
 
     def pair_bin(i: int) -> None:
         """Map i = q * B + b: the edges of class pair q in bin b."""
         q, b = divmod(i, len(masks))
-        score(masks[b] & pms[q], g0[b], g[i])
-        evidence(i, g0[b])
+        maps.score(masks[b] & pms[q], g0[b], g[i])
+        maps.evidence(g[i], g0[b], e[i])
 
     # the maps are independent: on params.workers threads
     g0 = np.array(run_all(plain_bin, range(len(masks)), params.workers), np.float32)

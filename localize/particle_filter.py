@@ -291,14 +291,28 @@ LogLikelihood = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 @dataclass
 class StepInfo:
-    """Diagnostics of one filter step."""
+    """Diagnostics of one filter step (of the weighted set before resampling, but
+    ``num_particles``).
+
+    Attributes:
+        estimate: (4,) weighted mean pose.
+        ess: effective sample size.
+        best_score: quality of the most likely particle.
+        resampled: the set was resampled.
+        injected: particles injected by recovery.
+        num_particles: particles after the step.
+        position_std: weighted horizontal spread, metres (``spread``).
+        yaw_std: circular yaw spread, radians.
+    """
 
     estimate: np.ndarray
     ess: float
-    best_score: float  # quality of the most likely particle
+    best_score: float
     resampled: bool
     injected: int
     num_particles: int
+    position_std: float = float("nan")
+    yaw_std: float = float("nan")
 
 
 class ParticleFilter:
@@ -368,6 +382,7 @@ class ParticleFilter:
                                      p.free_space_slack, p.outside_log_penalty)
         self.logw = normalize_log_weights(self.logw + loglik + prior)
         est = estimate(self.particles, self.logw)
+        pos_std, yaw_std = spread(self.particles, self.logw)
         ess = effective_sample_size(self.logw)
         best = float(score[np.argmax(loglik + prior)]) if len(score) else float("nan")
         inject_frac = self._collapse(best)
@@ -389,7 +404,8 @@ class ParticleFilter:
             self.logw = normalize_log_weights(self.logw)
             if thin:
                 self._thin_at = 0
-        return StepInfo(est, ess, best, resampled, injected, len(self.particles))
+        return StepInfo(est, ess, best, resampled, injected, len(self.particles), pos_std,
+                        yaw_std)
 
     def _collapse(self, best: float) -> float:
         """Fraction of particles to inject: 1 - fast / slow average of the best score, when that

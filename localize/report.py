@@ -281,7 +281,7 @@ def plot_errors(records: list[dict], flight: str, path: Path, threshold: float) 
 
 def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     """One frame: model edges at the estimate over the image, segmentation, edge map (Fig. 2)."""
-    from localize.edges import EdgeExtractor
+    from localize.frontend import FrontEnd, LabelFunction
     from localize.projection import (
         cam_from_world,
         camera_centres,
@@ -296,25 +296,24 @@ def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     flight = ctx.dataset.flight(flight_name)
     t = int(round(float(ctx.cfg.report.figure_frame) * (r["num_frames"] - 1)))
     rgb = read_png(flight.rgb[t])
-    from omegaconf import OmegaConf
-
-    ex = EdgeExtractor(mode, OmegaConf.to_container(ctx.cfg.edges, resolve=True),
-                       ctx.segmenter)
-    conf = None
-    if mode == "cnn" and ctx.segmenter is not None:
-        labels, conf = ex.segment(rgb)
-        seg_title = "SegNet segmentation"
+    truth = read_png(flight.label[t], rgb=False)
+    segnet = mode == "cnn" and ctx.segmenter is not None
+    if mode == "cnn" and not segnet:  # no SegNet loaded: the cnn edges of the true labels
+        front = FrontEnd(LabelFunction(lambda rgb, labels: labels, needs_truth=True),
+                         ctx.settings.edges)
     else:
-        labels = read_png(flight.label[t], rgb=False)
-        seg_title = "true labels"
-    edge = ex.edges(rgb, None if mode == "none" else labels, conf)
-    samples, vis = ctx.model_for(mode)
+        front = ctx.front_end(mode)
+    frame = front.frame(rgb, truth)
+    labels = truth if frame.labels is None else frame.labels
+    seg_title = "SegNet segmentation" if segnet else "true labels"
+    edge = frame.edge
+    model = ctx.model_for(mode)
     state = np.array(r["estimate"][t])[None]
     tilt = tilt_from_pose(flight.odometry[t])
     cam = ctx.camera
     P = projection_matrices(cam_from_world(state, cam.body_from_cam, tilt), cam.K)
-    idx, valid, _ = pixel_index(P, samples.points_h, cam.width, cam.height)
-    valid &= vis.lookup(camera_centres(state, cam.body_from_cam, tilt))
+    idx, valid, _ = pixel_index(P, model.samples.points_h, cam.width, cam.height)
+    valid &= model.visibility.lookup(camera_centres(state, cam.body_from_cam, tilt))
     v, u = np.divmod(idx[0][valid[0]], cam.width)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4))
     axes[0].imshow(rgb)

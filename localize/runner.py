@@ -8,9 +8,10 @@ Layout of ``outputs/reports/<name>/``::
     runs/<flight>/<mode>_<init>_seed<k>.json          per-frame errors, timings, diagnostics
     cache/visibility_<hash>.npz                       occlusion grid of the world
 
-One pass per (flight, mode) reads each frame and computes its edges once, then steps every
-(init, seed) filter that is not finished yet. A run is finished when its trajectory and run
-file exist, so a stopped job resumes where it was (``overwrite=true`` re-runs everything).
+One pass per (flight, mode) reads each frame once, makes its edges once (``FrontEnd.frame``)
+and steps every (init, seed) ``Localizer`` that is not finished yet with that frame. A run is
+finished when its trajectory and run file exist, so a stopped job resumes where it was
+(``overwrite=true`` re-runs everything).
 """
 
 from __future__ import annotations
@@ -20,38 +21,41 @@ import json
 import logging
 import time
 import zlib
-from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
-from threadpoolctl import ThreadpoolController
 from tqdm import tqdm
 
 from core.atomic import atomic_write_json, read_png
 from core.dataset import Camera, Dataset, Flight, World
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.edges import (
-    MODES,
-    CnnSettings,
-    EdgeExtractor,
-    class_boundaries_only,
-    load_segmenter,
-    pair_code,
+from localize.extractor import MODES, CnnSettings
+from localize.frontend import EdgeSource, FrontEnd, edge_source
+from localize.localizer import (
+    EdgeModel,
+    Estimate,
+    LikelihoodOverride,
+    Localizer,
+    Settings,
+    mode_likelihood_params,
 )
-from localize.likelihood import EdgeLikelihood, LikelihoodParams
 from localize.metrics import position_errors, yaw_errors_deg
-from localize.particle_filter import FilterParams, ParticleFilter, odometry_increment
-from localize.projection import ModelSamples, sample_segments, tilt_from_pose
-from localize.visibility import VisibilityGrid, load_or_build
+from localize.particle_filter import odometry_increment
+from localize.segmenter import load_segmenter
 
 log = logging.getLogger(__name__)
 
 INITS = ("tracking", "global")
 STAGES = ("acquisition", "segmentation", "preprocessing", "filter", "total")
-_BLAS = ThreadpoolController()
+DIAGNOSTICS = ("ess", "best_score", "num_particles", "injected", "position_std")
+
+#: Per edge mode, a function of the mode's own edge source giving the source to use instead
+#: (benchmarks/class_swap.py: the SegNet's labels with some classes from the truth).
+SourceWrappers = Mapping[str, Callable[[EdgeSource], EdgeSource]]
 
 
 @dataclass(frozen=True)
@@ -88,48 +92,36 @@ class RunSpec:
 
 @dataclass
 class Context:
-    """What every pass shares: the dataset, the model samples and the settings."""
+    """What every pass shares: the dataset, the model edges, the settings, the segmenter."""
 
     cfg: DictConfig
     dataset: Dataset
     camera: Camera
     world: World
-    samples: dict[str, tuple[ModelSamples, VisibilityGrid]]
-    filter_params: FilterParams
-    likelihood_params: LikelihoodParams
+    settings: Settings
+    model: EdgeModel
     out_dir: Path
     segmenter: object | None = None
+    source_wrappers: SourceWrappers = field(default_factory=dict)
+    _models: dict = field(default_factory=dict, repr=False)
 
-    def sample_pairs(self, samples: ModelSamples) -> np.ndarray:
-        """(P,) uint8 ``pair_code`` of the two classes each sample's world segment separates."""
-        sc = np.asarray(self.world.segment_classes)[samples.segment]
-        return pair_code(sc[:, 0], sc[:, 1])
+    def model_for(self, mode: str) -> EdgeModel:
+        """The model edges a mode scores (``EdgeModel.for_mode``), made once per mode."""
+        if mode not in self._models:
+            self._models[mode] = self.model.for_mode(self.world, mode, self.settings)
+        return self._models[mode]
 
-    def model_for(self, mode: str) -> tuple[ModelSamples, VisibilityGrid]:
-        """Edge samples (and their visibility) a mode scores against."""
-        edges_cfg = OmegaConf.to_container(self.cfg.edges, resolve=True)
-        key = "class_change" if class_boundaries_only(mode, edges_cfg) else "all"
-        return self.samples[key if key in self.samples else "all"]
+    def edge_source(self, mode: str) -> EdgeSource:
+        """The edge source of a mode: its own (the SegNet for cnn), or what
+        ``source_wrappers[mode]`` makes of it."""
+        cnn = CnnSettings.from_cfg(self.settings.edges.get("cnn"))
+        own = edge_source(mode, self.segmenter, cnn)
+        wrap = self.source_wrappers.get(mode)
+        return own if wrap is None else wrap(own)
 
-
-def filter_settings(cfg: DictConfig) -> tuple[FilterParams, LikelihoodParams]:
-    """Split ``cfg.filter`` into the filter and likelihood settings."""
-    f = OmegaConf.to_container(cfg.filter, resolve=True)
-    lik = f.pop("likelihood", {})
-    return FilterParams.from_cfg(f), LikelihoodParams.from_cfg(lik)
-
-
-def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
-                           mode: str) -> LikelihoodParams:
-    """The likelihood settings of one edge mode: ``lp`` updated by
-    ``filter.mode_likelihood[mode]`` (unknown keys raise)."""
-    over = fparams.mode_likelihood.get(mode)
-    if not over:
-        return lp
-    try:
-        return LikelihoodParams.from_cfg({**asdict(lp), **dict(over)})
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"filter.mode_likelihood.{mode}: {err}") from err
+    def front_end(self, mode: str) -> FrontEnd:
+        """A front end of the mode's edge source and the ``edges`` config."""
+        return FrontEnd(self.edge_source(mode), self.settings.edges)
 
 
 def select_flights(dataset: Dataset, wanted) -> list[str]:
@@ -170,41 +162,71 @@ def check_run_lists(cfg: DictConfig) -> None:
             raise ValueError(f"seeds: {seed!r} is not a non-negative integer")
 
 
-def prepare(cfg: DictConfig) -> Context:
-    """Open the dataset, sample the model edges, load or build the visibility grid."""
+def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Context:
+    """Open the dataset, sample the model edges, load or build the visibility grid, load the
+    segmenter (cnn mode)."""
     check_run_lists(cfg)
     dataset = Dataset(cfg.dataset)
     select_flights(dataset, cfg.flight_names)
     world = dataset.world()
-    camera = dataset.camera
     out_dir = Path(cfg.out_root) / str(cfg.name)
-    fparams, lparams = filter_settings(cfg)
+    settings = Settings.from_cfg(cfg)
     for mode in cfg.modes:  # fail before any run on a bad per-mode setting
-        mode_likelihood_params(lparams, fparams, mode)
-    CnnSettings.from_cfg(OmegaConf.to_container(cfg.edges, resolve=True).get("cnn"))  # checked
-    samples = sample_segments(world.segments, float(cfg.model_edges.spacing))
-    v = cfg.visibility
-    vis = load_or_build(world, samples.points, out_dir / "cache", float(v.cell_xy),
-                        float(v.cell_z), float(v.pad), float(v.eps), str(v.variant))
-    models = {"all": (samples, vis)}
-    if cfg.model_edges.label_modes_class_change_only:
-        sc = np.asarray(world.segment_classes)
-        keep = (sc[:, 0] != sc[:, 1]) & (sc.min(axis=1) > 0)
-        if keep.any():
-            sub, cols = samples.select(keep)
-            models["class_change"] = (sub, vis.select(cols))
+        mode_likelihood_params(settings.likelihood, settings.filter, mode)
+    CnnSettings.from_cfg(settings.edges.get("cnn"))  # checked before any run
+    model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
         segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads))
-    return Context(cfg, dataset, camera, world, models, fparams, lparams, out_dir, segmenter)
+    return Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter,
+                   dict(source_wrappers or {}))
 
 
 def _truth_states(flight: Flight, n: int) -> np.ndarray:
     return xyzyaw_from_pose(flight.groundtruth[:n])
 
 
+class PassRecord:
+    """Per-frame estimates, diagnostics and timings of the runs of one pass."""
+
+    def __init__(self, n_runs: int, T: int):
+        self.estimate = np.zeros((n_runs, T, 4))
+        self.diag = {k: np.zeros((n_runs, T)) for k in DIAGNOSTICS}
+        self.timing = {k: np.zeros((n_runs, T)) for k in STAGES}
+
+    def add(self, i: int, t: int, est: Estimate, acquisition_ms: float) -> None:
+        """Run i's estimate of frame t (``acquisition_ms``: reading the frame)."""
+        self.estimate[i, t] = est.state
+        for k in DIAGNOSTICS:
+            self.diag[k][i, t] = getattr(est, k)
+        stages = {"acquisition": acquisition_ms, **est.timing_ms}
+        for k, v in stages.items():
+            self.timing[k][i, t] = v
+        self.timing["total"][i, t] = sum(stages.values())
+
+    def write(self, i: int, run: RunSpec, out_dir: Path, flight: Flight, truth: np.ndarray,
+              num_particles: int) -> None:
+        """Run i's trajectory (TUM) and run record (JSON)."""
+        traj, rec = run.paths(out_dir)
+        T = len(truth)
+        ts = flight.timestamps[:T]
+        write_tum(traj, ts, pose_from_xyzyaw(self.estimate[i]))
+        atomic_write_json(rec, {
+            "flight": run.flight, "mode": run.mode, "init": run.init, "seed": run.seed,
+            "likelihood": run.likelihood, "num_frames": T,
+            "filter_particles": int(num_particles),
+            "timestamps": ts.tolist(),
+            "estimate": self.estimate[i].tolist(), "truth": truth.tolist(),
+            "position_error_m": position_errors(self.estimate[i], truth).tolist(),
+            "yaw_error_deg": yaw_errors_deg(self.estimate[i], truth).tolist(),
+            "timing_ms": {k: v[i].tolist() for k, v in self.timing.items()},
+            **{k: v[i].tolist() for k, v in self.diag.items()},
+        })
+
+
 def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
-             make_loglik: Callable | None = None, num_particles: int | None = None) -> None:
+             likelihood_override: LikelihoodOverride | None = None,
+             num_particles: int | None = None) -> None:
     """Step every run of one (flight, mode) through the flight, frame by frame.
 
     Args:
@@ -212,8 +234,7 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
         flight: the flight.
         mode: edge mode.
         runs: the runs to do (all share the flight and mode).
-        make_loglik: ``(obs, tilt) -> (states -> (log_w, score))`` to replace the vectorized
-            likelihood (the paper-faithful comparison); None uses ``EdgeLikelihood``.
+        likelihood_override: replaces the edge likelihood (the paper-faithful comparison).
         num_particles: override of the filter's particle count (both inits).
     """
     if not runs:
@@ -223,102 +244,31 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
                                                                   len(flight.timestamps))
     if T < 1:
         raise ValueError(f"flight {flight.name} has no frames")
-    fparams = ctx.filter_params.for_mode(mode)
-    if num_particles is not None:
-        fparams = replace(fparams, num_particles=int(num_particles),
-                          global_particles=max(int(num_particles), fparams.global_particles))
-    samples, vis = ctx.model_for(mode)
-    lp = mode_likelihood_params(ctx.likelihood_params, fparams, mode)
-    pairs = ctx.sample_pairs(samples)
-    lik = EdgeLikelihood(samples, ctx.camera, lp, vis, pairs)
-    wide = None  # the global phase's likelihood: thinned samples, its own settings
-    if any(r.init == "global" for r in runs) and (fparams.global_likelihood
-                                                   or fparams.global_thin > 1):
-        coarse, cols = samples.thin(fparams.global_thin)
-        gp = LikelihoodParams.from_cfg({**asdict(lp), **dict(fparams.global_likelihood)})
-        gp = replace(gp, evidence_norm=gp.evidence_norm / max(fparams.global_thin, 1))
-        wide = EdgeLikelihood(coarse, ctx.camera, gp, vis.select(cols), pairs[cols])
-    extractor = EdgeExtractor(mode, OmegaConf.to_container(cfg.edges, resolve=True),
-                              ctx.segmenter)
+    settings = ctx.settings if num_particles is None else ctx.settings.with_particles(
+        num_particles)
+    front = ctx.front_end(mode)
     truth = _truth_states(flight, T)
-    world = ctx.world
-    filters = []
+    localizers = []
     for r in runs:
-        pf = ParticleFilter(fparams, world.free_boxes, world.z_range, r.rng())
-        if r.init == "tracking":
-            pf.init_tracking(truth[0])
-        else:
-            pf.init_global()
-        filters.append(pf)
-    n_runs = len(runs)
-    est = np.zeros((n_runs, T, 4))
-    diag = {k: np.zeros((n_runs, T)) for k in ("ess", "best_score", "num_particles", "injected")}
-    t_filter = np.zeros((n_runs, T))
-    t_stage = {k: np.zeros(T) for k in ("acquisition", "segmentation", "preprocessing")}
+        loc = Localizer(ctx.world, ctx.camera, front, settings, r.rng(),
+                        model=ctx.model_for(mode), likelihood_override=likelihood_override)
+        loc.reset(truth[0] if r.init == "tracking" else None)
+        localizers.append(loc)
+    record = PassRecord(len(runs), T)
     desc = f"{flight.name}/{mode}" + (f"/{runs[0].likelihood}"
                                       if runs[0].likelihood != "vectorized" else "")
     for t in tqdm(range(T), desc=desc, disable=not cfg.progress, leave=False, mininterval=2.0):
         t0 = time.perf_counter()
-        rgb = labels = conf = None
-        if mode in ("none", "cnn"):
-            rgb = read_png(flight.rgb[t])
-        if mode == "oracle":
-            labels = read_png(flight.label[t], rgb=False)
-        t1 = time.perf_counter()
-        if mode == "cnn":
-            labels, conf = extractor.segment(rgb)
-        t2 = time.perf_counter()
-        edge = extractor.edges(rgb, labels, conf)
-        obs = lik.observe(edge)
-        t3 = time.perf_counter()
-        t_stage["acquisition"][t] = (t1 - t0) * 1e3
-        t_stage["segmentation"][t] = (t2 - t1) * 1e3
-        t_stage["preprocessing"][t] = (t3 - t2) * 1e3
-        tilt = tilt_from_pose(flight.odometry[t])  # roll and pitch from the IMU
+        rgb = read_png(flight.rgb[t]) if front.source.needs_image else None
+        labels = read_png(flight.label[t], rgb=False) if front.source.needs_truth else None
+        acquisition_ms = (time.perf_counter() - t0) * 1e3
+        frame = front.frame(rgb, labels)
         delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
-        if make_loglik is None:
-            def loglik(states, obs=obs, tilt=tilt):
-                return lik.log_likelihood(states, obs, tilt)
-        else:
-            loglik = make_loglik(edge, tilt)
-        obs_wide = None
-        for i, pf in enumerate(filters):
-            s0 = time.perf_counter()
-            fn = loglik
-            if wide is not None and pf.in_global_phase and make_loglik is None:
-                if obs_wide is None:
-                    obs_wide = wide.observe(edge)
-
-                def fn(states, obs=obs_wide, tilt=tilt):
-                    return wide.log_likelihood(states, obs, tilt)
-            with _BLAS.limit(limits=1, user_api="blas"):  # tiny GEMMs: threads only hurt
-                if delta is not None:
-                    pf.predict(delta)
-                info = pf.update(fn)
-            t_filter[i, t] = (time.perf_counter() - s0) * 1e3
-            est[i, t] = info.estimate
-            diag["ess"][i, t] = info.ess
-            diag["best_score"][i, t] = info.best_score
-            diag["num_particles"][i, t] = info.num_particles
-            diag["injected"][i, t] = info.injected
+        for i, loc in enumerate(localizers):
+            est = loc.step(frame, delta, flight.odometry[t], flight.timestamps[t])
+            record.add(i, t, est, acquisition_ms)
     for i, r in enumerate(runs):
-        traj, rec = r.paths(ctx.out_dir)
-        ts = flight.timestamps[:T]
-        write_tum(traj, ts, pose_from_xyzyaw(est[i]))
-        timing = {k: v.tolist() for k, v in t_stage.items()}
-        timing["filter"] = t_filter[i].tolist()
-        timing["total"] = (sum(t_stage.values()) + t_filter[i]).tolist()
-        atomic_write_json(rec, {
-            "flight": r.flight, "mode": r.mode, "init": r.init, "seed": r.seed,
-            "likelihood": r.likelihood, "num_frames": T,
-            "filter_particles": int(fparams.num_particles),
-            "timestamps": ts.tolist(),
-            "estimate": est[i].tolist(), "truth": truth.tolist(),
-            "position_error_m": position_errors(est[i], truth).tolist(),
-            "yaw_error_deg": yaw_errors_deg(est[i], truth).tolist(),
-            "timing_ms": timing,
-            **{k: v[i].tolist() for k, v in diag.items()},
-        })
+        record.write(i, r, ctx.out_dir, flight, truth, localizers[i].filter_params.num_particles)
 
 
 def paper_faithful_runs(ctx: Context) -> None:
@@ -348,28 +298,34 @@ def paper_faithful_runs(ctx: Context) -> None:
                for s in pcfg.seeds]
     todo = [r for r in pf_runs if ctx.cfg.overwrite or not r.done(ctx.out_dir)]
     if todo:
-        pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.likelihood_params,
+        pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
                                       hough=dict(pcfg.hough),
                                       samples_per_line=int(pcfg.samples_per_line),
                                       search_px=float(pcfg.search_px),
                                       variant=str(pcfg.render_variant))
 
-        def make(edge, tilt):
+        def paper_faithful(edge, tilt):
             return lambda states: pfl.log_likelihood(states, edge, tilt)
 
-        run_pass(sub_ctx, flight, mode, todo, make_loglik=make, num_particles=n)
+        run_pass(sub_ctx, flight, mode, todo, likelihood_override=paper_faithful,
+                 num_particles=n)
 
 
 @releases_claims
-def run(cfg: DictConfig) -> Path:
+def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
     """Run every flight x mode x init x seed (skipping finished runs) and write the report.
+
+    Args:
+        cfg: the composed localize config.
+        source_wrappers: per edge mode, a function of the mode's own edge source giving the
+            source to use instead (``SourceWrappers``); None: every mode's own.
 
     Returns:
         Path of report.md.
     """
     from localize.report import write_report
 
-    ctx = prepare(cfg)
+    ctx = prepare(cfg, source_wrappers)
     out = ctx.out_dir
     check_resume(out, cfg)
     for name in select_flights(ctx.dataset, cfg.flight_names):

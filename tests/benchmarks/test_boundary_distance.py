@@ -13,10 +13,18 @@ from benchmarks.boundary_distance import (
     signed_offsets,
 )
 from core import classes as C
-from localize.edges import EdgeExtractor, pair_code
+from localize.edges import pair_code
+from localize.extractor import CnnSettings
+from localize.frontend import FrontEnd, SegmenterLabels
+from localize.segmenter import LabelPredictor
 
 CFG = {"labels": {"dilate_px": 0, "median": 0},
        "cnn": {"snap_px": 0, "prior_correction": 0.0, "refine": "none"}}
+
+
+def cnn_front(segmenter) -> FrontEnd:
+    """The cnn mode's front end of a segmenter, with CFG."""
+    return FrontEnd(SegmenterLabels(segmenter, CnnSettings.from_cfg(CFG["cnn"])), CFG)
 
 
 class ShiftedSegmenter:
@@ -39,28 +47,28 @@ def split(col: int) -> np.ndarray:
 
 def test_distances_per_pair():
     rgb = np.zeros((20, 60, 3), np.uint8)
-    oracle = EdgeExtractor("oracle", CFG)
-    exact = pair_distances(EdgeExtractor("cnn", CFG, ShiftedSegmenter(0)), oracle, rgb,
+    oracle = FrontEnd("oracle", CFG)
+    exact = pair_distances(cnn_front(ShiftedSegmenter(0)), oracle, rgb,
                            split(30), cap=10.0)
     wall_door, wall_ceiling = pair_code(C.WALL, C.DOOR), pair_code(C.WALL, C.CEILING)
     assert set(exact) == {wall_door, wall_ceiling, pair_code(C.DOOR, C.CEILING)}
     for d in exact.values():
         np.testing.assert_array_equal(d, 0)
-    moved = pair_distances(EdgeExtractor("cnn", CFG, ShiftedSegmenter(3)), oracle, rgb,
+    moved = pair_distances(cnn_front(ShiftedSegmenter(3)), oracle, rgb,
                            split(30), cap=10.0)
     # true columns 29, 30 against predicted 32, 33: 3 and 2 px (rows below the ceiling)
     np.testing.assert_array_equal(np.unique(moved[wall_door]), [2.0, 3.0])
-    far = pair_distances(EdgeExtractor("cnn", CFG, ShiftedSegmenter(20)), oracle, rgb,
+    far = pair_distances(cnn_front(ShiftedSegmenter(20)), oracle, rgb,
                          split(30), cap=10.0)
     assert far[wall_door].max() == 10.0  # capped
 
 
 def test_signed_offsets_name_the_side():
     rgb = np.zeros((20, 60, 3), np.uint8)
-    oracle = EdgeExtractor("oracle", CFG)
+    oracle = FrontEnd("oracle", CFG)
     wall_door = pair_code(C.WALL, C.DOOR)
     for shift, want in ((0, [0.0]), (3, [2.0, 3.0]), (-3, [-3.0, -2.0])):
-        ec, eo = frame_edges(EdgeExtractor("cnn", CFG, ShiftedSegmenter(shift)), oracle, rgb,
+        ec, eo = frame_edges(cnn_front(ShiftedSegmenter(shift)), oracle, rgb,
                              split(30))
         s = signed_offsets(ec, eo, split(30), cap=10.0)
         # door (the higher id) starts 3 px late: the boundary lies inside the true door, +
@@ -92,11 +100,10 @@ def test_logit_crossings_place_the_decision_to_the_pixel():
     # wall columns 0-29, door from 30 (mirrored: door 0-29, wall from 30): the true change
     # lies between columns 29 and 30
     wall_door = pair_code(C.WALL, C.DOOR)
-    cfg = {**CFG, "cnn": {**CFG["cnn"], "prior_correction": 0.0}}
     for mirror in (False, True):
         truth = split(30)[:, ::-1] if mirror else split(30)
         for c, want in ((29.5, 0), (29.1, 0), (30.9, 1), (28.5, -1)):
-            ex = EdgeExtractor("cnn", cfg, RampSegmenter(c, mirror))
+            ex = LabelPredictor(RampSegmenter(c, mirror), prior_correction=0.0)
             got = logit_crossings(decision_scores(ex, None), truth, C.STRUCTURAL)
             # +: the boundary lies inside the true door (the higher id), which comes out small
             np.testing.assert_array_equal(np.unique(got[wall_door]), [want])
@@ -105,8 +112,7 @@ def test_logit_crossings_place_the_decision_to_the_pixel():
     truth = split(30)
     # the prior correction takes log w_wall = 1 off the wall's score: the door's ramp wins one
     # pixel earlier (30.9 -> 29.9 lies between the two pixels again)
-    cfg = {**CFG, "cnn": {**CFG["cnn"], "prior_correction": 1.0}}
-    ex = EdgeExtractor("cnn", cfg, RampSegmenter(30.9))
+    ex = LabelPredictor(RampSegmenter(30.9), prior_correction=1.0)
     got = logit_crossings(decision_scores(ex, None), truth, C.STRUCTURAL)
     np.testing.assert_array_equal(np.unique(got[wall_door]), [0])
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import localize.runner as runner
-from benchmarks.class_swap import install, report_name, swap_labels
+from benchmarks.class_swap import report_name, swap_labels, swapped_source
 from core import classes as C
-from core.atomic import write_png
-from localize.edges import EdgeExtractor
+from localize.extractor import CnnSettings
+from localize.frontend import FrontEnd, SegmenterLabels
 
-CFG = {"labels": {"dilate_px": 0, "median": 0}, "cnn": {"snap_px": 0, "prior_correction": 0.0}}
+CFG = {"labels": {"dilate_px": 0, "median": 0},
+       "cnn": {"snap_px": 0, "prior_correction": 0.0, "refine": "none"}}
 
 
 def truth() -> np.ndarray:
@@ -52,21 +52,21 @@ class Segmenter:
         return predicted()
 
 
-def test_install_swaps_the_frame_being_read(tmp_path, monkeypatch):
-    # keep the originals so that the patch is undone after the test
-    monkeypatch.setattr(runner, "read_png", runner.read_png)
-    monkeypatch.setattr(EdgeExtractor, "segment", EdgeExtractor.segment)
-    (tmp_path / "rgb").mkdir()
-    (tmp_path / "label").mkdir()
+def test_swapped_source_takes_the_classes_from_the_frames_truth():
+    own = SegmenterLabels(Segmenter(), CnnSettings.from_cfg(CFG["cnn"]))
+    source = swapped_source(own, np.array([C.FLOOR]))
+    assert (source.mode, source.needs_image, source.needs_truth) == ("cnn", True, True)
     rgb = np.full((8, 10, 3), 90, np.uint8)
-    write_png(tmp_path / "rgb" / "000003.png", rgb)
-    write_png(tmp_path / "label" / "000003.png", truth())
-    install(np.array([C.FLOOR]))
-    image = runner.read_png(tmp_path / "rgb" / "000003.png")
-    np.testing.assert_array_equal(image, rgb)
-    labels, conf = EdgeExtractor("cnn", CFG, Segmenter()).segment(image)
+    labels, conf = source.labels(rgb, truth())
     np.testing.assert_array_equal(labels, swap_labels(predicted(), truth(), np.array([C.FLOOR])))
     assert conf.shape == labels.shape
+    # through a front end: the edges of the swapped labels, the cnn mode's way
+    frame = FrontEnd(source, CFG).frame(rgb, truth())
+    np.testing.assert_array_equal(frame.labels, labels)
+    plain = FrontEnd(own, CFG).frame(rgb)
+    assert not np.array_equal(frame.edge.edges, plain.edge.edges)  # the floor row moved
+    with pytest.raises(ValueError, match="needs the frame's true labels"):
+        FrontEnd(source, CFG).frame(rgb)
 
 
 def test_report_name_keeps_swapped_runs_apart():

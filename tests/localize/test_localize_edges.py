@@ -1,4 +1,4 @@
-"""Edge maps of the three modes, the segmenter's class check."""
+"""Edge images, the three modes' edge maps (extractor), the segmenter's class check."""
 
 from __future__ import annotations
 
@@ -12,19 +12,12 @@ import pytest
 from omegaconf import OmegaConf
 
 from core import classes as C
-from localize.edges import (
-    CnnSettings,
-    EdgeExtractor,
-    EdgeImage,
-    canny_edges,
+from localize.edges import EdgeImage, canny_edges, label_edges, pair_classes, pair_code, pair_name
+from localize.extractor import CnnSettings, EdgeExtractor
+from localize.segmenter import (
     check_classes,
     class_log_prior,
-    label_edges,
     load_segmenter,
-    pair_classes,
-    pair_code,
-    pair_name,
-    snap_to_image_edges,
     structural_prior_labels,
 )
 from tests.localize.conftest import palette_segnet
@@ -271,7 +264,11 @@ class TestSegmenter:
         with pytest.raises(ValueError, match="unknown edge mode"):
             EdgeExtractor("sobel", EDGES_CFG)
         with pytest.raises(ValueError, match="needs a segmenter"):
-            EdgeExtractor("cnn", EDGES_CFG)
+            EdgeExtractor("cnn", EDGES_CFG).segment(np.zeros((20, 30, 3), np.uint8))
+        with pytest.raises(ValueError, match=r"edges config lacks \['hough'\] \(edge mode none"):
+            EdgeExtractor("none", {"canny": EDGES_CFG["canny"]})
+        with pytest.raises(ValueError, match=r"lacks \['canny'\] \(edge mode cnn"):
+            EdgeExtractor("cnn", {"labels": EDGES_CFG["labels"], "cnn": {"refine": "union"}})
         with pytest.raises(ValueError, match="needs a label map"):
             EdgeExtractor("oracle", EDGES_CFG).edges(np.zeros((20, 30, 3), np.uint8))
         e = EdgeExtractor("oracle", EDGES_CFG).edges(None, two_walls())
@@ -315,158 +312,3 @@ class TestRefineChoice:
         cfg = cnn(refine="sobel")
         with pytest.raises(ValueError, match="edges.cnn.refine"):
             EdgeExtractor("cnn", cfg, object()).edges(C.colorize(two_walls()), two_walls())
-
-
-class TestSnap:
-    @staticmethod
-    def step(left: int, right: int, split: int = 27) -> tuple[np.ndarray, np.ndarray]:
-        """(40, 60) wall | door labels split at column ``split`` and an image whose grey step
-        lies between columns 29 and 30 (after the 3x3 blur, columns 28-31 see it)."""
-        lab = np.full((40, 60), C.WALL, dtype=np.uint8)
-        lab[:, split:] = C.DOOR
-        rgb = np.full((40, 60, 3), left, dtype=np.uint8)
-        rgb[:, 30:] = right
-        return lab, rgb
-
-    def test_boundary_moves_onto_the_image_step(self):
-        lab, rgb = self.step(80, 160)
-        edge = label_edges(lab, dilate_px=0)
-        assert set(np.nonzero(edge.edges)[1]) == {26, 27}
-        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
-        cols = np.nonzero(out.edges)[1]
-        assert set(cols) == {29}  # the nearer of the two steepest columns (29, 30)
-        assert out.edges[:, 29].all()
-        np.testing.assert_array_equal(out.pairs[out.edges], pair_code(C.WALL, C.DOOR))
-        assert not out.pairs[~out.edges].any()
-        np.testing.assert_array_equal(out.known, edge.known)
-
-    def test_band_marks_both_sides_of_the_step(self):
-        # the step lies between columns 29 and 30: true labels split there mark both columns
-        lab, rgb = self.step(80, 160)
-        for split in (27, 32):  # from either side
-            lab_s, _ = self.step(80, 160, split=split)
-            out = snap_to_image_edges(label_edges(lab_s, dilate_px=0), rgb, radius=3,
-                                      min_gradient=15.0, band=True)
-            truth = label_edges(self.step(80, 160, split=30)[0], dilate_px=0)
-            np.testing.assert_array_equal(out.edges, truth.edges)
-            np.testing.assert_array_equal(out.pairs, truth.pairs)
-        # column 30 mostly dark: the step lies right of its centre, the band moves one column
-        rgb[:, 30] = 90
-        for split in (28, 32):
-            lab_s, _ = self.step(80, 160, split=split)
-            out = snap_to_image_edges(label_edges(lab_s, dilate_px=0), rgb, radius=3,
-                                      min_gradient=15.0, band=True)
-            assert set(np.nonzero(out.edges)[1]) == {30, 31}
-        rgb[:, 30] = 150  # mostly bright: left of its centre, the band stays at 29, 30
-        out = snap_to_image_edges(label_edges(lab, dilate_px=0), rgb, radius=3,
-                                  min_gradient=15.0, band=True)
-        assert set(np.nonzero(out.edges)[1]) == {29, 30}
-        # too weak: stays, as without the band
-        lab, faint = self.step(80, 82)
-        edge = label_edges(lab, dilate_px=0)
-        weak = snap_to_image_edges(edge, faint, radius=3, min_gradient=15.0, band=True)
-        np.testing.assert_array_equal(weak.edges, edge.edges)
-
-    def test_stay_keeps_a_boundary_already_on_an_edge(self):
-        # a weak step (wall | jamb) at columns 26 | 27, where the labels split, and a strong one
-        # (jamb | leaf) at 30 | 31, within reach
-        lab, _ = self.step(80, 160, split=27)
-        rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
-        rgb[:, 27:31] = 100
-        rgb[:, 31:] = 200
-        edge = label_edges(lab, dilate_px=0)
-        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
-        assert set(np.nonzero(strongest.edges)[1]) <= {29, 30}  # onto the leaf's edge
-        kept = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, stay=True)
-        np.testing.assert_array_equal(kept.edges, edge.edges)
-        # a boundary off any edge still moves to the strongest
-        lab, rgb = self.step(80, 160)
-        off = snap_to_image_edges(label_edges(lab, dilate_px=0), rgb, radius=3,
-                                  min_gradient=15.0, stay=True)
-        assert set(np.nonzero(off.edges)[1]) == {29}
-
-    def test_nearest_goes_to_the_edge_beside_it_not_the_strongest(self):
-        # boundary pixels at columns 24 | 25; a weaker step at 22 | 23, a stronger one at 27 | 28
-        lab = np.full((40, 60), C.WALL, dtype=np.uint8)
-        lab[:, 25:] = C.DOOR
-        rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
-        rgb[:, 23:] = 110
-        rgb[:, 28:] = 200
-        edge = label_edges(lab, dilate_px=0)
-        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, stay=True)
-        assert set(np.nonzero(strongest.edges)[1]) == {27}
-        near = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, nearest=True)
-        # 24 is a pixel from the weak step and moves onto it; 25 is two pixels from both and
-        # takes the stronger
-        assert set(np.nonzero(near.edges)[1]) == {23, 27}
-        np.testing.assert_array_equal(near.pairs > 0, near.edges)
-        # on an edge already: stays (as with stay); no edge in reach: stays
-        lab, _ = self.step(80, 160, split=27)
-        rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
-        rgb[:, 27:31] = 100
-        rgb[:, 31:] = 200
-        edge = label_edges(lab, dilate_px=0)
-        kept = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, nearest=True)
-        np.testing.assert_array_equal(kept.edges, edge.edges)
-        flat = snap_to_image_edges(edge, np.zeros_like(rgb), radius=3, min_gradient=15.0,
-                                   nearest=True)
-        np.testing.assert_array_equal(flat.edges, edge.edges)
-
-    def test_out_of_reach_or_too_weak_stays(self):
-        lab, rgb = self.step(80, 160, split=25)
-        far = label_edges(lab, dilate_px=0)  # columns 24, 25: the gradient starts at 28
-        near = snap_to_image_edges(far, rgb, radius=1, min_gradient=15.0)
-        np.testing.assert_array_equal(near.edges, far.edges)
-        lab, faint = self.step(80, 82)
-        edge = label_edges(lab, dilate_px=0)  # a 2-level step: Sobel ~6 < 15
-        weak = snap_to_image_edges(edge, faint, radius=3, min_gradient=15.0)
-        np.testing.assert_array_equal(weak.edges, edge.edges)
-        flat = snap_to_image_edges(edge, np.zeros_like(rgb), radius=3, min_gradient=15.0)
-        np.testing.assert_array_equal(flat.edges, edge.edges)
-        assert snap_to_image_edges(edge, rgb, radius=0, min_gradient=15.0) is edge
-
-    def test_colour_finds_a_step_of_equal_brightness(self):
-        lab, _ = self.step(80, 160)
-        rgb = np.zeros((40, 60, 3), dtype=np.uint8)
-        rgb[:, :30] = (180, 100, 100)  # pink-ish | green-ish of the same grey level (~124)
-        rgb[:, 30:] = (80, 150, 120)
-        grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
-        assert abs(int(grey[0, 0]) - int(grey[0, 59])) <= 2
-        edge = label_edges(lab, dilate_px=0)
-        plain = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
-        np.testing.assert_array_equal(plain.edges, edge.edges)  # no grey step: stays
-        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, colour=True)
-        assert set(np.nonzero(out.edges)[1]) == {29}
-        # a grey step has the same gradient either way: the colour snap moves it the same
-        lab, grey_step = self.step(80, 160)
-        a = snap_to_image_edges(label_edges(lab, dilate_px=0), grey_step, 3, 15.0)
-        b = snap_to_image_edges(label_edges(lab, dilate_px=0), grey_step, 3, 15.0, colour=True)
-        np.testing.assert_array_equal(a.edges, b.edges)
-        lab, faint = self.step(80, 82)  # and a faint one stays faint
-        weak = snap_to_image_edges(label_edges(lab, dilate_px=0), faint, 3, 15.0, colour=True)
-        np.testing.assert_array_equal(weak.edges, label_edges(lab, dilate_px=0).edges)
-
-    def test_stays_inside_the_known_mask(self):
-        lab, rgb = self.step(80, 160)
-        lab[:, 29:32] = C.PERSON  # the image step is under an object
-        edge = label_edges(lab, dilate_px=1)
-        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
-        np.testing.assert_array_equal(out.edges, edge.edges)  # its step is masked: stays
-
-    def test_extractor_snaps_cnn_boundaries(self):
-        lab, rgb = self.step(80, 160)
-        cfg = cnn(snap_px=3, snap_min_gradient=15.0)
-        e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
-        assert set(np.nonzero(e.edges)[1]) == {29}
-        plain = EdgeExtractor("cnn", EDGES_CFG, object()).edges(rgb, lab)
-        assert set(np.nonzero(plain.edges)[1]) == {26, 27}
-        oracle = EdgeExtractor("oracle", cfg).edges(rgb, lab)  # true labels: never moved
-        np.testing.assert_array_equal(oracle.edges, plain.edges)
-
-    def test_bad_input(self):
-        lab, rgb = self.step(80, 160)
-        edge = label_edges(lab, dilate_px=0)
-        with pytest.raises(ValueError, match="differ in size"):
-            snap_to_image_edges(edge, rgb[:20], radius=2, min_gradient=15.0)
-        with pytest.raises(ValueError, match="RGB image"):
-            snap_to_image_edges(edge, rgb[..., 0], radius=2, min_gradient=15.0)

@@ -6,6 +6,7 @@ import numpy as np
 
 from benchmarks.pair_evidence import evidence, pair_likelihoods
 from localize.edges import label_edges, pair_code
+from localize.frontend import Frame
 from localize.likelihood import LikelihoodParams
 from localize.projection import cam_from_world, sample_segments
 from localize.visibility import build_visibility_grid
@@ -27,9 +28,9 @@ def test_pairs_prefer_the_truth(small_world, camera, renderer):
                                           int(key))
     labels, _ = renderer.render(np.linalg.inv(cam_from_world(TRUE[None],
                                                              camera.body_from_cam)[0]))
-    edge = label_edges(labels, dilate_px=0)
-    same = evidence(liks, edge, TRUE, TRUE, None)
+    frame = Frame(label_edges(labels, dilate_px=0), labels, {})
+    same = evidence(liks, frame, TRUE, TRUE, None)
     assert all(v == 0.0 for v in same.values())
-    off = evidence(liks, edge, TRUE + [0.0, 0.05, 0.0, 0.0], TRUE, None)
+    off = evidence(liks, frame, TRUE + [0.0, 0.05, 0.0, 0.0], TRUE, None)
     assert off["all"] < -1.0  # 5 cm off: true edges pull back, strongly at k = 20
     assert sum(v < 0 for k, v in off.items() if k != "all") >= 2

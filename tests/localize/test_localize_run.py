@@ -13,8 +13,9 @@ from omegaconf import OmegaConf
 
 from core.poses import read_tum
 from localize.likelihood import LikelihoodParams
+from localize.localizer import mode_likelihood_params
 from localize.particle_filter import FilterParams
-from localize.runner import RunSpec, mode_likelihood_params, run
+from localize.runner import RunSpec, run
 from tests.localize.conftest import QUICK, localize_cfg
 
 
@@ -39,12 +40,13 @@ def test_presets_per_mode_k(preset):
     sigma = 0.3 in every mode, though its mode_likelihood merges into the default's."""
     from hydra import compose, initialize_config_dir
 
-    from localize.runner import filter_settings
+    from localize.localizer import Settings
     from tests.helpers import CONF
 
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose("localize", overrides=[f"filter={preset}"])
-    fp, lp = filter_settings(cfg)
+    settings = Settings.from_cfg(cfg)
+    fp, lp = settings.filter, settings.likelihood
     k = {m: mode_likelihood_params(lp, fp, m).k for m in ("none", "cnn", "oracle")}
     if preset == "paper":
         assert k == {"none": 3.0, "cnn": 3.0, "oracle": 3.0}

@@ -1,0 +1,375 @@
+"""The Localizer: the one object that turns camera frames into poses.
+
+A ``Localizer`` holds one particle filter (``particle_filter.ParticleFilter``) over body poses
+(x, y, z, yaw), the edge likelihood of its edge mode (``likelihood.EdgeLikelihood``, and the
+thinned one of the global phase) and a front end (``frontend.FrontEnd``: image -> labels ->
+edge image). ``reset(start)`` starts it around a known pose or uniformly over the free space;
+``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
+weighs them by how well the model's edges fall on the frame's edges and returns an
+``Estimate``. No file is read or written.
+
+Several filters on the same frames (the runner's inits x seeds of one flight and mode) share
+the costly per-frame work: they share one ``FrontEnd`` and one ``EdgeModel``; the caller makes
+each frame once, ``frame = front_end.frame(image, labels)``, and passes the ``Frame`` to every
+localizer's ``step`` instead of the image. A ``Frame`` makes each likelihood's score maps (the
+distance transforms) once and hands them to every filter with the same map settings, so N
+filters cost one segmentation, one edge image and one set of score maps per frame, plus N
+filter updates. Given an image, ``step`` makes the frame itself.
+
+Settings (``Settings``) are the localize config's ``filter`` (particle filter and likelihood),
+``edges``, ``model_edges`` and ``visibility`` nodes; a mode's own likelihood and motion noise
+(``filter.mode_likelihood``, ``filter.mode_motion_std``) apply by the front end's mode.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+from threadpoolctl import ThreadpoolController
+
+from core.dataset import Camera, World
+from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
+from localize.edges import EdgeImage, pair_code
+from localize.extractor import class_boundaries_only
+from localize.frontend import Frame, FrontEnd
+from localize.likelihood import EdgeLikelihood, LikelihoodParams
+from localize.particle_filter import FilterParams, LogLikelihood, ParticleFilter
+from localize.projection import ModelSamples, sample_segments, tilt_from_pose
+from localize.visibility import VisibilityGrid, load_or_build
+
+#: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
+#: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
+LikelihoodOverride = Callable[[EdgeImage, np.ndarray | None], LogLikelihood]
+
+_BLAS = ThreadpoolController()
+
+
+def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
+                           mode: str) -> LikelihoodParams:
+    """The likelihood settings of one edge mode: ``lp`` updated by
+    ``filter.mode_likelihood[mode]`` (unknown keys raise)."""
+    over = fparams.mode_likelihood.get(mode)
+    if not over:
+        return lp
+    try:
+        return LikelihoodParams.from_cfg({**asdict(lp), **dict(over)})
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"filter.mode_likelihood.{mode}: {err}") from err
+
+
+def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> LikelihoodParams:
+    """The global phase's likelihood settings: ``lp`` updated by ``filter.global_likelihood``,
+    ``evidence_norm`` divided by ``filter.global_thin`` (it scores that many times fewer
+    samples)."""
+    gp = LikelihoodParams.from_cfg({**asdict(lp), **dict(fparams.global_likelihood)})
+    return replace(gp, evidence_norm=gp.evidence_norm / max(fparams.global_thin, 1))
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a Localizer is configured by (conf/localize.yaml's nodes of the same names).
+
+    Attributes:
+        filter: particle filter settings (``filter``, without ``likelihood``).
+        likelihood: edge likelihood settings (``filter.likelihood``).
+        edges: the ``edges`` config (canny, hough, labels, cnn).
+        spacing: metres between model edge samples (``model_edges.spacing``).
+        class_change_only: label modes score only model segments whose two sides differ in
+            class (``model_edges.label_modes_class_change_only``).
+        visibility: occlusion grid settings (``visibility``: cell_xy, cell_z, pad, eps,
+            variant).
+    """
+
+    filter: FilterParams = field(default_factory=FilterParams)
+    likelihood: LikelihoodParams = field(default_factory=LikelihoodParams)
+    edges: Mapping = field(default_factory=dict)
+    spacing: float = 0.1
+    class_change_only: bool = True
+    visibility: Mapping = field(default_factory=dict)
+
+    @classmethod
+    def from_cfg(cls, cfg) -> Settings:
+        """From a composed localize config (a DictConfig or a plain mapping)."""
+        conf = OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else cfg
+        missing = [k for k in ("filter", "edges", "model_edges", "visibility") if k not in conf]
+        if missing:
+            raise ValueError(f"the localize config lacks {missing}; compose conf/localize.yaml")
+        f = dict(conf["filter"])
+        lik = f.pop("likelihood", {})
+        me = conf["model_edges"]
+        return cls(FilterParams.from_cfg(f), LikelihoodParams.from_cfg(lik), dict(conf["edges"]),
+                   float(me["spacing"]), bool(me["label_modes_class_change_only"]),
+                   dict(conf["visibility"]))
+
+    def with_particles(self, n: int) -> Settings:
+        """These settings with ``n`` tracking particles (and at least ``n`` global ones)."""
+        f = replace(self.filter, num_particles=int(n),
+                    global_particles=max(int(n), self.filter.global_particles))
+        return replace(self, filter=f)
+
+
+@dataclass
+class EdgeModel:
+    """The model edges a mode scores: samples, their occlusion grid and class pairs.
+
+    Attributes:
+        samples: points along the world's edge segments.
+        visibility: their visibility from a grid of camera positions (None: every sample in
+            view counts as visible).
+        pairs: (P,) uint8 ``edges.pair_code`` of the two classes each sample's segment
+            separates.
+    """
+
+    samples: ModelSamples
+    visibility: VisibilityGrid | None
+    pairs: np.ndarray
+    _thinned: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def build(cls, world: World, settings: Settings, cache_dir: str | Path | None = None,
+              occlusion: bool = True) -> EdgeModel:
+        """All the world's edges, sampled every ``settings.spacing`` m, with their visibility
+        grid (ray-cast, cached under ``cache_dir`` when given; ``occlusion=False`` skips it)."""
+        samples = sample_segments(world.segments, float(settings.spacing))
+        vis = None
+        if occlusion:
+            v = {"cell_xy": 0.2, "cell_z": 0.25, "pad": 0.3, "eps": 0.02, "variant": "auto",
+                 **dict(settings.visibility)}
+            vis = load_or_build(world, samples.points, cache_dir, float(v["cell_xy"]),
+                                float(v["cell_z"]), float(v["pad"]), float(v["eps"]),
+                                str(v["variant"]))
+        sc = np.asarray(world.segment_classes)[samples.segment]
+        return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
+
+    def class_change(self, world: World) -> EdgeModel:
+        """The samples of the segments between two different structural classes (what label
+        boundaries can match); this model when there are none."""
+        sc = np.asarray(world.segment_classes)
+        keep = (sc[:, 0] != sc[:, 1]) & (sc.min(axis=1) > 0)
+        if not keep.any():
+            return self
+        sub, cols = self.samples.select(keep)
+        vis = None if self.visibility is None else self.visibility.select(cols)
+        return EdgeModel(sub, vis, self.pairs[cols])
+
+    def thin(self, step: int) -> EdgeModel:
+        """Every ``step``-th sample of each segment (``ModelSamples.thin``); made once per
+        step and kept, so localizers sharing this model share it too."""
+        step = int(step)
+        if step not in self._thinned:
+            sub, cols = self.samples.thin(step)
+            vis = None if self.visibility is None else self.visibility.select(cols)
+            self._thinned[step] = EdgeModel(sub, vis, self.pairs[cols])
+        return self._thinned[step]
+
+    def for_mode(self, world: World, mode: str, settings: Settings) -> EdgeModel:
+        """The part of this model an edge mode scores: the class-change segments
+        (``class_change``) for modes whose edges are class boundaries only, when
+        ``settings.class_change_only``; else this model."""
+        if settings.class_change_only and class_boundaries_only(mode, dict(settings.edges)):
+            return self.class_change(world)
+        return self
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The pose estimate of one frame.
+
+    Attributes:
+        timestamp: seconds, as given to ``step``.
+        state: (4,) x, y, z (metres), yaw (radians): the particles' weighted mean.
+        pose: (4, 4) world_from_body of ``state`` (zero roll and pitch).
+        position_std: weighted horizontal spread of the particles, metres.
+        yaw_std: circular spread of their yaw, radians.
+        ess: effective sample size of the weights.
+        num_particles: particles after the step.
+        best_score: fit quality of the most likely particle (NaN: too little seen to tell).
+        injected: particles injected by depletion recovery in this step.
+        timing_ms: ``segmentation`` (the edge source's labels), ``preprocessing`` (edge image
+            and score maps) and ``filter`` (motion, likelihood, resampling), ms.
+    """
+
+    timestamp: float
+    state: np.ndarray
+    pose: np.ndarray
+    position_std: float
+    yaw_std: float
+    ess: float
+    num_particles: int
+    best_score: float
+    injected: int
+    timing_ms: Mapping[str, float]
+
+
+class Localizer:
+    """An edge particle filter localizing a camera against a building model.
+
+    Args:
+        world: the structural model (free space, edge segments).
+        camera: the camera to project with (K, size, body_from_cam); frames must be its size.
+        front_end: a ``FrontEnd`` (shared with other localizers), or an edge source for a
+            front end of its own: ``"none"``, ``"oracle"``, an ``EdgeSource`` or a callable
+            ``rgb -> labels`` (``frontend.edge_source``; for ``"cnn"`` pass a FrontEnd or a
+            ``SegmenterLabels``).
+        settings: the filter, likelihood, edges and model settings.
+        rng: the filter's random generator (its only source of randomness).
+        model: the model edges this mode scores (``EdgeModel.for_mode``), shared with other
+            localizers; None builds them (``EdgeModel.build``, ray-casting the visibility
+            grid, uncached, then ``for_mode``).
+        likelihood_override: replaces the edge likelihood in every phase (the paper-faithful
+            comparison).
+    """
+
+    def __init__(self, world: World, camera: Camera, front_end, settings: Settings,
+                 rng: np.random.Generator, *, model: EdgeModel | None = None,
+                 likelihood_override: LikelihoodOverride | None = None):
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a np.random.Generator, got {type(rng).__name__}")
+        self.front_end = (front_end if isinstance(front_end, FrontEnd)
+                          else FrontEnd(front_end, settings.edges))
+        self.world, self.camera, self.settings = world, camera, settings
+        mode = self.front_end.mode
+        self.filter_params = settings.filter.for_mode(mode)
+        if model is None:
+            model = EdgeModel.build(world, settings).for_mode(world, mode, settings)
+        self.model = model
+        lp = mode_likelihood_params(settings.likelihood, self.filter_params, mode)
+        self.likelihood = EdgeLikelihood(model.samples, camera, lp, model.visibility,
+                                         model.pairs)
+        self._global_likelihood = None
+        self.likelihood_override = likelihood_override
+        self.filter = ParticleFilter(self.filter_params, world.free_boxes, world.z_range, rng)
+        self._last_time = None
+
+    @property
+    def global_likelihood(self) -> EdgeLikelihood:
+        """The global phase's likelihood: thinned samples (``filter.global_thin``) and
+        ``filter.global_likelihood`` settings; the tracking one when neither is set."""
+        fp = self.filter_params
+        if not (fp.global_likelihood or fp.global_thin > 1):
+            return self.likelihood
+        if self._global_likelihood is None:
+            coarse = self.model.thin(fp.global_thin)
+            gp = global_likelihood_params(self.likelihood.params, fp)
+            self._global_likelihood = EdgeLikelihood(coarse.samples, self.camera, gp,
+                                                     coarse.visibility, coarse.pairs)
+        return self._global_likelihood
+
+    def reset(self, start: np.ndarray | None = None) -> None:
+        """Start tracking around ``start`` or, with None, globally (uniform over free space).
+
+        Args:
+            start: (4,) x, y, z (metres), yaw (radians), or (4, 4) world_from_body (its
+                heading taken; roll and pitch ignored), or None.
+        """
+        if start is None:
+            self.filter.init_global()
+        else:
+            s = np.asarray(start, dtype=np.float64)
+            if s.shape == (4, 4):
+                s = xyzyaw_from_pose(s)[0]
+            if s.shape != (4,) or not np.isfinite(s).all():
+                raise ValueError(f"reset(start): expected (4,) x, y, z, yaw or a (4, 4) "
+                                 f"world_from_body, finite, got {s.shape}")
+            self.filter.init_tracking(s)
+        self._last_time = None
+
+    def step(self, image: np.ndarray | Frame | None, odometry_increment: np.ndarray | None,
+             attitude: np.ndarray | None, timestamp: float,
+             labels: np.ndarray | None = None) -> Estimate:
+        """One frame: move by the odometry, weigh by the edges, resample; the estimate.
+
+        Args:
+            image: (H, W, 3) uint8 RGB of the camera's size, or a ``Frame`` of the shared
+                front end (``FrontEnd.frame``), or None for a source that reads no image
+                (``TrueLabels``).
+            odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since
+                the previous frame, in that frame's heading frame
+                (``particle_filter.odometry_increment``); None on the first frame.
+            attitude: (4, 4) world_from_body (or its (3, 3) rotation) from the IMU/odometry at
+                this frame; only its roll and pitch are used (``tilt_from_pose``); None: level.
+            timestamp: seconds; not before the previous frame's.
+            labels: (H, W) uint8 true class ids for sources that read them (``oracle``); with
+                a ``Frame``, give them to ``FrontEnd.frame`` instead.
+
+        Returns:
+            The estimate, computed before resampling.
+        """
+        if len(self.filter.particles) == 0:
+            raise RuntimeError("Localizer.step before reset(): call reset(start) for tracking "
+                               "or reset(None) for a global start")
+        timestamp = float(timestamp)
+        if self._last_time is not None and timestamp < self._last_time:
+            raise ValueError(f"timestamp {timestamp} is before the previous frame's "
+                             f"{self._last_time}; frames must come in time order")
+        delta = _check_increment(odometry_increment)
+        tilt = None if attitude is None else _tilt(attitude)
+        frame = self._frame(image, labels)
+        loglik, obs_ms = self._log_likelihood(frame, tilt)
+        t0 = time.perf_counter()
+        with _BLAS.limit(limits=1, user_api="blas"):  # tiny GEMMs: threads only hurt
+            if delta is not None:
+                self.filter.predict(delta)
+            info = self.filter.update(loglik)
+        filter_ms = (time.perf_counter() - t0) * 1e3
+        self._last_time = timestamp
+        timing = {"segmentation": frame.timing_ms["segmentation"],
+                  "preprocessing": frame.timing_ms["edges"] + obs_ms, "filter": filter_ms}
+        return Estimate(timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0],
+                        info.position_std, info.yaw_std, info.ess, info.num_particles,
+                        info.best_score, info.injected, timing)
+
+    def _frame(self, image, labels) -> Frame:
+        """The frame of ``image``: itself if already a Frame, else made by the front end."""
+        if isinstance(image, Frame):
+            if labels is not None:
+                raise ValueError("step(Frame, labels=...): the frame is made already; pass the "
+                                 "labels to FrontEnd.frame(image, labels)")
+            frame = image
+        else:
+            frame = self.front_end.frame(image, labels)
+        shape = frame.edge.edges.shape
+        if shape != (self.camera.height, self.camera.width):
+            raise ValueError(f"frame {shape[1]}x{shape[0]} does not match the camera "
+                             f"{self.camera.width}x{self.camera.height}; give frames of the "
+                             "camera's size (or the Localizer the camera of the frames)")
+        return frame
+
+    def _log_likelihood(self, frame: Frame, tilt: np.ndarray | None
+                        ) -> tuple[LogLikelihood, float]:
+        """The likelihood of this step (override, global phase or tracking) over the frame,
+        and the ms its score maps took."""
+        if self.likelihood_override is not None:
+            return self.likelihood_override(frame.edge, tilt), 0.0
+        lik = self.global_likelihood if self.filter.in_global_phase else self.likelihood
+        obs, ms = frame.observation(lik)
+
+        def loglik(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return lik.log_likelihood(states, obs, tilt)
+
+        return loglik, ms
+
+
+def _check_increment(delta) -> np.ndarray | None:
+    """The odometry increment as (4,) float64, or None; raises naming the shape received."""
+    if delta is None:
+        return None
+    d = np.asarray(delta, dtype=np.float64)
+    if d.shape != (4,) or not np.isfinite(d).all():
+        raise ValueError(f"odometry_increment must be (4,) finite forward, left, up, yaw "
+                         f"change (particle_filter.odometry_increment) or None, got {d.shape}")
+    return d
+
+
+def _tilt(attitude) -> np.ndarray:
+    """(3, 3) roll and pitch of a (4, 4) or (3, 3) world_from_body."""
+    a = np.asarray(attitude, dtype=np.float64)
+    if a.shape not in ((4, 4), (3, 3)) or not np.isfinite(a).all():
+        raise ValueError(f"attitude must be a (4, 4) world_from_body or its (3, 3) rotation "
+                         f"(roll and pitch from the IMU), got {a.shape}")
+    return tilt_from_pose(a)

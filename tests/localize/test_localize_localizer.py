@@ -1,0 +1,300 @@
+"""The Localizer: reset, step, edge sources, shared frames, bad input, and the runner's
+trajectories unchanged by it (numbers recorded from the inline frame step it replaced)."""
+
+from __future__ import annotations
+
+import builtins
+import io
+import json
+
+import numpy as np
+import pytest
+
+from core import classes as C
+from core.dataset import Dataset
+from localize.frontend import FrontEnd, LabelFunction, TrueLabels
+from localize.likelihood import LikelihoodParams
+from localize.localizer import EdgeModel, Estimate, Localizer, Settings
+from localize.particle_filter import FilterParams, odometry_increment
+from localize.projection import cam_from_world
+from localize.runner import RunSpec, run
+from tests.localize.conftest import QUICK, localize_cfg
+from tests.localize.test_localize_edges import EDGES_CFG
+
+TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
+
+SETTINGS = Settings(
+    filter=FilterParams(num_particles=150, global_particles=600, global_frames=2,
+                        init_std=(0.05, 0.05, 0.02, 2.0), recovery=False),
+    likelihood=LikelihoodParams(k=20.0, sigma=0.1, min_lines=2),
+    edges=EDGES_CFG, spacing=0.1, visibility={"cell_xy": 0.3, "cell_z": 0.4})
+
+
+@pytest.fixture(scope="module")
+def model(small_world) -> EdgeModel:
+    return EdgeModel.build(small_world, SETTINGS).for_mode(small_world, "oracle", SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def labels(renderer, camera) -> np.ndarray:
+    """(120, 160) true labels seen from TRUE."""
+    lab, _ = renderer.render(np.linalg.inv(cam_from_world(TRUE[None], camera.body_from_cam)[0]))
+    return lab
+
+
+def make(small_world, camera, model, source="oracle", seed=0, **kw) -> Localizer:
+    return Localizer(small_world, camera, source, SETTINGS, np.random.default_rng(seed),
+                     model=model, **kw)
+
+
+class TestReset:
+    def test_tracking_start_from_state_or_pose(self, small_world, camera, model):
+        a, b = make(small_world, camera, model), make(small_world, camera, model)
+        a.reset(TRUE)
+        pose = np.eye(4)
+        c, s = np.cos(TRUE[3]), np.sin(TRUE[3])
+        pose[:2, :2] = [[c, -s], [s, c]]
+        pose[:3, 3] = TRUE[:3]
+        b.reset(pose)
+        np.testing.assert_allclose(a.filter.particles, b.filter.particles, atol=1e-12)
+        assert a.filter.particles.shape == (150, 4)
+        np.testing.assert_allclose(a.filter.particles[:, :3].mean(0), TRUE[:3], atol=0.02)
+
+    def test_global_start_is_uniform_over_free_space(self, small_world, camera, model):
+        loc = make(small_world, camera, model)
+        loc.reset(None)
+        p = loc.filter.particles
+        assert p.shape == (600, 4) and loc.filter.in_global_phase
+        boxes = small_world.free_boxes
+        inside = ((p[:, None, 0] >= boxes[:, 0]) & (p[:, None, 0] <= boxes[:, 2])
+                  & (p[:, None, 1] >= boxes[:, 1]) & (p[:, None, 1] <= boxes[:, 3])).any(1)
+        assert inside.all()
+
+    def test_bad_start(self, small_world, camera, model):
+        loc = make(small_world, camera, model)
+        with pytest.raises(ValueError, match=r"reset\(start\).*got \(3,\)"):
+            loc.reset(np.zeros(3))
+        with pytest.raises(ValueError, match="finite"):
+            loc.reset(np.array([0.0, np.nan, 1.0, 0.0]))
+
+
+class TestStep:
+    def test_estimate_fields_and_tracking(self, small_world, camera, model, labels):
+        loc = make(small_world, camera, model)
+        loc.reset(TRUE + [0.04, -0.03, 0.0, 0.02])
+        for t in range(4):
+            est = loc.step(None, None if t == 0 else np.zeros(4), None, 0.1 * t, labels=labels)
+        assert isinstance(est, Estimate)
+        assert est.state.shape == (4,) and est.pose.shape == (4, 4)
+        np.testing.assert_allclose(est.pose[:3, 3], est.state[:3])
+        assert est.timestamp == pytest.approx(0.3)
+        assert set(est.timing_ms) == {"segmentation", "preprocessing", "filter"}
+        assert all(v >= 0 for v in est.timing_ms.values())
+        assert est.num_particles == 150 and 1.0 <= est.ess <= 150.0
+        assert 0.0 <= est.position_std < 0.1 and est.injected == 0
+        assert np.linalg.norm(est.state[:2] - TRUE[:2]) < 0.03  # pulled back to the truth
+
+    def test_same_seed_same_estimates(self, small_world, camera, model, labels):
+        runs = []
+        for _ in range(2):
+            loc = make(small_world, camera, model, seed=3)
+            loc.reset(None)
+            runs.append([loc.step(None, None if t == 0 else np.zeros(4), None, t,
+                                  labels=labels).state for t in range(3)])
+        np.testing.assert_array_equal(runs[0], runs[1])
+
+    def test_shared_frame_is_made_once_and_changes_nothing(self, small_world, camera, model,
+                                                          labels):
+        front = FrontEnd("oracle", EDGES_CFG)
+        shared = [make(small_world, camera, model, front, seed=s) for s in (1, 2)]
+        alone = [make(small_world, camera, model, seed=s) for s in (1, 2)]
+        for loc in shared + alone:
+            loc.reset(TRUE)
+        for t in range(3):
+            frame = front.frame(None, labels)
+            a = [loc.step(frame, None, None, t).state for loc in shared]
+            b = [loc.step(None, None, None, t, labels=labels).state for loc in alone]
+            np.testing.assert_array_equal(a, b)
+            assert len(frame._maps) == 1  # one set of score maps for both filters
+
+    def test_callable_edge_source(self, small_world, camera, model, labels):
+        """A callable rgb -> labels is an edge source; as mode oracle it gives what the true
+        labels give, as mode cnn (the default) its labels' edges are snapped to the image."""
+        rgb = C.colorize(labels)
+        oracle = make(small_world, camera, model, TrueLabels(), seed=5)
+        fn = make(small_world, camera, model, LabelFunction(lambda im: labels, mode="oracle"),
+                  seed=5)
+        cnn = make(small_world, camera, model, lambda im: labels, seed=5)
+        assert cnn.front_end.mode == "cnn"
+        for loc in (oracle, fn, cnn):
+            loc.reset(TRUE)
+        for t in range(2):
+            a = oracle.step(rgb, None, None, t, labels=labels)
+            b = fn.step(rgb, None, None, t)
+            c = cnn.step(rgb, None, None, t)
+            np.testing.assert_array_equal(a.state, b.state)
+            assert np.linalg.norm(c.state[:2] - TRUE[:2]) < 0.05
+
+    def test_no_file_io(self, small_world, camera, model, labels, monkeypatch):
+        loc = make(small_world, camera, model)
+        loc.reset(TRUE)
+
+        def no_io(*args, **kwargs):
+            raise AssertionError(f"step opened a file: {args}")
+
+        monkeypatch.setattr(builtins, "open", no_io)
+        monkeypatch.setattr(io, "open", no_io)
+        loc.step(None, None, None, 0.0, labels=labels)
+
+
+class TestBadInput:
+    @pytest.fixture()
+    def loc(self, small_world, camera, model):
+        loc = make(small_world, camera, model, lambda im: np.zeros(im.shape[:2], np.uint8))
+        loc.reset(TRUE)
+        return loc
+
+    def test_step_before_reset(self, small_world, camera, model):
+        with pytest.raises(RuntimeError, match=r"before reset\(\)"):
+            make(small_world, camera, model).step(None, None, None, 0.0)
+
+    def test_image(self, loc):
+        with pytest.raises(ValueError, match=r"\(H, W, 3\) uint8 RGB image, got \(120, 160\)"):
+            loc.step(np.zeros((120, 160), np.uint8), None, None, 0.0)
+        with pytest.raises(ValueError, match=r"frame 80x60 does not match the camera 160x120"):
+            loc.step(np.zeros((60, 80, 3), np.uint8), None, None, 0.0)
+        with pytest.raises(ValueError, match="needs the image"):
+            loc.step(None, None, None, 0.0)
+
+    def test_odometry_attitude_and_time(self, loc):
+        rgb = np.zeros((120, 160, 3), np.uint8)
+        with pytest.raises(ValueError, match=r"odometry_increment must be \(4,\).*got \(3,\)"):
+            loc.step(rgb, np.zeros(3), None, 0.0)
+        with pytest.raises(ValueError, match=r"attitude must be a \(4, 4\).*got \(2,\)"):
+            loc.step(rgb, None, np.zeros(2), 0.0)
+        loc.step(rgb, None, np.eye(4), 1.0)
+        with pytest.raises(ValueError, match="before the previous frame's 1.0"):
+            loc.step(rgb, np.zeros(4), np.eye(3), 0.5)
+
+    def test_labels(self, small_world, camera, model, labels):
+        loc = make(small_world, camera, model)
+        loc.reset(TRUE)
+        with pytest.raises(ValueError, match="needs the frame's true labels"):
+            loc.step(None, None, None, 0.0)
+        frame = loc.front_end.frame(None, labels)
+        with pytest.raises(ValueError, match=r"pass the labels to FrontEnd.frame"):
+            loc.step(frame, None, None, 0.0, labels=labels)
+
+    def test_sources(self, small_world, camera, model):
+        with pytest.raises(ValueError, match="needs a segmenter"):
+            make(small_world, camera, model, "cnn")
+        with pytest.raises(ValueError, match="unknown edge source 'sobel'"):
+            make(small_world, camera, model, "sobel")
+        with pytest.raises(TypeError, match="np.random.Generator"):
+            Localizer(small_world, camera, "oracle", SETTINGS, 0, model=model)
+        bad = make(small_world, camera, model, lambda im: np.zeros((5, 5), np.uint8))
+        bad.reset(TRUE)
+        with pytest.raises(ValueError, match=r"returned \(5, 5\) for an image \(120, 160\)"):
+            bad.step(np.zeros((120, 160, 3), np.uint8), None, None, 0.0)
+
+
+# --- the runner's trajectories, against the inline frame step the Localizer replaced ----------
+
+#: Per run: the estimate (T, 4) summed over frames, then weighted by frame number 1..T, as the
+#: runner's frame step gave them before the Localizer (12 frames; paper-faithful: 3 frames of
+#: 8 particles), recorded on the flat-shaded tiny dataset with REFERENCE_OVERRIDES.
+REFERENCE = {
+    "cluttered/cnn_global_seed0": [-5.849608792034645, 99.49466831952742, 16.910403865388545, -17.653047488828232, -40.827466643528446, 675.2304941308635, 111.36582005264171, -107.1500794114303],  # noqa: E501
+    "cluttered/cnn_seed0": [5.67524005540743, 7.5161789605481655, 16.427358887461654, 20.09827290969603, 35.19074161505238, 53.9618420415655, 109.48985403384071, 136.681439070235],  # noqa: E501
+    "cluttered/none_global_seed0": [-4.497316878016567, 64.9904140519078, 16.980790301173446, 17.772526422444706, -30.600385686222836, 432.24806457772706, 111.85248021913628, 121.83423958534057],  # noqa: E501
+    "cluttered/none_seed0": [7.289174268924013, 7.555505667645834, 15.982989951652735, 19.595456606736093, 47.71900640146394, 52.44805070404986, 105.73343849110005, 133.01226674714565],  # noqa: E501
+    "cluttered/oracle_global_seed0": [4.154514984258473, 17.517430831268925, 16.871868148291224, 13.672738200233765, 33.80515916729929, 69.79188730859379, 110.53501527162925, 127.44319412109492],  # noqa: E501
+    "cluttered/oracle_seed0": [5.94970749046141, 7.6842386264312665, 16.4422114958995, 20.18783628945212, 36.32184322488775, 54.22118393615403, 109.63260683628323, 137.08261440401412],  # noqa: E501
+    "paper/cnn_global_seed0": [3.5553513017844534, 17.225045276431054, 12.05756393165578, 12.823486853510655, 26.3362260520236, 69.40079215417269, 73.8347421607325, 89.50626328718968],  # noqa: E501
+    "paper/cnn_paper_faithful_n8_seed0": [0.7677252524207228, 1.4613621399475387, 2.757310033736692, 3.3456004111637103, 1.451868806520497, 2.926445558757613, 5.456598183926261, 6.784457504766209],  # noqa: E501
+    "paper/cnn_seed0": [3.7160304009458427, 6.797112477472402, 11.282498534271692, 13.851727241805502, 23.36647092352298, 48.81623814342814, 72.80589726706245, 92.96351332179928],  # noqa: E501
+    "paper/cnn_vectorized_n8_seed0": [0.911129605380609, 1.0824001077977936, 2.906145017917441, 3.22910978295667, 1.8313300327947803, 2.1745472588840236, 5.796310723362149, 6.481051565840499],  # noqa: E501
+    "paper/none_global_seed0": [-4.735152288271474, 65.40423699922103, 15.292429906119514, -1.0433313839541316, -32.27569837734764, 428.8738626134179, 98.75839757119269, 52.31075562779553],  # noqa: E501
+    "paper/none_seed0": [3.905813788590824, 7.041211961183779, 11.270823033206751, 14.014310606324033, 25.97004291148907, 51.63996654160463, 72.3551126651005, 93.31582473704373],  # noqa: E501
+    "paper/oracle_global_seed0": [5.988737330711181, 18.126759833671542, 16.63926958734271, 13.179156380291943, 43.22706931188385, 85.35525047008771, 102.53609825530124, 96.54649982303702],  # noqa: E501
+    "paper/oracle_seed0": [3.8171402260650256, 6.836635625609982, 11.147432394834874, 14.005764342677098, 24.505897807483258, 49.710346060901514, 71.8391891031392, 93.68727833375901],  # noqa: E501
+}
+REFERENCE_OVERRIDES = [*QUICK, "modes=[none,cnn,oracle]", "inits=[tracking,global]",
+                       "max_frames=12", "paper_faithful.enabled=true", "paper_faithful.frames=3",
+                       "paper_faithful.num_particles=8", "paper_faithful.hough.min_length=8",
+                       "paper_faithful.mode=cnn"]
+
+
+def checksum(estimate: np.ndarray) -> np.ndarray:
+    """(8,): an estimate (T, 4) summed over frames, then weighted by frame number 1..T."""
+    e = np.asarray(estimate, dtype=np.float64)
+    return np.concatenate([e.sum(0), np.arange(1, len(e) + 1) @ e])
+
+
+@pytest.fixture(scope="module")
+def reference_report(flat_dataset, flat_segnet, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reference")
+    cfg = localize_cfg([*REFERENCE_OVERRIDES, f"dataset={flat_dataset}",
+                        f"onnx_model={flat_segnet}", f"out_root={out}", "name=ref"])
+    run(cfg)
+    return cfg, out / "ref"
+
+
+@pytest.mark.slow
+def test_runner_trajectories_are_the_recorded_ones(reference_report):
+    _, out = reference_report
+    got = {f"{p.parent.name}/{p.stem}": json.loads(p.read_text())
+           for p in sorted((out / "runs").glob("*/*.json"))}
+    assert set(got) == set(REFERENCE)
+    for key, want in REFERENCE.items():
+        np.testing.assert_allclose(checksum(got[key]["estimate"]), want, rtol=0, atol=1e-9,
+                                   err_msg=key)
+        assert set(got[key]["timing_ms"]) == {"acquisition", "segmentation", "preprocessing",
+                                              "filter", "total"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("flight,init", [("cluttered", "tracking"), ("paper", "global")])
+def test_localizer_alone_steps_the_recorded_trajectory(reference_report, flat_dataset, flight,
+                                                       init):
+    """A Localizer stepped by hand over a flight's frames (no runner) gives the runner's
+    recorded oracle trajectory."""
+    from core.atomic import read_png
+    from core.poses import xyzyaw_from_pose
+
+    cfg, out = reference_report
+    ds = Dataset(flat_dataset)
+    world, fl = ds.world(), ds.flight(flight)
+    settings = Settings.from_cfg(cfg)
+    model = EdgeModel.build(world, settings, out / "cache").for_mode(world, "oracle", settings)
+    loc = Localizer(world, ds.camera, "oracle", settings,
+                    RunSpec(flight, "oracle", init, 0).rng(), model=model)
+    loc.reset(xyzyaw_from_pose(fl.groundtruth[0])[0] if init == "tracking" else None)
+    est = []
+    for t in range(12):
+        delta = odometry_increment(fl.odometry[t - 1], fl.odometry[t]) if t else None
+        labels = read_png(fl.label[t], rgb=False)
+        est.append(loc.step(None, delta, fl.odometry[t], fl.timestamps[t], labels=labels).state)
+    stem = "oracle_seed0" if init == "tracking" else "oracle_global_seed0"
+    np.testing.assert_allclose(checksum(est), REFERENCE[f"{flight}/{stem}"], rtol=0, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_runner_takes_a_wrapped_edge_source(flat_dataset, tmp_path):
+    """``run(cfg, source_wrappers)`` steps a mode with the source its wrapper makes: the true
+    labels through a label function give the oracle's own trajectory, blank labels another."""
+    base = [*QUICK, f"dataset={flat_dataset}", f"out_root={tmp_path}", "modes=[oracle]",
+            "inits=[tracking]", "max_frames=4", "flight_names=[cluttered]"]
+
+    def wrapped(fn):
+        return {"oracle": lambda own: LabelFunction(fn, mode="oracle", needs_truth=True)}
+
+    def estimate(name, wrappers=None):
+        path = run(localize_cfg([*base, f"name={name}"]), wrappers)
+        rec = RunSpec("cluttered", "oracle", "tracking", 0).paths(path.parent)[1]
+        return np.array(json.loads(rec.read_text())["estimate"])
+
+    plain = estimate("plain")
+    np.testing.assert_array_equal(estimate("same", wrapped(lambda rgb, truth: truth)), plain)
+    blank = estimate("blank", wrapped(lambda rgb, truth: np.full_like(truth, C.WALL)))
+    assert not np.array_equal(blank, plain)
