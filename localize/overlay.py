@@ -103,11 +103,12 @@ def camera_poses(states: np.ndarray, odometry: np.ndarray, camera: Camera) -> np
 
 
 def tile(images: Sequence[np.ndarray], columns: int, gap: int = 2) -> np.ndarray:
-    """Tile equally sized (H, W, 3) images row by row, ``gap`` black pixels apart."""
+    """Tile equally sized (H, W[, C]) uint8 images row by row, ``gap`` black pixels apart."""
     h, w = images[0].shape[:2]
     rows = -(-len(images) // columns)
     cols = min(columns, len(images))
-    out = np.zeros((rows * (h + gap) - gap, cols * (w + gap) - gap, 3), dtype=np.uint8)
+    out = np.zeros((rows * (h + gap) - gap, cols * (w + gap) - gap, *images[0].shape[2:]),
+                   dtype=np.uint8)
     for k, im in enumerate(images):
         r, c = divmod(k, columns)
         out[r * (h + gap):r * (h + gap) + h, c * (w + gap):c * (w + gap) + w] = im
