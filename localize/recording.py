@@ -24,7 +24,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import cv2
 import numpy as np
@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from core.dataset import Camera
 from core.poses import read_tum
+from localize.particle_filter import odometry_increment
 
 log = logging.getLogger(__name__)
 
@@ -125,6 +126,26 @@ class Rectifier:
         return np.ascontiguousarray(image[y0:y0 + self.height, x0:x0 + self.width])
 
 
+class RecordedFrame(NamedTuple):
+    """One frame with what ``Localizer.step`` takes.
+
+    Attributes:
+        index: frame index in the recording.
+        timestamp: seconds.
+        image: (H, W, 3) uint8 RGB as delivered (``Recording.camera``).
+        odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since the
+            previous frame in its heading frame (``particle_filter.odometry_increment``); None
+            for the first frame.
+        attitude: (4, 4) world_from_body odometry pose of the frame (its roll and pitch).
+    """
+
+    index: int
+    timestamp: float
+    image: np.ndarray
+    odometry_increment: np.ndarray | None
+    attitude: np.ndarray
+
+
 @dataclass(frozen=True)
 class Recording:
     """A recorded flight, ready for the localizer.
@@ -163,6 +184,14 @@ class Recording:
         """All delivered frames in order, read one at a time (one pass over a bag)."""
         for image in self.frames.iter():
             yield self.rectifier(image)
+
+    def steps(self) -> Iterator[RecordedFrame]:
+        """The frames in order with their odometry increments and attitudes, e.g.
+        ``for f in rec.steps(): localizer.step(f.image, f.odometry_increment, f.attitude,
+        f.timestamp)``."""
+        for i, image in enumerate(self.images()):
+            inc = odometry_increment(self.odometry[i - 1], self.odometry[i]) if i else None
+            yield RecordedFrame(i, float(self.timestamps[i]), image, inc, self.odometry[i])
 
 
 # --- poses -----------------------------------------------------------------------------------

@@ -15,6 +15,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -188,16 +189,32 @@ def _camera_info(types, ros1: bool, header, camera: Camera, D: np.ndarray):
         binning_x=0, binning_y=0, roi=roi, **arrays)
 
 
-def export_bag(dataset: str | Path, flight: str, out: str | Path, *, ros1: bool = False,
-               topics: BagTopics | None = None, odometry_frame: np.ndarray | None = None,
-               scale: float = 1.0, distortion: Sequence[float] | None = None) -> Path:
-    """Write a flight as a ROS 2 bag folder (sqlite3) or a ROS 1 ``.bag``.
+def _image(types, header, rgb: np.ndarray, jpeg_quality: int):
+    if jpeg_quality:
+        ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(rgb[..., ::-1]),
+                               [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
+        if not ok:
+            raise OSError("could not encode a frame as JPEG")
+        return types["sensor_msgs/msg/CompressedImage"](header=header, format="jpeg",
+                                                        data=buf.reshape(-1))
+    return types["sensor_msgs/msg/Image"](
+        header=header, height=rgb.shape[0], width=rgb.shape[1], encoding="rgb8",
+        is_bigendian=0, step=rgb.shape[1] * 3, data=rgb.reshape(-1))
 
-    sensor_msgs/Image (rgb8) and one CameraInfo per frame, nav_msgs/Odometry for the odometry
-    and, on ``topics.groundtruth`` (default ``/groundtruth``), for the ground truth; header
-    stamps and bag times are the flight times. Arguments as ``export_folder``.
+
+def export_bag(dataset: str | Path, flight: str, out: str | Path, *, ros1: bool = False,
+               mcap: bool = False, jpeg_quality: int = 0, topics: BagTopics | None = None,
+               odometry_frame: np.ndarray | None = None, scale: float = 1.0,
+               distortion: Sequence[float] | None = None) -> Path:
+    """Write a flight as a ROS 2 bag folder (sqlite3 or MCAP storage) or a ROS 1 ``.bag``.
+
+    sensor_msgs/Image (rgb8; with ``jpeg_quality`` > 0 sensor_msgs/CompressedImage JPEG) and
+    one CameraInfo per frame, nav_msgs/Odometry for the odometry and, on
+    ``topics.groundtruth`` (default ``/groundtruth``), for the ground truth; header stamps and
+    bag times are the flight times. Other arguments as ``export_folder``.
     """
     from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
     from rosbags.rosbag2 import Writer as Writer2
     from rosbags.typesys import Stores, get_typestore
 
@@ -209,12 +226,14 @@ def export_bag(dataset: str | Path, flight: str, out: str | Path, *, ros1: bool 
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     types, ser = store.types, (store.serialize_ros1 if ros1 else store.serialize_cdr)
     with staged(Path(out)) as path:
-        writer = Writer1(path) if ros1 else Writer2(path, version=9)
+        plugin = StoragePlugin.MCAP if mcap else StoragePlugin.SQLITE3
+        writer = Writer1(path) if ros1 else Writer2(path, version=9, storage_plugin=plugin)
         with writer:
             def conn(topic, msgtype):
                 return writer.add_connection(topic, msgtype, typestore=store)
 
-            c = {"image": conn(topics.image, "sensor_msgs/msg/Image"),
+            image_type = "sensor_msgs/msg/" + ("CompressedImage" if jpeg_quality else "Image")
+            c = {"image": conn(topics.image, image_type),
                  "info": conn(topics.camera_info, "sensor_msgs/msg/CameraInfo"),
                  "odom": conn(topics.odometry, "nav_msgs/msg/Odometry")}
             if topics.groundtruth:
@@ -223,10 +242,7 @@ def export_bag(dataset: str | Path, flight: str, out: str | Path, *, ros1: bool 
                 ns = round(float(t) * NS)
                 rgb = frames(i)
                 h = _header(types, ros1, ns, "camera", i)
-                image = types["sensor_msgs/msg/Image"](
-                    header=h, height=rgb.shape[0], width=rgb.shape[1], encoding="rgb8",
-                    is_bigendian=0, step=rgb.shape[1] * 3, data=rgb.reshape(-1))
-                msgs = [("image", image, "sensor_msgs/msg/Image"),
+                msgs = [("image", _image(types, h, rgb, jpeg_quality), image_type),
                         ("info", _camera_info(types, ros1, h, frames.camera, frames.distortion),
                          "sensor_msgs/msg/CameraInfo"),
                         ("odom", _odometry(types, _header(types, ros1, ns, "odom", i),
@@ -248,7 +264,12 @@ def main(argv: Sequence[str] | None = None) -> Path:
     kind = p.add_mutually_exclusive_group()
     kind.add_argument("--bag", action="store_true", help="write a ROS 2 bag (sqlite3)")
     kind.add_argument("--bag1", action="store_true", help="write a ROS 1 .bag")
-    p.add_argument("--jpeg-quality", type=int, default=95, help="folder: JPEG quality, 0: PNG")
+    p.add_argument("--mcap", action="store_true", help="ROS 2 bag: MCAP storage, not sqlite3")
+    p.add_argument("--jpeg-quality", type=int, default=None,
+                   help="JPEG quality of the frames, 0: lossless (folder: PNG files, default "
+                        "95; bag: sensor_msgs/Image rgb8, the default)")
+    p.add_argument("--image-topic", default=None,
+                   help="bag: image topic (default /camera/image_raw)")
     p.add_argument("--odometry-frame", type=float, nargs=4, default=None,
                    metavar=("X", "Y", "Z", "YAW_DEG"),
                    help="express the odometry in a frame moved by this from the world's")
@@ -262,9 +283,14 @@ def main(argv: Sequence[str] | None = None) -> Path:
         frame = pose_from_xyzyaw([x, y, z, np.deg2rad(yaw)])[0]
     common = {"odometry_frame": frame, "scale": a.scale, "distortion": a.distortion}
     if a.bag or a.bag1:
-        out = export_bag(a.dataset, a.flight, a.out, ros1=a.bag1, **common)
+        topics = BagTopics(groundtruth="/groundtruth")
+        if a.image_topic:
+            topics = replace(topics, image=a.image_topic)
+        out = export_bag(a.dataset, a.flight, a.out, ros1=a.bag1, mcap=a.mcap, topics=topics,
+                         jpeg_quality=a.jpeg_quality or 0, **common)
     else:
-        out = export_folder(a.dataset, a.flight, a.out, jpeg_quality=a.jpeg_quality, **common)
+        quality = 95 if a.jpeg_quality is None else a.jpeg_quality
+        out = export_folder(a.dataset, a.flight, a.out, jpeg_quality=quality, **common)
     print(f"wrote {out}")
     return out
 

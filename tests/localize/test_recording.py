@@ -28,6 +28,7 @@ FLIGHT = "paper"
 ODOM_FROM_WORLD = pose_from_xyzyaw([1.5, -2.0, 0.3, 0.7])[0]
 DISTORTION = [-0.25, 0.08, 0.001, -0.002, 0.0]
 GT_TOPIC = {"groundtruth": "/groundtruth"}
+COMPRESSED = "/camera/image_raw/compressed"
 
 
 def increments(poses: np.ndarray) -> np.ndarray:
@@ -50,6 +51,8 @@ def recordings(tiny_dataset, tmp_path_factory) -> dict[str, Path]:
     return {
         "folder": export_folder(tiny_dataset, FLIGHT, d / "jpeg", odometry_frame=ODOM_FROM_WORLD),
         "ros2": main([str(tiny_dataset), FLIGHT, str(d / "ros2"), "--bag"]),
+        "mcap": main([str(tiny_dataset), FLIGHT, str(d / "mcap"), "--bag", "--mcap",
+                      "--jpeg-quality", "95", "--image-topic", COMPRESSED]),
         "ros1": export_bag(tiny_dataset, FLIGHT, d / "flight.bag", ros1=True,
                            odometry_frame=ODOM_FROM_WORLD),
         "distorted": export_folder(tiny_dataset, FLIGHT, d / "distorted", jpeg_quality=0,
@@ -131,6 +134,27 @@ class TestBagRecording:
             np.testing.assert_array_equal(frame, read_png(flight.rgb[i]))
         np.testing.assert_array_equal(rec.image(12), read_png(flight.rgb[12]))
         np.testing.assert_allclose(rec.camera.K, dataset.camera.K)
+
+    def test_compressed_images_in_mcap(self, recordings, dataset, flight):
+        assert list(recordings["mcap"].glob("*.mcap"))
+        rec = read_recording(recordings["mcap"], dataset.camera,
+                             topics={**GT_TOPIC, "image": COMPRESSED})
+        np.testing.assert_allclose(rec.timestamps, flight.timestamps, atol=1e-9)
+        np.testing.assert_allclose(rec.groundtruth, flight.groundtruth, atol=1e-9)
+        diff = [np.abs(f.astype(int) - read_png(p).astype(int)).mean()
+                for f, p in zip(rec.images(), flight.rgb, strict=True)]
+        assert len(diff) == len(flight.rgb) and max(diff) < 4.0  # JPEG quality 95
+
+    def test_steps_give_what_the_localizer_takes(self, recordings, dataset, flight):
+        rec = read_recording(recordings["ros1"], dataset.camera)
+        steps = list(rec.steps())
+        assert [s.index for s in steps] == list(range(len(rec)))
+        assert steps[0].odometry_increment is None
+        np.testing.assert_allclose(np.stack([s.odometry_increment for s in steps[1:]]),
+                                   increments(flight.odometry), atol=1e-9)
+        np.testing.assert_array_equal(steps[4].attitude, rec.odometry[4])
+        np.testing.assert_array_equal(steps[4].image, read_png(flight.rgb[4]))
+        assert steps[4].timestamp == rec.timestamps[4]
 
     def test_without_groundtruth_topic(self, recordings, dataset):
         assert read_recording(recordings["ros2"], dataset.camera).groundtruth is None
@@ -292,3 +316,80 @@ class TestErrors:
     def test_export_refuses_to_overwrite(self, recordings, tiny_dataset):
         with pytest.raises(FileExistsError, match="exists"):
             export_folder(tiny_dataset, FLIGHT, recordings["folder"])
+
+
+def write_small_bag(path: Path, image_stamps: list[float], odom_stamps: list[float],
+                    encoding: str = "rgb8") -> Path:
+    """A ROS 2 bag with 8x6 images, a CameraInfo and odometry at the given header stamps."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from localize.recording_export import _camera_info, _header, _odometry
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    types = store.types
+    cam = Camera(np.array([[8.0, 0, 3.5], [0, 8.0, 2.5], [0, 0, 1]]), 8, 6, np.eye(4))
+    with Writer(path, version=9) as w:
+        ci = w.add_connection("/camera/image_raw", "sensor_msgs/msg/Image", typestore=store)
+        cc = w.add_connection("/camera/camera_info", "sensor_msgs/msg/CameraInfo",
+                              typestore=store)
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        for k, t in enumerate(image_stamps):
+            ns = round(t * 1e9)
+            h = _header(types, False, ns, "camera", k)
+            ch = 1 if encoding == "mono8" else 3
+            img = types["sensor_msgs/msg/Image"](h, 6, 8, encoding, 0, 8 * ch,
+                                                 np.full(6 * 8 * ch, k, np.uint8))
+            w.write(ci, 1000 + k, store.serialize_cdr(img, "sensor_msgs/msg/Image"))
+            w.write(cc, 1000 + k, store.serialize_cdr(
+                _camera_info(types, False, h, cam, np.zeros(5)), "sensor_msgs/msg/CameraInfo"))
+        for k, t in enumerate(odom_stamps):
+            msg = _odometry(types, _header(types, False, round(t * 1e9), "odom", k),
+                            pose_from_xyzyaw([k, 0, 0, 0])[0])
+            w.write(co, 1000 + k, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+    return path
+
+
+class TestSmallBags:
+    def test_bag_time_and_header_stamps(self, tmp_path):
+        """Frames are fetched by bag time; their times are header stamps (here different)."""
+        path = write_small_bag(tmp_path / "b", [10.0, 10.5, 11.0], [9.0, 12.0], "mono8")
+        rec = read_recording(path, None, body_from_cam=np.eye(4))
+        np.testing.assert_allclose(rec.timestamps, [10.0, 10.5, 11.0])
+        np.testing.assert_allclose(rec.odometry[:, 0, 3], [1 / 3, 0.5, 2 / 3])
+        np.testing.assert_array_equal(rec.image(1), np.ones((6, 8, 3), np.uint8))
+        assert [int(im[0, 0, 0]) for im in rec.images()] == [0, 1, 2]
+
+    def test_odometry_stamps_going_backwards(self, tmp_path):
+        path = write_small_bag(tmp_path / "b", [10.0, 10.5], [9.0, 12.0, 11.0])
+        with pytest.raises(ValueError, match=r"topic /odom: timestamps must strictly increase, "
+                                             r"but message 2 has"):
+            read_recording(path, None, body_from_cam=np.eye(4))
+
+    def test_unsupported_encoding(self, tmp_path):
+        path = write_small_bag(tmp_path / "b", [10.0, 10.5], [9.0, 12.0], "yuv422")
+        rec = read_recording(path, None, body_from_cam=np.eye(4))
+        with pytest.raises(ValueError, match=r"frame 0: image encoding 'yuv422' is not "
+                                             r"supported"):
+            rec.image(0)
+
+
+def test_decode_image_encodings():
+    from rosbags.typesys import Stores, get_typestore
+
+    from localize.recording_bag import decode_image
+
+    Image = get_typestore(Stores.ROS2_HUMBLE).types["sensor_msgs/msg/Image"]
+    rgb = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)
+    bgra = np.concatenate([rgb[..., ::-1], np.full((2, 3, 1), 255, np.uint8)], axis=2)
+    padded = np.concatenate([bgra.reshape(2, 12), np.zeros((2, 4), np.uint8)], axis=1)
+    for enc, data, step in (("rgb8", rgb, 9), ("bgr8", rgb[..., ::-1], 9),
+                            ("bgra8", padded, 16)):
+        msg = Image(None, 2, 3, enc, 0, step, np.ascontiguousarray(data).reshape(-1))
+        np.testing.assert_array_equal(decode_image(msg, "sensor_msgs/msg/Image", "x"), rgb)
+    mono = Image(None, 2, 3, "mono8", 0, 3, rgb[..., 0].reshape(-1).copy())
+    np.testing.assert_array_equal(decode_image(mono, "sensor_msgs/msg/Image", "x")[..., 2],
+                                  rgb[..., 0])
+    short = Image(None, 2, 3, "rgb8", 0, 9, rgb.reshape(-1)[:10].copy())
+    with pytest.raises(ValueError, match="too short"):
+        decode_image(short, "sensor_msgs/msg/Image", "x")
