@@ -339,6 +339,10 @@ def delivered_camera(source: SourceCamera, target: Camera | None,
         body_from_cam: (4, 4) the recording's camera mount, or None for the target's.
         where: the recording, for messages.
     """
+    K = np.asarray(source.K, dtype=np.float64)
+    if source.width <= 0 or source.height <= 0 or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise ValueError(f"{where}: the camera needs a positive image size and focal lengths, "
+                         f"got {source.width}x{source.height} and K {K.tolist()}; calibrate it")
     if body_from_cam is None:
         if target is None:
             raise ValueError(f"{where}: no body_from_cam: give the recording one (see "

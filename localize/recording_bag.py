@@ -119,9 +119,6 @@ def _camera_info(msg, where: str) -> SourceCamera:
     ros2 = hasattr(msg, "k")  # ROS 2 names the fields k, d; ROS 1 K, D
     K = np.asarray(msg.k if ros2 else msg.K, dtype=np.float64).reshape(3, 3)
     D = np.asarray(msg.d if ros2 else msg.D, dtype=np.float64)
-    if K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise ValueError(f"{where}: CameraInfo K has no focal length ({K.tolist()}); the camera "
-                         f"is not calibrated")
     return SourceCamera(K, int(msg.width), int(msg.height),
                         check_distortion(msg.distortion_model, D, f"{where} distortion"))
 

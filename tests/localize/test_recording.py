@@ -256,6 +256,9 @@ class TestErrors:
              "distortion_coefficients": {"data": [0.1, 0, 0, 0]}}))
         with pytest.raises(ValueError, match="distortion_model 'equidistant' is not supported"):
             read_recording(root, dataset.camera)
+        (root / "camera.yaml").write_text(yaml.safe_dump({**cal, "image_width": 0}))
+        with pytest.raises(ValueError, match="camera.yaml: the camera needs a positive image"):
+            read_recording(root, dataset.camera)
         (root / "camera.yaml").write_text(yaml.safe_dump(
             {**cal, "body_from_cam": {"data": np.diag([2.0, 1, 1, 1]).ravel().tolist()}}))
         with pytest.raises(ValueError, match="not a rigid transform"):
