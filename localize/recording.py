@@ -1,0 +1,386 @@
+"""Recorded flights of one's own camera as frames the localizer consumes (docs/recording.md).
+
+A recording is a folder (``images/``, ``camera.yaml``, ``odometry.txt``, optional
+``images.txt``, ``groundtruth.txt``, ``body_from_cam.txt``; ``localize.recording_folder``) or a
+ROS 1 ``.bag`` / ROS 2 bag folder (``localize.recording_bag``). ``read_recording`` turns either
+into a ``Recording``:
+
+- frames are read lazily, one at a time, when asked (``image(i)``, ``images()``);
+- every frame is rectified to the target camera (the dataset's, which the SegNet was trained
+  on): undistorted at the recorded size (OpenCV ``plumb_bob`` / ``rational_polynomial``),
+  then scaled to cover the target size and centre-cropped (the aspect ratio is kept, the
+  excess of one axis is cut off equally on both sides). ``Recording.camera`` is the camera of
+  the delivered frames: the resulting K, the target size, the recording's body_from_cam;
+- odometry and ground truth are interpolated at the frame times (linear translation, slerp
+  rotation); frames outside their time span are dropped with a warning (a VIO starts after
+  the camera), and it is an error when no frame is left. The odometry stays in its own frame
+  (any start position and heading; z must be up, since roll and pitch are read from it): the
+  localizer uses its increments and its attitude only.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import NamedTuple, Protocol
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from core.dataset import Camera
+from core.poses import read_tum
+from localize.particle_filter import odometry_increment
+
+log = logging.getLogger(__name__)
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+#: Distortion models OpenCV's pinhole undistortion implements, and their coefficient counts.
+DISTORTION_MODELS = {"plumb_bob": (4, 5, 8), "rational_polynomial": (8,)}
+#: Frames this close (seconds) beyond a pose stream's ends still count as inside it.
+SPAN_SLACK = 1e-6
+
+
+class FrameSource(Protocol):
+    """Raw recorded frames: ``read(i)`` and ``iter()`` give (h, w, 3) uint8 RGB images."""
+
+    def __len__(self) -> int: ...
+
+    def read(self, index: int) -> np.ndarray: ...
+
+    def iter(self) -> Iterator[np.ndarray]: ...
+
+
+@dataclass(frozen=True)
+class SourceCamera:
+    """The recorded camera: K (3,3), image size (pixels), distortion coefficients (k,) in
+    OpenCV order (k1, k2, p1, p2[, k3[, k4, k5, k6]]), zeros or empty for none."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    distortion: np.ndarray
+
+
+@dataclass(frozen=True)
+class Rectifier:
+    """Maps recorded frames (source size) to delivered frames (width x height).
+
+    Undistorts at the source size with the source K, resizes by ``(sx, sy)`` (about the same
+    factor on both axes: the smallest that covers the target) and crops the centre.
+    """
+
+    source: SourceCamera
+    width: int
+    height: int
+
+    @cached_property
+    def _plan(self) -> tuple[int, int, int, int]:
+        w, h = self.source.width, self.source.height
+        s = max(self.width / w, self.height / h)
+        rw, rh = max(self.width, round(w * s)), max(self.height, round(h * s))
+        return rw, rh, (rw - self.width) // 2, (rh - self.height) // 2
+
+    @property
+    def distorted(self) -> bool:
+        return bool(np.any(np.asarray(self.source.distortion) != 0))
+
+    @property
+    def identity(self) -> bool:
+        return not self.distorted and (self.source.width, self.source.height) == (
+            self.width, self.height)
+
+    @cached_property
+    def K(self) -> np.ndarray:
+        """(3, 3) intrinsics of the delivered frames (pixel centres at integers)."""
+        rw, rh, x0, y0 = self._plan
+        sx, sy = rw / self.source.width, rh / self.source.height
+        K = np.asarray(self.source.K, dtype=np.float64).copy()
+        K[0, :2] *= sx
+        K[1, 1] *= sy
+        K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5 - x0
+        K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5 - y0
+        return K
+
+    @cached_property
+    def _maps(self) -> tuple[np.ndarray, np.ndarray]:
+        src = self.source
+        K = np.asarray(src.K, dtype=np.float64)
+        return cv2.initUndistortRectifyMap(K, np.asarray(src.distortion, dtype=np.float64), None,
+                                           K, (src.width, src.height), cv2.CV_32FC1)
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        """(h, w, 3) uint8 recorded frame -> (height, width, 3) uint8 delivered frame."""
+        if self.identity:
+            return image
+        if self.distorted:
+            image = cv2.remap(image, *self._maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        rw, rh, x0, y0 = self._plan
+        if (rw, rh) != (self.source.width, self.source.height):
+            shrink = rw < self.source.width
+            image = cv2.resize(image, (rw, rh), interpolation=cv2.INTER_AREA if shrink
+                               else cv2.INTER_LINEAR)
+        return np.ascontiguousarray(image[y0:y0 + self.height, x0:x0 + self.width])
+
+
+class RecordedFrame(NamedTuple):
+    """One frame with what ``Localizer.step`` takes.
+
+    Attributes:
+        index: frame index in the recording.
+        timestamp: seconds.
+        image: (H, W, 3) uint8 RGB as delivered (``Recording.camera``).
+        odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since the
+            previous frame in its heading frame (``particle_filter.odometry_increment``); None
+            for the first frame.
+        attitude: (4, 4) world_from_body odometry pose of the frame (its roll and pitch).
+    """
+
+    index: int
+    timestamp: float
+    image: np.ndarray
+    odometry_increment: np.ndarray | None
+    attitude: np.ndarray
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A recorded flight, ready for the localizer.
+
+    Attributes:
+        name: recording name (the folder or bag name without suffix).
+        source: the folder or bag it was read from.
+        camera: camera of the delivered frames (after undistortion, scaling and cropping).
+        timestamps: (N,) frame times, seconds, strictly increasing.
+        odometry: (N, 4, 4) world_from_body in the odometry's own (gravity-aligned) frame at the
+            frame times; only increments and roll/pitch are meaningful.
+        groundtruth: (N, 4, 4) world_from_body in the model's frame, or None.
+        frames: the raw frames (lazy).
+        rectifier: raw frame -> delivered frame.
+    """
+
+    name: str
+    source: Path
+    camera: Camera
+    timestamps: np.ndarray
+    odometry: np.ndarray
+    groundtruth: np.ndarray | None
+    frames: FrameSource
+    rectifier: Rectifier
+
+    def __len__(self) -> int:
+        return len(self.timestamps)
+
+    def image(self, index: int) -> np.ndarray:
+        """Frame ``index`` as delivered: (camera.height, camera.width, 3) uint8 RGB."""
+        if not 0 <= index < len(self):
+            raise IndexError(f"{self.source}: frame {index} out of range [0, {len(self)})")
+        return self.rectifier(self.frames.read(index))
+
+    def images(self) -> Iterator[np.ndarray]:
+        """All delivered frames in order, read one at a time (one pass over a bag)."""
+        for image in self.frames.iter():
+            yield self.rectifier(image)
+
+    def steps(self) -> Iterator[RecordedFrame]:
+        """The frames in order with their odometry increments and attitudes, e.g.
+        ``for f in rec.steps(): localizer.step(f.image, f.odometry_increment, f.attitude,
+        f.timestamp)``."""
+        for i, image in enumerate(self.images()):
+            inc = odometry_increment(self.odometry[i - 1], self.odometry[i]) if i else None
+            yield RecordedFrame(i, float(self.timestamps[i]), image, inc, self.odometry[i])
+
+
+# --- poses -----------------------------------------------------------------------------------
+
+
+def interpolate_poses(times: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Poses at given times: linear in translation, slerp in rotation.
+
+    Args:
+        times: (N,) query times, seconds, within ``[stamps[0], stamps[-1]]`` (clamped).
+        stamps: (M,) strictly increasing sample times, seconds, M >= 2.
+        poses: (M, 4, 4) sampled poses.
+
+    Returns:
+        (N, 4, 4) float64 poses.
+    """
+    stamps = np.asarray(stamps, dtype=np.float64)
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.shape != (len(stamps), 4, 4) or len(stamps) < 2:
+        raise ValueError(f"need (M, 4, 4) poses with M >= 2 matching (M,) stamps, got "
+                         f"{poses.shape} and {stamps.shape}")
+    t = np.clip(np.asarray(times, dtype=np.float64), stamps[0], stamps[-1])
+    out = np.tile(np.eye(4), (len(t), 1, 1))
+    out[:, :3, :3] = Slerp(stamps, Rotation.from_matrix(poses[:, :3, :3]))(t).as_matrix()
+    for k in range(3):
+        out[:, k, 3] = np.interp(t, stamps, poses[:, k, 3])
+    return out
+
+
+def data_lines(path: Path) -> list[int]:
+    """1-based line numbers of the data lines of a text file (not blank, not ``#`` comments)."""
+    return [n for n, s in enumerate(path.read_text().splitlines(), 1)
+            if s.split("#", 1)[0].strip()]
+
+
+def check_increasing(times: np.ndarray, where: str, position) -> None:
+    """Raise ValueError if ``times`` does not strictly increase.
+
+    Args:
+        times: (N,) seconds.
+        where: the file or topic, for the message.
+        position: index -> text locating sample ``index`` (e.g. ``"line 12"``).
+    """
+    bad = np.flatnonzero(np.diff(np.asarray(times, dtype=np.float64)) <= 0)
+    if len(bad):
+        i = int(bad[0]) + 1
+        raise ValueError(f"{where}: timestamps must strictly increase, but {position(i)} has "
+                         f"{times[i]:.9f} after {times[i - 1]:.9f} ({position(i - 1)}); sort the "
+                         f"samples by time and remove duplicates")
+
+
+def read_trajectory(path: Path, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """Read a TUM trajectory (``timestamp tx ty tz qx qy qz qw``, world_from_body) and check it.
+
+    Args:
+        path: the file.
+        what: its role for messages, e.g. ``"odometry"``.
+
+    Returns:
+        (M,) seconds, (M, 4, 4) poses.
+    """
+    try:
+        t, T = read_tum(path)
+    except ValueError as err:
+        raise ValueError(f"{path}: the {what} file is not TUM ({err}); write one pose per line "
+                         f"as `timestamp tx ty tz qx qy qz qw` (world_from_body, quaternion "
+                         f"x y z w, non-zero), `#` comments allowed") from err
+    if len(t) < 2:
+        raise ValueError(f"{path}: the {what} needs at least 2 poses to interpolate, found "
+                         f"{len(t)}")
+    lines = data_lines(path)
+    check_increasing(t, str(path), lambda i: f"line {lines[i]}")
+    return t, T
+
+
+def select_frames(times: np.ndarray, spans: Mapping[str, np.ndarray], source: Path) -> np.ndarray:
+    """Frames inside the time span of every pose stream, with a warning for the others.
+
+    Args:
+        times: (N,) frame times, seconds.
+        spans: stream name -> its (M,) sample times.
+        source: the recording, for messages.
+
+    Returns:
+        (N,) bool, True for the frames kept.
+
+    Raises:
+        ValueError: if no frame is inside, with the time spans.
+    """
+    keep = np.ones(len(times), dtype=bool)
+    for name, stamps in spans.items():
+        inside = (times >= stamps[0] - SPAN_SLACK) & (times <= stamps[-1] + SPAN_SLACK)
+        if not inside.all():
+            log.warning("%s: %d of %d frames lie outside the %s time span [%.6f, %.6f] s and are "
+                        "dropped", source, int((~inside).sum()), len(times), name, stamps[0],
+                        stamps[-1])
+        keep &= inside
+    if not keep.any():
+        desc = ", ".join(f"{k} [{v[0]:.6f}, {v[-1]:.6f}]" for k, v in spans.items())
+        raise ValueError(f"{source}: no frame (times {times[0]:.6f} .. {times[-1]:.6f} s) lies "
+                         f"inside the pose streams' time spans ({desc}); the streams must share "
+                         f"one clock")
+    return keep
+
+
+# --- cameras ---------------------------------------------------------------------------------
+
+
+def check_rigid(T: np.ndarray, where: str) -> np.ndarray:
+    """(4, 4) rigid transform check; returns it as float64."""
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4):
+        raise ValueError(f"{where}: body_from_cam must be a 4x4 matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if (not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0
+            or not np.allclose(T[3], [0, 0, 0, 1])):
+        raise ValueError(f"{where}: body_from_cam is not a rigid transform (rotation with "
+                         f"det +1, last row 0 0 0 1): {T.tolist()}")
+    return T
+
+
+def check_distortion(model: str, coeffs: np.ndarray, where: str) -> np.ndarray:
+    """Validate a distortion model and its coefficients; returns (k,) float64."""
+    coeffs = np.asarray(coeffs, dtype=np.float64).reshape(-1)
+    if not np.any(coeffs):
+        return np.zeros(0)
+    if model not in DISTORTION_MODELS:
+        raise ValueError(f"{where}: distortion_model {model!r} is not supported; use one of "
+                         f"{sorted(DISTORTION_MODELS)} (OpenCV's pinhole models) or rectify the "
+                         f"images first")
+    if len(coeffs) not in DISTORTION_MODELS[model]:
+        raise ValueError(f"{where}: {model} needs {DISTORTION_MODELS[model]} coefficients, got "
+                         f"{len(coeffs)}")
+    return coeffs
+
+
+def delivered_camera(source: SourceCamera, target: Camera | None,
+                     body_from_cam: np.ndarray | None, where: str) -> tuple[Camera, Rectifier]:
+    """The delivered camera and the rectifier from a recorded camera to the target's size.
+
+    Args:
+        source: the recorded camera.
+        target: the camera the frames are for (its size; its body_from_cam is the default), or
+            None to keep the recorded size.
+        body_from_cam: (4, 4) the recording's camera mount, or None for the target's.
+        where: the recording, for messages.
+    """
+    K = np.asarray(source.K, dtype=np.float64)
+    if source.width <= 0 or source.height <= 0 or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise ValueError(f"{where}: the camera needs a positive image size and focal lengths, "
+                         f"got {source.width}x{source.height} and K {K.tolist()}; calibrate it")
+    if body_from_cam is None:
+        if target is None:
+            raise ValueError(f"{where}: no body_from_cam: give the recording one (see "
+                             f"docs/recording.md) or pass a target camera")
+        body_from_cam = target.body_from_cam
+    w, h = (source.width, source.height) if target is None else (target.width, target.height)
+    rect = Rectifier(source, int(w), int(h))
+    return Camera(rect.K, int(w), int(h), check_rigid(body_from_cam, where)), rect
+
+
+def read_recording(path: str | Path, target: Camera | None = None, *,
+                   topics: Mapping | None = None, body_from_cam: np.ndarray | None = None,
+                   name: str | None = None) -> Recording:
+    """Read a recording: a folder, a ROS 1 ``.bag`` or a ROS 2 bag folder.
+
+    Args:
+        path: the recording.
+        target: camera the frames are delivered for (size; default body_from_cam), usually the
+            dataset's; None keeps the recorded size (frames are still undistorted).
+        topics: bag topics (``localize.recording_bag.BagTopics`` keys: image, camera_info,
+            odometry, groundtruth); ignored for folders.
+        body_from_cam: (4, 4) camera mount overriding the recording's own.
+        name: recording name (default: the file or folder name without suffix).
+
+    Returns:
+        The recording (frames not read yet).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"recording not found: {path}")
+    if path.suffix == ".bag" or (path / "metadata.yaml").is_file():
+        from localize.recording_bag import read_bag
+
+        return read_bag(path, target, topics=topics, body_from_cam=body_from_cam, name=name)
+    if path.is_dir() and ((path / "images").is_dir() or (path / "images.txt").is_file()):
+        from localize.recording_folder import read_folder
+
+        return read_folder(path, target, body_from_cam, name)
+    raise ValueError(f"{path}: not a recording: expected a folder with images/ and camera.yaml, "
+                     f"a ROS 1 .bag file or a ROS 2 bag folder with metadata.yaml "
+                     f"(docs/recording.md)")

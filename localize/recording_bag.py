@@ -1,0 +1,254 @@
+"""ROS 1 ``.bag`` and ROS 2 bag (``metadata.yaml`` + .db3/.mcap) recordings via rosbags.
+
+Topics (``BagTopics``): an image topic (sensor_msgs/Image in rgb8, bgr8, rgba8, bgra8 or mono8,
+or sensor_msgs/CompressedImage), a sensor_msgs/CameraInfo topic (its first message is used), an
+odometry topic (nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped:
+world_from_body of the odometry's child frame) and an optional ground-truth topic of the same
+kinds. Times are the messages' header stamps. Frames stay in the bag: the reader keeps each
+frame's bag time and fetches it when asked (one pass for ``Recording.images()``), so memory
+does not grow with the recording.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import cv2
+import numpy as np
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+from scipy.spatial.transform import Rotation
+
+from core.config import reject_unknown_keys
+from core.dataset import Camera
+from localize.recording import (
+    Recording,
+    SourceCamera,
+    check_distortion,
+    check_increasing,
+    delivered_camera,
+    interpolate_poses,
+    select_frames,
+)
+
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
+              "geometry_msgs/msg/PoseWithCovarianceStamped")
+#: Channels and the channel order to RGB of the raw encodings decoded.
+ENCODINGS = {"rgb8": (3, [0, 1, 2]), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1, 2]),
+             "bgra8": (4, [2, 1, 0]), "mono8": (1, [0, 0, 0])}
+#: Where the topics are set in the localize config, for messages.
+CONFIG_KEY = "recording.topics"
+
+
+@dataclass(frozen=True)
+class BagTopics:
+    """The topics a bag recording is read from (``groundtruth`` None: no ground truth)."""
+
+    image: str = "/camera/image_raw"
+    camera_info: str = "/camera/camera_info"
+    odometry: str = "/odom"
+    groundtruth: str | None = None
+
+    @classmethod
+    def from_config(cls, cfg: Mapping | BagTopics | None) -> BagTopics:
+        if cfg is None or isinstance(cfg, BagTopics):
+            return cfg or cls()
+        reject_unknown_keys(cfg.keys(), [f.name for f in fields(cls)], f"{CONFIG_KEY} keys")
+        return cls(**dict(cfg))
+
+
+def stamp_seconds(msg) -> float:
+    """Header stamp of a message, seconds."""
+    s = msg.header.stamp
+    return s.sec + s.nanosec * 1e-9
+
+
+def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
+    """A sensor_msgs/Image or CompressedImage as (H, W, 3) uint8 RGB.
+
+    Args:
+        msg: the deserialized message.
+        msgtype: its type name.
+        where: topic and message index, for messages.
+    """
+    if msgtype.endswith("CompressedImage"):
+        bgr = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
+        if bgr is None:
+            raise ValueError(f"{where}: cannot decode the CompressedImage ({msg.format!r})")
+        return np.ascontiguousarray(bgr[..., ::-1])
+    if msg.encoding not in ENCODINGS:
+        raise ValueError(f"{where}: image encoding {msg.encoding!r} is not supported; use one "
+                         f"of {sorted(ENCODINGS)} (or a CompressedImage topic)")
+    ch, order = ENCODINGS[msg.encoding]
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if step < w * ch or data.size < h * step:
+        raise ValueError(f"{where}: image data ({data.size} bytes, step {step}) too short for "
+                         f"{w}x{h} {msg.encoding}")
+    rows = data[: h * step].reshape(h, step)[:, : w * ch].reshape(h, w, ch)
+    return np.ascontiguousarray(rows[..., order])
+
+
+def pose_matrix(msg, msgtype: str) -> np.ndarray:
+    """(4, 4) pose of an Odometry / PoseStamped / PoseWithCovarianceStamped message."""
+    pose = msg.pose.pose if msgtype != "geometry_msgs/msg/PoseStamped" else msg.pose
+    p, q = pose.position, pose.orientation
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    T[:3, 3] = [p.x, p.y, p.z]
+    return T
+
+
+def _connections(reader: AnyReader, topic: str, key: str, types: tuple[str, ...], path: Path):
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        listing = ", ".join(f"{t} ({i.msgtype})" for t, i in sorted(reader.topics.items()))
+        raise ValueError(f"{path}: topic {topic!r} not in the bag; set {CONFIG_KEY}.{key} to one "
+                         f"of its topics: {listing}")
+    bad = {c.msgtype for c in conns} - set(types)
+    if bad:
+        raise ValueError(f"{path}: topic {topic!r} ({CONFIG_KEY}.{key}) carries {sorted(bad)}; "
+                         f"expected one of {list(types)}")
+    return conns
+
+
+def _camera_info(msg, where: str) -> SourceCamera:
+    ros2 = hasattr(msg, "k")  # ROS 2 names the fields k, d; ROS 1 K, D
+    K = np.asarray(msg.k if ros2 else msg.K, dtype=np.float64).reshape(3, 3)
+    D = np.asarray(msg.d if ros2 else msg.D, dtype=np.float64)
+    return SourceCamera(K, int(msg.width), int(msg.height),
+                        check_distortion(msg.distortion_model, D, f"{where} distortion"))
+
+
+def _read_poses(reader: AnyReader, conns, path: Path, topic: str) -> tuple[np.ndarray, np.ndarray]:
+    t, T = [], []
+    for conn, _, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        t.append(stamp_seconds(msg))
+        T.append(pose_matrix(msg, conn.msgtype))
+    if len(t) < 2:
+        raise ValueError(f"{path}: topic {topic!r} has {len(t)} pose messages; at least 2 are "
+                         f"needed to interpolate")
+    t = np.asarray(t)
+    check_increasing(t, f"{path} topic {topic}", lambda i: f"message {i}")
+    return t, np.stack(T)
+
+
+def _open(path: Path) -> AnyReader:
+    return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+
+
+@dataclass(frozen=True)
+class BagFrames:
+    """The frames of a bag's image topic, fetched when asked.
+
+    Attributes:
+        path: the bag.
+        topic: the image topic.
+        log_times: (N,) int64 bag (receive) times of the frames, nanoseconds.
+        ranks: (N,) int64 position of each frame among the topic's messages with the same bag
+            time (normally 0).
+    """
+
+    path: Path
+    topic: str
+    log_times: np.ndarray
+    ranks: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.log_times)
+
+    def read(self, index: int) -> np.ndarray:
+        lt, rank = int(self.log_times[index]), int(self.ranks[index])
+        with _open(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic == self.topic]
+            msgs = list(reader.messages(connections=conns, start=lt, stop=lt + 1))
+            conn, _, raw = msgs[rank]
+            return decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
+                                f"{self.path} topic {self.topic} frame {index}")
+
+    def iter(self) -> Iterator[np.ndarray]:
+        wanted = set(zip(self.log_times.tolist(), self.ranks.tolist(), strict=True))
+        with _open(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic == self.topic]
+            prev, rank, i = None, 0, 0
+            for conn, lt, raw in reader.messages(connections=conns):
+                rank = rank + 1 if lt == prev else 0
+                prev = lt
+                if (lt, rank) in wanted:
+                    yield decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
+                                       f"{self.path} topic {self.topic} frame {i}")
+                    i += 1
+
+
+def _read_images(reader: AnyReader, conns, path: Path, topic: str):
+    t, log_times, ranks, prev, rank = [], [], [], None, 0
+    for conn, lt, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        rank = rank + 1 if lt == prev else 0
+        prev = lt
+        t.append(stamp_seconds(msg))
+        log_times.append(lt)
+        ranks.append(rank)
+    if not t:
+        raise ValueError(f"{path}: image topic {topic!r} has no messages")
+    t = np.asarray(t)
+    check_increasing(t, f"{path} topic {topic}", lambda i: f"message {i}")
+    return t, np.asarray(log_times, np.int64), np.asarray(ranks, np.int64)
+
+
+def read_bag(path: Path, target: Camera | None, *, topics: Mapping | BagTopics | None = None,
+             body_from_cam: np.ndarray | None = None, name: str | None = None) -> Recording:
+    """Read a ROS 1 or ROS 2 bag recording (see ``localize.recording.read_recording``)."""
+    topics = BagTopics.from_config(topics)
+    path = Path(path)
+    with _open(path) as reader:
+        img = _connections(reader, topics.image, "image", IMAGE_TYPES, path)
+        info = _connections(reader, topics.camera_info, "camera_info",
+                            ("sensor_msgs/msg/CameraInfo",), path)
+        odo = _connections(reader, topics.odometry, "odometry", POSE_TYPES, path)
+        first = next(reader.messages(connections=info), None)
+        if first is None:
+            raise ValueError(f"{path}: camera_info topic {topics.camera_info!r} has no messages")
+        source = _camera_info(reader.deserialize(first[2], first[0].msgtype),
+                              f"{path} topic {topics.camera_info}")
+        t, log_times, ranks = _read_images(reader, img, path, topics.image)
+        streams = {"odometry": _read_poses(reader, odo, path, topics.odometry)}
+        if topics.groundtruth is not None:
+            gt = _connections(reader, topics.groundtruth, "groundtruth", POSE_TYPES, path)
+            streams["groundtruth"] = _read_poses(reader, gt, path, topics.groundtruth)
+    camera, rect = delivered_camera(source, target, body_from_cam, str(path))
+    keep = select_frames(t, {k: v[0] for k, v in streams.items()}, path)
+    t = t[keep]
+    poses = {k: interpolate_poses(t, *v) for k, v in streams.items()}
+    frames = _SizedFrames(BagFrames(path, topics.image, log_times[keep], ranks[keep]), source)
+    return Recording(name or path.stem, path, camera, t, poses["odometry"],
+                     poses.get("groundtruth"), frames, rect)
+
+
+@dataclass(frozen=True)
+class _SizedFrames:
+    """Checks that every frame has the CameraInfo's size."""
+
+    frames: BagFrames
+    camera: SourceCamera
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def _check(self, image: np.ndarray, index: int) -> np.ndarray:
+        if image.shape[:2] != (self.camera.height, self.camera.width):
+            raise ValueError(f"{self.frames.path} topic {self.frames.topic} frame {index}: "
+                             f"image is {image.shape[1]}x{image.shape[0]}, the CameraInfo says "
+                             f"{self.camera.width}x{self.camera.height}")
+        return image
+
+    def read(self, index: int) -> np.ndarray:
+        return self._check(self.frames.read(index), index)
+
+    def iter(self) -> Iterator[np.ndarray]:
+        for i, image in enumerate(self.frames.iter()):
+            yield self._check(image, i)
