@@ -94,7 +94,12 @@ def apply_model_settings(cfg: DictConfig, overrides: Sequence[str]) -> dict:
 @hydra.main(version_base="1.3", config_path="../conf", config_name="localize")
 def main(cfg: DictConfig) -> None:
     apply_model_settings(cfg, HydraConfig.get().overrides.task)
-    report = run(cfg)
+    if cfg.recording is None:
+        report = run(cfg)
+    else:
+        from localize.recorded import run_recording
+
+        report = run_recording(cfg)
     print(f"report: {report}")
 
 

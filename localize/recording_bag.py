@@ -40,7 +40,7 @@ POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
 ENCODINGS = {"rgb8": (3, [0, 1, 2]), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1, 2]),
              "bgra8": (4, [2, 1, 0]), "mono8": (1, [0, 0, 0])}
 #: Where the topics are set in the localize config, for messages.
-CONFIG_KEY = "recording.topics"
+CONFIG_KEY = "recording_topics"
 
 
 @dataclass(frozen=True)

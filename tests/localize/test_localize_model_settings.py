@@ -11,7 +11,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
-from localize.edges import load_segmenter
+from localize.segmenter import load_segmenter
 from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
 from train.predict import OnnxSegmenter

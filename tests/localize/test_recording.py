@@ -163,13 +163,13 @@ class TestBagRecording:
         with pytest.raises(ValueError, match=r"'/cam/rgb' not in the bag; set "
                                              r"recording\.topics\.image .*/camera/image_raw"):
             read_recording(recordings["ros2"], dataset.camera, topics={"image": "/cam/rgb"})
-        with pytest.raises(ValueError, match="recording.topics.groundtruth"):
+        with pytest.raises(ValueError, match="recording_topics.groundtruth"):
             read_recording(recordings["ros1"], dataset.camera, topics={"groundtruth": "/gt"})
 
     def test_wrong_topic_type_and_unknown_key(self, recordings, dataset):
         with pytest.raises(ValueError, match="carries .*Odometry"):
             read_recording(recordings["ros2"], dataset.camera, topics={"image": "/odom"})
-        with pytest.raises(ValueError, match="unknown recording.topics keys"):
+        with pytest.raises(ValueError, match="unknown recording_topics keys"):
             read_recording(recordings["ros2"], dataset.camera, topics={"imu": "/imu"})
 
 
