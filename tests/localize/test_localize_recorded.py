@@ -43,9 +43,9 @@ class TestRecordedFlight:
         a, b = xyzyaw_from_pose(runs["dataset"]), xyzyaw_from_pose(runs["bag"])
         np.testing.assert_allclose(b[:, :3], a[:, :3], atol=1e-6)
 
-    def test_jpeg_folder_tracks_within_a_centimetre(self, runs):
+    def test_jpeg_folder_tracks_as_the_dataset_path(self, runs):
         """JPEG moves edge pixels and the odometry is in another frame (TUM's 9 decimals): the
-        filter draws other numbers, so the runs differ by the filter's own spread, ~1 cm."""
+        filter draws other numbers: measured 7 mm apart on average, 19 mm at most."""
         a, b = xyzyaw_from_pose(runs["dataset"]), xyzyaw_from_pose(runs["jpeg"])
         gap = np.linalg.norm(b[:, :3] - a[:, :3], axis=1)
         assert gap.mean() < 0.03, gap
