@@ -16,6 +16,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from core.outputs import flatten
 from localize.runner import run
 from train.runtime import model_localize_settings
 
@@ -34,17 +35,6 @@ def override_keys(overrides: Sequence[str]) -> list[str]:
         if key and not key.startswith("hydra."):
             keys.append(key.split("@", 1)[0])  # group@package=choice: the group
     return keys
-
-
-def flatten(d: dict, prefix: str = "") -> dict:
-    """Nested mappings -> ``{"a.b.c": leaf}`` (lists are leaves)."""
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, dict) and v:
-            out.update(flatten(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 def _overlaps(key: str, given: str) -> bool:
