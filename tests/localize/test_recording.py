@@ -161,7 +161,7 @@ class TestBagRecording:
 
     def test_missing_topic_lists_the_bag_topics(self, recordings, dataset):
         with pytest.raises(ValueError, match=r"'/cam/rgb' not in the bag; set "
-                                             r"recording\.topics\.image .*/camera/image_raw"):
+                                             r"recording_topics\.image .*/camera/image_raw"):
             read_recording(recordings["ros2"], dataset.camera, topics={"image": "/cam/rgb"})
         with pytest.raises(ValueError, match="recording_topics.groundtruth"):
             read_recording(recordings["ros1"], dataset.camera, topics={"groundtruth": "/gt"})
