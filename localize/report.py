@@ -350,11 +350,10 @@ def _fmt(v, digits: int = 3) -> str:
     return str(v)
 
 
-def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
-    """report.md text."""
-    paper_err, paper_ms = cfg.report.paper_error_m, cfg.report.paper_time_ms
+def _header(m: dict, cfg) -> list[str]:
+    """Title, the filter's settings and the paper's figures."""
     f = cfg.filter
-    lines = [
+    return [
         f"# Localization report: {cfg.name}",
         "",
         f"Dataset `{m['dataset']}`. Filter: {f.num_particles} particles, likelihood "
@@ -369,15 +368,19 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
         + "".join(f"; mode {mode}: {list(std)}"
                   for mode, std in f.get("mode_motion_std", {}).items())
         + f". Seeds: {list(cfg.seeds)}.",
-        f"Paper (Buyval et al. 2017): mean error {paper_err} m, {paper_ms} ms per frame on a "
-        f"GTX 1050; a LIDAR method ~{cfg.report.lidar_error_m} m.",
+        f"Paper (Buyval et al. 2017): mean error {cfg.report.paper_error_m} m, "
+        f"{cfg.report.paper_time_ms} ms per frame on a GTX 1050; a LIDAR method "
+        f"~{cfg.report.lidar_error_m} m.",
         "",
-        "## Accuracy, tracking init",
-        "",
-        "| flight | mode | mean (m) | median (m) | RMSE (m) | p95 (m) | yaw (deg) | failures "
-        f"| vs paper {paper_err} m |",
-        "|---|---|---|---|---|---|---|---|---|",
     ]
+
+
+def _accuracy(m: dict, cfg) -> list[str]:
+    """Tracking errors per flight and mode, against the paper."""
+    paper_err = cfg.report.paper_error_m
+    lines = ["## Accuracy, tracking init", "",
+             "| flight | mode | mean (m) | median (m) | RMSE (m) | p95 (m) | yaw (deg) | failures "
+             f"| vs paper {paper_err} m |", "|---|---|---|---|---|---|---|---|---|"]
     for flight, modes in m["flights"].items():
         for mode, s in modes.items():
             if "mean_position_error_m" not in s:
@@ -387,51 +390,69 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
                 f"{_fmt(s['median_m'])} | {_fmt(s['rmse_m'])} | {_fmt(s['p95_m'])} | "
                 f"{_fmt(s['mean_yaw_error_deg'], 2)} | {_fmt(100 * s['failure_rate'], 1)}% | "
                 f"{versus_paper(s['mean_position_error_m'], paper_err)} |")
-    lines += ["", f"Failures: frames with an error above {cfg.metrics.failure_threshold_m} m.",
-              ""]
+    return lines + ["", f"Failures: frames with an error above {cfg.metrics.failure_threshold_m}"
+                    " m.", ""]
+
+
+def _global(m: dict, cfg) -> list[str]:
+    """Convergence from a uniform start, where global runs exist."""
     glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()
             for mode, s in modes.items() if "global" in s]
-    if glob:
-        n = cfg.metrics.converge_within_frames
-        lines += ["## Global localization (uniform start)", "",
-                  f"Converged: error below {cfg.metrics.converge_threshold_m} m from that frame "
-                  "to the end of the flight.", "",
-                  f"| flight | mode | converged within {n} frames | convergence frame per seed "
-                  "| mean error after convergence (m) |", "|---|---|---|---|---|"]
-        for fl, mode, g in glob:
-            lines.append(f"| {fl} | {mode} | {100 * g['converged_within_rate']:.0f}% | "
-                         f"{', '.join(_fmt(c) for c in g['convergence_frames'])} | "
-                         f"{_fmt(g['mean_error_after_convergence_m'])} |")
-        lines.append("")
+    if not glob:
+        return []
+    n = cfg.metrics.converge_within_frames
+    lines = ["## Global localization (uniform start)", "",
+             f"Converged: error below {cfg.metrics.converge_threshold_m} m from that frame "
+             "to the end of the flight.", "",
+             f"| flight | mode | converged within {n} frames | convergence frame per seed "
+             "| mean error after convergence (m) |", "|---|---|---|---|---|"]
+    for fl, mode, g in glob:
+        lines.append(f"| {fl} | {mode} | {100 * g['converged_within_rate']:.0f}% | "
+                     f"{', '.join(_fmt(c) for c in g['convergence_frames'])} | "
+                     f"{_fmt(g['mean_error_after_convergence_m'])} |")
+    return [*lines, ""]
+
+
+def _timing(m: dict, cfg) -> list[str]:
+    """Time per frame and stage, as the paper's Table 1."""
     tbm = m.get("timing_ms_by_mode", {})
-    if tbm:
-        modes = sorted(tbm)
-        lines += ["## Time per frame (ms, min / avg / max), as the paper's Table 1", "",
-                  "| stage | " + " | ".join(modes) + " | paper (GPU) |",
-                  "|---|" + "---|" * (len(modes) + 1)]
-        paper_col = {"segmentation": "167", "total": str(paper_ms)}
-        for stage in TIMING_STAGES:
-            cells = [f"{tbm[mo][stage]['min']:.1f} / {tbm[mo][stage]['avg']:.1f} / "
-                     f"{tbm[mo][stage]['max']:.1f}" for mo in modes]
-            lines.append(f"| {stage} | " + " | ".join(cells) +
-                         f" | {paper_col.get(stage, '-')} |")
-        lines += ["", "Acquisition: reading the frame (PNG) from disk; segmentation: SegNet "
-                  "through onnxruntime (cnn only); preprocessing: edge map and distance "
-                  "transforms; filter: motion, likelihood, resampling for one filter. Measured on "
-                  "a 2-core CPU shared with other jobs, so these may be pessimistic; "
-                  "`benchmarks/localize_speed.py` measures the stages alone.", ""]
+    if not tbm:
+        return []
+    modes = sorted(tbm)
+    lines = ["## Time per frame (ms, min / avg / max), as the paper's Table 1", "",
+             "| stage | " + " | ".join(modes) + " | paper (GPU) |",
+             "|---|" + "---|" * (len(modes) + 1)]
+    paper_col = {"segmentation": "167", "total": str(cfg.report.paper_time_ms)}
+    for stage in TIMING_STAGES:
+        cells = [f"{tbm[mo][stage]['min']:.1f} / {tbm[mo][stage]['avg']:.1f} / "
+                 f"{tbm[mo][stage]['max']:.1f}" for mo in modes]
+        lines.append(f"| {stage} | " + " | ".join(cells) + f" | {paper_col.get(stage, '-')} |")
+    return lines + ["", "Acquisition: reading the frame (PNG) from disk; segmentation: SegNet "
+                    "through onnxruntime (cnn only); preprocessing: edge map and distance "
+                    "transforms; filter: motion, likelihood, resampling for one filter. Measured "
+                    "on a 2-core CPU shared with other jobs, so these may be pessimistic; "
+                    "`benchmarks/localize_speed.py` measures the stages alone.", ""]
+
+
+def _paper_faithful(m: dict) -> list[str]:
+    """The vectorized likelihood against the paper-faithful one, where both ran."""
     pf = m.get("paper_faithful")
-    if pf and "vectorized" in pf and "paper_faithful" in pf:
-        v, p = pf["vectorized"], pf["paper_faithful"]
-        lines += ["## Vectorized vs paper-faithful likelihood", "",
-                  f"Same flight ({v['flight']}, first {v['num_frames']} frames), mode "
-                  f"{v['mode']}, {v['num_particles']} particles, tracking init.", "",
-                  "| likelihood | mean error (m) | filter ms/frame (avg) |", "|---|---|---|",
-                  f"| vectorized | {_fmt(v['mean_position_error_m'])} | "
-                  f"{v['filter_ms']['avg']:.1f} |",
-                  f"| paper_faithful (render + contours + Hough per particle) | "
-                  f"{_fmt(p['mean_position_error_m'])} | {p['filter_ms']['avg']:.1f} |", "",
-                  f"Speed-up of the vectorized likelihood: {pf['speed_ratio']:.0f}x.", ""]
+    if not (pf and "vectorized" in pf and "paper_faithful" in pf):
+        return []
+    v, p = pf["vectorized"], pf["paper_faithful"]
+    return ["## Vectorized vs paper-faithful likelihood", "",
+            f"Same flight ({v['flight']}, first {v['num_frames']} frames), mode "
+            f"{v['mode']}, {v['num_particles']} particles, tracking init.", "",
+            "| likelihood | mean error (m) | filter ms/frame (avg) |", "|---|---|---|",
+            f"| vectorized | {_fmt(v['mean_position_error_m'])} | {v['filter_ms']['avg']:.1f} |",
+            f"| paper_faithful (render + contours + Hough per particle) | "
+            f"{_fmt(p['mean_position_error_m'])} | {p['filter_ms']['avg']:.1f} |", "",
+            f"Speed-up of the vectorized likelihood: {pf['speed_ratio']:.0f}x.", ""]
+
+
+def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
+    """The targets table, the plots per flight and where the trajectories are."""
+    lines = []
     if m.get("targets"):
         lines += ["## Targets", "", "| target | goal | measured | met |", "|---|---|---|---|"]
         for t in m["targets"]:
@@ -440,14 +461,18 @@ def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
         lines.append("")
     lines += ["## Plots", ""]
     for flight, files in plots.items():
-        lines.append(f"### {flight}")
-        lines.append("")
+        lines += [f"### {flight}", ""]
         for fpath in files:
-            lines.append(f"![{Path(fpath).stem}]({fpath})")
-            lines.append("")
-    lines += ["Trajectories (TUM, world_from_body): `trajectories/<flight>/<mode>_seed<k>.txt` "
-              "(tracking) and `<mode>_global_seed<k>.txt`; per-frame records: `runs/`.", ""]
-    return "\n".join(lines)
+            lines += [f"![{Path(fpath).stem}]({fpath})", ""]
+    return lines + ["Trajectories (TUM, world_from_body): `trajectories/<flight>/<mode>_seed<k>"
+                    ".txt` (tracking) and `<mode>_global_seed<k>.txt`; per-frame records: "
+                    "`runs/`.", ""]
+
+
+def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
+    """report.md text."""
+    return "\n".join([*_header(m, cfg), *_accuracy(m, cfg), *_global(m, cfg), *_timing(m, cfg),
+                      *_paper_faithful(m), *_targets_and_plots(m, plots)])
 
 
 def write_report(ctx) -> Path:
