@@ -19,6 +19,7 @@ made again on every call (a single pass, nothing to resume).
 from __future__ import annotations
 
 import logging
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -66,10 +67,8 @@ def track(ctx: Context, rec: Recording, mode: str, start: np.ndarray | None, see
     loc.reset(start)
     T = len(rec) if max_frames is None else min(int(max_frames), len(rec))
     states, timing = np.zeros((T, 4)), {"segmentation": [], "preprocessing": [], "filter": []}
-    for f in tqdm(rec.steps(), total=T, desc=f"{rec.name}/{mode}", disable=not progress,
-                  leave=False, mininterval=2.0):
-        if f.index >= T:
-            break
+    for f in tqdm(islice(rec.steps(), T), total=T, desc=f"{rec.name}/{mode}",
+                  disable=not progress, leave=False, mininterval=2.0):
         est = loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp)
         states[f.index] = est.state
         for k in timing:
