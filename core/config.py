@@ -1,8 +1,52 @@
-"""Config checks shared by the three stages."""
+"""Typed configs shared by the three stages.
+
+Each stage's settings are dataclasses (``datagen/config.py``, ``train/config.py``,
+``localize/config.py``): their field defaults are the only defaults, and Hydra composes the
+YAML presets of ``conf/`` onto them (``register_schema``), so a typo or a wrong type in a YAML
+file or on the command line fails at start-up, naming the key. ``typed`` does the same check
+for a plain mapping (library use, tests, settings read back from a model folder).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
+from typing import TypeVar
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+T = TypeVar("T")
+
+
+def register_schema(name: str, node: type) -> None:
+    """Store dataclass ``node`` in Hydra's ConfigStore as ``name``, for a primary config's
+    defaults list (``defaults: [name, ...]``): every key then has its type and default."""
+    ConfigStore.instance().store(name=name, node=node)
+
+
+def typed(cls: type[T], cfg: Mapping | None, where: str) -> T:
+    """An instance of dataclass ``cls``: its defaults updated by ``cfg`` (a mapping or a
+    DictConfig, possibly partial), checked by OmegaConf against the field types.
+
+    Args:
+        cls: a dataclass whose fields have OmegaConf-compatible annotations.
+        cfg: the values to set (None: the defaults).
+        where: the config key the values come from, for messages (e.g. ``"filter"``).
+
+    Raises:
+        ValueError: an unknown key or a value of the wrong type, naming ``where.key``, the
+            value and (for a typo) the known keys.
+    """
+    base = OmegaConf.structured(cls)
+    try:
+        merged = OmegaConf.merge(base, cfg or {})
+    except OmegaConfBaseException as err:
+        key = f"{where}.{err.full_key}" if getattr(err, "full_key", None) else where
+        known = ", ".join(base.keys())
+        raise ValueError(f"{key}: {err.msg.splitlines()[0]} (known keys of {where}: {known})"
+                         ) from None
+    return OmegaConf.to_object(merged)
 
 
 def reject_unknown_keys(given: Iterable[str], known: Iterable[str], what: str) -> None:
