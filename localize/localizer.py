@@ -53,12 +53,18 @@ _BLAS = ThreadpoolController()
 def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
                            mode: str) -> LikelihoodParams:
     """The likelihood settings of one edge mode: ``lp`` updated by
-    ``filter.mode_likelihood[mode]`` (a typo raises naming
-    ``filter.mode_likelihood.<mode>.<key>``)."""
+    ``filter.mode_likelihood[mode]`` (a typo or a bad value raises naming
+    ``filter.mode_likelihood.<mode>``)."""
     over = fparams.mode_likelihood.get(mode)
     if not over:
         return lp
-    return typed(LikelihoodParams, {**asdict(lp), **over}, f"filter.mode_likelihood.{mode}")
+    where = f"filter.mode_likelihood.{mode}"
+    try:
+        return typed(LikelihoodParams, {**asdict(lp), **over}, where)
+    except ValueError as err:
+        if str(err).startswith(where):  # names the key already
+            raise
+        raise ValueError(f"{where}: {err}") from None
 
 
 def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> LikelihoodParams:
