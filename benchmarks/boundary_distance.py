@@ -4,7 +4,7 @@ Usage::
 
     python benchmarks/boundary_distance.py                    # the demo's dataset and SegNet
     python benchmarks/boundary_distance.py --dataset outputs/datasets/big \
-        --model outputs/models/big/segnet.onnx --step 4 edges.cnn.snap_band=true
+        --model outputs/models/big/segnet.onnx --step 4 edges.cnn.snap_nearest=true
 
 For every flight, every ``--step``-th frame: the localizer's cnn edges (a ``FrontEnd`` of the
 SegNet, with the ``conf/localize.yaml`` edge settings and any overrides given) and the true
@@ -60,7 +60,6 @@ from localize.edges import (  # noqa: E402
     pair_name,
     structural_mask,
 )
-from localize.extractor import CnnSettings  # noqa: E402
 from localize.frontend import FrontEnd, SegmenterLabels  # noqa: E402
 from localize.likelihood import distance_to  # noqa: E402
 from localize.segmenter import LabelPredictor, load_segmenter  # noqa: E402
@@ -185,10 +184,9 @@ def main(argv: list[str] | None = None) -> int:
     dataset = Dataset(args.dataset)
     with initialize_config_dir(str(CONF_DIR), version_base=None):
         cfg = compose("localize", overrides=list(args.overrides))
-    edges_cfg = OmegaConf.to_container(cfg.edges, resolve=True)
-    source = SegmenterLabels(load_segmenter(args.model, dataset.classes),
-                             CnnSettings.from_cfg(edges_cfg.get("cnn")))
-    cnn, oracle = FrontEnd(source, edges_cfg), FrontEnd("oracle", edges_cfg)
+    edges = OmegaConf.to_object(cfg.edges)  # localize.config.EdgeSettings
+    source = SegmenterLabels(load_segmenter(args.model, dataset.classes), edges.cnn)
+    cnn, oracle = FrontEnd(source, edges), FrontEnd("oracle", edges)
     names = {int(c["id"]): c["name"] for c in dataset.classes}
     print(f"dataset {args.dataset}, model {args.model}, every {args.step} frames")
     pooled_side: dict[int, list[np.ndarray]] = {}

@@ -50,12 +50,11 @@ def swap_labels(predicted: np.ndarray, truth: np.ndarray, classes: np.ndarray) -
 
 def swapped_source(own: EdgeSource, classes: np.ndarray) -> LabelFunction:
     """The cnn mode's edge source with ``classes`` taken from the truth: a label function of
-    the frame and its true labels, ``swap_labels`` of the SegNet's (``own``) and the true ones
-    (the SegNet's confidence kept)."""
+    the frame and its true labels, ``swap_labels`` of the SegNet's (``own``) and the true
+    ones."""
 
-    def labels(rgb: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        predicted, conf = own.labels(rgb, None)
-        return swap_labels(predicted, truth, classes), conf
+    def labels(rgb: np.ndarray, truth: np.ndarray) -> np.ndarray:
+        return swap_labels(own.labels(rgb, None), truth, classes)
 
     return LabelFunction(labels, mode=own.mode, needs_truth=True)
 

@@ -87,10 +87,8 @@ def compare_likelihoods(ctx, loc: Localizer, seen: list, truth: np.ndarray, n: i
     around the truth, on the first ``frames`` frames of ``seen`` (``time_frames``)."""
     from localize.paper_faithful import PaperFaithfulLikelihood
 
-    pc = ctx.cfg.paper_faithful
     pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
-                                  hough=dict(pc.hough), samples_per_line=int(pc.samples_per_line),
-                                  search_px=float(pc.search_px), variant=str(pc.render_variant))
+                                  ctx.settings.paper_faithful)
     rng = np.random.default_rng(1)
     t_vec, t_pf = [], []
     for t in range(min(frames, len(seen))):

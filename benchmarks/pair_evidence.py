@@ -107,7 +107,9 @@ def main(argv: list[str] | None = None) -> int:
     path = args.report / "config.json"
     if not path.is_file():
         raise SystemExit(f"{path} not found: pass a report folder of `python -m localize`")
-    cfg = OmegaConf.create(json.loads(path.read_text()))
+    conf = json.loads(path.read_text())
+    conf.pop("onnx_sha256", None)  # the report's record of its SegNet, not a setting
+    cfg = OmegaConf.create(conf)
     cfg.modes = list(args.edges)
     cfg.out_root, cfg.name = str(args.report.parent), args.report.name  # its visibility cache
     ctx: Context = prepare(cfg)

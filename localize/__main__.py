@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf, open_dict
+from omegaconf.errors import OmegaConfBaseException
 
 from core.outputs import flatten
 from localize.runner import run
@@ -53,8 +54,8 @@ def apply_model_settings(cfg: DictConfig, overrides: Sequence[str]) -> dict:
         The settings taken from the model, ``{"dotted.key": value}`` ({} when none).
 
     Raises:
-        ValueError: a setting of the model names no section of conf/localize.yaml (names the
-            file it came from).
+        ValueError: a setting of the model names no section of conf/localize.yaml, or a key or
+            a value localize/config.py does not take (names the file it came from).
     """
     settings, source = model_localize_settings(cfg.onnx_model)
     if not settings:
@@ -72,7 +73,11 @@ def apply_model_settings(cfg: DictConfig, overrides: Sequence[str]) -> dict:
         taken[key] = value
     with open_dict(cfg):
         for key, value in taken.items():
-            OmegaConf.update(cfg, key, value, merge=True)
+            try:
+                OmegaConf.update(cfg, key, value, merge=True)
+            except OmegaConfBaseException as err:
+                raise ValueError(f"{source}: {key}={value!r}: {err.msg.splitlines()[0]}; fix "
+                                 "the model's localize settings") from None
     if taken:
         log.info("settings from the model (%s): %s", source,
                  " ".join(f"{k}={v}" for k, v in taken.items()))

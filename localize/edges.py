@@ -76,15 +76,16 @@ def check_rgb(rgb: np.ndarray) -> None:
 
 
 def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: int = 3,
-                hough: dict | None = None, colour: bool = False) -> EdgeImage:
+                hough: Mapping | None = None, colour: bool = False) -> EdgeImage:
     """Canny edges of an RGB image, optionally replaced by the Hough line segments they hold.
 
     Args:
         rgb: (H, W, 3) uint8.
         low, high: Canny hysteresis thresholds on the gradient magnitude.
         blur: Gaussian blur kernel size before Canny (odd; <= 1 disables it).
-        hough: None or a dict with ``threshold`` (votes), ``min_length`` and ``max_gap``
-            (pixels) for ``cv2.HoughLinesP``; the found segments are drawn 1 px wide.
+        hough: None or a mapping with ``threshold`` (votes), ``min_length`` and ``max_gap``
+            (pixels) for ``cv2.HoughLinesP`` (``config.HoughSettings``); the found segments
+            are drawn 1 px wide.
         colour: False: Canny on the grey image; True: on the RGB image (OpenCV takes, at each
             pixel, the gradient of the channel where it is strongest: a step between colours
             of equal brightness counts).
@@ -98,9 +99,9 @@ def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: i
         img = cv2.GaussianBlur(img, (int(blur) | 1, int(blur) | 1), 0)
     edges = cv2.Canny(img, float(low), float(high), L2gradient=True)
     if hough:
-        lines = cv2.HoughLinesP(edges, 1, np.pi / 180, int(hough.get("threshold", 30)),
-                                minLineLength=float(hough.get("min_length", 20)),
-                                maxLineGap=float(hough.get("max_gap", 3)))
+        lines = cv2.HoughLinesP(edges, 1, np.pi / 180, int(hough["threshold"]),
+                                minLineLength=float(hough["min_length"]),
+                                maxLineGap=float(hough["max_gap"]))
         edges = np.zeros_like(edges)
         if lines is not None:
             for x0, y0, x1, y1 in lines.reshape(-1, 4):

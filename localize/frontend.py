@@ -11,8 +11,8 @@ image of its mode from them (``extractor.EdgeExtractor``, the ``edges`` config):
   SegNet's are. A benchmark's altered segmentation is one of these, not a patch.
 
 Any object with the attributes ``mode``, ``needs_image``, ``needs_truth`` and a method
-``labels(rgb, true_labels) -> (labels | None, confidence | None)`` is an edge source
-(``EdgeSource``); ``edge_source`` turns a mode name or a callable into one.
+``labels(rgb, true_labels) -> labels | None`` is an edge source (``EdgeSource``);
+``edge_source`` turns a mode name or a callable into one.
 
 ``FrontEnd.frame(image, true_labels)`` runs the source and the edge extraction once and
 returns a ``Frame``; ``Frame.observation(likelihood)`` makes a likelihood's score maps of it
@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from localize.config import MODES, CnnSettings, EdgeSettings
 from localize.edges import EdgeImage, check_rgb
-from localize.extractor import MODES, CnnSettings, EdgeExtractor
+from localize.extractor import EdgeExtractor, edge_settings
 from localize.likelihood import EdgeLikelihood, Observation
 from localize.segmenter import LabelPredictor
 
@@ -52,9 +53,8 @@ class EdgeSource(Protocol):
     needs_truth: bool
 
     def labels(self, rgb: np.ndarray | None, true_labels: np.ndarray | None
-               ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """(H, W) uint8 labels (None for mode ``none``) and (H, W) float32 confidence (None:
-        all confident) of a frame."""
+               ) -> np.ndarray | None:
+        """(H, W) uint8 labels of a frame (None for mode ``none``)."""
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class CannyEdges:
     needs_truth: bool = False
 
     def labels(self, rgb, true_labels):
-        return None, None
+        return None
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ class TrueLabels:
         if true_labels is None:
             raise ValueError("edge source 'oracle' needs the frame's true labels: pass "
                              "labels=(H, W) uint8 class ids to step() / FrontEnd.frame()")
-        return true_labels, None
+        return true_labels
 
 
 class SegmenterLabels:
@@ -89,7 +89,7 @@ class SegmenterLabels:
 
     Args:
         segmenter: an ``OnnxSegmenter`` (``segmenter.load_segmenter``).
-        cnn: the ``edges.cnn`` settings (prior correction, confidence).
+        cnn: the ``edges.cnn`` settings (its prior correction; None: the defaults).
     """
 
     mode = "cnn"
@@ -98,7 +98,7 @@ class SegmenterLabels:
 
     def __init__(self, segmenter, cnn: CnnSettings | None = None):
         cnn = cnn or CnnSettings()
-        self.predictor = LabelPredictor(segmenter, cnn.prior_correction, cnn.min_confidence)
+        self.predictor = LabelPredictor(segmenter, cnn.prior_correction)
 
     def labels(self, rgb, true_labels):
         return self.predictor(rgb)
@@ -109,7 +109,7 @@ class LabelFunction:
 
     Args:
         fn: ``rgb (H, W, 3) uint8 -> labels (H, W)`` class ids, or with ``needs_truth``
-            ``(rgb, true_labels) -> labels``; it may return ``(labels, confidence (H, W))``.
+            ``(rgb, true_labels) -> labels``.
         mode: ``cnn`` (predicted labels) or ``oracle`` (exact ones: not snapped).
         needs_truth: ``fn`` takes the frame's true labels as its second argument.
     """
@@ -126,13 +126,11 @@ class LabelFunction:
         if self.needs_truth and true_labels is None:
             raise ValueError("this LabelFunction needs the frame's true labels: pass labels= "
                              "to step() / FrontEnd.frame()")
-        out = self.fn(rgb, true_labels) if self.needs_truth else self.fn(rgb)
-        labels, conf = out if isinstance(out, tuple) else (out, None)
-        labels = np.asarray(labels)
+        labels = np.asarray(self.fn(rgb, true_labels) if self.needs_truth else self.fn(rgb))
         if labels.shape != rgb.shape[:2]:
             raise ValueError(f"the label function returned {labels.shape} for an image "
                              f"{rgb.shape[:2]}; it must return (H, W) class ids")
-        return labels.astype(np.uint8, copy=False), conf
+        return labels.astype(np.uint8, copy=False)
 
 
 def edge_source(spec, segmenter=None, cnn: CnnSettings | None = None) -> EdgeSource:
@@ -185,7 +183,7 @@ class Frame:
             The observation and the ms it took to make (also when made by an earlier call).
         """
         codes = likelihood.pair_codes
-        key = (likelihood.params, None if codes is None else codes.tobytes())
+        key = (astuple(likelihood.params), None if codes is None else codes.tobytes())
         if key not in self._maps:
             t0 = time.perf_counter()
             obs = likelihood.observe(self.edge)
@@ -198,16 +196,17 @@ class FrontEnd:
 
     Args:
         source: an edge source, a mode name or a labelling callable (``edge_source``).
-        edges_cfg: the ``edges`` config (conf/edges/default.yaml: canny, hough, labels, cnn).
+        edges: the ``edges`` settings (``localize.config.EdgeSettings``, or a partial mapping
+            of them; None: the defaults).
         segmenter: the SegNet when ``source`` is ``"cnn"``.
     """
 
-    def __init__(self, source, edges_cfg: Mapping, segmenter=None):
-        edges_cfg = dict(edges_cfg)
-        self.source = edge_source(source, segmenter, CnnSettings.from_cfg(edges_cfg.get("cnn")))
+    def __init__(self, source, edges: EdgeSettings | Mapping | None = None, segmenter=None):
+        edges = edge_settings(edges)
+        self.source = edge_source(source, segmenter, edges.cnn)
         if self.source.mode not in MODES:
             raise ValueError(f"edge source mode {self.source.mode!r}: use one of {MODES}")
-        self.extractor = EdgeExtractor(self.source.mode, edges_cfg)
+        self.extractor = EdgeExtractor(self.source.mode, edges)
 
     @property
     def mode(self) -> str:
@@ -235,8 +234,8 @@ class FrontEnd:
                                  f"{None if image is None else image.shape[:2]}, got "
                                  f"{true_labels.shape}")
         t0 = time.perf_counter()
-        labels, conf = self.source.labels(image, true_labels)
+        labels = self.source.labels(image, true_labels)
         t1 = time.perf_counter()
-        edge = self.extractor.edges(image, labels, conf)
+        edge = self.extractor.edges(image, labels)
         t2 = time.perf_counter()
         return Frame(edge, labels, {"segmentation": (t1 - t0) * 1e3, "edges": (t2 - t1) * 1e3})

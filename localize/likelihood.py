@@ -28,12 +28,11 @@ where d is the distance from the pixel to the nearest image edge:
   g0, the mean score of a known pixel; so do known pixels whose nearest edge is farther than
   the mask (the true edge might be hidden), unless they already score more.
 
-Scores aggregate in one of three ways:
+Scores aggregate in one of two ways:
 
 - ``lines`` (the paper): line score ``l = mean g`` over a line's visible samples, ``score =
   mean l`` over lines with at least ``min_line_samples`` visible samples. A particle seeing
   fewer than ``min_lines`` lines is padded with g0.
-- ``samples``: the mean of g over all visible samples (padded the same way).
 - ``evidence``: ``score = sum over visible samples of e / evidence_norm`` with the per-sample
   log-likelihood ratio ``e = log(g + eps) - log(g0 + eps)``: the sample's fit against the
   image's chance level g0, with an outlier floor ``eps`` (``outlier``). A sample on an edge adds
@@ -62,15 +61,15 @@ from __future__ import annotations
 
 import functools
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from core.config import reject_unknown_keys
 from core.dataset import Camera
+from localize.config import LikelihoodParams
 from localize.edges import EdgeImage, edge_normal_angle
 from localize.projection import (
     ModelSamples,
@@ -81,74 +80,6 @@ from localize.projection import (
     projection_matrices,
 )
 from localize.visibility import VisibilityGrid
-
-
-@dataclass(frozen=True)
-class LikelihoodParams:
-    """Settings of the edge likelihood (conf/filter/*.yaml, key ``likelihood``).
-
-    Attributes:
-        alpha, k: weight ``W = alpha * exp(k * score)``.
-        sigma: tolerance of g(d), as a fraction of ``search_px``.
-        search_px: reach of the edge search, pixels; d is truncated there.
-        aggregate: ``lines`` (paper: mean over lines of the mean over their samples),
-            ``samples`` (mean over all visible samples) or ``evidence`` (sum of g - g0 over
-            visible samples divided by ``evidence_norm``).
-        min_line_samples: visible samples a line needs to count (aggregate = lines).
-        min_lines: fewer counted lines (or, for ``samples``, fewer than ``min_lines *
-            min_line_samples`` samples) are padded with the chance score g0.
-        lines_ref: a frame whose particles see fewer lines than this (their median) has its
-            k scaled by that count / ``lines_ref`` (``frame_k``); 0 = off.
-        evidence_norm: samples per unit of score for ``evidence``.
-        outlier: eps of the evidence's log-ratio, the floor of a sample's match probability
-            (large eps: e tends to (g - g0) / eps, a linear reward).
-        min_quality_samples: known visible samples needed to report a quality.
-        orientation_bins: 0 for a plain distance transform, else the number of orientation
-            bins (over 180 degrees) of the directional one.
-        class_pairs: match each model sample only to image edges between the same two classes
-            (edge images with ``pairs``; needs the samples' pair codes).
-        near: samples closer to the camera than this are dropped, metres.
-        chunk: particles processed per block (the (chunk, P) arrays stay small; with
-            ``workers`` > 1, blocks are what the threads share out).
-        workers: threads that score blocks of particles, and the orientation bins' maps, at
-            the same time (numpy and OpenCV release the GIL); 1 = in the calling thread.
-            Results do not depend on it.
-    """
-
-    alpha: float = 1.0
-    k: float = 3.0
-    sigma: float = 0.3
-    search_px: float = 10.0
-    aggregate: str = "lines"
-    min_line_samples: int = 2
-    min_lines: int = 1
-    lines_ref: int = 0
-    evidence_norm: float = 100.0
-    outlier: float = 0.05
-    min_quality_samples: int = 30
-    orientation_bins: int = 0
-    class_pairs: bool = False
-    near: float = 0.1
-    chunk: int = 64
-    workers: int = 1
-
-    def __post_init__(self) -> None:
-        if self.aggregate not in ("lines", "samples", "evidence"):
-            raise ValueError(f"likelihood.aggregate must be 'lines', 'samples' or 'evidence', got "
-                             f"{self.aggregate!r}")
-        if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
-            raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
-                             f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")
-        if self.workers < 1:
-            raise ValueError(f"likelihood.workers must be >= 1, got {self.workers}")
-        if self.lines_ref < 0:
-            raise ValueError(f"likelihood.lines_ref must be >= 0 (0 = off), got {self.lines_ref}")
-
-    @classmethod
-    def from_cfg(cls, cfg: Mapping) -> LikelihoodParams:
-        """Build from a config mapping; unknown keys raise with the list of known ones."""
-        reject_unknown_keys(cfg, (f.name for f in fields(cls)), "likelihood settings")
-        return cls(**{k: v for k, v in cfg.items()})
 
 
 @dataclass
@@ -214,10 +145,8 @@ def distance_to(mask: np.ndarray) -> np.ndarray:
     """Euclidean distance (H, W) float32, pixels, to the nearest True pixel (1e6 if none).
 
     OpenCV's 5x5-mask chamfer approximation of the Euclidean distance: within 0.04 px of the
-    exact one up to 4 px and 2 % beyond (measured on random line maps), a fraction of the
-    likelihood's 1-pixel sigma, at half the exact transform's time (0.40 vs 0.92 ms for a
-    320x240 map; a frame takes 13 of them in cnn mode). docs/localize.md, "edge maps and
-    filter faster".
+    exact one up to 4 px and 2 % beyond (a fraction of the likelihood's 1-pixel sigma), at
+    half the exact transform's time (docs/localize.md).
     """
     if not mask.any():
         return np.full(mask.shape, 1e6, dtype=np.float32)
@@ -405,7 +334,7 @@ class EdgeLikelihood:
             tilt: (3, 3) roll/pitch of the body for this frame (None: level).
 
         Returns:
-            score (N,) float64 (in [0, 1] for ``lines`` and ``samples``); quality (N,) float64,
+            score (N,) float64 (in [0, 1] for ``lines``); quality (N,) float64,
             how well the visible samples on known pixels fit, their mean evidence over that of
             a perfect fit (1: all on edges, 0: chance, negative: worse), NaN with fewer than
             ``min_quality_samples`` of them. Recovery watches the best particle's quality
@@ -471,12 +400,7 @@ class EdgeLikelihood:
             # unknown samples count with the particle's own mean evidence (they may or may not
             # match; moving lines off a masked object onto empty wall must not pay)
             return e_mean * n / p.evidence_norm, quality, m
-        g = obs.g[idx]
-        if p.aggregate == "samples":
-            need = p.min_lines * p.min_line_samples
-            total = g.sum(axis=1, dtype=np.float64) + np.maximum(need - n, 0) * chance
-            return total / np.maximum(np.maximum(n, need), 1), quality, m
-        gs = np.add.reduceat(g, self._starts, axis=1)
+        gs = np.add.reduceat(obs.g[idx], self._starts, axis=1)
         line = np.where(ok, gs / np.maximum(ns, 1), np.float32(0.0))
         total = line.sum(axis=1, dtype=np.float64) + np.maximum(p.min_lines - m, 0) * chance
         return total / np.maximum(np.maximum(m, p.min_lines), 1), quality, m

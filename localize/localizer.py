@@ -16,9 +16,10 @@ distance transforms) once and hands them to every filter with the same map setti
 filters cost one segmentation, one edge image and one set of score maps per frame, plus N
 filter updates. Given an image, ``step`` makes the frame itself.
 
-Settings (``Settings``) are the localize config's ``filter`` (particle filter and likelihood),
-``edges``, ``model_edges`` and ``visibility`` nodes; a mode's own likelihood and motion noise
-(``filter.mode_likelihood``, ``filter.mode_motion_std``) apply by the front end's mode.
+Settings (``localize.config.Settings``) are the localize config's ``filter`` (particle filter
+and likelihood), ``edges``, ``model_edges`` and ``visibility`` nodes; a mode's own likelihood and
+motion noise (``filter.mode_likelihood``, ``filter.mode_motion_std``) apply by the front end's
+mode.
 """
 
 from __future__ import annotations
@@ -29,16 +30,16 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from omegaconf import OmegaConf
 from threadpoolctl import ThreadpoolController
 
+from core.config import typed
 from core.dataset import Camera, World
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
+from localize.config import FilterParams, LikelihoodParams, Settings
 from localize.edges import EdgeImage, pair_code
-from localize.extractor import class_boundaries_only
 from localize.frontend import Frame, FrontEnd
-from localize.likelihood import EdgeLikelihood, LikelihoodParams
-from localize.particle_filter import FilterParams, LogLikelihood, ParticleFilter
+from localize.likelihood import EdgeLikelihood
+from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, sample_segments, tilt_from_pose
 from localize.visibility import VisibilityGrid, load_or_build
 
@@ -52,65 +53,27 @@ _BLAS = ThreadpoolController()
 def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
                            mode: str) -> LikelihoodParams:
     """The likelihood settings of one edge mode: ``lp`` updated by
-    ``filter.mode_likelihood[mode]`` (unknown keys raise)."""
+    ``filter.mode_likelihood[mode]`` (a typo or a bad value raises naming
+    ``filter.mode_likelihood.<mode>``)."""
     over = fparams.mode_likelihood.get(mode)
     if not over:
         return lp
+    where = f"filter.mode_likelihood.{mode}"
     try:
-        return LikelihoodParams.from_cfg({**asdict(lp), **dict(over)})
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"filter.mode_likelihood.{mode}: {err}") from err
+        return typed(LikelihoodParams, {**asdict(lp), **over}, where)
+    except ValueError as err:
+        if str(err).startswith(where):  # names the key already
+            raise
+        raise ValueError(f"{where}: {err}") from None
 
 
 def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> LikelihoodParams:
     """The global phase's likelihood settings: ``lp`` updated by ``filter.global_likelihood``,
     ``evidence_norm`` divided by ``filter.global_thin`` (it scores that many times fewer
     samples)."""
-    gp = LikelihoodParams.from_cfg({**asdict(lp), **dict(fparams.global_likelihood)})
+    gp = typed(LikelihoodParams, {**asdict(lp), **fparams.global_likelihood},
+               "filter.global_likelihood")
     return replace(gp, evidence_norm=gp.evidence_norm / max(fparams.global_thin, 1))
-
-
-@dataclass(frozen=True)
-class Settings:
-    """What a Localizer is configured by (conf/localize.yaml's nodes of the same names).
-
-    Attributes:
-        filter: particle filter settings (``filter``, without ``likelihood``).
-        likelihood: edge likelihood settings (``filter.likelihood``).
-        edges: the ``edges`` config (canny, hough, labels, cnn).
-        spacing: metres between model edge samples (``model_edges.spacing``).
-        class_change_only: label modes score only model segments whose two sides differ in
-            class (``model_edges.label_modes_class_change_only``).
-        visibility: occlusion grid settings (``visibility``: cell_xy, cell_z, pad, eps,
-            variant).
-    """
-
-    filter: FilterParams = field(default_factory=FilterParams)
-    likelihood: LikelihoodParams = field(default_factory=LikelihoodParams)
-    edges: Mapping = field(default_factory=dict)
-    spacing: float = 0.1
-    class_change_only: bool = True
-    visibility: Mapping = field(default_factory=dict)
-
-    @classmethod
-    def from_cfg(cls, cfg) -> Settings:
-        """From a composed localize config (a DictConfig or a plain mapping)."""
-        conf = OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else cfg
-        missing = [k for k in ("filter", "edges", "model_edges", "visibility") if k not in conf]
-        if missing:
-            raise ValueError(f"the localize config lacks {missing}; compose conf/localize.yaml")
-        f = dict(conf["filter"])
-        lik = f.pop("likelihood", {})
-        me = conf["model_edges"]
-        return cls(FilterParams.from_cfg(f), LikelihoodParams.from_cfg(lik), dict(conf["edges"]),
-                   float(me["spacing"]), bool(me["label_modes_class_change_only"]),
-                   dict(conf["visibility"]))
-
-    def with_particles(self, n: int) -> Settings:
-        """These settings with ``n`` tracking particles (and at least ``n`` global ones)."""
-        f = replace(self.filter, num_particles=int(n),
-                    global_particles=max(int(n), self.filter.global_particles))
-        return replace(self, filter=f)
 
 
 @dataclass
@@ -133,16 +96,15 @@ class EdgeModel:
     @classmethod
     def build(cls, world: World, settings: Settings, cache_dir: str | Path | None = None,
               occlusion: bool = True) -> EdgeModel:
-        """All the world's edges, sampled every ``settings.spacing`` m, with their visibility
-        grid (ray-cast, cached under ``cache_dir`` when given; ``occlusion=False`` skips it)."""
-        samples = sample_segments(world.segments, float(settings.spacing))
+        """All the world's edges, sampled every ``settings.model_edges.spacing`` m, with their
+        visibility grid (ray-cast, cached under ``cache_dir`` when given; ``occlusion=False``
+        skips it)."""
+        samples = sample_segments(world.segments, settings.model_edges.spacing)
         vis = None
         if occlusion:
-            v = {"cell_xy": 0.2, "cell_z": 0.25, "pad": 0.3, "eps": 0.02, "variant": "auto",
-                 **dict(settings.visibility)}
-            vis = load_or_build(world, samples.points, cache_dir, float(v["cell_xy"]),
-                                float(v["cell_z"]), float(v["pad"]), float(v["eps"]),
-                                str(v["variant"]))
+            v = settings.visibility
+            vis = load_or_build(world, samples.points, cache_dir, v.cell_xy, v.cell_z, v.pad,
+                                v.eps, v.variant)
         sc = np.asarray(world.segment_classes)[samples.segment]
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 
@@ -167,13 +129,11 @@ class EdgeModel:
             self._thinned[step] = EdgeModel(sub, vis, self.pairs[cols])
         return self._thinned[step]
 
-    def for_mode(self, world: World, mode: str, settings: Settings) -> EdgeModel:
+    def for_mode(self, world: World, mode: str) -> EdgeModel:
         """The part of this model an edge mode scores: the class-change segments
-        (``class_change``) for modes whose edges are class boundaries only, when
-        ``settings.class_change_only``; else this model."""
-        if settings.class_change_only and class_boundaries_only(mode, dict(settings.edges)):
-            return self.class_change(world)
-        return self
+        (``class_change``) for the label modes, whose edges are class boundaries only; every
+        segment for mode ``none``."""
+        return self if mode == "none" else self.class_change(world)
 
 
 @dataclass(frozen=True)
@@ -236,7 +196,7 @@ class Localizer:
         mode = self.front_end.mode
         self.filter_params = settings.filter.for_mode(mode)
         if model is None:
-            model = EdgeModel.build(world, settings).for_mode(world, mode, settings)
+            model = EdgeModel.build(world, settings).for_mode(world, mode)
         self.model = model
         lp = mode_likelihood_params(settings.likelihood, self.filter_params, mode)
         self.likelihood = EdgeLikelihood(model.samples, camera, lp, model.visibility,

@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 
 from core.dataset import Camera, World
+from localize.config import LikelihoodParams, PaperFaithfulSettings
 from localize.edges import EdgeImage, label_edges
-from localize.likelihood import LikelihoodParams
 from localize.projection import cam_from_world
 from localize.render import ModelRenderer
 
@@ -56,20 +56,18 @@ class PaperFaithfulLikelihood:
     Args:
         world, camera: the model and camera.
         params: alpha, k, sigma (same units as the vectorized likelihood).
-        hough: ``threshold``, ``min_length``, ``max_gap`` for ``cv2.HoughLinesP`` on the
-            rendered contours.
-        samples_per_line: S points per model line.
-        search_px: normal search reach, pixels (d is divided by it).
-        variant: Mitsuba variant for the renders.
+        settings: ``paper_faithful``: ``hough`` (on the rendered contours), ``samples_per_line``
+            (S points per model line), ``search_px`` (normal search reach, pixels; d is divided
+            by it), ``render_variant`` (Mitsuba variant of the renders).
     """
 
-    def __init__(self, world: World, camera: Camera, params: LikelihoodParams, hough: dict,
-                 samples_per_line: int = 10, search_px: float = 10.0, variant: str = "auto"):
+    def __init__(self, world: World, camera: Camera, params: LikelihoodParams,
+                 settings: PaperFaithfulSettings):
         self.camera, self.params = camera, params
-        self.hough = hough
-        self.S = int(samples_per_line)
-        self.reach = int(round(search_px))
-        self.renderer = ModelRenderer(world, camera, variant)
+        self.hough = settings.hough
+        self.S = int(settings.samples_per_line)
+        self.reach = int(round(settings.search_px))
+        self.renderer = ModelRenderer(world, camera, settings.render_variant)
 
     def model_lines(self, state: np.ndarray, tilt: np.ndarray | None = None) -> np.ndarray:
         """Hough line segments (L, 4) [u0, v0, u1, v1] of the model rendered at a state (4,)."""
@@ -78,9 +76,8 @@ class PaperFaithfulLikelihood:
         labels, _ = self.renderer.render(np.linalg.inv(T))
         contours = label_edges(labels, dilate_px=0).edges.astype(np.uint8) * 255
         h = self.hough
-        lines = cv2.HoughLinesP(contours, 1, np.pi / 180, int(h.get("threshold", 20)),
-                                minLineLength=float(h.get("min_length", 15)),
-                                maxLineGap=float(h.get("max_gap", 3)))
+        lines = cv2.HoughLinesP(contours, 1, np.pi / 180, int(h.threshold),
+                                minLineLength=float(h.min_length), maxLineGap=float(h.max_gap))
         return np.zeros((0, 4)) if lines is None else lines.reshape(-1, 4).astype(np.float64)
 
     def score(self, lines: np.ndarray, edge: EdgeImage, g0: float) -> float:

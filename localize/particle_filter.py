@@ -11,119 +11,20 @@ the weighted mean with a circular mean for yaw.
 Motion: the odometry increment between two frames is expressed in the gravity-aligned heading
 frame of the earlier pose (forward, left, up, yaw change), the frame a VIO's increments are
 integrated in; each particle applies it in its own heading frame.
+
+Settings: ``localize.config.FilterParams`` (``filter``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import logsumexp
 
-from core.config import reject_unknown_keys
 from core.poses import wrap_angle, xyzyaw_from_pose
-
-
-@dataclass(frozen=True)
-class FilterParams:
-    """Filter settings (conf/filter/*.yaml).
-
-    Attributes:
-        num_particles: particles while tracking.
-        global_particles: particles of the initial uniform draw for global localization; the
-            set is thinned to ``num_particles`` by resampling after ``global_frames`` frames.
-        global_frames: frames to keep the large global set.
-        global_temper: log-likelihoods are multiplied by this while the global set is kept
-            (a flatter likelihood keeps more hypotheses alive while evidence accumulates).
-        global_likelihood: likelihood settings that differ in the global phase (e.g. the
-            ``evidence`` aggregate, which rewards poses that explain more of the model); the
-            tracking likelihood takes over after the thinning.
-        mode_likelihood: likelihood settings that differ per edge mode, ``{mode: {key: value}}``
-            (e.g. directional matching for the label modes, whose edges are clean enough).
-        global_motion_scale: motion noise multiplier in the global phase (roughening).
-        global_thin: the global phase scores every ``global_thin``-th model sample only
-            (cheaper per particle, so more particles fit the same time).
-        init_std: (4,) tracking init noise: x, y, z (metres), yaw (degrees).
-        motion_std: (3,) per-frame motion noise: horizontal (metres), z (metres), yaw
-            (degrees).
-        mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}`` (the
-            label modes' likelihood is clean enough for noise nearer the odometry's own).
-        motion_rel: (2,) extra noise as a fraction of the frame's odometry translation and
-            yaw change.
-        resample_ess: resample when ESS < this fraction of the particle count.
-        free_space_slack: how far (metres) beyond the free boxes and z range a particle may be
-            before the free-space prior applies.
-        outside_log_penalty: log-weight subtracted from particles outside (metres beyond the
-            slack scale it up: penalty * (1 + excess / 0.1)).
-        recovery: inject random particles on likelihood collapse.
-        recovery_fast, recovery_slow: smoothing factors of the short and long averages of the
-            best score per frame.
-        recovery_threshold: inject when the fast average is below this fraction of the slow...
-        recovery_patience: ...for this many frames in a row (a brief occlusion is no collapse).
-        recovery_max_fraction: most particles replaced in one frame.
-        recovery_log_penalty: injected particles start with this much less log-weight, so
-            one lucky frame cannot hand the estimate to a far-away guess; they take over only
-            when they keep fitting better for several frames.
-        recovery_local_std: (4,) noise of the half of the injected particles drawn around the
-            current estimate (x, y, z metres, yaw degrees); the other half is uniform.
-    """
-
-    num_particles: int = 500
-    global_particles: int = 5000
-    global_frames: int = 3
-    global_temper: float = 1.0
-    global_likelihood: Mapping = field(default_factory=dict)
-    mode_likelihood: Mapping = field(default_factory=dict)
-    global_motion_scale: float = 1.0
-    global_thin: int = 1
-    init_std: Sequence[float] = (0.1, 0.1, 0.05, 3.0)
-    motion_std: Sequence[float] = (0.01, 0.005, 0.5)
-    mode_motion_std: Mapping = field(default_factory=dict)
-    motion_rel: Sequence[float] = (0.1, 0.1)
-    resample_ess: float = 0.5
-    free_space_slack: float = 0.25
-    outside_log_penalty: float = 10.0
-    recovery: bool = True
-    recovery_fast: float = 0.3
-    recovery_slow: float = 0.02
-    recovery_threshold: float = 0.5
-    recovery_patience: int = 5
-    recovery_max_fraction: float = 0.2
-    recovery_log_penalty: float = 5.0
-    recovery_local_std: Sequence[float] = field(default=(0.5, 0.5, 0.2, 20.0))
-
-    def __post_init__(self) -> None:
-        if self.num_particles < 1 or self.global_particles < 1:
-            raise ValueError(f"filter.num_particles ({self.num_particles}) and "
-                             f"filter.global_particles ({self.global_particles}) must be >= 1")
-        if not 0.0 < self.resample_ess <= 1.0:
-            raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
-        for key in ("mode_likelihood", "mode_motion_std"):
-            bad_modes = set(getattr(self, key)) - {"none", "cnn", "oracle"}
-            if bad_modes:
-                raise ValueError(f"filter.{key}: unknown edge modes {sorted(bad_modes)}; "
-                                 "use none, cnn, oracle")
-        sized = [(key, getattr(self, key), n) for key, n in
-                 (("init_std", 4), ("motion_std", 3), ("motion_rel", 2), ("recovery_local_std", 4))]
-        sized += [(f"mode_motion_std.{mode}", std, 3) for mode, std in self.mode_motion_std.items()]
-        for key, values, n in sized:
-            if len(values) != n:
-                raise ValueError(f"filter.{key} needs {n} values, got {list(values)}")
-
-    def for_mode(self, mode: str) -> FilterParams:
-        """These settings with ``motion_std`` replaced by ``mode_motion_std[mode]`` if set."""
-        std = self.mode_motion_std.get(mode)
-        return self if std is None else replace(self, motion_std=tuple(float(v) for v in std))
-
-    @classmethod
-    def from_cfg(cls, cfg: Mapping) -> FilterParams:
-        """Build from a config mapping; unknown keys raise with the list of known ones."""
-        reject_unknown_keys(cfg, (f.name for f in fields(cls)), "filter settings")
-        return cls(**{k: (tuple(v) if isinstance(v, Sequence) and not isinstance(v, str)
-                          else dict(v) if isinstance(v, Mapping) else v)
-                      for k, v in cfg.items()})
-
+from localize.config import FilterParams
 
 # --- the three model functions ---------------------------------------------------------------
 

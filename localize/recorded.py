@@ -29,11 +29,11 @@ from tqdm import tqdm
 from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.localizer import EdgeModel, Localizer, Settings
+from localize.localizer import EdgeModel, Localizer
 from localize.metrics import error_stats, position_errors, timing_stats, yaw_errors_deg
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
-from localize.runner import Context, RunSpec, check_run_lists
+from localize.runner import Context, RunSpec, check_run_lists, settings_of
 from localize.segmenter import load_segmenter
 
 log = logging.getLogger(__name__)
@@ -133,15 +133,14 @@ def run_recording(cfg: DictConfig) -> Path:
     if not modes:
         raise ValueError("modes: a recording has no true labels, so oracle cannot run; use "
                          "modes=[cnn] or modes=[none,cnn]")
+    settings = settings_of(cfg)
     dataset = Dataset(cfg.dataset)
     world = dataset.world()
-    topics = OmegaConf.to_container(cfg.recording_topics, resolve=True)
-    mount = cfg.recording_body_from_cam
-    rec = read_recording(cfg.recording, dataset.camera, topics=topics,
-                         body_from_cam=None if mount is None else np.asarray(
-                             OmegaConf.to_container(mount), dtype=np.float64))
+    mount = settings.recording_body_from_cam
+    rec = read_recording(cfg.recording, dataset.camera, topics=settings.recording_topics,
+                         body_from_cam=None if mount is None else np.asarray(mount,
+                                                                             dtype=np.float64))
     out = Path(cfg.out_root) / str(cfg.name) / "recordings" / rec.name
-    settings = Settings.from_cfg(cfg)
     segmenter = (load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads))
                  if "cnn" in modes else None)
     ctx = Context(cfg, dataset, rec.camera, world, settings,

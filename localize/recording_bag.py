@@ -12,7 +12,7 @@ does not grow with the recording.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -21,8 +21,9 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from core.config import reject_unknown_keys
+from core.config import typed
 from core.dataset import Camera
+from localize.config import BagTopics
 from localize.recording import (
     Recording,
     SourceCamera,
@@ -41,23 +42,6 @@ ENCODINGS = {"rgb8": (3, [0, 1, 2]), "bgr8": (3, [2, 1, 0]), "rgba8": (4, [0, 1,
              "bgra8": (4, [2, 1, 0]), "mono8": (1, [0, 0, 0])}
 #: Where the topics are set in the localize config, for messages.
 CONFIG_KEY = "recording_topics"
-
-
-@dataclass(frozen=True)
-class BagTopics:
-    """The topics a bag recording is read from (``groundtruth`` None: no ground truth)."""
-
-    image: str = "/camera/image_raw"
-    camera_info: str = "/camera/camera_info"
-    odometry: str = "/odom"
-    groundtruth: str | None = None
-
-    @classmethod
-    def from_config(cls, cfg: Mapping | BagTopics | None) -> BagTopics:
-        if cfg is None or isinstance(cfg, BagTopics):
-            return cfg or cls()
-        reject_unknown_keys(cfg.keys(), [f.name for f in fields(cls)], f"{CONFIG_KEY} keys")
-        return cls(**dict(cfg))
 
 
 def stamp_seconds(msg) -> float:
@@ -203,7 +187,7 @@ def _read_images(reader: AnyReader, conns, path: Path, topic: str):
 def read_bag(path: Path, target: Camera | None, *, topics: Mapping | BagTopics | None = None,
              body_from_cam: np.ndarray | None = None, name: str | None = None) -> Recording:
     """Read a ROS 1 or ROS 2 bag recording (see ``localize.recording.read_recording``)."""
-    topics = BagTopics.from_config(topics)
+    topics = topics if isinstance(topics, BagTopics) else typed(BagTopics, topics, CONFIG_KEY)
     path = Path(path)
     with _open(path) as reader:
         img = _connections(reader, topics.image, "image", IMAGE_TYPES, path)

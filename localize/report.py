@@ -360,16 +360,16 @@ def _header(m: dict, cfg) -> list[str]:
         f"`{f.likelihood.aggregate}` with k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
         f"of a {f.likelihood.search_px}-pixel search reach"
         + (f", k scaled down in frames of fewer than {f.likelihood.lines_ref} lines"
-           if f.likelihood.get("lines_ref", 0) else "")
+           if f.likelihood.lines_ref else "")
         + "".join(f"; mode {mode}: " + ", ".join(f"{k} = {v}" for k, v in over.items())
-                  for mode, over in f.get("mode_likelihood", {}).items())
+                  for mode, over in f.mode_likelihood.items())
         + f". Motion noise per frame (horizontal m, vertical m, yaw deg): "
         f"{list(f.motion_std)}"
         + "".join(f"; mode {mode}: {list(std)}"
-                  for mode, std in f.get("mode_motion_std", {}).items())
+                  for mode, std in f.mode_motion_std.items())
         + f". Seeds: {list(cfg.seeds)}.",
         f"Paper (Buyval et al. 2017): mean error {cfg.report.paper_error_m} m, "
-        f"{cfg.report.paper_time_ms} ms per frame on a GTX 1050; a LIDAR method "
+        f"{cfg.report.paper_time_ms:g} ms per frame on a GTX 1050; a LIDAR method "
         f"~{cfg.report.lidar_error_m} m.",
         "",
     ]
@@ -422,7 +422,7 @@ def _timing(m: dict, cfg) -> list[str]:
     lines = ["## Time per frame (ms, min / avg / max), as the paper's Table 1", "",
              "| stage | " + " | ".join(modes) + " | paper (GPU) |",
              "|---|" + "---|" * (len(modes) + 1)]
-    paper_col = {"segmentation": "167", "total": str(cfg.report.paper_time_ms)}
+    paper_col = {"segmentation": "167", "total": f"{cfg.report.paper_time_ms:g}"}
     for stage in TIMING_STAGES:
         cells = [f"{tbm[mo][stage]['min']:.1f} / {tbm[mo][stage]['avg']:.1f} / "
                  f"{tbm[mo][stage]['max']:.1f}" for mo in modes]

@@ -30,17 +30,17 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
 from core.atomic import atomic_write_json, read_png
+from core.config import typed
 from core.dataset import Camera, Dataset, Flight, World
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.extractor import MODES, CnnSettings
+from localize.config import MODES, LocalizeConfig
 from localize.frontend import EdgeSource, FrontEnd, edge_source
 from localize.localizer import (
     EdgeModel,
     Estimate,
     LikelihoodOverride,
     Localizer,
-    Settings,
     mode_likelihood_params,
 )
 from localize.metrics import position_errors, yaw_errors_deg
@@ -92,13 +92,14 @@ class RunSpec:
 
 @dataclass
 class Context:
-    """What every pass shares: the dataset, the model edges, the settings, the segmenter."""
+    """What every pass shares: the dataset, the model edges, the settings (the whole config,
+    typed: ``settings_of``), the segmenter."""
 
     cfg: DictConfig
     dataset: Dataset
     camera: Camera
     world: World
-    settings: Settings
+    settings: LocalizeConfig
     model: EdgeModel
     out_dir: Path
     segmenter: object | None = None
@@ -108,14 +109,13 @@ class Context:
     def model_for(self, mode: str) -> EdgeModel:
         """The model edges a mode scores (``EdgeModel.for_mode``), made once per mode."""
         if mode not in self._models:
-            self._models[mode] = self.model.for_mode(self.world, mode, self.settings)
+            self._models[mode] = self.model.for_mode(self.world, mode)
         return self._models[mode]
 
     def edge_source(self, mode: str) -> EdgeSource:
         """The edge source of a mode: its own (the SegNet for cnn), or what
         ``source_wrappers[mode]`` makes of it."""
-        cnn = CnnSettings.from_cfg(self.settings.edges.get("cnn"))
-        own = edge_source(mode, self.segmenter, cnn)
+        own = edge_source(mode, self.segmenter, self.settings.edges.cnn)
         wrap = self.source_wrappers.get(mode)
         return own if wrap is None else wrap(own)
 
@@ -162,6 +162,13 @@ def check_run_lists(cfg: DictConfig) -> None:
             raise ValueError(f"seeds: {seed!r} is not a non-negative integer")
 
 
+def settings_of(cfg: DictConfig) -> LocalizeConfig:
+    """The composed localize config as its typed object (``localize.config.LocalizeConfig``;
+    a config read back from a report's config.json is checked against it, naming any key it
+    does not know)."""
+    return typed(LocalizeConfig, cfg, "localize config")
+
+
 def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Context:
     """Open the dataset, sample the model edges, load or build the visibility grid, load the
     segmenter (cnn mode)."""
@@ -170,10 +177,9 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> C
     select_flights(dataset, cfg.flight_names)
     world = dataset.world()
     out_dir = Path(cfg.out_root) / str(cfg.name)
-    settings = Settings.from_cfg(cfg)
+    settings = settings_of(cfg)
     for mode in cfg.modes:  # fail before any run on a bad per-mode setting
         mode_likelihood_params(settings.likelihood, settings.filter, mode)
-    CnnSettings.from_cfg(settings.edges.get("cnn"))  # checked before any run
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
@@ -273,23 +279,23 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
 
 def paper_faithful_runs(ctx: Context) -> None:
     """The comparison: paper-faithful vs vectorized likelihood, same particles and frames."""
-    pcfg = ctx.cfg.paper_faithful
+    pcfg = ctx.settings.paper_faithful
     if not pcfg.enabled:
         return
     names = ctx.dataset.flight_names()
     if pcfg.flight not in names:
         log.warning("paper_faithful: flight %r not in the dataset; skipped", pcfg.flight)
         return
-    mode = str(pcfg.mode)
+    mode = pcfg.mode
     if mode == "cnn" and ctx.segmenter is None:
         log.warning("paper_faithful: mode cnn needs the model; skipped")
         return
     from localize.paper_faithful import PaperFaithfulLikelihood
 
     flight = ctx.dataset.flight(pcfg.flight)
-    sub = OmegaConf.merge(ctx.cfg, {"max_frames": int(pcfg.frames)})
+    sub = OmegaConf.merge(ctx.cfg, {"max_frames": pcfg.frames})
     sub_ctx = Context(**{**ctx.__dict__, "cfg": sub})
-    n = int(pcfg.num_particles)
+    n = pcfg.num_particles
     vec = [RunSpec(flight.name, mode, "tracking", int(s), f"vectorized_n{n}")
            for s in pcfg.seeds]
     todo = [r for r in vec if ctx.cfg.overwrite or not r.done(ctx.out_dir)]
@@ -298,11 +304,7 @@ def paper_faithful_runs(ctx: Context) -> None:
                for s in pcfg.seeds]
     todo = [r for r in pf_runs if ctx.cfg.overwrite or not r.done(ctx.out_dir)]
     if todo:
-        pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
-                                      hough=dict(pcfg.hough),
-                                      samples_per_line=int(pcfg.samples_per_line),
-                                      search_px=float(pcfg.search_px),
-                                      variant=str(pcfg.render_variant))
+        pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood, pcfg)
 
         def paper_faithful(edge, tilt):
             return lambda states: pfl.log_likelihood(states, edge, tilt)

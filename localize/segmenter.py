@@ -130,37 +130,29 @@ class LabelPredictor:
 
     Args:
         segmenter: an ``OnnxSegmenter`` (``load_segmenter``), or any object with
-            ``labels(rgb) -> (H, W)`` and, for the prior correction or a confidence,
-            ``logits(rgb) -> (C, H, W)``, ``structural_ids``, ``metadata``, ``classes``.
+            ``labels(rgb) -> (H, W)`` and, for the prior correction, ``logits(rgb) -> (C, H,
+            W)``, ``structural_ids``, ``metadata``, ``classes``.
         prior_correction: strength s (``edges.cnn.prior_correction``; 0: plain argmax).
-        min_confidence: ``edges.cnn.min_confidence``; > 0 computes the confidence (softmax).
     """
 
-    def __init__(self, segmenter, prior_correction: float = 0.0, min_confidence: float = 0.0):
+    def __init__(self, segmenter, prior_correction: float = 0.0):
         self.segmenter = segmenter
-        self.min_confidence = float(min_confidence)
         self.log_prior = None
         if prior_correction > 0:
             log_w = class_log_prior(segmenter)
             self.log_prior = None if log_w is None else prior_correction * log_w
 
-    def __call__(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted labels (H, W) uint8 and their confidence (H, W) float32, the largest
-        softmax probability, of an (H, W, 3) uint8 RGB frame. The confidence is all ones when
-        ``min_confidence`` is 0 (it is not used then, and the softmax is skipped)."""
+    def __call__(self, rgb: np.ndarray) -> np.ndarray:
+        """Predicted labels (H, W) uint8 of an (H, W, 3) uint8 RGB frame."""
         check_rgb(rgb)
-        need_conf = self.min_confidence > 0
-        if self.log_prior is None and not need_conf:
-            labels, conf = self.segmenter.labels(rgb), None  # argmax only: no softmax
+        if self.log_prior is None:
+            labels = self.segmenter.labels(rgb)  # argmax only
         else:
             z, plain = logits_and_labels(self.segmenter, rgb)
-            labels = (plain if self.log_prior is None else structural_prior_labels(
-                z, self.segmenter.structural_ids, self.log_prior, plain))
-            # the largest softmax probability is 1 / sum_c exp(z_c - max z)
-            conf = 1.0 / np.exp(z - z.max(0, keepdims=True)).sum(0) if need_conf else None
+            labels = structural_prior_labels(z, self.segmenter.structural_ids, self.log_prior,
+                                             plain)
         labels = np.asarray(labels)
         if labels.shape != rgb.shape[:2]:
             raise ValueError(f"segmenter returned labels {labels.shape} for an image "
                              f"{rgb.shape[:2]}")
-        conf = np.ones(labels.shape, np.float32) if conf is None else conf.astype(np.float32)
-        return labels.astype(np.uint8, copy=False), conf
+        return labels.astype(np.uint8, copy=False)

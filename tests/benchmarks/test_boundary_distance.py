@@ -14,7 +14,7 @@ from benchmarks.boundary_distance import (
 )
 from core import classes as C
 from localize.edges import pair_code
-from localize.extractor import CnnSettings
+from localize.extractor import edge_settings
 from localize.frontend import FrontEnd, SegmenterLabels
 from localize.segmenter import LabelPredictor
 
@@ -24,7 +24,7 @@ CFG = {"labels": {"dilate_px": 0, "median": 0},
 
 def cnn_front(segmenter) -> FrontEnd:
     """The cnn mode's front end of a segmenter, with CFG."""
-    return FrontEnd(SegmenterLabels(segmenter, CnnSettings.from_cfg(CFG["cnn"])), CFG)
+    return FrontEnd(SegmenterLabels(segmenter, edge_settings(CFG).cnn), CFG)
 
 
 class ShiftedSegmenter:

@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import json
-from dataclasses import fields
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
 
 from core import classes as C
+from localize.config import HoughSettings
 from localize.edges import EdgeImage, canny_edges, label_edges, pair_classes, pair_code, pair_name
-from localize.extractor import CnnSettings, EdgeExtractor
+from localize.extractor import EdgeExtractor, edge_settings
 from localize.segmenter import (
     check_classes,
     class_log_prior,
@@ -22,13 +20,11 @@ from localize.segmenter import (
 )
 from tests.localize.conftest import palette_segnet
 
-ROOT = Path(__file__).resolve().parents[2]
-
 # the cnn mode as the plain class boundaries of the predicted labels (no prior correction, no
 # snap, no image edges added); tests that exercise one of those turn it on with cnn(...)
 PLAIN_CNN = {"prior_correction": 0.0, "snap_px": 0, "refine": "none"}
 EDGES_CFG = {"canny": {"low": 50.0, "high": 150.0, "blur": 3},
-             "hough": {"enabled": False, "threshold": 10, "min_length": 8, "max_gap": 2},
+             "hough": {"threshold": 10, "min_length": 8, "max_gap": 2},
              "labels": {"dilate_px": 1, "median": 0},
              "cnn": PLAIN_CNN}
 
@@ -147,20 +143,19 @@ class TestPriorCorrection:
         seg = load_segmenter(palette_segnet(tmp_path / "a.onnx", 20, 30,
                                             extra_metadata={"class_weights": weights}),
                              C.as_json(), 1)
-        labels, _ = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
+        labels = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
         np.testing.assert_array_equal(labels, lab)  # equal weights: nothing to correct
         weights["door"] = 1e-9  # the network "learned" door with a tiny weight: favour it
         seg = load_segmenter(palette_segnet(tmp_path / "b.onnx", 20, 30,
                                             extra_metadata={"class_weights": weights}),
                              C.as_json(), 1)
-        labels, conf = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
+        labels = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
         structural = np.isin(lab, C.STRUCTURAL)
         assert (labels[structural] == C.DOOR).all()
         np.testing.assert_array_equal(labels[~structural], lab[~structural])  # masks unchanged
-        assert conf.shape == lab.shape
         ex = EdgeExtractor("cnn", cnn(prior_correction=0.0), seg)
         assert ex.log_prior is None  # strength 0: off
-        np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
+        np.testing.assert_array_equal(ex.segment(C.colorize(lab)), lab)
 
     def test_model_without_weights_warns_and_skips(self, tmp_path, caplog):
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
@@ -169,7 +164,7 @@ class TestPriorCorrection:
         assert "class_weights" in caplog.text
         lab = two_walls()
         ex = EdgeExtractor("cnn", cnn(prior_correction=1.0), seg)
-        np.testing.assert_array_equal(ex.segment(C.colorize(lab))[0], lab)
+        np.testing.assert_array_equal(ex.segment(C.colorize(lab)), lab)
 
     def test_model_trained_without_weighting_needs_no_correction(self, tmp_path, caplog):
         path = palette_segnet(tmp_path / "s.onnx", 20, 30, extra_metadata={"class_weights": None})
@@ -189,40 +184,11 @@ class TestSegmenter:
         lab = two_walls()
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
         ex = EdgeExtractor("cnn", EDGES_CFG, seg)
-        labels, conf = ex.segment(C.colorize(lab))
+        labels = ex.segment(C.colorize(lab))
         np.testing.assert_array_equal(labels, lab)
-        assert conf.shape == lab.shape and np.all((conf > 0.125) & (conf <= 1.0))
-        e = ex.edges(C.colorize(lab), labels, conf)
+        e = ex.edges(C.colorize(lab), labels)
         ref = label_edges(lab, dilate_px=1)
         np.testing.assert_array_equal(e.edges, ref.edges)
-
-    def test_low_confidence_is_unknown(self, tmp_path):
-        lab = two_walls()
-        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
-        cfg = cnn(min_confidence=0.5)
-        ex = EdgeExtractor("cnn", cfg, seg)
-        _, probs = seg.predict(C.colorize(lab))
-        np.testing.assert_allclose(ex.segment(C.colorize(lab))[1], probs.max(0), rtol=1e-5)
-        conf = np.ones(lab.shape, np.float32)
-        conf[:, :5] = 0.2
-        e = ex.edges(C.colorize(lab), lab, conf)
-        assert not e.known[:, :5].any() and e.known[:, 10:20].all()
-        assert not e.edges[:, :5].any()
-
-    def test_canny_refinement_keeps_only_edges_near_boundaries(self, tmp_path):
-        lab = two_walls()
-        rgb = C.colorize(lab)
-        rgb[9:11, 2:8] = 255  # a texture stripe inside the wall: Canny sees it
-        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
-        plain = EdgeExtractor("cnn", EDGES_CFG, seg).edges(rgb, lab)
-        cfg = cnn(refine="canny", refine_px=2)
-        fine = EdgeExtractor("cnn", cfg, seg).edges(rgb, lab)
-        canny = canny_edges(rgb, **{k: EDGES_CFG["canny"][k] for k in ("low", "high", "blur")})
-        assert canny.edges[8:12, 2:8].any()           # the stripe makes Canny edges...
-        assert not fine.edges[8:12, 2:8].any()        # ...that refinement drops
-        assert fine.edges.any()
-        dist = cv2.distanceTransform((~plain.edges).astype(np.uint8), cv2.DIST_L2, 3)
-        assert dist[fine.edges].max() <= 2.0
 
     def test_union_adds_image_edges_beside_boundaries(self, tmp_path):
         """refine union: every predicted boundary stays (with its class pair); Canny edges
@@ -265,50 +231,28 @@ class TestSegmenter:
             EdgeExtractor("sobel", EDGES_CFG)
         with pytest.raises(ValueError, match="needs a segmenter"):
             EdgeExtractor("cnn", EDGES_CFG).segment(np.zeros((20, 30, 3), np.uint8))
-        with pytest.raises(ValueError, match=r"edges config lacks \['hough'\] \(edge mode none"):
-            EdgeExtractor("none", {"canny": EDGES_CFG["canny"]})
-        with pytest.raises(ValueError, match=r"lacks \['canny'\] \(edge mode cnn"):
-            EdgeExtractor("cnn", {"labels": EDGES_CFG["labels"], "cnn": {"refine": "union"}})
+        # a partial edges config takes the defaults for the rest
+        assert EdgeExtractor("none", {"canny": EDGES_CFG["canny"]}).settings.hough == \
+            HoughSettings()
         with pytest.raises(ValueError, match="needs a label map"):
             EdgeExtractor("oracle", EDGES_CFG).edges(np.zeros((20, 30, 3), np.uint8))
         e = EdgeExtractor("oracle", EDGES_CFG).edges(None, two_walls())
         assert e.edges.any()
 
 
-class TestRefineChoice:
-    def test_which_model_segments_a_mode_needs(self):
-        seg = object()
-        assert not EdgeExtractor("none", EDGES_CFG).class_boundaries_only
-        assert EdgeExtractor("oracle", EDGES_CFG).class_boundaries_only
-        for refine, only in (("none", True), ("union", True), ("canny", True), ("mask", False)):
-            cfg = cnn(refine=refine)
-            assert EdgeExtractor("cnn", cfg, seg).class_boundaries_only is only
-
-    def test_mask_drops_edges_on_objects(self):
-        lab = two_walls()
-        rgb = C.colorize(lab)
-        cfg = cnn(refine="mask")
-        e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
-        assert not e.known[8:12, 22:26].any() and not e.edges[8:12, 22:26].any()
-        assert e.edges.any()
-
-    def test_cnn_defaults_are_the_configs(self):
-        """A partial ``edges.cnn`` behaves as conf/edges/default.yaml, which sets every key."""
-        yaml_cnn = OmegaConf.to_container(OmegaConf.load(ROOT / "conf/edges/default.yaml"))["cnn"]
-        assert CnnSettings.from_cfg(yaml_cnn) == CnnSettings() == CnnSettings.from_cfg(None)
-        assert set(yaml_cnn) == {f.name for f in fields(CnnSettings)}
-
+class TestCnnSettings:
     def test_unknown_cnn_key_raises(self):
-        with pytest.raises(ValueError, match=r"edges.cnn settings \['snap_pixels'\]"):
+        with pytest.raises(ValueError, match=r"edges.cnn.snap_pixels: Key 'snap_pixels' not in"):
             EdgeExtractor("cnn", cnn(snap_pixels=3), object())
 
     def test_cnn_setting_of_the_wrong_type_raises(self):
-        for key, value in (("snap_colour", "yes"), ("snap_px", 1.5), ("snap_min_gradient", "8")):
-            with pytest.raises(ValueError, match=f"edges.cnn.{key}="):
-                CnnSettings.from_cfg({key: value})
-        assert CnnSettings.from_cfg({"snap_px": 3.0, "snap_min_gradient": 5}).snap_px == 3
+        for key, value in (("snap_nearest", "maybe"), ("snap_px", 1.5),
+                           ("snap_min_gradient", "steep")):
+            with pytest.raises(ValueError, match=f"edges.cnn.{key}: "):
+                edge_settings({"cnn": {key: value}})
+        assert edge_settings({"cnn": {"snap_px": 3, "snap_min_gradient": 5}}).cnn.snap_px == 3
 
-    def test_unknown_refine_raises(self):
-        cfg = cnn(refine="sobel")
+    @pytest.mark.parametrize("refine", ["sobel", "canny", "mask"])
+    def test_unknown_refine_raises(self, refine):
         with pytest.raises(ValueError, match="edges.cnn.refine"):
-            EdgeExtractor("cnn", cfg, object()).edges(C.colorize(two_walls()), two_walls())
+            EdgeExtractor("cnn", cnn(refine=refine), object())

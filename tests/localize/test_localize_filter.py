@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from core.config import typed
 from core.poses import pose_from_xyz_rpy, pose_from_xyzyaw, wrap_angle, xyzyaw_from_pose
 from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
 from localize.particle_filter import (
@@ -97,19 +98,19 @@ class TestWeights:
     def test_params(self):
         with pytest.raises(ValueError, match="init_std"):
             FilterParams(init_std=(0.1, 0.1))
-        with pytest.raises(ValueError, match="unknown filter settings"):
-            FilterParams.from_cfg({"particles": 3})
-        assert FilterParams.from_cfg({"motion_std": [0.1, 0.1, 1.0]}).motion_std == (0.1, 0.1,
-                                                                                      1.0)
+        with pytest.raises(ValueError, match="filter.particles: Key 'particles' not in"):
+            typed(FilterParams, {"particles": 3}, "filter")
+        assert typed(FilterParams, {"motion_std": [0.1, 0.1, 1.0]}, "filter").motion_std == [
+            0.1, 0.1, 1.0]
         with pytest.raises(ValueError, match="mode_likelihood: unknown edge modes"):
             FilterParams(mode_likelihood={"segnet": {"k": 5.0}})
-        per_mode = FilterParams.from_cfg({"mode_likelihood": {"cnn": {"k": 5.0}}})
-        assert per_mode.mode_likelihood == {"cnn": {"k": 5.0}}
+        per_mode = typed(FilterParams, {"mode_likelihood": {"cnn": {"k": 5.0}}}, "filter")
+        assert per_mode.mode_likelihood["cnn"] == {"k": 5.0, "orientation_bins": 12}  # merged
 
     def test_mode_motion_std(self):
-        fp = FilterParams.from_cfg({"motion_std": [0.01, 0.005, 0.5],
-                                    "mode_motion_std": {"cnn": [0.01, 0.005, 0.2]}})
-        assert fp.for_mode("cnn").motion_std == (0.01, 0.005, 0.2)
+        fp = FilterParams(motion_std=[0.01, 0.005, 0.5],
+                          mode_motion_std={"cnn": [0.01, 0.005, 0.2]})
+        assert fp.for_mode("cnn").motion_std == [0.01, 0.005, 0.2]
         assert fp.for_mode("cnn").num_particles == fp.num_particles
         assert fp.for_mode("none") is fp  # modes without an entry keep motion_std
         with pytest.raises(ValueError, match="mode_motion_std: unknown edge modes"):

@@ -50,13 +50,6 @@ class TestEdgeSource:
         with pytest.raises(ValueError, match="use 'cnn' or 'oracle'"):
             LabelFunction(lambda rgb: rgb, mode="none")
 
-    def test_label_function_may_return_a_confidence(self):
-        conf = np.full((20, 30), 0.5, np.float32)
-        labels, c = LabelFunction(lambda rgb: (two_walls(), conf)).labels(
-            np.zeros((20, 30, 3), np.uint8), None)
-        np.testing.assert_array_equal(labels, two_walls())
-        assert c is conf and labels.dtype == np.uint8
-
 
 class TestFrame:
     def test_each_mode(self):

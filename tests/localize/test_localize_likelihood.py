@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.config import typed
 from localize.edges import EdgeImage, label_edges, pair_code
 from localize.likelihood import (
     EdgeLikelihood,
@@ -147,18 +148,20 @@ class TestObserve:
         assert observe(EdgeImage(edges, known), p, codes).pairs == 0
 
     def test_bad_params(self):
-        with pytest.raises(ValueError, match="aggregate"):
-            LikelihoodParams(aggregate="max")
-        with pytest.raises(ValueError, match="unknown likelihood settings"):
-            LikelihoodParams.from_cfg({"kappa": 1})
+        for aggregate in ("max", "samples"):
+            with pytest.raises(ValueError, match="aggregate"):
+                LikelihoodParams(aggregate=aggregate)
+        with pytest.raises(ValueError, match="filter.likelihood.kappa: Key 'kappa' not in"):
+            typed(LikelihoodParams, {"kappa": 1}, "filter.likelihood")
 
 
-@pytest.mark.parametrize("aggregate", ["lines", "samples", "evidence"])
+@pytest.mark.parametrize("aggregate", ["lines", "evidence"])
 @pytest.mark.parametrize("bins", [0, 4])
 def test_peaks_at_true_pose(model, camera, rendered, aggregate, bins):
     s, vis = model
+    paper = {"k": 3.0, "sigma": 0.3, "lines_ref": 0}  # the paper's likelihood
     lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate=aggregate, orientation_bins=bins,
-                                                     min_lines=1, chunk=3), vis)
+                                                     min_lines=1, chunk=3, **paper), vis)
     obs = lik.observe(label_edges(rendered, dilate_px=0))
     states = np.vstack([TRUE, TRUE + OFFSETS])
     score, quality = lik.scores(states, obs)
@@ -244,7 +247,7 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
 class TestDegenerate:
     """Black image, no edges, everything clutter: finite, equal scores."""
 
-    @pytest.mark.parametrize("aggregate", ["lines", "samples", "evidence"])
+    @pytest.mark.parametrize("aggregate", ["lines", "evidence"])
     @pytest.mark.parametrize("case", ["no_edges", "all_unknown", "black_canny"])
     def test_finite_and_flat(self, model, camera, aggregate, case):
         from localize.edges import canny_edges

@@ -12,27 +12,32 @@ import pytest
 
 from core import classes as C
 from core.dataset import Dataset
+from localize.config import FilterParams, LikelihoodParams, Settings, VisibilitySettings
+from localize.extractor import edge_settings
 from localize.frontend import FrontEnd, LabelFunction, TrueLabels
-from localize.likelihood import LikelihoodParams
-from localize.localizer import EdgeModel, Estimate, Localizer, Settings
-from localize.particle_filter import FilterParams, odometry_increment
+from localize.localizer import EdgeModel, Estimate, Localizer
+from localize.particle_filter import odometry_increment
 from localize.projection import cam_from_world
-from localize.runner import RunSpec, run
+from localize.runner import RunSpec, run, settings_of
 from tests.localize.conftest import QUICK, localize_cfg
 from tests.localize.test_localize_edges import EDGES_CFG
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 
+# one likelihood and motion model for every mode and phase, no "few lines" scaling
 SETTINGS = Settings(
     filter=FilterParams(num_particles=150, global_particles=600, global_frames=2,
-                        init_std=(0.05, 0.05, 0.02, 2.0), recovery=False),
-    likelihood=LikelihoodParams(k=20.0, sigma=0.1, min_lines=2),
-    edges=EDGES_CFG, spacing=0.1, visibility={"cell_xy": 0.3, "cell_z": 0.4})
+                        global_likelihood={}, mode_likelihood={}, global_motion_scale=1.0,
+                        global_thin=1, mode_motion_std={}, init_std=[0.05, 0.05, 0.02, 2.0],
+                        recovery=False,
+                        likelihood=LikelihoodParams(k=20.0, sigma=0.1, min_lines=2,
+                                                    lines_ref=0)),
+    edges=edge_settings(EDGES_CFG), visibility=VisibilitySettings(cell_xy=0.3, cell_z=0.4))
 
 
 @pytest.fixture(scope="module")
 def model(small_world) -> EdgeModel:
-    return EdgeModel.build(small_world, SETTINGS).for_mode(small_world, "oracle", SETTINGS)
+    return EdgeModel.build(small_world, SETTINGS).for_mode(small_world, "oracle")
 
 
 @pytest.fixture(scope="module")
@@ -277,8 +282,8 @@ def test_localizer_alone_steps_the_recorded_trajectory(reference_report, flat_da
     cfg, out = reference_report
     ds = Dataset(flat_dataset)
     world, fl = ds.world(), ds.flight(flight)
-    settings = Settings.from_cfg(cfg)
-    model = EdgeModel.build(world, settings, out / "cache").for_mode(world, "oracle", settings)
+    settings = settings_of(cfg)
+    model = EdgeModel.build(world, settings, out / "cache").for_mode(world, "oracle")
     loc = Localizer(world, ds.camera, "oracle", settings,
                     RunSpec(flight, "oracle", init, 0).rng(), model=model)
     loc.reset(xyzyaw_from_pose(fl.groundtruth[0])[0] if init == "tracking" else None)

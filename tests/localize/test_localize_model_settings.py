@@ -89,6 +89,15 @@ class TestApplyModelSettings:
                                              r"localize setting"):
             lm.apply_model_settings(composed(overrides), overrides)
 
+    def test_unknown_key_names_the_file(self, carrying: Path) -> None:
+        """A key localize/config.py does not take (a typo, or a setting since removed) fails
+        naming the file, the key and the class it is not in."""
+        (carrying.parent / "localize.yaml").write_text("edges:\n  cnn:\n    snap_band: true\n")
+        overrides = [f"onnx_model={carrying}"]
+        with pytest.raises(ValueError, match=r"localize.yaml: edges.cnn.snap_band=True: Key "
+                                             r"'snap_band' not in 'CnnSettings'"):
+            lm.apply_model_settings(composed(overrides), overrides)
+
     def test_not_a_mapping(self, carrying: Path) -> None:
         (carrying.parent / "localize.yaml").write_text("- 1\n")
         overrides = [f"onnx_model={carrying}"]

@@ -34,18 +34,29 @@ def report(flat_dataset, flat_segnet, tmp_path_factory):
     return cfg, path
 
 
+def test_defaults_are_the_composed_configs():
+    """Settings() and LocalizeConfig() (library use) are what `python -m localize` runs with
+    by default: the YAML holds no default of its own."""
+    from localize.config import LocalizeConfig, Settings
+    from localize.runner import settings_of
+
+    full = settings_of(localize_cfg([]))
+    assert full == LocalizeConfig()
+    assert Settings(full.filter, full.edges, full.model_edges, full.visibility) == Settings()
+
+
 @pytest.mark.parametrize("preset", ["default", "paper"])
 def test_presets_per_mode_k(preset):
     """The tuned preset gives the oracle its own sharper k; the paper's keeps k = 3 and
     sigma = 0.3 in every mode, though its mode_likelihood merges into the default's."""
     from hydra import compose, initialize_config_dir
 
-    from localize.localizer import Settings
+    from localize.runner import settings_of
     from tests.helpers import CONF
 
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose("localize", overrides=[f"filter={preset}"])
-    settings = Settings.from_cfg(cfg)
+    settings = settings_of(cfg)
     fp, lp = settings.filter, settings.likelihood
     k = {m: mode_likelihood_params(lp, fp, m).k for m in ("none", "cnn", "oracle")}
     if preset == "paper":
@@ -144,7 +155,7 @@ def test_mode_likelihood_params():
     cnn = mode_likelihood_params(lp, fp, "cnn")
     assert (cnn.k, cnn.orientation_bins, cnn.sigma) == (5.0, 8, lp.sigma)
     assert mode_likelihood_params(lp, fp, "oracle") is lp
-    with pytest.raises(ValueError, match=r"filter.mode_likelihood.cnn: unknown likelihood"):
+    with pytest.raises(ValueError, match=r"filter.mode_likelihood.cnn.kk: Key 'kk' not in"):
         mode_likelihood_params(lp, FilterParams(mode_likelihood={"cnn": {"kk": 1}}), "cnn")
 
 

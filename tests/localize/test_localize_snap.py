@@ -36,49 +36,20 @@ class TestSnap:
         assert not out.pairs[~out.edges].any()
         np.testing.assert_array_equal(out.known, edge.known)
 
-    def test_band_marks_both_sides_of_the_step(self):
-        # the step lies between columns 29 and 30: true labels split there mark both columns
-        lab, rgb = self.step(80, 160)
-        for split in (27, 32):  # from either side
-            lab_s, _ = self.step(80, 160, split=split)
-            out = snap_to_image_edges(label_edges(lab_s, dilate_px=0), rgb, radius=3,
-                                      min_gradient=15.0, band=True)
-            truth = label_edges(self.step(80, 160, split=30)[0], dilate_px=0)
-            np.testing.assert_array_equal(out.edges, truth.edges)
-            np.testing.assert_array_equal(out.pairs, truth.pairs)
-        # column 30 mostly dark: the step lies right of its centre, the band moves one column
-        rgb[:, 30] = 90
-        for split in (28, 32):
-            lab_s, _ = self.step(80, 160, split=split)
-            out = snap_to_image_edges(label_edges(lab_s, dilate_px=0), rgb, radius=3,
-                                      min_gradient=15.0, band=True)
-            assert set(np.nonzero(out.edges)[1]) == {30, 31}
-        rgb[:, 30] = 150  # mostly bright: left of its centre, the band stays at 29, 30
-        out = snap_to_image_edges(label_edges(lab, dilate_px=0), rgb, radius=3,
-                                  min_gradient=15.0, band=True)
-        assert set(np.nonzero(out.edges)[1]) == {29, 30}
-        # too weak: stays, as without the band
-        lab, faint = self.step(80, 82)
-        edge = label_edges(lab, dilate_px=0)
-        weak = snap_to_image_edges(edge, faint, radius=3, min_gradient=15.0, band=True)
-        np.testing.assert_array_equal(weak.edges, edge.edges)
-
-    def test_stay_keeps_a_boundary_already_on_an_edge(self):
+    def test_stays_on_an_edge_already(self):
         # a weak step (wall | jamb) at columns 26 | 27, where the labels split, and a strong one
-        # (jamb | leaf) at 30 | 31, within reach
+        # (jamb | leaf) at 30 | 31, within reach: the boundary stays on the weak one
         lab, _ = self.step(80, 160, split=27)
         rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
         rgb[:, 27:31] = 100
         rgb[:, 31:] = 200
         edge = label_edges(lab, dilate_px=0)
-        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
-        assert set(np.nonzero(strongest.edges)[1]) <= {29, 30}  # onto the leaf's edge
-        kept = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, stay=True)
+        kept = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
         np.testing.assert_array_equal(kept.edges, edge.edges)
         # a boundary off any edge still moves to the strongest
         lab, rgb = self.step(80, 160)
         off = snap_to_image_edges(label_edges(lab, dilate_px=0), rgb, radius=3,
-                                  min_gradient=15.0, stay=True)
+                                  min_gradient=15.0)
         assert set(np.nonzero(off.edges)[1]) == {29}
 
     def test_nearest_goes_to_the_edge_beside_it_not_the_strongest(self):
@@ -89,14 +60,14 @@ class TestSnap:
         rgb[:, 23:] = 110
         rgb[:, 28:] = 200
         edge = label_edges(lab, dilate_px=0)
-        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, stay=True)
+        strongest = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
         assert set(np.nonzero(strongest.edges)[1]) == {27}
         near = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, nearest=True)
         # 24 is a pixel from the weak step and moves onto it; 25 is two pixels from both and
         # takes the stronger
         assert set(np.nonzero(near.edges)[1]) == {23, 27}
         np.testing.assert_array_equal(near.pairs > 0, near.edges)
-        # on an edge already: stays (as with stay); no edge in reach: stays
+        # on an edge already: stays; no edge in reach: stays
         lab, _ = self.step(80, 160, split=27)
         rgb = np.full((40, 60, 3), 80, dtype=np.uint8)
         rgb[:, 27:31] = 100
@@ -129,17 +100,10 @@ class TestSnap:
         grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
         assert abs(int(grey[0, 0]) - int(grey[0, 59])) <= 2
         edge = label_edges(lab, dilate_px=0)
-        plain = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
-        np.testing.assert_array_equal(plain.edges, edge.edges)  # no grey step: stays
-        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0, colour=True)
+        out = snap_to_image_edges(edge, rgb, radius=3, min_gradient=15.0)
         assert set(np.nonzero(out.edges)[1]) == {29}
-        # a grey step has the same gradient either way: the colour snap moves it the same
-        lab, grey_step = self.step(80, 160)
-        a = snap_to_image_edges(label_edges(lab, dilate_px=0), grey_step, 3, 15.0)
-        b = snap_to_image_edges(label_edges(lab, dilate_px=0), grey_step, 3, 15.0, colour=True)
-        np.testing.assert_array_equal(a.edges, b.edges)
-        lab, faint = self.step(80, 82)  # and a faint one stays faint
-        weak = snap_to_image_edges(label_edges(lab, dilate_px=0), faint, 3, 15.0, colour=True)
+        lab, faint = self.step(80, 82)  # a faint grey step stays faint
+        weak = snap_to_image_edges(label_edges(lab, dilate_px=0), faint, 3, 15.0)
         np.testing.assert_array_equal(weak.edges, label_edges(lab, dilate_px=0).edges)
 
     def test_stays_inside_the_known_mask(self):

@@ -1,0 +1,459 @@
+"""The localize settings: the schema of ``conf/localize.yaml`` (``python -m localize``).
+
+The field defaults below are the defaults, written nowhere else: Hydra composes
+``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``, the command line, the
+settings a model carries) onto ``LocalizeConfig``, so a typo or a wrong type fails at start-up
+naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is the default
+config's. Library code builds one from a partial mapping with ``core.config.typed``. Why the
+defaults are what they are: docs/localize.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from core.config import register_schema
+
+#: The edge modes (``localize.extractor``).
+MODES = ("none", "cnn", "oracle")
+#: ``edges.cnn.refine`` choices.
+REFINES = ("none", "union")
+#: ``filter.likelihood.aggregate`` choices.
+AGGREGATES = ("lines", "evidence")
+
+
+@dataclass
+class LikelihoodParams:
+    """The edge likelihood (``filter.likelihood``; ``localize.likelihood``).
+
+    Attributes:
+        alpha, k: weight ``W = alpha * exp(k * score)``.
+        sigma: tolerance of g(d), a fraction of ``search_px`` (0.1: 1 px; the paper's 0.3: 3 px).
+        search_px: reach of the edge search, pixels; d is truncated there and divided by it.
+        aggregate: ``lines`` (the paper: mean over lines of the mean over their samples) or
+            ``evidence`` (sum over visible samples of the log-ratio of g to the chance level
+            g0, divided by ``evidence_norm``).
+        evidence_norm: samples per unit of score (``evidence``).
+        outlier: eps of the evidence's log-ratio ``log(g + eps) - log(g0 + eps)``.
+        min_quality_samples: known visible samples needed to judge the fit (recovery).
+        min_line_samples: visible samples a line needs to count.
+        min_lines: particles seeing fewer lines are padded with the chance score.
+        lines_ref: a frame whose particles see fewer lines than this (their median) has its k
+            scaled by that count / ``lines_ref`` (0 = off).
+        orientation_bins: 0: a plain distance transform; B: directional, B bins over 180 deg.
+        class_pairs: match each model sample only to image edges between its own two classes
+            (label modes).
+        near: samples closer to the camera than this are dropped, metres.
+        chunk: particles scored per block.
+        workers: threads scoring the blocks and the score maps (1: the calling thread).
+            Neither ``chunk`` nor ``workers`` changes a result.
+    """
+
+    alpha: float = 1.0
+    k: float = 25.0
+    sigma: float = 0.1
+    search_px: float = 10.0
+    aggregate: str = "lines"
+    evidence_norm: float = 100.0
+    outlier: float = 0.05
+    min_quality_samples: int = 30
+    min_line_samples: int = 2
+    min_lines: int = 5
+    lines_ref: int = 15
+    orientation_bins: int = 0
+    class_pairs: bool = False
+    near: float = 0.1
+    chunk: int = 256
+    workers: int = 2
+
+    def __post_init__(self) -> None:
+        if self.aggregate not in AGGREGATES:
+            raise ValueError(f"likelihood.aggregate must be one of {AGGREGATES}, got "
+                             f"{self.aggregate!r}")
+        if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
+            raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
+                             f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")
+        if self.workers < 1:
+            raise ValueError(f"likelihood.workers must be >= 1, got {self.workers}")
+        if self.lines_ref < 0:
+            raise ValueError(f"likelihood.lines_ref must be >= 0 (0 = off), got {self.lines_ref}")
+
+
+@dataclass
+class FilterParams:
+    """The particle filter (``filter``; ``localize.particle_filter``). Presets:
+    conf/filter/*.yaml (``filter=paper``: the paper's settings).
+
+    Attributes:
+        num_particles: particles while tracking.
+        global_particles: particles of the initial uniform draw of a global start; thinned to
+            ``num_particles`` by resampling after ``global_frames`` frames.
+        global_frames: frames the global set is kept.
+        global_temper: log-likelihood scale while the global set is kept.
+        global_likelihood: ``likelihood`` keys that differ while the global set is kept.
+        mode_likelihood: ``likelihood`` keys that differ per edge mode, ``{mode: {key: value}}``.
+        global_motion_scale: motion noise multiplier while the global set is kept (the uniform
+            set is sparse and must move to find the peak).
+        global_thin: the global phase scores every n-th model sample.
+        init_std: (4,) tracking start noise: x, y, z (metres), yaw (degrees).
+        motion_std: (3,) motion noise per frame: horizontal (metres), vertical (metres), yaw
+            (degrees).
+        mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}``.
+        motion_rel: (2,) extra noise per unit of odometry translation and of yaw change.
+        resample_ess: resample when ESS < this fraction of the particle count.
+        free_space_slack: metres beyond the free boxes and z range before the free-space prior
+            applies.
+        outside_log_penalty: log-weight taken from particles outside (metres beyond the slack
+            scale it up: penalty * (1 + excess / 0.1)).
+        recovery: inject particles when the best particle's fit collapses (augmented MCL).
+        recovery_fast, recovery_slow: smoothing factors of the short and long averages of the
+            best fit per frame.
+        recovery_threshold: inject when the fast average is below this fraction of the slow...
+        recovery_patience: ...for this many frames in a row.
+        recovery_max_fraction: most particles replaced in one frame.
+        recovery_log_penalty: injected particles start this much lower in log-weight.
+        recovery_local_std: (4,) noise of the half of the injected particles drawn around the
+            estimate (x, y, z metres, yaw degrees); the other half is uniform.
+        likelihood: the edge likelihood of tracking.
+    """
+
+    num_particles: int = 500
+    global_particles: int = 40000
+    global_frames: int = 20
+    global_temper: float = 1.0
+    global_likelihood: dict[str, Any] = field(default_factory=lambda: {
+        "aggregate": "evidence", "k": 3.0, "sigma": 0.3, "class_pairs": True, "lines_ref": 0})
+    mode_likelihood: dict[str, dict[str, Any]] = field(default_factory=lambda: {
+        "cnn": {"k": 40.0, "orientation_bins": 12}, "none": {"sigma": 0.3},
+        "oracle": {"k": 50.0}})
+    global_motion_scale: float = 15.0
+    global_thin: int = 3
+    init_std: list[float] = field(default_factory=lambda: [0.1, 0.1, 0.05, 3.0])
+    motion_std: list[float] = field(default_factory=lambda: [0.01, 0.005, 0.5])
+    mode_motion_std: dict[str, list[float]] = field(default_factory=lambda: {
+        "cnn": [0.01, 0.005, 0.2], "oracle": [0.01, 0.005, 0.2]})
+    motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
+    resample_ess: float = 0.5
+    free_space_slack: float = 0.25
+    outside_log_penalty: float = 10.0
+    recovery: bool = True
+    recovery_fast: float = 0.3
+    recovery_slow: float = 0.02
+    recovery_threshold: float = 0.5
+    recovery_patience: int = 5
+    recovery_max_fraction: float = 0.2
+    recovery_log_penalty: float = 5.0
+    recovery_local_std: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.2, 20.0])
+    likelihood: LikelihoodParams = field(default_factory=LikelihoodParams)
+
+    def __post_init__(self) -> None:
+        if self.num_particles < 1 or self.global_particles < 1:
+            raise ValueError(f"filter.num_particles ({self.num_particles}) and "
+                             f"filter.global_particles ({self.global_particles}) must be >= 1")
+        if not 0.0 < self.resample_ess <= 1.0:
+            raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
+        for key in ("mode_likelihood", "mode_motion_std"):
+            bad_modes = set(getattr(self, key)) - set(MODES)
+            if bad_modes:
+                raise ValueError(f"filter.{key}: unknown edge modes {sorted(bad_modes)}; "
+                                 "use none, cnn, oracle")
+        sized = [(key, getattr(self, key), n) for key, n in
+                 (("init_std", 4), ("motion_std", 3), ("motion_rel", 2), ("recovery_local_std", 4))]
+        sized += [(f"mode_motion_std.{mode}", std, 3) for mode, std in self.mode_motion_std.items()]
+        for key, values, n in sized:
+            if len(values) != n:
+                raise ValueError(f"filter.{key} needs {n} values, got {list(values)}")
+
+    def for_mode(self, mode: str) -> FilterParams:
+        """These settings with ``motion_std`` replaced by ``mode_motion_std[mode]`` if set."""
+        std = self.mode_motion_std.get(mode)
+        return self if std is None else replace(self, motion_std=[float(v) for v in std])
+
+
+@dataclass
+class CannySettings:
+    """``edges.canny``: Canny on the grey image (mode none).
+
+    Attributes:
+        low, high: hysteresis thresholds on the gradient magnitude.
+        blur: Gaussian kernel before Canny, pixels (odd; <= 1: none).
+    """
+
+    low: float = 50.0
+    high: float = 150.0
+    blur: int = 3
+
+
+@dataclass
+class HoughSettings:
+    """Hough line segments of an edge map (``cv2.HoughLinesP``), drawn 1 px wide.
+
+    Attributes:
+        threshold: votes.
+        min_length: shortest segment, pixels.
+        max_gap: largest gap bridged within a segment, pixels.
+    """
+
+    threshold: int = 30
+    min_length: int = 20
+    max_gap: int = 3
+
+
+@dataclass
+class LabelSettings:
+    """``edges.labels``: class boundaries of a label map (modes cnn and oracle).
+
+    Attributes:
+        dilate_px: the unknown mask (clutter, person, void) grows by this many pixels.
+        median: median filter on predicted labels, pixels (cnn only; 0 = off).
+    """
+
+    dilate_px: int = 3
+    median: int = 3
+
+
+@dataclass
+class CnnSettings:
+    """``edges.cnn``: how the cnn mode makes edges of the SegNet's output
+    (``localize.extractor``, ``localize.snap``).
+
+    Attributes:
+        prior_correction: strength s: structural labels by the argmax of logit - s * log(class
+            weight of the training); 1 undoes the class weighting exactly; 0 = off (plain
+            argmax). Needs the model's ``class_weights`` metadata.
+        snap_px: each predicted boundary pixel moves along its normal, up to this many pixels,
+            onto the strongest colour gradient across it (0 = off); one already on an image
+            edge stays.
+        snap_min_gradient: smallest gradient across the boundary that counts (RMS over R, G, B
+            of the 3x3 Sobel; a step of h grey levels gives about 3 h); weaker boundaries stay.
+        snap_nearest: snap to the nearest image edge within ``snap_px`` (a gradient peak of at
+            least ``snap_min_gradient``) instead of the strongest; stay if none (for networks
+            trained without class weights, whose boundaries are unbiased).
+        refine: ``union``: the snapped class boundaries and the Canny edges of the colour image
+            within ``refine_px`` of them (those carry no class pair); ``none``: the snapped
+            class boundaries alone.
+        refine_px: reach of ``union``, pixels.
+        refine_low, refine_high: the hysteresis thresholds of the union's Canny (mode none has
+            its own, ``edges.canny``).
+    """
+
+    prior_correction: float = 0.75
+    snap_px: int = 2
+    snap_min_gradient: float = 8.0
+    snap_nearest: bool = False
+    refine: str = "union"
+    refine_px: int = 6
+    refine_low: float = 25.0
+    refine_high: float = 75.0
+
+    def __post_init__(self) -> None:
+        if self.refine not in REFINES:
+            raise ValueError(f"edges.cnn.refine={self.refine!r}: use one of {REFINES}")
+        for key in ("prior_correction", "snap_px", "snap_min_gradient", "refine_px",
+                    "refine_low", "refine_high"):
+            if getattr(self, key) < 0:
+                raise ValueError(f"edges.cnn.{key} must be >= 0, got {getattr(self, key)}")
+
+
+@dataclass
+class EdgeSettings:
+    """``edges``: the image edges of each mode (``localize.extractor``).
+
+    Attributes:
+        canny: mode none's Canny.
+        hough: mode none keeps only the Hough line segments of its Canny edges.
+        labels: the label modes' class boundaries.
+        cnn: mode cnn only.
+    """
+
+    canny: CannySettings = field(default_factory=CannySettings)
+    hough: HoughSettings = field(default_factory=HoughSettings)
+    labels: LabelSettings = field(default_factory=LabelSettings)
+    cnn: CnnSettings = field(default_factory=CnnSettings)
+
+
+@dataclass
+class ModelEdgeSettings:
+    """``model_edges``: the world's 3D edge segments as sample points. The label modes score
+    only the segments whose two sides differ in class; mode none scores every segment.
+
+    Attributes:
+        spacing: metres between samples along a segment.
+    """
+
+    spacing: float = 0.1
+
+
+@dataclass
+class VisibilitySettings:
+    """``visibility``: the occlusion grid (``localize.visibility``; cached under
+    ``<report>/cache/``).
+
+    Attributes:
+        cell_xy, cell_z: grid cell size, metres.
+        pad: metres the grid extends beyond the free space.
+        eps: metres of surface tolerance at a sample.
+        variant: Mitsuba variant of the ray casts.
+    """
+
+    cell_xy: float = 0.2
+    cell_z: float = 0.25
+    pad: float = 0.3
+    eps: float = 0.02
+    variant: str = "auto"
+
+
+@dataclass
+class Settings:
+    """What a ``Localizer`` is configured by: the localize config's ``filter``, ``edges``,
+    ``model_edges`` and ``visibility`` nodes (``Settings()``: the defaults)."""
+
+    filter: FilterParams = field(default_factory=FilterParams)
+    edges: EdgeSettings = field(default_factory=EdgeSettings)
+    model_edges: ModelEdgeSettings = field(default_factory=ModelEdgeSettings)
+    visibility: VisibilitySettings = field(default_factory=VisibilitySettings)
+
+    @property
+    def likelihood(self) -> LikelihoodParams:
+        """The tracking likelihood (``filter.likelihood``)."""
+        return self.filter.likelihood
+
+    def with_particles(self, n: int) -> Settings:
+        """These settings with ``n`` tracking particles (and at least ``n`` global ones)."""
+        f = replace(self.filter, num_particles=int(n),
+                    global_particles=max(int(n), self.filter.global_particles))
+        return replace(self, filter=f)
+
+
+@dataclass
+class BagTopics:
+    """``recording_topics``: the topics a ROS bag recording is read from (ignored for
+    folders; ``localize.recording_bag``).
+
+    Attributes:
+        image: sensor_msgs/Image or CompressedImage.
+        camera_info: sensor_msgs/CameraInfo (its first message is used).
+        odometry: nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped.
+        groundtruth: one of the odometry's kinds; None: no ground truth.
+    """
+
+    image: str = "/camera/image_raw"
+    camera_info: str = "/camera/camera_info"
+    odometry: str = "/odom"
+    groundtruth: str | None = None
+
+
+@dataclass
+class MetricsSettings:
+    """``metrics``: what the report counts as converged and failed.
+
+    Attributes:
+        converge_threshold_m: a global start has converged when its error stays below this.
+        converge_within_frames: the target: converged within this many frames.
+        failure_threshold_m: a frame with a larger error counts as a failure.
+    """
+
+    converge_threshold_m: float = 0.3
+    converge_within_frames: int = 30
+    failure_threshold_m: float = 1.0
+
+
+@dataclass
+class PaperFaithfulSettings:
+    """``paper_faithful``: the paper's render-contours-Hough likelihood, run beside the
+    vectorized one on the same frames and particles (``localize.paper_faithful``).
+
+    Attributes:
+        enabled: run the comparison.
+        flight: the flight to run it on (skipped if absent).
+        mode: edge mode of the comparison runs (both likelihoods).
+        frames: the first N frames.
+        num_particles: both likelihoods use this many particles.
+        seeds: one run of each per seed.
+        render_variant: Mitsuba variant of the renders.
+        hough: on the rendered model's class boundaries.
+        samples_per_line: S normals per model line.
+        search_px: reach of the normal search, pixels (as ``likelihood.search_px``).
+    """
+
+    enabled: bool = True
+    flight: str = "paper"
+    mode: str = "oracle"
+    frames: int = 30
+    num_particles: int = 100
+    seeds: list[int] = field(default_factory=lambda: [0])
+    render_variant: str = "auto"
+    hough: HoughSettings = field(default_factory=lambda: HoughSettings(20, 15, 3))
+    samples_per_line: int = 10
+    search_px: float = 10.0
+
+
+@dataclass
+class ReportSettings:
+    """``report``: the report's figure and reference figures.
+
+    Attributes:
+        figure_frame: the frame drawn in the Fig. 2 panel, a fraction of the flight.
+        paper_error_m: Buyval et al. 2017, mean position error.
+        paper_time_ms: Buyval et al. 2017, per frame with a GTX 1050.
+        lidar_error_m: a LIDAR method's error.
+    """
+
+    figure_frame: float = 0.5
+    paper_error_m: float = 0.32
+    paper_time_ms: float = 177.0
+    lidar_error_m: float = 0.1
+
+
+@dataclass
+class LocalizeConfig(Settings):
+    """The whole localize config (``conf/localize.yaml``): the ``Settings`` and the run.
+
+    Attributes:
+        name: report folder ``<out_root>/<name>/``.
+        dataset: the dataset made by ``python -m datagen``.
+        onnx_model: the SegNet made by ``python -m train`` (cnn mode only); the localize
+            settings it carries apply under the command line's.
+        out_root: where report folders go.
+        flight_names: flights to run; None: every flight of the dataset.
+        modes: edge modes: none (Canny + Hough), cnn (the SegNet), oracle (true labels).
+        inits: tracking (start around the first true pose) and/or global (uniform start).
+        seeds: one filter run per seed.
+        recording: a recording (a folder or a ROS 1/2 bag, docs/recording.md) to localize
+            instead of the dataset's flights; outputs go to
+            ``<out_root>/<name>/recordings/<recording>/``.
+        recording_topics: the bag topics.
+        recording_body_from_cam: (4, 4) camera mount; None: the recording's, else the
+            dataset's.
+        start: recording: [x, y, z, yaw_deg] world pose to track from; None: the first
+            ground-truth pose, else a global start.
+        max_frames: only the first N frames of each flight (quick runs, tests).
+        threads: onnxruntime intra-op threads.
+        overwrite: re-run trajectories that already exist.
+        progress: tqdm progress bars.
+        metrics, paper_faithful, report: the report's settings.
+    """
+
+    name: str = "demo"
+    dataset: str = "outputs/datasets/demo"
+    onnx_model: str = "outputs/models/demo/segnet.onnx"
+    out_root: str = "outputs/reports"
+    flight_names: list[str] | None = None
+    modes: list[str] = field(default_factory=lambda: list(MODES))
+    inits: list[str] = field(default_factory=lambda: ["tracking", "global"])
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    recording: str | None = None
+    recording_topics: BagTopics = field(default_factory=BagTopics)
+    recording_body_from_cam: list[Any] | None = None
+    start: list[float] | None = None
+    max_frames: int | None = None
+    threads: int = 2
+    overwrite: bool = False
+    progress: bool = True
+    metrics: MetricsSettings = field(default_factory=MetricsSettings)
+    paper_faithful: PaperFaithfulSettings = field(default_factory=PaperFaithfulSettings)
+    report: ReportSettings = field(default_factory=ReportSettings)
+
+
+register_schema("localize_schema", LocalizeConfig)
