@@ -43,7 +43,7 @@ lint: setup
 # The whole pipeline on its default, small config: datagen -> train -> localize, in at most
 # DEMO_MINUTES (30), set-up included: the SegNet trains until DEMO_RESERVE_S seconds before the
 # end (for its test and export, ~0.5 min, and localize, 2.4-4 min), at most conf/train.yaml's
-# max_minutes (18), with its schedule shortened to fit (fit_budget), but never less than
+# max_minutes (18), with its schedule shortened to fit, but never less than
 # DEMO_MIN_TRAIN_MINUTES (12): where set-up and datagen leave less, the demo runs over rather
 # than show a SegNet too short to track (docs/train.md). `make demo DEMO_MINUTES=` trains the
 # full max_minutes whatever the clock.

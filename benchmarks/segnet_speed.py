@@ -6,7 +6,7 @@ Usage::
     python benchmarks/segnet_speed.py --model segnet_small --height 240 --width 320
     python benchmarks/segnet_speed.py --model-dir outputs/models/demo --runs 50 --threads 2
     python benchmarks/segnet_speed.py --model-dir none model.downsample=2 model.stem=unshuffle \
-        model.head=sharpen      # the README's hr2 network, random weights
+        model.head=sharpen      # the hr2 recipe's network, random weights
 
 With a trained model folder (checkpoint_best.pt + segnet.onnx) both runtimes use its weights;
 otherwise a randomly initialised model of the given config is exported to a temporary file
@@ -37,10 +37,9 @@ from omegaconf import OmegaConf
 
 from core.classes import as_json
 from train.checkpoint import load_checkpoint
-from train.export import onnx_metadata, to_onnx_proto
+from train.export import GRAPH_POOLING, onnx_metadata, to_onnx_proto
 from train.predict import OnnxSegmenter
 from train.quantize import INT8_NAME, quantize_segnet
-from train.runtime import read_metadata
 from train.segnet import SegNet, build_segnet, count_parameters
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
@@ -70,24 +69,19 @@ def build_model(args: argparse.Namespace, tmp: Path) -> tuple[SegNet, Path, str]
     mdir = Path(args.model_dir) if args.model_dir else None
     if mdir and (mdir / "checkpoint_best.pt").is_file() and (mdir / "segnet.onnx").is_file():
         path = mdir / "segnet.onnx"
-        model = load_checkpoint(mdir / "checkpoint_best.pt")
-        model.set_flip_average(bool(read_metadata(path).get("flip_average", False)))  # as the graph
-        return model, path, str(mdir)
+        return load_checkpoint(mdir / "checkpoint_best.pt"), path, str(mdir)
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose("train", overrides=[f"model={args.model}", *args.overrides])
-    mcfg = OmegaConf.to_container(cfg.model, resolve=True)
-    model = build_segnet(mcfg, len(as_json()), torch.Generator().manual_seed(0)).eval()
-    exported = copy.deepcopy(model).set_pooling(args.pooling)
+    model = build_segnet(OmegaConf.to_object(cfg.model), len(as_json()),
+                         torch.Generator().manual_seed(0)).eval()
+    exported = copy.deepcopy(model).set_pooling(GRAPH_POOLING)
     proto = to_onnx_proto(exported, args.height, args.width)
     onnx.helper.set_model_props(
-        proto,
-        onnx_metadata(model, as_json(), args.height, args.width, "benchmark", pooling=args.pooling),
-    )
+        proto, onnx_metadata(model, as_json(), args.height, args.width, "benchmark"))
     path = tmp / "segnet.onnx"
     onnx.save_model(proto, str(path))
     extra = f" {' '.join(args.overrides)}" if args.overrides else ""
-    return model, path, (f"conf/model/{args.model}.yaml{extra} (random weights, {args.pooling} "
-                         "pooling)")
+    return model, path, f"conf/model/{args.model}.yaml{extra} (random weights)"
 
 
 def main() -> None:
@@ -105,12 +99,6 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=30)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--batch", type=int, default=1)
-    ap.add_argument(
-        "--pooling",
-        default="window",
-        choices=["window", "indices"],
-        help="pooling in the exported graph when no trained model is used",
-    )
     args = ap.parse_args()
     if args.runs < 20:
         ap.error("--runs must be >= 20")

@@ -6,7 +6,7 @@ import logging
 import math
 import time
 
-from omegaconf import DictConfig
+from train.config import TrainConfig
 
 log = logging.getLogger(__name__)
 
@@ -14,7 +14,7 @@ log = logging.getLogger(__name__)
 MIN_FINISH_BY_SECONDS = 120
 
 
-def training_budget(cfg: DictConfig, trained_seconds: float) -> float:
+def training_budget(cfg: TrainConfig, trained_seconds: float) -> float:
     """Seconds of training allowed in all (over resumes): ``max_minutes``, and no later than
     the Unix time ``finish_by`` (at least ``MIN_FINISH_BY_SECONDS`` from now). inf: none.
 
@@ -23,9 +23,8 @@ def training_budget(cfg: DictConfig, trained_seconds: float) -> float:
         trained_seconds: training time the run has already spent (s, over resumes).
     """
     budget = float(cfg.max_minutes) * 60.0 if cfg.max_minutes is not None else math.inf
-    finish_by = cfg.get("finish_by")
-    if finish_by is not None:
-        left = float(finish_by) - time.time()
+    if cfg.finish_by is not None:
+        left = float(cfg.finish_by) - time.time()
         if left < MIN_FINISH_BY_SECONDS:
             log.warning("finish_by leaves %.0f s: training %d s anyway", left,
                         MIN_FINISH_BY_SECONDS)

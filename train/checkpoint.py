@@ -14,7 +14,7 @@ import io
 import logging
 import math
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -22,6 +22,7 @@ import torch
 from torch.optim.swa_utils import AveragedModel
 
 from core.atomic import atomic_write_bytes
+from train.config import ModelConfig
 from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem, model_kwargs
 
 log = logging.getLogger(__name__)
@@ -78,7 +79,7 @@ def new_state(epochs: int) -> dict:
     """The run's state before its first epoch (saved in ``checkpoint_last.pt``).
 
     Args:
-        epochs: the schedule's span (``fit_budget`` may shorten it later).
+        epochs: the schedule's span (``train.train.refit_schedule`` may change it later).
     """
     return {
         "epoch": 0,
@@ -145,8 +146,8 @@ def save_last(
     })
 
 
-def save_best(path: Path, net: SegNet, mcfg: dict, classes: list[dict], num_classes: int,
-              epoch: int, val: dict, config_hash: str) -> None:
+def save_best(path: Path, net: SegNet, mcfg: ModelConfig | Mapping, classes: list[dict],
+              num_classes: int, epoch: int, val: dict, config_hash: str) -> None:
     """Write ``checkpoint_best.pt``: the weights ``load_checkpoint`` and ``init_from`` read.
 
     Args:
@@ -180,7 +181,8 @@ def load_checkpoint(path: str | Path) -> SegNet:
     return model.eval()
 
 
-def load_init_weights(model: SegNet, source: str | Path, mcfg: dict, num_classes: int) -> Path:
+def load_init_weights(model: SegNet, source: str | Path, mcfg: ModelConfig | Mapping,
+                      num_classes: int) -> Path:
     """Start ``model`` from a trained model's best weights (the ``init_from`` key: fine-tuning).
 
     Args:

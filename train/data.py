@@ -9,7 +9,7 @@ batch at once with kornia functions and draws every random number from an explic
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,8 +21,8 @@ from kornia.geometry.transform import crop_and_resize
 from tqdm import tqdm
 
 from core.atomic import read_png
-from core.config import reject_unknown_keys
 from core.dataset import Dataset
+from train.config import AugmentConfig
 
 IGNORE = 255
 
@@ -212,65 +212,6 @@ def num_batches(n: int, batch_size: int, drop_last: bool = False) -> int:
     if drop_last and n >= batch_size:
         return n // batch_size
     return -(-n // batch_size)
-
-
-@dataclass(frozen=True)
-class AugmentConfig:
-    """Augmentation parameters (``data.augment`` in conf/train.yaml).
-
-    Attributes:
-        crop: output (height, width) of a training sample; None keeps the image size.
-        scale: range of the zoom factor (output pixels per image pixel; 1.0 = native
-            resolution, 2.0 = magnified twice). The crop box (output size / zoom) is kept
-            inside the image, so zooms below ``max(crop_h / H, crop_w / W)`` are raised to it.
-        hflip: probability of a horizontal flip.
-        brightness: additive brightness shift drawn from [-b, b].
-        contrast: contrast factor drawn from [1 - c, 1 + c].
-        saturation: saturation factor drawn from [1 - s, 1 + s].
-        hue: hue shift drawn from [-h, h] (fraction of a full turn).
-        blur_prob: probability of a Gaussian blur.
-        blur_sigma: range of the blur sigma in pixels of the input image.
-        noise_std: standard deviation of additive Gaussian noise per input-image pixel,
-            drawn per image from [0, noise_std].
-
-    Sizes are in input-image pixels; ``at_resolution`` converts them for training at the
-    network's lower resolution.
-    """
-
-    crop: tuple[int, int] | None = None
-    scale: tuple[float, float] = (1.0, 1.6)
-    hflip: float = 0.5
-    brightness: float = 0.2
-    contrast: float = 0.3
-    saturation: float = 0.3
-    hue: float = 0.03
-    blur_prob: float = 0.3
-    blur_sigma: tuple[float, float] = (0.3, 1.5)
-    noise_std: float = 0.03
-
-    @classmethod
-    def from_dict(cls, d: dict | None) -> AugmentConfig:
-        d = dict(d or {})
-        for k in ("crop", "scale", "blur_sigma"):
-            if d.get(k) is not None:
-                d[k] = tuple(d[k])
-        reject_unknown_keys(d, cls.__dataclass_fields__, "data.augment keys")
-        return cls(**d)
-
-    def at_resolution(self, factor: int) -> AugmentConfig:
-        """The same augmentation for images box-averaged by ``factor``: crop and blur sigma
-        shrink by ``factor``; noise std shrinks by ``factor`` too (averaging factor^2
-        independent pixels), so the network sees the noise it would see at full size."""
-        if factor == 1:
-            return self
-        f = float(factor)
-        crop = None if self.crop is None else (int(self.crop[0] // f), int(self.crop[1] // f))
-        return replace(
-            self,
-            crop=crop,
-            blur_sigma=(self.blur_sigma[0] / f, self.blur_sigma[1] / f),
-            noise_std=self.noise_std / f,
-        )
 
 
 def _uniform(gen: torch.Generator, n: int, lo: float, hi: float) -> torch.Tensor:

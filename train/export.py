@@ -8,12 +8,11 @@ consumer feeds plain [0, 1] images of the exported size. Metadata (``metadata_pr
 every value a JSON string): classes, input_height, input_width, normalization, padding,
 model, config_hash.
 
-Pooling in the graph: by default the encoder's max-pooling indices are kept as window-local
-codes (``train.segnet.WindowMaxPool``) and unpooled with masks and DepthToSpace, which
-computes exactly what ``nn.MaxPool2d(return_indices=True)`` + ``nn.MaxUnpool2d`` compute and
-runs about twice as fast in onnxruntime. ``pooling="indices"`` exports MaxUnpool2d itself,
-which needs the dynamo exporter (``torch.onnx.export(..., dynamo=True)``, via onnxscript).
-``external_data=False`` keeps the weights inside the one file.
+Pooling in the graph: the encoder's max-pooling indices are kept as window-local codes
+(``train.segnet.WindowMaxPool``) and unpooled with masks and DepthToSpace, which computes
+exactly what ``nn.MaxPool2d(return_indices=True)`` + ``nn.MaxUnpool2d`` compute (the torch
+network's pooling) and runs about twice as fast in onnxruntime. ``external_data=False`` keeps
+the weights inside the one file.
 """
 
 from __future__ import annotations
@@ -33,10 +32,13 @@ import torch
 from torch import nn
 
 from core.atomic import atomic_write
+from train.config import ExportConfig
 from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, add_label_output, ort_session
 from train.segnet import SegNet
 
-OPSET = 20
+OPSET = ExportConfig.opset
+#: How the exported graph pools (``train.segnet.WindowMaxPool``).
+GRAPH_POOLING = "window"
 
 
 class ParityError(RuntimeError):
@@ -161,7 +163,6 @@ def onnx_metadata(
     width: int,
     config_hash: str,
     extra: dict | None = None,
-    pooling: str = "window",
 ) -> dict[str, str]:
     """The metadata_props of segnet.onnx; every value is a JSON string.
 
@@ -171,7 +172,6 @@ def onnx_metadata(
         height, width: the graph's input size.
         config_hash: hash of the training config and dataset (see train.train.config_hash).
         extra: more keys to record (values are JSON-encoded).
-        pooling: the pooling implementation in the graph (see ``export_checked``).
     """
     meta = {
         "classes": list(classes),
@@ -199,7 +199,7 @@ def onnx_metadata(
             "channels": model.channels,
             "convs_per_stage": model.convs_per_stage,
             "num_classes": model.num_classes,
-            "pooling": pooling,
+            "pooling": GRAPH_POOLING,
             "downsample": model.downsample,
             "skip": model.skip,  # add: SegNet-EncoderAddition
         },
@@ -332,7 +332,7 @@ def _stage_features(
     model: SegNet, x: torch.Tensor, imposed: list[torch.Tensor], k: int
 ) -> torch.Tensor:
     """Encoder features of stage k before pooling, with given indices for stages < k."""
-    x, _ = model.preprocess(model.with_mirror(x))
+    x, _ = model.preprocess(x)
     for j, stage in enumerate(model.encoder):
         x = stage(x)
         if j == k:
@@ -347,16 +347,17 @@ def export_checked(
     path: str | Path,
     images: torch.Tensor,
     metadata: dict[str, str],
-    tolerance: float = 1e-4,
+    tolerance: float = ExportConfig.tolerance,
     threads: int = 2,
-    batch_size: int = 4,
+    batch_size: int = ExportConfig.batch_size,
     opset: int = OPSET,
-    pooling: str = "window",
 ) -> ParityReport:
     """Export ``model`` to ``path`` (one file), then check it with onnxruntime.
 
     The file is written only if the parity check passes (max_abs_diff <= tolerance and every
     pooling flip is a rounding-level tie); otherwise ParityError is raised and no file is left.
+    The graph pools by window codes (``GRAPH_POOLING``); the check compares it with ``model``
+    as it is (usually pooling with indices, the same function).
 
     Args:
         model: the network in eval mode.
@@ -367,10 +368,6 @@ def export_checked(
         threads: onnxruntime threads for the check.
         batch_size: batch size of the check (the last batch may be smaller).
         opset: ONNX opset.
-        pooling: pooling implementation in the graph: "window" (MaxPool + comparisons and
-            DepthToSpace, about twice as fast in onnxruntime) or "indices" (MaxPool with
-            indices + MaxUnpool, exported as ScatterND). Both compute the same function; the
-            check compares the graph with ``model`` as it is (usually "indices").
 
     Returns:
         The parity report.
@@ -379,7 +376,7 @@ def export_checked(
         raise ValueError(f"parity images must be (N >= 1, 3, H, W), got {tuple(images.shape)}")
     model = model.eval()
     h, w = int(images.shape[2]), int(images.shape[3])
-    exported = copy.deepcopy(model).set_pooling(pooling)
+    exported = copy.deepcopy(model).set_pooling(GRAPH_POOLING)
     proto = add_label_output(to_onnx_proto(exported, h, w, opset=opset))
     onnx.helper.set_model_props(proto, metadata)
     onnx.checker.check_model(proto)

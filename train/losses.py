@@ -1,9 +1,8 @@
 """Class-balanced cross-entropy (median frequency balancing, as in SegNet), with optional
-extra weight on the pixels next to a class change and on image edges inside one class."""
+extra weight on the pixels next to a class change."""
 
 from __future__ import annotations
 
-import kornia
 import torch
 import torch.nn.functional as F
 
@@ -81,8 +80,6 @@ def segmentation_loss(
     target: torch.Tensor,
     weight: torch.Tensor | None = None,
     boundary_weight: float = 1.0,
-    edge_weight: float = 1.0,
-    image_edges: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Weighted per-pixel cross-entropy ignoring 255.
 
@@ -92,55 +89,17 @@ def segmentation_loss(
         weight: (C,) class weights or None.
         boundary_weight: extra factor on the pixels next to a class change
             (``boundary_mask``); 1 = plain cross-entropy.
-        edge_weight: extra factor on the pixels of ``image_edges`` that are not next to a class
-            change: image edges inside one class (the top of a skirting board, a poster's or a
-            door panel's outline), where a network is tempted to put a class boundary.
-        image_edges: (B, H, W) bool (``image_edge_mask``), needed when ``edge_weight`` != 1.
 
     Returns:
         Scalar loss (weighted mean over valid pixels).
     """
-    if boundary_weight == 1.0 and edge_weight == 1.0:
+    if boundary_weight == 1.0:
         return F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE)
     ce = F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE, reduction="none")
     valid = target != IGNORE
     w_pix = torch.ones_like(ce) if weight is None else weight[target.clamp(max=len(weight) - 1)]
-    near = boundary_mask(target)
-    pw = torch.where(near, float(boundary_weight), 1.0)
-    if edge_weight != 1.0:
-        if image_edges is None or image_edges.shape != target.shape:
-            raise ValueError(f"edge_weight {edge_weight} needs image_edges of the target's shape "
-                             f"{tuple(target.shape)}, got "
-                             f"{None if image_edges is None else tuple(image_edges.shape)}")
-        pw = torch.where(image_edges & ~near, float(edge_weight), pw)
-    pw = pw * valid
+    pw = torch.where(boundary_mask(target), float(boundary_weight), 1.0) * valid
     return (ce * pw).sum() / (w_pix * pw).sum().clamp(min=1e-12)
-
-
-def image_edge_mask(images: torch.Tensor, threshold: float, size: tuple[int, int] | None = None
-                    ) -> torch.Tensor:
-    """Where an image has an edge: the gradient magnitude of its grey version, 3x3-Gaussian
-    smoothed, at least ``threshold``.
-
-    Args:
-        images: (B, 3, H, W) float RGB in [0, 1].
-        threshold: on kornia's normalized Sobel magnitude of the smoothed grey image, in [0, 1]
-            intensity per pixel: a sharp step of height h peaks at 0.36 h (0.03: a step of ~21
-            grey levels of 255).
-        size: (h, w) of the mask when the labels have another resolution (a coarser mask keeps
-            a pixel when any image pixel it covers is an edge; a finer one repeats them).
-
-    Returns:
-        (B, h, w) bool.
-    """
-    grey = kornia.color.rgb_to_grayscale(images)
-    grey = kornia.filters.gaussian_blur2d(grey, (3, 3), (1.0, 1.0))
-    mag = kornia.filters.sobel(grey, normalized=True)  # (B, 1, H, W)
-    m = (mag >= threshold).float()
-    if size is not None and tuple(size) != tuple(m.shape[-2:]):
-        m = (F.adaptive_max_pool2d(m, size) if size[0] < m.shape[-2]
-             else F.interpolate(m, size=size, mode="nearest"))
-    return m.squeeze(1) > 0
 
 
 def boundary_mask(target: torch.Tensor) -> torch.Tensor:

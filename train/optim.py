@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import torch
 from torch.optim.swa_utils import AveragedModel
 
+from core.config import typed
+from train.config import OptimConfig
 from train.segnet import SegNet
 
 
@@ -32,31 +36,29 @@ def make_ema(model: SegNet, decay: float) -> AveragedModel | None:
     return AveragedModel(model, multi_avg_fn=update, use_buffers=True)
 
 
+def _optim(cfg: OptimConfig | Mapping) -> OptimConfig:
+    return cfg if isinstance(cfg, OptimConfig) else typed(OptimConfig, cfg, "optim")
+
+
 def make_optimizer(
-    model: torch.nn.Module, optim_cfg: dict, total_steps: int
+    model: torch.nn.Module, optim_cfg: OptimConfig | Mapping, total_steps: int
 ) -> tuple[torch.optim.Optimizer, torch.optim.lr_scheduler.LRScheduler]:
-    """AdamW or SGD (the ``optim`` config, conf/optim/) with a one-cycle schedule over
-    ``total_steps`` batches."""
-    name = optim_cfg["name"]
-    if name == "adamw":
-        opt = torch.optim.AdamW(
-            model.parameters(), lr=optim_cfg["lr"], weight_decay=optim_cfg["weight_decay"]
-        )
-    elif name == "sgd":
-        opt = torch.optim.SGD(
-            model.parameters(),
-            lr=optim_cfg["lr"],
-            momentum=optim_cfg["momentum"],
-            weight_decay=optim_cfg["weight_decay"],
-            nesterov=True,
-        )
+    """AdamW or SGD (the ``optim`` config, conf/optim/; a mapping is read as a partial
+    ``OptimConfig``) with a one-cycle schedule over ``total_steps`` batches."""
+    cfg = _optim(optim_cfg)
+    if cfg.name == "adamw":
+        opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    elif cfg.name == "sgd":
+        opt = torch.optim.SGD(model.parameters(), lr=cfg.lr, momentum=cfg.momentum,
+                              weight_decay=cfg.weight_decay, nesterov=True)
     else:
-        raise ValueError(f"optim.name={name!r} is not known; use adamw or sgd (conf/optim/)")
-    return opt, make_scheduler(opt, optim_cfg, total_steps)
+        raise ValueError(f"optim.name={cfg.name!r} is not known; use adamw or sgd (conf/optim/)")
+    return opt, make_scheduler(opt, cfg, total_steps)
 
 
 def make_scheduler(
-    optimizer: torch.optim.Optimizer, optim_cfg: dict, total_steps: int, done_steps: int = 0
+    optimizer: torch.optim.Optimizer, optim_cfg: OptimConfig | Mapping, total_steps: int,
+    done_steps: int = 0,
 ) -> torch.optim.lr_scheduler.OneCycleLR:
     """The one-cycle schedule over ``total_steps`` batches, positioned after ``done_steps``.
 
@@ -64,12 +66,13 @@ def make_scheduler(
     optimizer must have been given a schedule before: it holds ``initial_lr``); the learning
     rate is set at once to the new schedule's value at that step.
     """
+    cfg = _optim(optim_cfg)
     return torch.optim.lr_scheduler.OneCycleLR(
         optimizer,
-        max_lr=optim_cfg["lr"],
+        max_lr=cfg.lr,
         total_steps=max(total_steps, 1),
-        pct_start=optim_cfg.get("warmup", 0.1),
-        cycle_momentum=optim_cfg["name"] == "sgd",
+        pct_start=cfg.warmup,
+        cycle_momentum=cfg.name == "sgd",
         div_factor=25.0,
         final_div_factor=1e3,
         last_epoch=done_steps - 1,

@@ -37,6 +37,7 @@ from tqdm import tqdm
 
 from core.atomic import atomic_write, atomic_write_json, read_png
 from core.dataset import Dataset
+from train.config import ExportConfig
 from train.metrics import confusion_matrix, metrics_json
 from train.predict import OnnxSegmenter, network_input
 from train.runtime import INPUT_NAME, read_metadata
@@ -45,14 +46,13 @@ INT8_NAME = "segnet_int8.onnx"
 REPORT_NAME = "quantize.json"
 #: Prefix of the work folder a quantization makes in the model folder (``.quantize.<pid>.*``).
 WORK_PREFIX = ".quantize."
-#: ops quantized by default: every one onnxruntime can (None). The convolutions alone
-#: change more labels (the demo's SegNet, test split: 94.9 % of pixels unchanged, mIoU -2.3
-#: points, against 98.8 % and -0.13 points; docs/train.md, "int8")
+#: ops quantized by default: every one onnxruntime can (None); the convolutions alone change
+#: more labels (docs/notes/experiments.md)
 OP_TYPES: tuple[str, ...] | None = None
 
 
 #: training images whose activation ranges set the int8 scales (``export.int8_calibration``)
-CALIBRATION = 64
+CALIBRATION = ExportConfig.int8_calibration
 
 
 def spread_indices(total: int, n: int) -> np.ndarray:

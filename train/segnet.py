@@ -17,16 +17,15 @@ cropped back, so callers always get logits at the input resolution.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 from torchvision.models.vgg import cfgs
 
-#: ImageNet statistics, the usual normalization for a VGG encoder.
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-IMAGENET_STD = (0.229, 0.224, 0.225)
+from train.config import IMAGENET_MEAN, IMAGENET_STD, ModelConfig
 
 
 def vgg_stages(cfg: str = "D") -> list[list[int]]:
@@ -176,6 +175,50 @@ def sharpen_block(num_classes: int, channels: int, layers: int) -> nn.Sequential
     return nn.Sequential(*convs, nn.Conv2d(channels, num_classes, 3, padding=1))
 
 
+def stage_layout(vgg: str, stages: int, width: float, min_channels: int,
+                 convs_per_stage: Sequence[int] | None) -> tuple[list[int], list[int]]:
+    """Channels and convolutions of each encoder stage: the first ``stages`` stages of VGG
+    configuration ``vgg``, channels scaled by ``width`` (at least ``min_channels``), and
+    ``convs_per_stage`` convolutions (None: VGG's counts)."""
+    base = vgg_stages(vgg)
+    if not 1 <= stages <= len(base):
+        raise ValueError(f"model.stages must be in 1..{len(base)}, got {stages}")
+    base = base[:stages]
+    if convs_per_stage is None:
+        convs_per_stage = [len(s) for s in base]
+    convs = [int(n) for n in convs_per_stage]
+    if len(convs) != stages or min(convs) < 1:
+        raise ValueError(
+            f"model.convs_per_stage={convs} must have {stages} entries >= 1 (one per stage)"
+        )
+    return [max(min_channels, round(s[0] * width)) for s in base], convs
+
+
+def encoder_stages(chans: Sequence[int], convs: Sequence[int], cin: int) -> nn.ModuleList:
+    """The encoder: stage k has ``convs[k]`` conv-BN-ReLU layers to ``chans[k]`` channels, the
+    first from the previous stage's (``cin`` input channels for the first stage)."""
+    stages = nn.ModuleList()
+    for c, n in zip(chans, convs, strict=True):
+        stages.append(nn.Sequential(*[_conv_bn_relu(cin if i == 0 else c, c) for i in range(n)]))
+        cin = c
+    return stages
+
+
+def decoder_stages(chans: Sequence[int], convs: Sequence[int]) -> nn.ModuleList:
+    """The decoder, deepest stage first: stage k mirrors encoder stage k with n convs, the last
+    one mapping c_k -> c_{k-1}; the first stage's keeps c_1 (one conv fewer, at least one)
+    and is followed by the classifier."""
+    stages = nn.ModuleList()
+    for k in range(len(chans) - 1, -1, -1):
+        c, n = chans[k], convs[k]
+        cout = chans[k - 1] if k > 0 else c
+        n_dec = n if k > 0 else max(n - 1, 1)
+        layers = [_conv_bn_relu(c, c) for _ in range(n_dec - 1)]
+        layers.append(_conv_bn_relu(c, cout))
+        stages.append(nn.Sequential(*layers))
+    return stages
+
+
 def _check_options(num_classes: int, width: float, downsample: int, skip: str, stem: str,
                    head: str, head_channels: int, head_layers: int, context_layers: int) -> None:
     """Raise ValueError naming the ``model.*`` key of a SegNet option out of range."""
@@ -206,6 +249,9 @@ def _check_options(num_classes: int, width: float, downsample: int, skip: str, s
 
 class SegNet(nn.Module):
     """SegNet encoder-decoder with pooling-index upsampling.
+
+    The argument defaults are the paper's SegNet (``model=segnet``); ``python -m train``
+    passes every ``model.*`` setting (``train.config.ModelConfig``, ``build_segnet``).
 
     Args:
         num_classes: number of output classes C.
@@ -275,22 +321,10 @@ class SegNet(nn.Module):
         generator: torch.Generator | None = None,
     ) -> None:
         super().__init__()
-        base = vgg_stages(vgg)
-        if not 1 <= stages <= len(base):
-            raise ValueError(f"model.stages must be in 1..{len(base)}, got {stages}")
         downsample = int(downsample)
+        chans, convs_per_stage = stage_layout(vgg, stages, width, min_channels, convs_per_stage)
         _check_options(num_classes, width, downsample, skip, stem, head, head_channels,
                        head_layers, context_layers)
-        base = base[:stages]
-        if convs_per_stage is None:
-            convs_per_stage = [len(s) for s in base]
-        convs_per_stage = [int(n) for n in convs_per_stage]
-        if len(convs_per_stage) != stages or min(convs_per_stage) < 1:
-            raise ValueError(
-                f"model.convs_per_stage={convs_per_stage} must have {stages} entries >= 1 "
-                f"(one per stage)"
-            )
-        chans = [max(min_channels, round(s[0] * width)) for s in base]
         self.num_classes = int(num_classes)
         self.stages = int(stages)
         self.downsample = downsample
@@ -302,26 +336,10 @@ class SegNet(nn.Module):
         self.convs_per_stage = convs_per_stage
         self.register_buffer("mean", torch.tensor(mean, dtype=torch.float32).view(1, 3, 1, 1))
         self.register_buffer("std", torch.tensor(std, dtype=torch.float32).view(1, 3, 1, 1))
-
-        self.encoder = nn.ModuleList()
-        cin = 3 * downsample**2 if self.stem == "unshuffle" else 3
-        for c, n in zip(chans, convs_per_stage, strict=True):
-            layers = [_conv_bn_relu(cin if i == 0 else c, c) for i in range(n)]
-            self.encoder.append(nn.Sequential(*layers))
-            cin = c
+        self.encoder = encoder_stages(chans, convs_per_stage,
+                                      3 * downsample**2 if self.stem == "unshuffle" else 3)
         self.set_pooling(pooling)
-        self.flip_average = False
-
-        # Decoder stage k mirrors encoder stage k: n convs, the last one maps c_k -> c_{k-1}.
-        # The first stage's decoder keeps c_1 and is followed by the classifier.
-        self.decoder = nn.ModuleList()
-        for k in range(stages - 1, -1, -1):
-            c, n = chans[k], convs_per_stage[k]
-            cout = chans[k - 1] if k > 0 else c
-            n_dec = n if k > 0 else max(n - 1, 1)
-            layers = [_conv_bn_relu(c, c) for _ in range(n_dec - 1)]
-            layers.append(_conv_bn_relu(c, cout))
-            self.decoder.append(nn.Sequential(*layers))
+        self.decoder = decoder_stages(chans, convs_per_stage)
         self.classifier = nn.Conv2d(chans[0], num_classes, 3, padding=1)
         self.head = head
         self.head_channels = int(head_channels)
@@ -334,26 +352,6 @@ class SegNet(nn.Module):
         if self.context_layers:
             self.context = context_block(chans[-1], self.context_layers)
         self._init_weights(generator)
-        if self.context is not None:  # the residual branch starts as nothing
-            nn.init.zeros_(self.context[-1].weight)
-        if self.sharpen_head is not None:  # the head starts as the identity: plain bilinear logits
-            nn.init.zeros_(self.sharpen_head[-1].weight)
-            nn.init.zeros_(self.sharpen_head[-1].bias)
-
-    def set_flip_average(self, on: bool) -> SegNet:
-        """Average the logits of the image and its mirror image (test-time flip); returns self.
-
-        Inference only (``forward``, ``forward_with_indices`` and the ONNX graph): the image and
-        its horizontal flip run as one batch of 2B, the second half's logits are flipped back
-        and the two averaged. Twice the compute, about +0.005 pixel accuracy and +0.015 mean
-        IoU on the demo's test split. No weights involved.
-        """
-        self.flip_average = bool(on)
-        return self
-
-    def with_mirror(self, x: torch.Tensor) -> torch.Tensor:
-        """The batch the network runs on: x, then (with ``flip_average``) its mirror images."""
-        return torch.cat([x, x.flip(-1)]) if self.flip_average else x
 
     def set_pooling(self, pooling: str) -> SegNet:
         """Use "indices" (nn.MaxPool2d/MaxUnpool2d) or "window" pooling; returns self."""
@@ -368,6 +366,8 @@ class SegNet(nn.Module):
         return self
 
     def _init_weights(self, generator: torch.Generator | None) -> None:
+        """He-normal convolutions drawn from ``generator``, zero biases, unit BatchNorm; the
+        context branch and the sharpen head start at zero."""
         for m in self.modules():
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(
@@ -378,6 +378,11 @@ class SegNet(nn.Module):
             elif isinstance(m, nn.BatchNorm2d):
                 nn.init.ones_(m.weight)
                 nn.init.zeros_(m.bias)
+        if self.context is not None:  # the residual branch starts as nothing
+            nn.init.zeros_(self.context[-1].weight)
+        if self.sharpen_head is not None:  # the head starts as the identity: plain bilinear logits
+            nn.init.zeros_(self.sharpen_head[-1].weight)
+            nn.init.zeros_(self.sharpen_head[-1].bias)
 
     def check_input(self, x: torch.Tensor) -> None:
         """Raise ValueError unless x is (B, 3, H, W) floating point with a usable size."""
@@ -440,21 +445,15 @@ class SegNet(nn.Module):
             x: (B, 3, H, W) float32 RGB in [0, 1].
             indices: one (B, C_k, H_k, W_k) int64 tensor per stage, as returned here (indices
                 into each H*W plane before pooling, as ``nn.MaxPool2d`` gives them); None
-                computes them. With ``flip_average`` the batch dimension is 2B (the images,
-                then their mirror images).
+                computes them.
 
         Returns:
             (B, C, H, W) logits and the list of per-stage indices.
         """
-        n = x.shape[0]
-        x = self.with_mirror(x)  # indices, if given, are for this batch
         self.check_input(x)
         image, (h, w) = pad_to_multiple(x, self.multiple)
         x, pooled_idx = self._network(self._stem(image), indices)
-        x = self.to_input_resolution(x, image)[..., :h, :w]
-        if self.flip_average:
-            x = 0.5 * (x[:n] + x[n:].flip(-1))
-        return x, pooled_idx
+        return self.to_input_resolution(x, image)[..., :h, :w], pooled_idx
 
     def to_input_resolution(self, logits: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """The network's logits brought to the image's resolution (``head``).
@@ -547,37 +546,29 @@ class SegNet(nn.Module):
 
 
 def build_segnet(
-    model_cfg: dict, num_classes: int, generator: torch.Generator | None = None
+    model_cfg: ModelConfig | Mapping, num_classes: int, generator: torch.Generator | None = None
 ) -> SegNet:
-    """Build a SegNet from the ``model`` config group (keys as in ``conf/model/segnet.yaml``).
+    """Build a SegNet from the ``model`` config (``train.config.ModelConfig``).
 
     Args:
-        model_cfg: mapping with width, stages, convs_per_stage, vgg, min_channels, mean, std.
+        model_cfg: the settings, or a mapping of some of them (the others: SegNet's defaults).
         num_classes: number of classes of the dataset.
         generator: draws the initial weights.
     """
     return SegNet(num_classes=num_classes, generator=generator, **model_kwargs(model_cfg))
 
 
-def model_kwargs(model_cfg: dict) -> dict:
-    """The SegNet constructor arguments held in a ``model`` config (without num_classes)."""
-    keys = (
-        "width",
-        "stages",
-        "convs_per_stage",
-        "vgg",
-        "min_channels",
-        "mean",
-        "std",
-        "downsample",
-        "skip",
-        "stem",
-        "head",
-        "head_channels",
-        "head_layers",
-        "context_layers",
-    )
-    out = {k: model_cfg[k] for k in keys if k in model_cfg and model_cfg[k] is not None}
+#: The ``model`` settings that are SegNet constructor arguments (all but name, num_classes).
+MODEL_KWARGS = ("width", "stages", "convs_per_stage", "vgg", "min_channels", "mean", "std",
+                "downsample", "skip", "stem", "head", "head_channels", "head_layers",
+                "context_layers")
+
+
+def model_kwargs(model_cfg: ModelConfig | Mapping) -> dict:
+    """The SegNet constructor arguments held in a ``model`` config or a mapping of some of
+    its keys (the checkpoints' ``model_kwargs``); None values are left out."""
+    cfg = asdict(model_cfg) if isinstance(model_cfg, ModelConfig) else model_cfg
+    out = {k: cfg[k] for k in MODEL_KWARGS if k in cfg and cfg[k] is not None}
     for k in ("convs_per_stage", "mean", "std"):
         if k in out:
             out[k] = list(out[k])

@@ -14,8 +14,9 @@ Output folder ``<out_root>/<name>/``:
 
 Re-running with the same config resumes from ``checkpoint_last.pt``; a folder made with
 another config is refused unless ``overwrite=true`` (core.outputs; docs/outputs.md). The run
-is ``prepare`` (config checks, data, network, optimizer), ``fit`` (the epochs, each
-``train_one_epoch`` then validation and checkpoints) and ``finish`` (export, test, metrics).
+reads its settings as a ``train.config.TrainConfig`` and is ``prepare`` (config checks, data,
+network, optimizer), ``fit`` (the epochs, each ``train_one_epoch`` then validation and
+checkpoints) and ``finish`` (export, test, metrics).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import json
 import logging
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +39,7 @@ from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
 from core.atomic import atomic_write_json, atomic_write_text
+from core.config import typed
 from core.dataset import Dataset
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
 from train.budget import fit_epochs, training_budget
@@ -48,8 +51,8 @@ from train.checkpoint import (
     save_best,
     save_last,
 )
+from train.config import AugmentConfig, LossConfig, TrainConfig
 from train.data import (
-    AugmentConfig,
     SplitData,
     augment_batch,
     batches,
@@ -62,10 +65,10 @@ from train.data import (
 )
 from train.evaluate import evaluate, evaluate_onnx
 from train.export import ParityError, export_checked, onnx_metadata, update_metadata
-from train.losses import image_edge_mask, median_frequency_weights, segmentation_loss
+from train.losses import median_frequency_weights, segmentation_loss
 from train.metrics import metrics_json, plot_confusion, scores
 from train.optim import make_ema, make_optimizer, make_scheduler
-from train.quantize import CALIBRATION, INT8_NAME, int8_summary, quantize_model_dir
+from train.quantize import INT8_NAME, int8_summary, quantize_model_dir
 from train.quantize import REPORT_NAME as QUANTIZE_REPORT
 from train.runtime import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from train.segnet import SegNet, build_segnet, count_parameters
@@ -79,11 +82,9 @@ HASH_EXCLUDE = (
     "threads",
     "max_minutes",
     "finish_by",
-    "fit_budget",
     "overwrite",
     "progress",
     "eval.batch_size",
-    "eval.flip_average",
     "localize",
     "export",
 )
@@ -96,20 +97,18 @@ MODEL_POLICY = FolderPolicy(record="config.json", keys=("config", "dataset_diges
 # ----------------------------------------------------------------------------- config
 
 
-def training_config(cfg: DictConfig) -> dict:
+def train_settings(cfg: DictConfig | Mapping | TrainConfig) -> TrainConfig:
+    """The typed settings of a composed conf/train.yaml (or of a mapping of some of its keys,
+    the others at their defaults); an unknown key or a wrong type raises ValueError."""
+    return cfg if isinstance(cfg, TrainConfig) else typed(TrainConfig, cfg, "train")
+
+
+def training_config(cfg: DictConfig | TrainConfig) -> dict:
     """The part of the config that determines the trained weights (resolved, plain dict)."""
-    d = OmegaConf.to_container(cfg, resolve=True)
+    d = OmegaConf.to_container(cfg if OmegaConf.is_config(cfg) else OmegaConf.structured(cfg),
+                               resolve=True)
     d.pop("hydra", None)
     return without(d, HASH_EXCLUDE)
-
-
-def _loss_resolution(cfg: DictConfig) -> str:
-    """``loss.resolution``: network (block-majority labels at the logits' resolution) or
-    input (the logits upsampled to the full-resolution labels)."""
-    res = str(cfg.loss.get("resolution", "network"))
-    if res not in ("network", "input"):
-        raise ValueError(f"loss.resolution={res!r}: use network or input")
-    return res
 
 
 def config_hash(train_cfg: dict, dataset_json: bytes) -> str:
@@ -206,8 +205,6 @@ def train_one_epoch(
     ema: AveragedModel | None = None,
     boundary_weight: float = 1.0,
     full_labels: bool = False,
-    edge_weight: float = 1.0,
-    edge_threshold: float = 0.03,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution (the
     loss at the input's with ``full_labels``).
@@ -230,8 +227,6 @@ def train_one_epoch(
         full_labels: ``data`` holds the input-resolution labels; the loss is taken on the
             logits upsampled to them as at inference (``loss.resolution: input``) instead of
             on block-majority labels at the network's resolution.
-        edge_weight, edge_threshold: loss factor on image edges inside one class, and what
-            counts as an image edge (``segmentation_loss``, ``image_edge_mask``).
 
     Returns:
         Mean loss, number of steps done, and whether the deadline stopped the epoch.
@@ -255,9 +250,7 @@ def train_one_epoch(
             y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
         x = x.contiguous(memory_format=torch.channels_last)
         logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16)
-        edges = (image_edge_mask(x, edge_threshold, tuple(y.shape[-2:]))
-                 if edge_weight != 1.0 else None)
-        loss = segmentation_loss(logits, y, class_weights, boundary_weight, edge_weight, edges)
+        loss = segmentation_loss(logits, y, class_weights, boundary_weight)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -286,58 +279,41 @@ def _write_log(path: Path, history: list[dict]) -> None:
 # ----------------------------------------------------------------------------- config checks
 
 
-def check_counts(cfg: DictConfig) -> None:
+def check_counts(cfg: TrainConfig) -> None:
     """Raise ValueError naming the key when a count or the time budget is out of range (before
     any loading: ``batch_size=0`` would otherwise end in a division by zero mid-run)."""
-    for key in ("epochs", "batch_size", "eval.batch_size", "threads"):
-        value = OmegaConf.select(cfg, key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+    counts = {"epochs": cfg.epochs, "batch_size": cfg.batch_size,
+              "eval.batch_size": cfg.eval.batch_size, "threads": cfg.threads}
+    for key, value in counts.items():
+        if value < 1:
             raise ValueError(f"{key}={value!r} must be an integer >= 1")
-    minutes = cfg.get("max_minutes")
-    if minutes is not None and not float(minutes) >= 0:
-        raise ValueError(f"max_minutes={minutes!r} must be >= 0 (null: no time budget)")
+    if cfg.max_minutes is not None and not cfg.max_minutes >= 0:
+        raise ValueError(f"max_minutes={cfg.max_minutes:g} must be >= 0 (null: no time budget)")
 
 
-def pixel_weights(cfg: DictConfig) -> dict[str, float]:
-    """The loss's pixel weights ``{boundary_weight, edge_weight, edge_threshold}``, each checked
-    positive."""
-    weights = {k: float(cfg.loss[k])
-               for k in ("boundary_weight", "edge_weight", "edge_threshold")}
-    for key, value in weights.items():
-        if not value > 0:
-            raise ValueError(f"loss.{key}={cfg.loss.get(key)} must be positive (1 = off for the "
-                             "weights)")
-    return weights
+def check_loss(loss: LossConfig) -> None:
+    """Raise ValueError naming the ``loss.*`` key out of range."""
+    if loss.resolution not in ("network", "input"):
+        raise ValueError(f"loss.resolution={loss.resolution!r}: use network or input")
+    if not loss.boundary_weight > 0:
+        raise ValueError(f"loss.boundary_weight={loss.boundary_weight:g} must be positive "
+                         "(1 = off)")
 
 
-def localize_settings(cfg: DictConfig) -> dict:
-    """The ``localize`` key: localize config values the model is tuned for, nested as in
-    conf/localize.yaml (e.g. ``{"edges": {"cnn": {"snap_px": 1}}}``); {} when null."""
-    section = cfg.get("localize")
-    if section is None:
-        return {}
-    if not isinstance(section, DictConfig):
-        raise ValueError(f"localize={section!r} must be a mapping of conf/localize.yaml keys, "
-                         "e.g. {edges: {cnn: {snap_px: 1}}} (conf/experiment/hr3c.yaml), or null")
-    return OmegaConf.to_container(section, resolve=True)
-
-
-def check_config(cfg: DictConfig) -> tuple[bool, bool, dict[str, float]]:
+def check_config(cfg: TrainConfig) -> bool:
     """Every setting ``run`` can check before loading anything, each error naming its key.
 
     Returns:
-        bfloat16 autocast on (``precision``), the loss at the input's resolution
-        (``loss.resolution: input``), and the loss's pixel weights.
+        Whether to train in bfloat16 autocast (``precision``).
     """
     check_counts(cfg)
-    bf16 = resolve_precision(str(cfg.precision))
-    full_labels = _loss_resolution(cfg) == "input"
-    if cfg.model.get("head") == "sharpen" and not full_labels:
+    bf16 = resolve_precision(cfg.precision)
+    check_loss(cfg.loss)
+    if cfg.model.head == "sharpen" and cfg.loss.resolution != "input":
         raise ValueError(
             "model.head=sharpen learns at the input's resolution: add loss.resolution=input"
         )
-    localize_settings(cfg)
-    return bf16, full_labels, pixel_weights(cfg)
+    return bf16
 
 
 # ----------------------------------------------------------------------------- the run
@@ -348,12 +324,11 @@ class Job:
     """What ``prepare`` sets up for ``fit`` and ``finish``: the config, the folder, the data
     (at the network's resolution), the network, its weight average and its optimizer."""
 
-    cfg: DictConfig
+    cfg: TrainConfig
     out_dir: Path
     dataset: Dataset
     num_classes: int
     info: dict  # config_hash, dataset_digest, dataset, config (config.json)
-    mcfg: dict  # the model config
     model: SegNet
     ema: AveragedModel | None
     optimizer: torch.optim.Optimizer
@@ -366,9 +341,11 @@ class Job:
     steps_per_epoch: int
     requested: int  # the configured epochs (the longest schedule)
     bf16: bool
-    full_labels: bool
-    pixel_weights: dict[str, float]
-    localize: dict  # the localize settings the model carries
+
+    @property
+    def full_labels(self) -> bool:
+        """The loss at the input's resolution (``loss.resolution: input``)."""
+        return self.cfg.loss.resolution == "input"
 
     @property
     def net(self) -> SegNet:
@@ -403,41 +380,38 @@ def write_localize_settings(out_dir: Path, settings: dict) -> Path:
     return path
 
 
-def class_weight_tensor(cfg: DictConfig, data: SplitData, num_classes: int
+def class_weight_tensor(loss: LossConfig, data: SplitData, num_classes: int
                         ) -> torch.Tensor | None:
     """(C,) cross-entropy class weights of ``loss.class_weighting`` on the training labels."""
-    if cfg.loss.class_weighting == "median_frequency":
-        return median_frequency_weights(
-            data.labels, num_classes, cfg.loss.max_weight, cfg.loss.get("power", 1.0)
-        )
-    if cfg.loss.class_weighting != "none":
+    if loss.class_weighting == "median_frequency":
+        return median_frequency_weights(data.labels, num_classes, loss.max_weight, loss.power)
+    if loss.class_weighting != "none":
         raise ValueError(
-            f"loss.class_weighting={cfg.loss.class_weighting!r}: use median_frequency or none"
+            f"loss.class_weighting={loss.class_weighting!r}: use median_frequency or none"
         )
     return None
 
 
-def build_network(cfg: DictConfig, num_classes: int) -> tuple[dict, SegNet]:
-    """The ``model`` config and the network: seeded random weights, or ``init_from``'s."""
-    mcfg = OmegaConf.to_container(cfg.model, resolve=True)
-    model = build_segnet(mcfg, num_classes, torch.Generator().manual_seed(int(cfg.seed)))
-    if cfg.get("init_from") is not None:  # fine-tuning (a resume replaces these weights)
-        log.info("weights from %s", load_init_weights(model, cfg.init_from, mcfg, num_classes))
-    return mcfg, model
+def build_network(cfg: TrainConfig, num_classes: int) -> SegNet:
+    """The network of ``model``: seeded random weights, or ``init_from``'s."""
+    model = build_segnet(cfg.model, num_classes, torch.Generator().manual_seed(cfg.seed))
+    if cfg.init_from is not None:  # fine-tuning (a resume replaces these weights)
+        log.info("weights from %s", load_init_weights(model, cfg.init_from, cfg.model,
+                                                      num_classes))
+    return model
 
 
-def prepare(cfg: DictConfig) -> Job:
+def prepare(cfg: TrainConfig) -> Job:
     """Check the config, claim the output folder, load the data, build network and optimizer.
 
     Nothing is written before every check that needs no data has passed.
     """
-    bf16, full_labels, weights_px = check_config(cfg)
-    torch.set_num_threads(int(cfg.threads))
-    progress = bool(cfg.progress)
+    bf16 = check_config(cfg)
+    torch.set_num_threads(cfg.threads)
     dataset = Dataset(cfg.dataset)
     ds_json = (dataset.root / "dataset.json").read_bytes()
     num_classes = check_classes(
-        dataset.classes, cfg.model.get("num_classes"), str(dataset.root / "dataset.json")
+        dataset.classes, cfg.model.num_classes, str(dataset.root / "dataset.json")
     )
     train_cfg = training_config(cfg)
     info = {
@@ -446,36 +420,32 @@ def prepare(cfg: DictConfig) -> Job:
         "dataset": str(dataset.root),
         "config": train_cfg,
     }
-    mcfg, model = build_network(cfg, num_classes)
+    model = build_network(cfg, num_classes)
     out_dir = Path(cfg.out_root) / cfg.name
-    prepare_output(out_dir, info, bool(cfg.overwrite))
-    settings = localize_settings(cfg)
-    write_localize_settings(out_dir, settings)
+    prepare_output(out_dir, info, cfg.overwrite)
+    write_localize_settings(out_dir, cfg.localize)
 
-    limit = cfg.data.get("limit")
-    train_data = load_split(dataset, "train", num_classes, limit, progress)
-    val_data = load_split(dataset, "val", num_classes, limit, progress)
-    weights = class_weight_tensor(cfg, train_data, num_classes)
+    full_labels = cfg.loss.resolution == "input"
+    train_data = load_split(dataset, "train", num_classes, cfg.data.limit, cfg.progress)
+    val_data = load_split(dataset, "val", num_classes, cfg.data.limit, cfg.progress)
+    weights = class_weight_tensor(cfg.loss, train_data, num_classes)
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)
     train_data = downsample_split(train_data, model.training_factor, keep_labels=full_labels)
-    augment = AugmentConfig.from_dict(OmegaConf.to_container(cfg.data.augment, resolve=True))
-    augment = augment.at_resolution(model.training_factor)
-    batch_size = min(int(cfg.batch_size), len(train_data))
+    batch_size = min(cfg.batch_size, len(train_data))
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
-    requested = int(cfg.epochs)  # the longest schedule; fit_budget may span fewer
-    optimizer, scheduler = make_optimizer(model, OmegaConf.to_container(cfg.optim, resolve=True),
-                                          requested * steps_per_epoch)
-    job = Job(cfg, out_dir, dataset, num_classes, info, mcfg, model,
-              make_ema(model, float(cfg.get("ema_decay") or 0.0)), optimizer, scheduler,
-              train_data, val_data, augment, weights, batch_size, steps_per_epoch, requested,
-              bf16, full_labels, weights_px, settings)
+    # the longest schedule: refit_schedule may span fewer epochs
+    optimizer, scheduler = make_optimizer(model, cfg.optim, cfg.epochs * steps_per_epoch)
+    job = Job(cfg, out_dir, dataset, num_classes, info, model, make_ema(model, cfg.ema_decay),
+              optimizer, scheduler, train_data, val_data,
+              cfg.data.augment.at_resolution(model.training_factor), weights, batch_size,
+              steps_per_epoch, cfg.epochs, bf16)
     if job.class_weights is not None:
         log.info("class weights: %s", job.class_weights)
     log.info(
         "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch, %s",
-        mcfg.get("name", "segnet"), count_parameters(model), model.channels, len(train_data),
+        cfg.model.name, count_parameters(model), model.channels, len(train_data),
         len(val_data), steps_per_epoch, "bfloat16 autocast" if bf16 else "float32",
     )
     return job
@@ -496,20 +466,20 @@ def epoch_row(epoch: int, res: EpochResult, lr: float, val: dict, seconds: float
 
 
 def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -> None:
-    """``fit_budget``: re-span the one-cycle schedule over the epochs that fit the budget left
-    (``fit_epochs``), in place (``job.scheduler``, ``state["epochs"]``)."""
+    """Re-span the one-cycle schedule over the epochs that fit the budget left
+    (``fit_epochs``), in place (``job.scheduler``, ``state["epochs"]``): a run the budget cuts
+    off still anneals."""
     span = fit_epochs(job.requested, state["epoch"], state["train_seconds"], budget,
                       epoch_seconds, state["epochs"])
     if span == state["epochs"]:
         return
     log.warning(
         "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): the one-cycle "
-        "schedule now ends after epoch %d (fit_budget=false keeps it)", epoch_seconds, span,
-        job.requested, budget / 60, span)
+        "schedule now ends after epoch %d", epoch_seconds, span, job.requested, budget / 60,
+        span)
     state["epochs"] = span
-    job.scheduler = make_scheduler(job.optimizer, OmegaConf.to_container(job.cfg.optim,
-                                                                         resolve=True),
-                                   span * job.steps_per_epoch, job.scheduler.last_epoch)
+    job.scheduler = make_scheduler(job.optimizer, job.cfg.optim, span * job.steps_per_epoch,
+                                   job.scheduler.last_epoch)
 
 
 def run_epoch(job: Job, state: dict, budget: float) -> bool:
@@ -530,12 +500,13 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
         return False
     res = train_one_epoch(
         job.model, job.train_data, job.weights, job.optimizer, job.scheduler, job.augment,
-        torch.Generator().manual_seed(int(cfg.seed) * 100_003 + epoch), job.batch_size,
-        deadline, bool(cfg.progress), desc=f"epoch {epoch + 1}/{state['epochs']}",
-        bf16=job.bf16, ema=job.ema, **job.pixel_weights, full_labels=job.full_labels,
+        torch.Generator().manual_seed(cfg.seed * 100_003 + epoch), job.batch_size,
+        deadline, cfg.progress, desc=f"epoch {epoch + 1}/{state['epochs']}",
+        bf16=job.bf16, ema=job.ema, boundary_weight=cfg.loss.boundary_weight,
+        full_labels=job.full_labels,
     )
-    val = scores(evaluate(job.net, job.val_data, job.num_classes, int(cfg.eval.batch_size),
-                          bool(cfg.progress), "val"))
+    val = scores(evaluate(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
+                          cfg.progress, "val"))
     dt = time.monotonic() - t0
     state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
                  stopped_by_budget=res.stopped)
@@ -544,10 +515,10 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
     improved = val[cfg.eval.select] > state["best_score"]
     if improved:
         state["best_score"], state["best_epoch"] = val[cfg.eval.select], epoch + 1
-        save_best(job.out_dir / "checkpoint_best.pt", job.net, job.mcfg, job.classes,
+        save_best(job.out_dir / "checkpoint_best.pt", job.net, job.cfg.model, job.classes,
                   job.num_classes, epoch + 1, {k: row[k] for k in row if k.startswith("val_")},
                   job.info["config_hash"])
-    if bool(cfg.get("fit_budget", True)) and state["epoch"] < state["epochs"] and not res.stopped:
+    if state["epoch"] < state["epochs"] and not res.stopped:
         refit_schedule(job, state, budget, dt)
     save_last(job.out_dir / "checkpoint_last.pt", job.model, job.optimizer, job.scheduler,
               job.ema, state, job.info["config_hash"])
@@ -577,8 +548,7 @@ def fit(job: Job) -> dict:
 
 
 def load_best(job: Job) -> tuple[SegNet, dict]:
-    """The network with the best checkpoint's weights, in eval mode, with ``eval.flip_average``
-    set (the exported graph and the test metrics describe it), and the checkpoint."""
+    """The network with the best checkpoint's weights, in eval mode, and the checkpoint."""
     path = job.out_dir / "checkpoint_best.pt"
     if not path.is_file():
         raise RuntimeError(
@@ -589,7 +559,6 @@ def load_best(job: Job) -> tuple[SegNet, dict]:
     model = job.model.to(memory_format=torch.contiguous_format)
     model.load_state_dict(best["model"])
     model.eval()
-    model.set_flip_average(bool(job.cfg.eval.get("flip_average", False)))
     return model, best
 
 
@@ -598,21 +567,17 @@ def export_onnx(job: Job, model: SegNet, test_data: SplitData, metrics: dict) ->
     figures go into ``metrics``. A failed check writes metrics.json, then raises ParityError."""
     cfg, out_dir = job.cfg, job.out_dir
     onnx_path = out_dir / "segnet.onnx"
-    parity_images = to_float(test_data.images[: min(int(cfg.export.parity_images),
-                                                    len(test_data))])
-    pooling = str(cfg.export.pooling)
+    parity_images = to_float(test_data.images[: min(cfg.export.parity_images, len(test_data))])
     meta = onnx_metadata(
         model, job.classes, parity_images.shape[2], parity_images.shape[3],
-        job.info["config_hash"], pooling=pooling,
-        extra={"flip_average": model.flip_average, "class_weights": job.class_weights,
-               LOCALIZE_METADATA_KEY: job.localize},
+        job.info["config_hash"],
+        extra={"class_weights": job.class_weights, LOCALIZE_METADATA_KEY: job.cfg.localize},
     )
     try:
         with disk_space_guard(out_dir, onnx_path.name):
             report = export_checked(
-                model, onnx_path, parity_images, meta, tolerance=float(cfg.export.tolerance),
-                threads=int(cfg.threads), batch_size=int(cfg.export.batch_size),
-                opset=int(cfg.export.opset), pooling=pooling,
+                model, onnx_path, parity_images, meta, tolerance=cfg.export.tolerance,
+                threads=cfg.threads, batch_size=cfg.export.batch_size, opset=cfg.export.opset,
             )
     except ParityError as err:
         metrics.update(onnx_max_abs_diff=err.report.max_abs_diff,
@@ -641,16 +606,15 @@ def run_metrics(job: Job, state: dict, model: SegNet, best: dict, images: dict) 
         "best_epoch": state["best_epoch"],
         "val_best": best.get("val"),
         "model": {
-            "name": job.mcfg.get("name"),
+            "name": job.cfg.model.name,
             "parameters": count_parameters(model),
             "channels": model.channels,
             "convs_per_stage": model.convs_per_stage,
         },
         "images": images,
         "config_hash": job.info["config_hash"],
-        "threads": int(job.cfg.threads),
-        "flip_average": model.flip_average,
-        "localize": job.localize,
+        "threads": job.cfg.threads,
+        "localize": job.cfg.localize,
         "run_seconds": None,  # the whole run's wall time (``finish``)
     }
 
@@ -659,8 +623,8 @@ def score_graph(job: Job, onnx_path: Path, test_data: SplitData) -> dict:
     """Score ``segnet.onnx``'s labels on the test split (the labels localize reads), draw
     ``confusion.png`` and record the scores in the graph's metadata (``test_metrics``)."""
     cfg = job.cfg
-    cm = evaluate_onnx(onnx_path, test_data, job.num_classes, int(cfg.eval.batch_size),
-                       int(cfg.threads), bool(cfg.progress), "test")
+    cm = evaluate_onnx(onnx_path, test_data, job.num_classes, cfg.eval.batch_size,
+                       cfg.threads, cfg.progress, "test")
     test = metrics_json(cm, job.names)
     with disk_space_guard(job.out_dir, f"{onnx_path.name}'s metadata and confusion.png"):
         update_metadata(onnx_path, {"test_metrics": {
@@ -675,14 +639,13 @@ def quantize(job: Job, metrics: dict) -> None:
     """``export.int8``: write segnet_int8.onnx scored against the float graph (metrics'
     ``int8``); otherwise remove an int8 copy of an earlier export."""
     cfg, out_dir = job.cfg, job.out_dir
-    if not bool(cfg.export.get("int8", False)):
+    if not cfg.export.int8:
         for name in (INT8_NAME, QUANTIZE_REPORT):  # it would not match this segnet.onnx
             (out_dir / name).unlink(missing_ok=True)
         return
-    calibration = int(cfg.export.get("int8_calibration", CALIBRATION))
     with disk_space_guard(out_dir, INT8_NAME):
-        q = quantize_model_dir(out_dir, job.dataset.root, calibration, cfg.data.get("limit"),
-                               int(cfg.threads), bool(cfg.progress))
+        q = quantize_model_dir(out_dir, job.dataset.root, cfg.export.int8_calibration,
+                               cfg.data.limit, cfg.threads, cfg.progress)
         metrics["int8"] = int8_summary(q)
         atomic_write_json(out_dir / "metrics.json", metrics)
     log.info("int8: test pixel acc %.4f, mIoU %.4f; labels equal to the float graph's on "
@@ -705,8 +668,8 @@ def finish(job: Job, state: dict, t_start: float) -> dict:
     model, best = load_best(job)
     n_train = len(job.train_data)
     job.train_data = None  # its memory, before the test split is loaded
-    test_data = load_split(job.dataset, "test", job.num_classes, job.cfg.data.get("limit"),
-                           bool(job.cfg.progress))
+    test_data = load_split(job.dataset, "test", job.num_classes, job.cfg.data.limit,
+                           job.cfg.progress)
     images = {"train": n_train, "val": len(job.val_data), "test": len(test_data)}
     metrics = run_metrics(job, state, model, best, images)
     onnx_path = export_onnx(job, model, test_data, metrics)
@@ -726,16 +689,16 @@ def finish(job: Job, state: dict, t_start: float) -> dict:
 
 
 @releases_claims
-def run(cfg: DictConfig) -> dict:
+def run(cfg: DictConfig | Mapping | TrainConfig) -> dict:
     """Train (or resume), export the best checkpoint to ONNX, score it on the test split.
 
     Args:
-        cfg: the composed ``conf/train.yaml``.
+        cfg: the composed ``conf/train.yaml`` (``train_settings``).
 
     Returns:
         The metrics.json contents.
     """
     t_start = time.monotonic()
-    job = prepare(cfg)
+    job = prepare(train_settings(cfg))
     state = fit(job)
     return finish(job, state, t_start)

@@ -11,6 +11,7 @@ import pytest
 import torch
 import yaml
 from hydra import compose, initialize_config_dir
+from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
 import train.train as tt
@@ -66,8 +67,12 @@ def test_localize_settings_left_out_of_the_hash() -> None:
 
 
 def test_bad_localize_section(synthetic_dataset, compose_train, tmp_path) -> None:
-    with pytest.raises(ValueError, match="localize=3 must be a mapping"):
-        tt.run(compose_train(synthetic_dataset, tmp_path, "localize=3"))
+    """A localize key that is not a mapping is refused when the config is composed, or, for a
+    plain mapping, when run reads it (train.config.TrainConfig)."""
+    with pytest.raises(ConfigCompositionException, match="localize=3"):
+        compose_train(synthetic_dataset, tmp_path, "localize=3")
+    with pytest.raises(ValueError, match="train.localize: Cannot assign int"):
+        tt.run({"dataset": str(synthetic_dataset), "out_root": str(tmp_path), "localize": 3})
     assert not (tmp_path / "demo").exists()
 
 

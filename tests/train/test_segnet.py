@@ -270,18 +270,6 @@ class TestForward:
         with pytest.raises(ValueError, match="model.skip"):
             _tiny(skip="concat")
 
-    def test_flip_average(self) -> None:
-        """Averages the logits of the image and its mirror image (padding and downsampling too)."""
-        m = _tiny(downsample=2).eval()
-        x = torch.rand(2, 3, 36, 44)  # padded to 48 x 48 inside
-        with torch.no_grad():
-            ref = 0.5 * (m(x) + m(x.flip(-1)).flip(-1))
-            m.set_flip_average(True)
-            got, idx = m.forward_with_indices(x)
-            m.set_flip_average(False)
-        torch.testing.assert_close(got, ref, rtol=1e-5, atol=1e-5)
-        assert idx[0].shape[0] == 4  # the network ran on the images and their mirror images
-
     @pytest.mark.parametrize("bad", [0, 3])
     def test_bad_downsample(self, bad: int) -> None:
         with pytest.raises(ValueError, match="downsample"):

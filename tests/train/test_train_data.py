@@ -10,6 +10,7 @@ import torch
 
 from core import classes as C
 from core.atomic import write_png
+from core.config import typed
 from core.dataset import Dataset
 from train.data import (
     AugmentConfig,
@@ -102,8 +103,8 @@ class TestAugment:
             )
 
     def test_unknown_key(self) -> None:
-        with pytest.raises(ValueError, match="unknown data.augment keys"):
-            AugmentConfig.from_dict({"rotate": 3})
+        with pytest.raises(ValueError, match="data.augment.rotate"):
+            typed(AugmentConfig, {"rotate": 3}, "data.augment")
 
 
 def test_batches() -> None:

@@ -8,7 +8,6 @@ import torch
 from train.losses import (
     boundary_mask,
     class_pixel_counts,
-    image_edge_mask,
     median_frequency_weights,
     segmentation_loss,
 )
@@ -80,38 +79,3 @@ def test_boundary_weighted_loss() -> None:
     assert segmentation_loss(wrong, t, w, 4.0) > plain
     flat = torch.zeros(1, 2, 4, 6)  # every pixel costs log 2, whatever its weight
     torch.testing.assert_close(segmentation_loss(flat, t, w, 4.0), torch.tensor(0.6931472))
-
-
-def test_image_edge_mask() -> None:
-    """A step of 40 grey levels is an edge at threshold 0.03 (it peaks at ~0.36 x 40 / 255),
-    one of 10 is not; a coarser mask keeps any edge its block covers, a finer one repeats."""
-    x = torch.zeros(1, 3, 8, 8)
-    x[..., 4:] = 40 / 255
-    m = image_edge_mask(x, 0.03)
-    assert m.shape == (1, 8, 8)
-    assert m[0, :, 3:5].all() and not m[0, :, :2].any() and not m[0, :, 6:].any()
-    assert not image_edge_mask(x * 0.25, 0.03).any()
-    coarse = image_edge_mask(x, 0.03, (4, 4))
-    assert coarse[0, :, 1:3].all() and not coarse[0, :, 0].any() and not coarse[0, :, 3].any()
-    assert image_edge_mask(x, 0.03, (16, 16))[0, :, 6:10].all()
-
-
-def test_edge_weighted_loss() -> None:
-    """Errors on an image edge inside one class weigh ``edge_weight`` more; at a class change
-    the boundary weight holds; without the mask the weight is refused."""
-    t = torch.zeros(1, 4, 8, dtype=torch.long)
-    t[..., 6:] = 1  # a class change at columns 5-6
-    logits = torch.where(t.unsqueeze(1) == torch.arange(2).view(1, 2, 1, 1), 4.0, 0.0)
-    wrong = logits.clone()
-    wrong[..., 2] = wrong[..., 2].flip(1)  # wrong at column 2, inside class 0
-    edges = torch.zeros(1, 4, 8, dtype=torch.bool)
-    edges[..., 2] = True
-    plain = segmentation_loss(wrong, t, None, 2.0)
-    heavy = segmentation_loss(wrong, t, None, 2.0, 5.0, edges)
-    assert heavy > plain
-    # an edge mask on the class change itself changes nothing: those pixels are boundary ones
-    at_change = torch.zeros_like(edges)
-    at_change[..., 5:7] = True
-    torch.testing.assert_close(segmentation_loss(wrong, t, None, 2.0, 5.0, at_change), plain)
-    with pytest.raises(ValueError, match="image_edges"):
-        segmentation_loss(wrong, t, None, 2.0, 5.0)

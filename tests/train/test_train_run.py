@@ -64,9 +64,7 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     """The training loop at a quarter resolution: images box-averaged once (average stem) or
     kept whole and the labels reduced to the logits' blocks after augmentation (unshuffle);
     or the labels kept whole and the loss taken on upsampled logits (loss.resolution: input),
-    through the learned full-resolution head (model.head: sharpen), which then trains too. The
-    unshuffle runs weigh image edges inside one class (loss.edge_weight), their edge masks at
-    the labels' resolution, coarser or the same."""
+    through the learned full-resolution head (model.head: sharpen), which then trains too."""
     model = SegNet(8, width=0.125, stages=2, convs_per_stage=[1, 1], downsample=4, stem=stem,
                    head=head, generator=torch.Generator().manual_seed(0))
     full = load_split(Dataset(synthetic_dataset), "train", 8, limit=8)
@@ -79,8 +77,7 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     gen = torch.Generator().manual_seed(0)
     aug = AugmentConfig().at_resolution(model.training_factor)
     losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
-                                 full_labels=full_labels,
-                                 edge_weight=3.0 if stem == "unshuffle" else 1.0).loss
+                                 full_labels=full_labels).loss
               for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
     if model.sharpen_head is not None:
@@ -406,8 +403,8 @@ class TestBadInput:
         assert not any(tmp_path.iterdir())  # nothing written
 
     def test_bad_loss_weight(self, synthetic_dataset, compose_train, tmp_path) -> None:
-        with pytest.raises(ValueError, match="loss.edge_weight=-2 must be positive"):
-            tt.run(compose_train(synthetic_dataset, tmp_path, "loss.edge_weight=-2"))
+        with pytest.raises(ValueError, match="loss.boundary_weight=-2 must be positive"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "loss.boundary_weight=-2"))
         assert not any(tmp_path.iterdir())  # nothing written
 
     def test_bad_loss_resolution(self, synthetic_dataset, compose_train, tmp_path) -> None:
