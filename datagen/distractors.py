@@ -15,6 +15,7 @@ import numpy as np
 import trimesh
 
 from core.poses import pose_from_xyzyaw, wrap_angle
+from datagen.config import DistractorPreset, as_config
 
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
 MAX_HEIGHT = 1.8  # m, tallest clutter object
@@ -481,35 +482,39 @@ def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fp
 # --------------------------------------------------------------------------- presets
 
 
-def preset_counts(rng: np.random.Generator, cfg: Mapping[str, Any]) -> tuple[int, int]:
+def check_preset(preset: DistractorPreset, where: str = "distractors preset") -> None:
+    """Raise ValueError, naming ``where`` (e.g. ``distractor_presets.paper``), if a preset's
+    counts are not 0 <= min <= max or its kinds are not a non-empty subset of CLUTTER_KINDS."""
+    for key in ("clutter", "people"):
+        lo, hi = getattr(preset, key).min, getattr(preset, key).max
+        if not 0 <= lo <= hi:
+            raise ValueError(f"{where}: need 0 <= {key}.min <= {key}.max, got {lo}, {hi}")
+    if not preset.kinds or set(preset.kinds) - set(CLUTTER_KINDS):
+        raise ValueError(f"{where}: kinds must be a non-empty subset of {list(CLUTTER_KINDS)}, "
+                         f"got {list(preset.kinds)}")
+
+
+def preset_counts(rng: np.random.Generator, preset: DistractorPreset | Mapping[str, Any]
+                  ) -> tuple[int, int]:
     """Number of clutter objects and people for one image or flight.
 
     Args:
-        cfg: a distractors preset (conf/distractors/*.yaml) with clutter.{min,max} and
-            people.{min,max}.
+        preset: a distractors preset (``DistractorPreset``, or a mapping of the keys that
+            differ from its defaults).
 
     Returns:
-        (num_clutter, num_people).
+        (num_clutter, num_people), uniform in the preset's [min, max] ranges.
     """
-    counts = []
-    for key in ("clutter", "people"):
-        try:
-            lo, hi = int(cfg[key]["min"]), int(cfg[key]["max"])
-        except (KeyError, TypeError) as err:
-            raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: {key}.min and "
-                             f"{key}.max are required integers") from err
-        if not 0 <= lo <= hi:
-            raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: need 0 <= "
-                             f"{key}.min <= {key}.max, got {lo}, {hi}")
-        counts.append(int(rng.integers(lo, hi + 1)))
-    return counts[0], counts[1]
+    preset = as_config(DistractorPreset, preset, "distractors preset")
+    check_preset(preset)
+    return (int(rng.integers(preset.clutter.min, preset.clutter.max + 1)),
+            int(rng.integers(preset.people.min, preset.people.max + 1)))
 
 
-def sample_kinds(rng: np.random.Generator, n: int, cfg: Mapping[str, Any]) -> list[str]:
-    """n clutter kinds drawn from the preset's `kinds` list (uniformly)."""
-    kinds = list(cfg.get("kinds", CLUTTER_KINDS))
-    bad = set(kinds) - set(CLUTTER_KINDS)
-    if bad or not kinds:
-        raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: kinds must be a "
-                         f"non-empty subset of {list(CLUTTER_KINDS)}, got {kinds}")
+def sample_kinds(rng: np.random.Generator, n: int,
+                 preset: DistractorPreset | Mapping[str, Any]) -> list[str]:
+    """n clutter kinds drawn from the preset's ``kinds`` list (uniformly)."""
+    preset = as_config(DistractorPreset, preset, "distractors preset")
+    check_preset(preset)
+    kinds = list(preset.kinds)
     return [kinds[i] for i in rng.integers(0, len(kinds), n)]
