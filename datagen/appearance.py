@@ -630,7 +630,7 @@ def _window(rng: np.random.Generator, n: int, extent: tuple[float, float]) -> np
     return img
 
 
-def sample_textures(rng: np.random.Generator, resolution: int | None = 256,
+def sample_textures(rng: np.random.Generator, resolution: int | None = None,
                     cfg: AppearanceConfig | Mapping | None = None,
                     extents: Mapping[str, tuple[float, float]] | None = None
                     ) -> dict[str, np.ndarray]:
@@ -638,8 +638,8 @@ def sample_textures(rng: np.random.Generator, resolution: int | None = 256,
 
     Args:
         rng: random generator (the only source of randomness).
-        resolution: R, the side of every texture in pixels (>= 16); None takes the config's
-            `resolution`.
+        resolution: R, the side of every texture in pixels (>= 16); None: the config's
+            ``resolution``.
         cfg: appearance config (``AppearanceConfig``, or a mapping of the keys that differ
             from its defaults; None: the defaults).
         extents: optional overrides of TEXTURE_SPECS (metres), e.g. the world's door size or
