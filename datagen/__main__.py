@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="datagen")
 def main(cfg: DictConfig) -> None:
     from datagen.generate import run
 
-    out = run(OmegaConf.to_container(cfg, resolve=True), progress=bool(cfg.progress))
+    out = run(cfg)
     print(f"dataset written to {out}")
 
 

@@ -15,11 +15,14 @@ texture is drawn on a canvas with square pixels (the long side ``R`` pixels) and
 from __future__ import annotations
 
 import colorsys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import fields
 from typing import Any
 
 import cv2
 import numpy as np
+
+from datagen.config import AppearanceConfig, as_config
 
 #: name -> (extent_u, extent_v) in metres of surface covered by one copy of the texture.
 TEXTURE_SPECS: dict[str, tuple[float, float]] = {
@@ -39,73 +42,37 @@ SIGN_WORDS: tuple[str, ...] = (
 )  # fmt: skip
 _LUMA = np.array([0.2126, 0.7152, 0.0722])
 
-#: Defaults for every key read from the appearance config (conf/appearance/default.yaml).
-DEFAULTS: dict[str, Any] = {
-    "resolution": 256,
-    "floor_styles": {"tiles": 0.45, "wood": 0.3, "carpet": 0.25},
-    "door_styles": {"wood": 0.5, "painted": 0.5},
-    "posters": [1, 4],
-    "prob": {
-        "dado": 0.5, "two_tone": 0.35, "sockets": 0.6, "door_panels": 0.65,
-        "door_glass": 0.3, "door_number": 0.5, "kick_plate": 0.3, "ceiling_vent": 0.6,
-        "ceiling_stain": 0.3, "frame_matches_door": 0.3,
-    },  # fmt: skip
-    "lights": {
-        "on_fraction": [0.4, 1.0], "intensity": [4.0, 12.0], "jitter": 0.15,
-        "temperature_k": [2700.0, 6500.0],
-    },  # fmt: skip
-    "materials": {
-        "roughness": {
-            "floor": [0.15, 0.7], "wall": [0.5, 1.0], "ceiling": [0.7, 1.0],
-            "door": [0.3, 0.8], "frame": [0.2, 0.7], "clutter": [0.3, 0.9],
-            "person": [0.5, 1.0],
-        },  # fmt: skip
-        "tint_jitter": 0.08,
-    },
-}
-
 
 # --------------------------------------------------------------------------- config helpers
 
 
-def _get(cfg: Mapping | None, path: str) -> Any:
-    """Config value at a dotted path, falling back to DEFAULTS (cfg may be a DictConfig)."""
-    node: Any = cfg
-    default: Any = DEFAULTS
-    for key in path.split("."):
-        default = default[key]
-        node = node.get(key) if hasattr(node, "get") else None
-    return default if node is None else node
-
-
-def _range(cfg: Mapping | None, path: str) -> tuple[float, float]:
-    value = _get(cfg, path)
+def _range(value: Sequence[float], key: str) -> tuple[float, float]:
+    """A [min, max] pair of the appearance config (``key``, for messages)."""
     try:
         lo, hi = (float(v) for v in value)
     except (TypeError, ValueError) as err:
-        raise ValueError(f"appearance config: {path} must be a [min, max] pair, "
-                         f"got {value!r}") from err
+        raise ValueError(f"appearance.{key} must be a [min, max] pair, got {value!r}") from err
     if hi < lo:
-        raise ValueError(f"appearance config: {path} = [{lo}, {hi}] has max < min; swap them")
+        raise ValueError(f"appearance.{key} = [{lo}, {hi}] has max < min; swap them")
     return lo, hi
 
 
-def _probs(cfg: Mapping | None, path: str, names: tuple[str, ...]) -> np.ndarray:
-    table = _get(cfg, path)
+def _probs(table: Mapping[str, float], key: str, names: tuple[str, ...]) -> np.ndarray:
+    """Normalized probabilities of ``names`` from the appearance config's ``key`` table."""
     unknown = set(table) - set(names)
     if unknown:
-        raise ValueError(f"appearance config: {path} has unknown entries {sorted(unknown)}; "
+        raise ValueError(f"appearance.{key} has unknown entries {sorted(unknown)}; "
                          f"use {list(names)}")
     p = np.array([float(table.get(n, 0.0)) for n in names])
     if (p < 0).any() or p.sum() <= 0:
-        raise ValueError(f"appearance config: {path} must be non-negative with a positive sum, "
+        raise ValueError(f"appearance.{key} must be non-negative with a positive sum, "
                          f"got {dict(table)}")
     return p / p.sum()
 
 
-def _chance(rng: np.random.Generator, cfg: Mapping | None, key: str) -> bool:
-    """True with the probability prob.<key> of the config."""
-    return bool(rng.random() < float(_get(cfg, f"prob.{key}")))
+def _chance(rng: np.random.Generator, cfg: AppearanceConfig, key: str) -> bool:
+    """True with the probability ``appearance.prob.<key>``."""
+    return bool(rng.random() < getattr(cfg.prob, key))
 
 
 # --------------------------------------------------------------------------- colour & noise
@@ -311,9 +278,9 @@ def _text_bars(img: np.ndarray, rng: np.random.Generator, r0: float, c0: float, 
 # --------------------------------------------------------------------------- textures
 
 
-def _floor(rng: np.random.Generator, n: int, cfg: Mapping | None) -> np.ndarray:
+def _floor(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndarray:
     """Floor texture covering 2 x 2 m (n x n px), periodic in u and v."""
-    p = _probs(cfg, "floor_styles", FLOOR_STYLES)
+    p = _probs(cfg.floor_styles, "floor_styles", FLOOR_STYLES)
     style = FLOOR_STYLES[rng.choice(len(FLOOR_STYLES), p=p)]
     px_m = n / TEXTURE_SPECS["floor"][0]
     y = np.arange(n, dtype=np.float32)[:, None]  # (n, 1) rows
@@ -381,7 +348,7 @@ def _floor(rng: np.random.Generator, n: int, cfg: Mapping | None) -> np.ndarray:
     return img
 
 
-def _ceiling(rng: np.random.Generator, n: int, cfg: Mapping | None) -> np.ndarray:
+def _ceiling(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndarray:
     """Suspended ceiling covering 2 x 2 m: tiles, T-bar grid, vents, stains; periodic."""
     px_m = n / TEXTURE_SPECS["ceiling"][0]
     y = np.arange(n, dtype=np.float32)[:, None]
@@ -476,7 +443,7 @@ def _poster(img: np.ndarray, rng: np.random.Generator, px_m: float) -> None:
         _rect(img, 0, 0, h, w, np.full(3, 0.7, np.float32), outline=max(2, round(2 * line)))
 
 
-def _wall(rng: np.random.Generator, n: int, cfg: Mapping | None,
+def _wall(rng: np.random.Generator, n: int, cfg: AppearanceConfig,
           extent: tuple[float, float]) -> np.ndarray:
     """Wall covering 4 m (u, periodic) x full height (v up from the floor)."""
     eu, ev = extent
@@ -504,7 +471,7 @@ def _wall(rng: np.random.Generator, n: int, cfg: Mapping | None,
     _rect(img, row(skirt_h), 0, h, w, skirt)
     _rect(img, row(skirt_h), 0, row(skirt_h) + max(1.0, 0.008 * px_m), w, skirt * 0.5)
     # posters and signs between 1.0 and 2.0 m, left to right without overlap or wrap-around
-    pmin, pmax = (int(v) for v in _get(cfg, "posters"))
+    pmin, pmax = cfg.posters
     count = int(rng.integers(pmin, pmax + 1))
     widths = rng.uniform(0.3, 0.9, count)
     while count and widths.sum() + 0.2 * (count + 1) > eu:
@@ -532,7 +499,7 @@ def _wall(rng: np.random.Generator, n: int, cfg: Mapping | None,
     return img
 
 
-def _door(rng: np.random.Generator, n: int, cfg: Mapping | None,
+def _door(rng: np.random.Generator, n: int, cfg: AppearanceConfig,
           extent: tuple[float, float]) -> np.ndarray:
     """One door panel, 1:1 (u across, v up)."""
     eu, ev = extent
@@ -542,7 +509,8 @@ def _door(rng: np.random.Generator, n: int, cfg: Mapping | None,
     def row(v: float) -> float:
         return h - v * px_m
 
-    style = DOOR_STYLES[rng.choice(len(DOOR_STYLES), p=_probs(cfg, "door_styles", DOOR_STYLES))]
+    style = DOOR_STYLES[rng.choice(len(DOOR_STYLES), p=_probs(cfg.door_styles, "door_styles",
+                                                              DOOR_STYLES))]
     if style == "wood":
         base = _wood_colour(rng)
         grain = _noise(rng, h, w, (40.0, 0.8)) + 0.5 * _noise(rng, h, w, (12.0, 0.5))
@@ -662,17 +630,18 @@ def _window(rng: np.random.Generator, n: int, extent: tuple[float, float]) -> np
     return img
 
 
-def sample_textures(rng: np.random.Generator, resolution: int | None = 256,
-                    cfg: Mapping | None = None,
+def sample_textures(rng: np.random.Generator, resolution: int | None = None,
+                    cfg: AppearanceConfig | Mapping | None = None,
                     extents: Mapping[str, tuple[float, float]] | None = None
                     ) -> dict[str, np.ndarray]:
     """Draw one random set of surface textures.
 
     Args:
         rng: random generator (the only source of randomness).
-        resolution: R, the side of every texture in pixels (>= 16); None takes the config's
-            `resolution`.
-        cfg: appearance config (conf/appearance/default.yaml); missing keys use DEFAULTS.
+        resolution: R, the side of every texture in pixels (>= 16); None: the config's
+            ``resolution``.
+        cfg: appearance config (``AppearanceConfig``, or a mapping of the keys that differ
+            from its defaults; None: the defaults).
         extents: optional overrides of TEXTURE_SPECS (metres), e.g. the world's door size or
             wall height; they only change the aspect of what is drawn, not the output shape.
 
@@ -680,7 +649,8 @@ def sample_textures(rng: np.random.Generator, resolution: int | None = 256,
         name -> (R, R, 3) float32 linear RGB in [0, 1], row 0 at the top of the surface,
         for every name in TEXTURE_SPECS.
     """
-    n = int(_get(cfg, "resolution") if resolution is None else resolution)
+    cfg = as_config(AppearanceConfig, cfg, "appearance")
+    n = int(cfg.resolution if resolution is None else resolution)
     if n < 16:
         raise ValueError(f"texture resolution must be >= 16 px, got {resolution}")
     ext = dict(TEXTURE_SPECS)
@@ -733,16 +703,14 @@ def kelvin_to_rgb(kelvin: np.ndarray) -> np.ndarray:
     return rgb / (rgb @ _LUMA)[..., None]
 
 
-def sample_lights(rng: np.random.Generator, num_slots: int, cfg: Mapping | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def sample_lights(rng: np.random.Generator, num_slots: int,
+                  cfg: AppearanceConfig | Mapping | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Which ceiling lights are on, and their emitted radiance.
 
     Args:
         rng: random generator.
         num_slots: number of light panels in the scene (>= 1).
-        cfg: appearance config; reads lights.on_fraction [lo, hi] (fraction of panels on),
-            lights.intensity [lo, hi] (radiance of a panel, linear units), lights.jitter
-            (relative per-panel variation) and lights.temperature_k [lo, hi].
+        cfg: appearance config (as for ``sample_textures``); reads its ``lights``.
 
     Returns:
         on: (num_slots,) bool, at least one True.
@@ -750,17 +718,18 @@ def sample_lights(rng: np.random.Generator, num_slots: int, cfg: Mapping | None 
     """
     if num_slots < 1:
         raise ValueError(f"sample_lights needs num_slots >= 1, got {num_slots}")
-    f_lo, f_hi = _range(cfg, "lights.on_fraction")
-    i_lo, i_hi = _range(cfg, "lights.intensity")
-    k_lo, k_hi = _range(cfg, "lights.temperature_k")
+    lights = as_config(AppearanceConfig, cfg, "appearance").lights
+    f_lo, f_hi = _range(lights.on_fraction, "lights.on_fraction")
+    i_lo, i_hi = _range(lights.intensity, "lights.intensity")
+    k_lo, k_hi = _range(lights.temperature_k, "lights.temperature_k")
     if not (0 <= f_lo <= f_hi <= 1) or i_lo < 0:
-        raise ValueError("appearance config: lights.on_fraction must lie in [0, 1] and "
-                         "lights.intensity must be non-negative")
+        raise ValueError("appearance.lights.on_fraction must lie in [0, 1] and "
+                         "appearance.lights.intensity must be non-negative")
     count = int(np.clip(np.ceil(rng.uniform(f_lo, f_hi) * num_slots), 1, num_slots))
     on = np.zeros(num_slots, bool)
     on[rng.permutation(num_slots)[:count]] = True
     level = rng.uniform(i_lo, i_hi)
-    jitter = float(_get(cfg, "lights.jitter"))
+    jitter = lights.jitter
     kelvin = rng.uniform(k_lo, k_hi) + rng.normal(0, 150, num_slots)  # same fixture type
     gain = level * np.clip(1 + jitter * rng.standard_normal(num_slots), 0.2, None)
     radiance = kelvin_to_rgb(kelvin) * gain[:, None] * on[:, None]
@@ -780,19 +749,22 @@ def object_colours(rng: np.random.Generator, n: int) -> np.ndarray:
     return np.clip(srgb_to_linear(rgb.reshape(n, 3)), 0.02, 0.8).astype(np.float32)
 
 
-def sample_materials(rng: np.random.Generator, cfg: Mapping | None = None
+def sample_materials(rng: np.random.Generator, cfg: AppearanceConfig | Mapping | None = None
                      ) -> dict[str, dict[str, Any]]:
-    """Material parameters per surface.
+    """Material parameters per surface (``appearance.materials``; ``cfg`` as for
+    ``sample_textures``).
 
     Returns:
         name -> {'roughness': float in [0, 1], 'tint': (3,) float32}. For textured surfaces
         (floor, wall, ceiling, door, frame) 'tint' is a multiplier close to 1 applied to the
         texture; for 'clutter' and 'person' it is a base reflectance colour.
     """
-    jitter = float(_get(cfg, "materials.tint_jitter"))
+    materials = as_config(AppearanceConfig, cfg, "appearance").materials
+    jitter = materials.tint_jitter
     out: dict[str, dict[str, Any]] = {}
-    for name in DEFAULTS["materials"]["roughness"]:
-        lo, hi = _range(cfg, f"materials.roughness.{name}")
+    for f in fields(materials.roughness):
+        name = f.name
+        lo, hi = _range(getattr(materials.roughness, name), f"materials.roughness.{name}")
         out[name] = {"roughness": float(rng.uniform(lo, hi))}
         if name in ("clutter", "person"):
             out[name]["tint"] = object_colours(rng, 1)[0]

@@ -9,12 +9,14 @@ floor boxes and must not overlap another object or a keep-out circle (e.g. the c
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import trimesh
 
 from core.poses import pose_from_xyzyaw, wrap_angle
+from datagen.config import DistractorPreset, as_config
 
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
 MAX_HEIGHT = 1.8  # m, tallest clutter object
@@ -352,6 +354,121 @@ def object_poses(xy_yaw: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- people
 
 
+@dataclass
+class _Crowd:
+    """The walkers of ``person_tracks``: P people, each in its home box.
+
+    blo, bhi: (P, 2) the home box shrunk by radius; axis: (P,) its long axis (0 x, 1 y);
+    speed: (P,) m/s; direction: (P,) +1 / -1 along the axis; pos, goal: (P, 2) m;
+    heading: (P,) rad; blocked: (P,) frames a person has been blocked for.
+    """
+
+    rng: np.random.Generator
+    radius: float
+    blo: np.ndarray
+    bhi: np.ndarray
+    axis: np.ndarray
+    speed: np.ndarray
+    direction: np.ndarray
+    pos: np.ndarray
+    goal: np.ndarray
+    heading: np.ndarray
+    blocked: np.ndarray
+
+    @classmethod
+    def start(cls, rng: np.random.Generator, n: int, boxes: np.ndarray, radius: float,
+              speed: tuple[float, float], keepout: np.ndarray) -> _Crowd:
+        """n people placed like objects (clear of the keep-outs and each other), walking
+        towards a goal at one end of their box."""
+        lo, hi = boxes[:, :2] + radius, boxes[:, 2:] - radius
+        size = np.clip(hi - lo, 0, None)
+        if np.prod(size, axis=1).sum() <= 0:
+            raise ValueError(f"no box is wider than 2 * radius = {2 * radius} m: "
+                             f"{boxes.tolist()}")
+        start, ok = place_objects(rng, np.full(n, radius), boxes, keepout)
+        if not ok.all():
+            start[~ok, :2] = sample_in_boxes(rng, int((~ok).sum()), boxes, shrink=radius)
+        pos = start[:, :2].copy()
+        inside = (pos[:, None, :] >= lo[None] - 1e-9) & (pos[:, None, :] <= hi[None] + 1e-9)
+        home = np.argmax(inside.all(-1), axis=1)  # the box each person starts in
+        axis = (size[home, 1] >= size[home, 0]).astype(int)  # long axis of each home box
+        v = rng.uniform(speed[0], speed[1], n)
+        direction = rng.choice([-1.0, 1.0], n)
+        crowd = cls(rng, radius, lo[home], hi[home], axis, v, direction, pos,
+                    np.zeros((n, 2)), np.zeros(n), np.zeros(n, int))
+        crowd.new_goals(np.ones(n, bool))
+        crowd.heading = np.arctan2(*(crowd.goal - pos)[:, ::-1].T)
+        return crowd
+
+    def new_goals(self, mask: np.ndarray) -> None:
+        """New goals for the people of ``mask``: near the end of their box they walk to, at
+        a random lateral offset."""
+        idx = np.flatnonzero(mask)
+        blo, bhi = self.blo[idx], self.bhi[idx]
+        g = blo + self.rng.random((len(idx), 2)) * (bhi - blo)
+        ax = self.axis[idx]
+        rows = np.arange(len(idx))
+        g[rows, ax] = np.where(self.direction[idx] > 0, bhi[rows, ax] - 0.05,
+                               blo[rows, ax] + 0.05)
+        self.goal[idx] = g
+
+    def turn_around(self, stuck: np.ndarray) -> None:
+        """Who arrived at their goal, or is ``stuck`` (P,), heads for the other end."""
+        rows = np.arange(len(self.pos))
+        arrived = np.abs(self.goal[rows, self.axis] - self.pos[rows, self.axis]) < 0.1
+        turn = arrived | stuck
+        if turn.any():
+            self.direction[turn] *= -1
+            self.new_goals(turn)
+            self.blocked[turn] = 0
+
+    def clearance(self, p: np.ndarray, circles: np.ndarray) -> np.ndarray:
+        """(P, O) free distance from each person placed at p (P, 2) to each of the (O, 3)
+        circles, the first P of which are the people themselves (inf to oneself)."""
+        n = len(self.pos)
+        dist = np.linalg.norm(p[:, None, :] - circles[None, :, :2], axis=-1)
+        clear = dist - self.radius - circles[None, :, 2]
+        clear[:, :n][np.eye(n, dtype=bool)] = np.inf
+        return clear
+
+    def steer(self, circles: np.ndarray, clear: np.ndarray) -> np.ndarray:
+        """(P, 2) wanted walking directions: towards the goal, pushed away from the circles
+        ahead (a sidestep away from each), and off the long walls of the home box."""
+        rows, pos = np.arange(len(self.pos)), self.pos
+        want = self.goal - pos
+        want /= np.linalg.norm(want, axis=1, keepdims=True) + 1e-9
+        diff = pos[:, None, :] - circles[None, :, :2]  # (P, O, 2) from the others to each
+        away = diff / (np.linalg.norm(diff, axis=-1, keepdims=True) + 1e-9)
+        fwd = np.stack([np.cos(self.heading), np.sin(self.heading)], 1)
+        ahead = np.einsum("poc,pc->po", -away, fwd) > -0.2
+        weight = np.exp(-np.clip(clear, 0, None) / 0.4) * ahead * np.isfinite(clear)
+        perp = np.stack([-want[:, 1], want[:, 0]], 1)  # left of the wanted direction
+        side = np.sign(np.einsum("poc,pc->po", away, perp) + 1e-6)  # sidestep away
+        push = away + side[..., None] * perp[:, None, :]
+        steer = want + 1.5 * np.sum(weight[..., None] * push, axis=1)
+        cross = 1 - self.axis
+        gap_lo = pos[rows, cross] - self.blo[rows, cross]
+        gap_hi = self.bhi[rows, cross] - pos[rows, cross]
+        steer[rows, cross] += 0.5 * (np.exp(-gap_lo / 0.2) - np.exp(-gap_hi / 0.2))
+        return steer
+
+    def walk(self, circles: np.ndarray, dt: float, max_turn: float) -> None:
+        """One frame: turn (at most max_turn rad) towards ``steer``'s direction and step,
+        unless the step would overlap a circle more than now."""
+        clear = self.clearance(self.pos, circles)
+        steer = self.steer(circles, clear)
+        target = np.arctan2(steer[:, 1], steer[:, 0])
+        turn = np.clip(wrap_angle(target - self.heading), -max_turn, max_turn)
+        self.heading = wrap_angle(self.heading + turn)
+        step = self.speed[:, None] * dt * np.stack([np.cos(self.heading),
+                                                    np.sin(self.heading)], 1)
+        new = np.clip(self.pos + step, self.blo, self.bhi)
+        new_clear = self.clearance(new, circles)
+        bad = np.any((new_clear < 0) & (new_clear < clear), axis=1)
+        self.pos = np.where(bad[:, None], self.pos, new)
+        self.blocked = np.where(bad, self.blocked + 1, 0)
+
+
 def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fps: float,
                   boxes: np.ndarray, speed: tuple[float, float] = (0.6, 1.4),
                   radius: float = 0.3, obstacles: np.ndarray | None = None,
@@ -390,126 +507,59 @@ def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fp
     out = np.zeros((P, N, 3))
     if P == 0 or N == 0:
         return out
-    lo, hi = boxes[:, :2] + radius, boxes[:, 2:] - radius
-    size = np.clip(hi - lo, 0, None)
-    area = np.prod(size, axis=1)
-    if area.sum() <= 0:
-        raise ValueError(f"no box is wider than 2 * radius = {2 * radius} m: {boxes.tolist()}")
     obs = (np.zeros((0, 3)) if obstacles is None
            else np.asarray(obstacles, dtype=np.float64).reshape(-1, 3))
     avoid_xy = None if avoid is None else np.asarray(avoid, dtype=np.float64).reshape(N, 2)
-
-    # start: placed like objects (clear of obstacles, the avoid point and each other)
-    start_keep = obs if avoid_xy is None else np.vstack([obs, [*avoid_xy[0], avoid_radius]])
-    start, ok = place_objects(rng, np.full(P, radius), boxes, start_keep)
-    if not ok.all():
-        start[~ok, :2] = sample_in_boxes(rng, int((~ok).sum()), boxes, shrink=radius)
-    pos = start[:, :2].copy()
-    inside = (pos[:, None, :] >= lo[None] - 1e-9) & (pos[:, None, :] <= hi[None] + 1e-9)
-    home = np.argmax(inside.all(-1), axis=1)  # the box each person starts in
-    blo, bhi = lo[home], hi[home]
-    axis = (size[home, 1] >= size[home, 0]).astype(int)  # long axis of each home box
-    rows = np.arange(P)
-    v = rng.uniform(speed[0], speed[1], P)
-    direction = rng.choice([-1.0, 1.0], P)
-    goal = np.zeros((P, 2))
-
-    def new_goals(mask: np.ndarray) -> None:
-        idx = np.flatnonzero(mask)
-        g = blo[idx] + rng.random((len(idx), 2)) * (bhi[idx] - blo[idx])
-        ax = axis[idx]
-        g[np.arange(len(idx)), ax] = np.where(direction[idx] > 0, bhi[idx, ax] - 0.05,
-                                              blo[idx, ax] + 0.05)
-        goal[idx] = g
-
-    new_goals(np.ones(P, bool))
-    heading = np.arctan2(*(goal - pos)[:, ::-1].T)
-    blocked = np.zeros(P, int)
+    keep = obs if avoid_xy is None else np.vstack([obs, [*avoid_xy[0], avoid_radius]])
+    crowd = _Crowd.start(rng, P, boxes, radius, speed, keep)
     max_turn = np.deg2rad(max_turn_deg_s) * dt
-    eye = np.eye(P, dtype=bool)
-
-    def clearances(p: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
-        """(P, O) free distance from each person at p to every circle, and the (O, 3) circles."""
-        circles = [np.column_stack([pos, np.full(P, radius)]), obs]
+    for t in range(N):
+        out[:, t, :2] = crowd.pos
+        out[:, t, 2] = crowd.heading
+        crowd.turn_around(crowd.blocked > patience_s * fps)
+        circles = [np.column_stack([crowd.pos, np.full(P, radius)]), obs]
         if avoid_xy is not None:
             circles.append(np.array([[*avoid_xy[t], avoid_radius]]))
-        o = np.concatenate(circles)
-        dist = np.linalg.norm(p[:, None, :] - o[None, :, :2], axis=-1)
-        clear = dist - radius - o[None, :, 2]
-        clear[:, :P][eye] = np.inf
-        return clear, o
-
-    for t in range(N):
-        out[:, t, :2] = pos
-        out[:, t, 2] = heading
-        along = pos[rows, axis]
-        arrived = np.abs(goal[rows, axis] - along) < 0.1
-        stuck = blocked > patience_s * fps
-        turn = arrived | stuck
-        if turn.any():
-            direction[turn] *= -1
-            new_goals(turn)
-            blocked[turn] = 0
-        want = goal - pos
-        want /= np.linalg.norm(want, axis=1, keepdims=True) + 1e-9
-        clear, o = clearances(pos, t)
-        diff = pos[:, None, :] - o[None, :, :2]  # (P, O, 2) from the others to each person
-        away = diff / (np.linalg.norm(diff, axis=-1, keepdims=True) + 1e-9)
-        fwd = np.stack([np.cos(heading), np.sin(heading)], 1)
-        ahead = np.einsum("poc,pc->po", -away, fwd) > -0.2
-        weight = np.exp(-np.clip(clear, 0, None) / 0.4) * ahead * np.isfinite(clear)
-        perp = np.stack([-want[:, 1], want[:, 0]], 1)  # left of the wanted direction
-        side = np.sign(np.einsum("poc,pc->po", away, perp) + 1e-6)  # sidestep away
-        push = away + side[..., None] * perp[:, None, :]
-        steer = want + 1.5 * np.sum(weight[..., None] * push, axis=1)
-        # keep off the long walls of the home box
-        cross = 1 - axis
-        gap_lo = pos[rows, cross] - blo[rows, cross]
-        gap_hi = bhi[rows, cross] - pos[rows, cross]
-        steer[rows, cross] += 0.5 * (np.exp(-gap_lo / 0.2) - np.exp(-gap_hi / 0.2))
-        target = np.arctan2(steer[:, 1], steer[:, 0])
-        heading = wrap_angle(heading + np.clip(wrap_angle(target - heading), -max_turn, max_turn))
-        step = v[:, None] * dt * np.stack([np.cos(heading), np.sin(heading)], 1)
-        new = np.clip(pos + step, blo, bhi)
-        new_clear, _ = clearances(new, t)
-        bad = np.any((new_clear < 0) & (new_clear < clear), axis=1)
-        pos = np.where(bad[:, None], pos, new)
-        blocked = np.where(bad, blocked + 1, 0)
+        crowd.walk(np.concatenate(circles), dt, max_turn)
     return out
 
 
 # --------------------------------------------------------------------------- presets
 
 
-def preset_counts(rng: np.random.Generator, cfg: Mapping[str, Any]) -> tuple[int, int]:
+def check_preset(preset: DistractorPreset, where: str = "distractors preset") -> None:
+    """Raise ValueError, naming ``where`` (e.g. ``distractor_presets.paper``), if a preset's
+    counts are not 0 <= min <= max or its kinds are not a non-empty subset of CLUTTER_KINDS."""
+    for key in ("clutter", "people"):
+        lo, hi = getattr(preset, key).min, getattr(preset, key).max
+        if not 0 <= lo <= hi:
+            raise ValueError(f"{where}: need 0 <= {key}.min <= {key}.max, got {lo}, {hi}")
+    if not preset.kinds or set(preset.kinds) - set(CLUTTER_KINDS):
+        raise ValueError(f"{where}: kinds must be a non-empty subset of {list(CLUTTER_KINDS)}, "
+                         f"got {list(preset.kinds)}")
+
+
+def preset_counts(rng: np.random.Generator, preset: DistractorPreset | Mapping[str, Any]
+                  ) -> tuple[int, int]:
     """Number of clutter objects and people for one image or flight.
 
     Args:
-        cfg: a distractors preset (conf/distractors/*.yaml) with clutter.{min,max} and
-            people.{min,max}.
+        preset: a distractors preset (``DistractorPreset``, or a mapping of the keys that
+            differ from its defaults).
 
     Returns:
-        (num_clutter, num_people).
+        (num_clutter, num_people), uniform in the preset's [min, max] ranges.
     """
-    counts = []
-    for key in ("clutter", "people"):
-        try:
-            lo, hi = int(cfg[key]["min"]), int(cfg[key]["max"])
-        except (KeyError, TypeError) as err:
-            raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: {key}.min and "
-                             f"{key}.max are required integers") from err
-        if not 0 <= lo <= hi:
-            raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: need 0 <= "
-                             f"{key}.min <= {key}.max, got {lo}, {hi}")
-        counts.append(int(rng.integers(lo, hi + 1)))
-    return counts[0], counts[1]
+    preset = as_config(DistractorPreset, preset, "distractors preset")
+    check_preset(preset)
+    return (int(rng.integers(preset.clutter.min, preset.clutter.max + 1)),
+            int(rng.integers(preset.people.min, preset.people.max + 1)))
 
 
-def sample_kinds(rng: np.random.Generator, n: int, cfg: Mapping[str, Any]) -> list[str]:
-    """n clutter kinds drawn from the preset's `kinds` list (uniformly)."""
-    kinds = list(cfg.get("kinds", CLUTTER_KINDS))
-    bad = set(kinds) - set(CLUTTER_KINDS)
-    if bad or not kinds:
-        raise ValueError(f"distractors preset {cfg.get('name', '?')!r}: kinds must be a "
-                         f"non-empty subset of {list(CLUTTER_KINDS)}, got {kinds}")
+def sample_kinds(rng: np.random.Generator, n: int,
+                 preset: DistractorPreset | Mapping[str, Any]) -> list[str]:
+    """n clutter kinds drawn from the preset's ``kinds`` list (uniformly)."""
+    preset = as_config(DistractorPreset, preset, "distractors preset")
+    check_preset(preset)
+    kinds = list(preset.kinds)
     return [kinds[i] for i in rng.integers(0, len(kinds), n)]

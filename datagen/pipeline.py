@@ -25,7 +25,9 @@ class Pipeline:
     first error.
 
     Args:
-        depth: calls in flight (>= 1). ``enabled=False`` runs each call at once, in the caller.
+        depth: calls in flight (>= 1).
+        enabled: False runs each call at once, in the caller (the sequential run the
+            pipelined one's bytes are tested against).
     """
 
     def __init__(self, depth: int = 2, enabled: bool = True):

@@ -147,6 +147,68 @@ def _set(params, key: str, value: np.ndarray) -> None:
     params[key] = type(current)(np.ascontiguousarray(value))
 
 
+def _hfov_deg(camera: Camera) -> float:
+    """The horizontal field of view (degrees) of a camera the renderer can model: square
+    pixels and a centred principal point."""
+    K = camera.K
+    if abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0] or abs(K[0, 2] - (camera.width - 1) / 2) > 1e-6 \
+            or abs(K[1, 2] - (camera.height - 1) / 2) > 1e-6:
+        raise ValueError("camera: the renderer needs square pixels and a centred principal "
+                         "point (use core.camera.intrinsics)")
+    return math.degrees(2 * math.atan(camera.width / 2 / K[0, 0]))
+
+
+def _ray_norm(camera: Camera) -> np.ndarray:
+    """(H, W) |K^-1 [u, v, 1]| per pixel: ray length -> z depth factor, z = t / |...|."""
+    K = camera.K
+    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u,
+                    dtype=float)], axis=-1)
+    return np.linalg.norm(rays, axis=-1)
+
+
+def _mesh(mi, name: str, V: np.ndarray, F: np.ndarray, UV: np.ndarray | None, bsdf,
+          emitter=None):
+    """A Mitsuba mesh of vertices V (n, 3), faces F (m, 3) and optional texture coordinates
+    UV (n, 2), with a loaded bsdf and emitter."""
+    props = mi.Properties()
+    props["bsdf"] = bsdf
+    if emitter is not None:
+        props["emitter"] = emitter
+    m = mi.Mesh(name, len(V), len(F), props=props, has_vertex_normals=False,
+                has_vertex_texcoords=UV is not None)
+    p = mi.traverse(m)
+    _set(p, "vertex_positions", V.astype(np.float32).ravel())
+    _set(p, "faces", F.astype(np.uint32).ravel())
+    if UV is not None:
+        _set(p, "vertex_texcoords", UV.astype(np.float32).ravel())
+    p.update()
+    return m
+
+
+def _bitmap(mi, img: np.ndarray) -> dict:
+    """A repeating, raw (linear) bitmap texture of an (R, R, 3) image, row 0 = top."""
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.flipud(img).astype(np.float32)),
+            "wrap_mode": "repeat", "raw": True}
+
+
+def _sensors(camera: Camera, hfov: float) -> dict[str, dict]:
+    """The RGB sensor (Gaussian pixel filter) and the label sensor (box filter, one
+    un-jittered sample at each pixel centre)."""
+    film = {"type": "hdrfilm", "width": camera.width, "height": camera.height,
+            "pixel_format": "rgb"}
+    return {
+        "sensor": {"type": "perspective", "fov": hfov, "fov_axis": "x",
+                   "near_clip": 0.01, "far_clip": 1000.0,
+                   "film": {**film, "rfilter": {"type": "gaussian"}}},
+        "label_sensor": {"type": "perspective", "fov": hfov, "fov_axis": "x",
+                         "near_clip": 0.01, "far_clip": 1000.0,
+                         "sampler": {"type": "stratified", "sample_count": 1,
+                                     "jitter": False},
+                         "film": {**film, "rfilter": {"type": "box"}}},
+    }
+
+
 class CorridorRenderer:
     """Renders RGB, labels and depth of a corridor world from OpenCV-convention poses.
 
@@ -166,74 +228,19 @@ class CorridorRenderer:
 
         self.mi = mi
         self.camera = camera
-        K = camera.K
-        if abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0] or abs(K[0, 2] - (camera.width - 1) / 2) > 1e-6 \
-                or abs(K[1, 2] - (camera.height - 1) / 2) > 1e-6:
-            raise ValueError("camera: the renderer needs square pixels and a centred principal "
-                             "point (use core.camera.intrinsics)")
-        hfov = math.degrees(2 * math.atan(camera.width / 2 / K[0, 0]))
+        hfov = _hfov_deg(camera)
         self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
         self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden)
         for i in range(len(self.slots)):
             self._slot_pose[i] = np.full(3, np.nan)
-
-        def mesh(name, V, F, UV, bsdf, emitter=None):
-            props = mi.Properties()
-            props["bsdf"] = bsdf
-            if emitter is not None:
-                props["emitter"] = emitter
-            m = mi.Mesh(name, len(V), len(F), props=props, has_vertex_normals=False,
-                        has_vertex_texcoords=UV is not None)
-            p = mi.traverse(m)
-            _set(p, "vertex_positions", V.astype(np.float32).ravel())
-            _set(p, "faces", F.astype(np.uint32).ravel())
-            if UV is not None:
-                _set(p, "vertex_texcoords", UV.astype(np.float32).ravel())
-            p.update()
-            return m
-
-        def bitmap(img):
-            return {"type": "bitmap", "bitmap": mi.Bitmap(np.flipud(img).astype(np.float32)),
-                    "wrap_mode": "repeat", "raw": True}
-
-        scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
-        self.class_of: dict[str, int] = {}
-        for s in surfaces(model):
-            F = np.arange(len(s.vertices)).reshape(-1, 3)
-            if s.texture == "window":
-                bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
-                                                                         "value": 0.05}})
-                emitter = mi.load_dict({"type": "area", "radiance": bitmap(textures["window"])})
-                scene[s.name] = mesh(s.name, s.vertices, F, s.uv, bsdf, emitter)
-            else:
-                bsdf = mi.load_dict({"type": "diffuse", "reflectance": bitmap(textures[s.texture])})
-                scene[s.name] = mesh(s.name, s.vertices, F, s.uv, bsdf)
-            self.class_of[s.name] = s.class_id
-        quad = np.array([[0, 1, 2], [0, 2, 3]])
-        for i, corners in enumerate(light_panels(model)):
-            name = f"light{i}"
-            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": 1.0}})
-            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}})
-            scene[name] = mesh(name, corners, quad, None, bsdf, emitter)
-            self.class_of[name] = C.CEILING
         self.num_lights = len(model.lights)
-        for i, (m, cls) in enumerate(self.slots):
-            name = f"object{i}"
-            V = self._slot_vertices[i] + [0.0, 0.0, HIDDEN_Z]
-            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}})
-            scene[name] = mesh(name, V, np.asarray(m.faces), None, bsdf)
-            self.class_of[name] = cls
-        film = {"type": "hdrfilm", "width": camera.width, "height": camera.height,
-                "pixel_format": "rgb"}
-        scene["sensor"] = {"type": "perspective", "fov": hfov, "fov_axis": "x",
-                           "near_clip": 0.01, "far_clip": 1000.0,
-                           "film": {**film, "rfilter": {"type": "gaussian"}}}
-        scene["label_sensor"] = {"type": "perspective", "fov": hfov, "fov_axis": "x",
-                                 "near_clip": 0.01, "far_clip": 1000.0,
-                                 "sampler": {"type": "stratified", "sample_count": 1,
-                                             "jitter": False},
-                                 "film": {**film, "rfilter": {"type": "box"}}}
+        self.class_of: dict[str, int] = {}  # shape id -> class id
+        scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
+        scene.update(self._surface_shapes(model, textures))
+        scene.update(self._light_shapes(model))
+        scene.update(self._object_shapes())
+        scene.update(_sensors(camera, hfov))
         self.scene = mi.load_dict(scene)
         self.params = mi.traverse(self.scene)
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
@@ -241,11 +248,49 @@ class CorridorRenderer:
         self.albedo = mi.load_dict({"type": "aov", "aovs": "al:albedo"})
         lut, raw = self._class_lookup()
         self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
-        # Ray length -> z depth factor per pixel: z = t / |K^-1 [u, v, 1]|.
-        u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
-        rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u,
-                        dtype=float)], axis=-1)
-        self.developer = Developer(lut, raw, np.linalg.norm(rays, axis=-1))
+        self.developer = Developer(lut, raw, _ray_norm(camera))
+
+    def _surface_shapes(self, model: CorridorModel, textures: Mapping[str, np.ndarray]
+                        ) -> dict[str, object]:
+        """The model's textured surfaces (``surfaces``); the window's view is an emitter."""
+        mi, out = self.mi, {}
+        for s in surfaces(model):
+            F = np.arange(len(s.vertices)).reshape(-1, 3)
+            if s.texture == "window":
+                bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                         "value": 0.05}})
+                emitter = mi.load_dict({"type": "area",
+                                        "radiance": _bitmap(mi, textures["window"])})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf, emitter)
+            else:
+                bsdf = mi.load_dict({"type": "diffuse",
+                                     "reflectance": _bitmap(mi, textures[s.texture])})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf)
+            self.class_of[s.name] = s.class_id
+        return out
+
+    def _light_shapes(self, model: CorridorModel) -> dict[str, object]:
+        """The ceiling light panels (``light_panels``), labelled ceiling."""
+        mi, out = self.mi, {}
+        quad = np.array([[0, 1, 2], [0, 2, 3]])
+        for i, corners in enumerate(light_panels(model)):
+            name = f"light{i}"
+            emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": 1.0}})
+            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}})
+            out[name] = _mesh(mi, name, corners, quad, None, bsdf, emitter)
+            self.class_of[name] = C.CEILING
+        return out
+
+    def _object_shapes(self) -> dict[str, object]:
+        """The distractor slots, hidden below the floor until ``set_objects`` places them."""
+        mi, out = self.mi, {}
+        for i, (m, cls) in enumerate(self.slots):
+            name = f"object{i}"
+            V = self._slot_vertices[i] + [0.0, 0.0, HIDDEN_Z]
+            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}})
+            out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf)
+            self.class_of[name] = cls
+        return out
 
     def _class_lookup(self) -> tuple[np.ndarray, np.ndarray]:
         """Map aov ``shape_index`` values to class ids, and to whether the denoiser keeps the

@@ -1,66 +1,28 @@
 """Camera body poses: training samples, smooth hand-flown flights and noisy odometry.
 
 All poses are (N, 4, 4) world_from_body (body x forward, y left, z up; world Z up, corridor
-long axis +Y). Flight and odometry parameters come from a flight preset
-(conf/flights/default.yaml); a preset may hold them at its top level or under
-``trajectory`` / ``odometry``.
+long axis +Y). Flight and odometry parameters come from a flight preset (``FlightConfig``:
+its ``trajectory`` and ``odometry``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from core.poses import pose_from_xyz_rpy, wrap_angle
+from datagen.config import FlightConfig, OdometryConfig, TrajectoryConfig, as_config
 from datagen.distractors import sample_in_boxes
 
 GRAVITY = 9.81  # m/s^2
 
-#: Defaults of the flight keys (see conf/flights/default.yaml for their meaning).
-TRAJECTORY_DEFAULTS: dict[str, Any] = {
-    "speed": [0.3, 0.6],  # m/s, mean forward speed along +Y
-    "speed_variation": 0.25,  # relative smooth variation of the forward speed
-    "ramp_s": 2.0,  # s, speed-up at the start and slow-down at the end
-    "start_offset": [0.0, 0.4],  # m, start this far past the near end of the corridor
-    "height": [0.9, 1.5],  # m, centre height of the flight
-    "sway_x": 0.3,  # m, lateral sway amplitude
-    "sway_z": 0.15,  # m, height sway amplitude
-    "sway_freq_hz": [0.04, 0.25],
-    "yaw_amplitude_deg": [20.0, 40.0],  # yaw swings about +Y
-    "yaw_freq_hz": [0.02, 0.12],
-    "tilt_noise_deg": 1.0,  # smooth roll/pitch wobble on top of the acceleration tilt
-    "max_tilt_deg": 8.0,
-    "reverse": False,  # fly along -Y instead
-}
-ODOMETRY_DEFAULTS: dict[str, Any] = {
-    "trans_noise_m": 0.004,  # per-frame translation noise std (each axis)
-    "yaw_noise_deg": 0.1,  # per-frame heading-increment noise std
-    "scale_error": 0.03,  # std of the constant scale error (fraction)
-    "scale_walk": 0.003,  # random walk of the scale error, per sqrt(s)
-    "yaw_bias_deg_s": 0.15,  # std of the constant heading-rate bias
-    "yaw_bias_walk_deg_s": 0.01,  # random walk of that bias, deg/s per sqrt(s)
-    "velocity_bias_walk": 0.002,  # random walk of a velocity bias, m/s per sqrt(s)
-}
-
-
-def _section(cfg: Mapping | None, name: str, defaults: dict[str, Any]) -> dict[str, Any]:
-    """Merge cfg[name] (or cfg itself if it has no such key) over defaults."""
-    out = dict(defaults)
-    if cfg is None:
-        return out
-    node = cfg.get(name, cfg) if hasattr(cfg, "get") else cfg
-    for key in defaults:
-        value = node.get(key) if hasattr(node, "get") else None
-        if value is not None:
-            out[key] = value
-    return out
-
-
-def _pair(cfg: dict[str, Any], key: str, where: str) -> tuple[float, float]:
-    value = cfg[key]
+def _pair(cfg: Any, key: str, where: str) -> tuple[float, float]:
+    """The [min, max] pair ``cfg.<key>`` (a number: both), checked."""
+    value = getattr(cfg, key)
     try:
         lo, hi = (float(v) for v in (value if hasattr(value, "__len__") else (value, value)))
     except (TypeError, ValueError) as err:
@@ -118,7 +80,8 @@ def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
 
 
 def sample_flight_views(rng: np.random.Generator, n: int, boxes: np.ndarray,
-                        z_range: np.ndarray, presets: list[Mapping]) -> np.ndarray:
+                        z_range: np.ndarray, presets: Sequence[FlightConfig | Mapping]
+                        ) -> np.ndarray:
     """Camera body poses as the flights see the corridor, for training images.
 
     Each pose is a random frame of its own flight (``flight_trajectory``) of a random preset,
@@ -130,8 +93,8 @@ def sample_flight_views(rng: np.random.Generator, n: int, boxes: np.ndarray,
         n: number of poses.
         boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
         z_range: (2,) allowed heights (m).
-        presets: flight presets (conf/flights/default.yaml's entries), each with
-            ``num_frames`` and ``fps``.
+        presets: flight presets (``FlightConfig``, or mappings of the keys that differ from
+            its defaults).
 
     Returns:
         (n, 4, 4) world_from_body.
@@ -140,76 +103,12 @@ def sample_flight_views(rng: np.random.Generator, n: int, boxes: np.ndarray,
         raise ValueError("training.flight_views needs at least one preset under `flights`")
     out = np.empty((n, 4, 4))
     for i in range(n):
-        preset = presets[rng.integers(len(presets))]
-        trajectory = {**_section(preset, "trajectory", TRAJECTORY_DEFAULTS),
-                      "reverse": bool(rng.random() < 0.5)}
-        poses = flight_trajectory(rng, int(preset["num_frames"]), float(preset["fps"]), boxes,
-                                  z_range, {"trajectory": trajectory})
+        preset = as_config(FlightConfig, presets[rng.integers(len(presets))], "flights")
+        trajectory = replace(preset.trajectory, reverse=bool(rng.random() < 0.5))
+        poses = flight_trajectory(rng, preset.num_frames, preset.fps, boxes, z_range,
+                                  trajectory)
         out[i] = poses[rng.integers(len(poses))]
     return out
-
-
-def sample_opening_views(rng: np.random.Generator, n: int, centre: np.ndarray,
-                         inward: np.ndarray, half: np.ndarray, boxes: np.ndarray,
-                         z_range: np.ndarray, distance: tuple[float, float] = (0.4, 2.5),
-                         yaw_spread_deg: float = 20.0, max_roll_pitch_deg: float = 5.0
-                         ) -> np.ndarray:
-    """Camera body poses close to a door or window, facing it, for training images.
-
-    Each pose picks a recess (uniformly), an aim point on its mouth (uniform over it), a
-    position ``distance`` in front of the wall and up to 0.8 m to either side of the aim
-    point (positions outside the free boxes are drawn again), a height uniform in
-    ``z_range`` and a yaw towards the aim point within +/- ``yaw_spread_deg``. Close up,
-    a recess's jambs, head and sill are many pixels wide, as a flight sees them at its end,
-    facing an end wall, where a frame's few lines are mostly one opening's outline.
-
-    Args:
-        rng: random generator.
-        n: number of poses.
-        centre, inward, half: (R, 3) recess mouths (``world.recess_mouths``), m.
-        boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
-        z_range: (2,) allowed heights (m).
-        distance: (lo, hi) distance of the camera from the wall (m).
-        yaw_spread_deg: half-width of the yaw range about the aim direction, degrees.
-        max_roll_pitch_deg: roll and pitch are uniform in +/- this.
-
-    Returns:
-        (n, 4, 4) world_from_body.
-    """
-    boxes, z = _check(boxes, z_range)
-    centre, inward, half = (np.asarray(a, dtype=np.float64).reshape(-1, 3)
-                            for a in (centre, inward, half))
-    if len(centre) == 0:
-        raise ValueError("training.opening_views needs doors or windows in the world")
-    d_lo, d_hi = (float(v) for v in distance)
-    if not 0 < d_lo < d_hi:
-        raise ValueError(f"training.opening_distance must be [lo, hi] with 0 < lo < hi, "
-                         f"got {[d_lo, d_hi]}")
-    tangent = np.stack([-inward[:, 1], inward[:, 0], np.zeros(len(inward))], axis=1)
-    aim, xy = np.empty((n, 3)), np.empty((n, 2))
-    filled = 0
-    for _ in range(100):  # rejection rounds; each draws 4x what is missing
-        m = 4 * (n - filled)
-        r = rng.integers(len(centre), size=m)
-        a = centre[r] + half[r] * rng.uniform(-1, 1, (m, 3))
-        p = (a + inward[r] * rng.uniform(d_lo, d_hi, (m, 1))
-             + tangent[r] * rng.uniform(-0.8, 0.8, (m, 1)))[:, :2]
-        inside = (p[:, None] > boxes[None, :, :2]) & (p[:, None] < boxes[None, :, 2:])
-        ok = inside.all(axis=2).any(axis=1)
-        take = np.flatnonzero(ok)[: n - filled]
-        aim[filled:filled + len(take)], xy[filled:filled + len(take)] = a[take], p[take]
-        filled += len(take)
-        if filled == n:
-            break
-    else:
-        raise ValueError(f"training.opening_distance {[d_lo, d_hi]}: no camera position in "
-                         "the free space faces a door or window; make it smaller")
-    height = rng.uniform(z[0], z[1], n)
-    tilt = np.deg2rad(max_roll_pitch_deg) * rng.uniform(-1, 1, (n, 2))
-    yaw = (np.arctan2(aim[:, 1] - xy[:, 1], aim[:, 0] - xy[:, 0])
-           + np.deg2rad(yaw_spread_deg) * rng.uniform(-1, 1, n))
-    return pose_from_xyz_rpy(np.column_stack([xy, height]),
-                             np.column_stack([tilt, wrap_angle(yaw)]))
 
 
 def smooth_noise(rng: np.random.Generator, t: np.ndarray, freq_hz: tuple[float, float],
@@ -242,7 +141,7 @@ def _main_box(boxes: np.ndarray) -> np.ndarray:
 
 def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
                       boxes: np.ndarray, z_range: np.ndarray,
-                      cfg: Mapping | None = None) -> np.ndarray:
+                      trajectory: TrajectoryConfig | Mapping | None = None) -> np.ndarray:
     """A smooth hand-flown copter flight along the corridor.
 
     The copter starts near one end of the main corridor box (the box longest along Y) and
@@ -257,7 +156,8 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
         fps: frame rate (Hz).
         boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
         z_range: (2,) allowed heights (m).
-        cfg: flight preset (keys of TRAJECTORY_DEFAULTS, at top level or under `trajectory`).
+        trajectory: a flight preset's ``trajectory`` (``TrajectoryConfig``, or a mapping of
+            the keys that differ from its defaults; None: the defaults).
 
     Returns:
         (N, 4, 4) world_from_body.
@@ -265,7 +165,7 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     boxes, z = _check(boxes, z_range)
     if num_frames < 1 or fps <= 0:
         raise ValueError(f"need num_frames >= 1 and fps > 0, got {num_frames}, {fps}")
-    c = _section(cfg, "trajectory", TRAJECTORY_DEFAULTS)
+    c = as_config(TrajectoryConfig, trajectory, "flight.trajectory")
     where = "flight.trajectory"
     N, dt = int(num_frames), 1.0 / float(fps)
     t = np.arange(N) * dt
@@ -277,22 +177,22 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     start = rng.uniform(*_pair(c, "start_offset", where))
     start = min(start, 0.25 * (y1 - y0))
     D = min(speed * T, (y1 - y0) - start - 0.05 * (y1 - y0))
-    ramp = min(float(c["ramp_s"]), T / 4)
+    ramp = min(c.ramp_s, T / 4)
     rise = np.clip(t / max(ramp, 1e-9), 0, 1)
     fall = np.clip((T - t) / max(ramp, 1e-9), 0, 1)
     envelope = (3 * rise**2 - 2 * rise**3) * (3 * fall**2 - 2 * fall**3) + 0.05
-    var = min(float(c["speed_variation"]), 0.9)
+    var = min(c.speed_variation, 0.9)
     u = envelope * (1 + var * smooth_noise(rng, t, (0.03, 0.15)))
     s = np.concatenate([[0.0], np.cumsum((u[1:] + u[:-1]) / 2)])
     progress = s / s[-1] if s[-1] > 0 else np.zeros(N)
-    y = (y0 + start + D * progress) if not c["reverse"] else (y1 - start - D * progress)
+    y = (y0 + start + D * progress) if not c.reverse else (y1 - start - D * progress)
 
     # lateral and height sway, centred so the extremes stay inside
     f_sway = _pair(c, "sway_freq_hz", where)
-    ax = min(float(c["sway_x"]), 0.45 * (x1 - x0))
+    ax = min(c.sway_x, 0.45 * (x1 - x0))
     xc = rng.uniform(x0 + ax, x1 - ax)
     x = xc + ax * smooth_noise(rng, t, f_sway)
-    az = min(float(c["sway_z"]), 0.45 * (z[1] - z[0]))
+    az = min(c.sway_z, 0.45 * (z[1] - z[0]))
     h_lo, h_hi = _pair(c, "height", where)
     lo, hi = max(h_lo, z[0] + az), min(h_hi, z[1] - az)
     zc = rng.uniform(lo, hi) if lo <= hi else float(np.clip((h_lo + h_hi) / 2, z[0] + az,
@@ -300,7 +200,7 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     height = zc + az * smooth_noise(rng, t, f_sway)
 
     # yaw about the flight direction
-    heading = -np.pi / 2 if c["reverse"] else np.pi / 2
+    heading = -np.pi / 2 if c.reverse else np.pi / 2
     yaw_amp = np.deg2rad(rng.uniform(*_pair(c, "yaw_amplitude_deg", where)))
     yaw = wrap_angle(heading + yaw_amp * smooth_noise(rng, t, _pair(c, "yaw_freq_hz", where)))
 
@@ -311,17 +211,17 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
         acc = np.zeros((N, 2))
     a_fwd = np.cos(yaw) * acc[:, 0] + np.sin(yaw) * acc[:, 1]
     a_left = -np.sin(yaw) * acc[:, 0] + np.cos(yaw) * acc[:, 1]
-    wobble = np.deg2rad(float(c["tilt_noise_deg"]))
+    wobble = np.deg2rad(c.tilt_noise_deg)
     pitch = np.arctan(a_fwd / GRAVITY) + wobble * smooth_noise(rng, t, (0.2, 1.0))
     roll = -np.arctan(a_left / GRAVITY) + wobble * smooth_noise(rng, t, (0.2, 1.0))
-    max_tilt = np.deg2rad(float(c["max_tilt_deg"]))
+    max_tilt = np.deg2rad(c.max_tilt_deg)
     rpy = np.stack([np.clip(roll, -max_tilt, max_tilt), np.clip(pitch, -max_tilt, max_tilt),
                     yaw], 1)
     return pose_from_xyz_rpy(np.stack([x, y, height], 1), rpy)
 
 
-def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, cfg: Mapping | None = None,
-                   fps: float | None = None) -> np.ndarray:
+def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, fps: float,
+                   odometry: OdometryConfig | Mapping | None = None) -> np.ndarray:
     """Odometry as a copter's visual-inertial odometry would report it.
 
     Starts at groundtruth[0] and integrates the true frame-to-frame motion, expressed in
@@ -333,9 +233,9 @@ def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, cfg: Mappi
     Args:
         rng: random generator.
         groundtruth: (N, 4, 4) world_from_body.
-        cfg: flight preset (keys of ODOMETRY_DEFAULTS, at top level or under `odometry`,
-            and `fps` if the fps argument is not given).
-        fps: frame rate (Hz); default cfg['fps'], else 10.
+        fps: frame rate (Hz).
+        odometry: a flight preset's ``odometry`` (``OdometryConfig``, or a mapping of the keys
+            that differ from its defaults; None: the defaults).
 
     Returns:
         (N, 4, 4) world_from_body odometry poses.
@@ -343,9 +243,7 @@ def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, cfg: Mappi
     gt = np.asarray(groundtruth, dtype=np.float64)
     if gt.ndim != 3 or gt.shape[1:] != (4, 4):
         raise ValueError(f"groundtruth must be (N, 4, 4), got {gt.shape}")
-    c = _section(cfg, "odometry", ODOMETRY_DEFAULTS)
-    if fps is None:
-        fps = float(cfg.get("fps", 10.0)) if hasattr(cfg, "get") else 10.0
+    c = as_config(OdometryConfig, odometry, "flight.odometry")
     N, dt = len(gt), 1.0 / float(fps)
     if N < 2:
         return gt.copy()
@@ -362,13 +260,13 @@ def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, cfg: Mappi
     d = np.stack([cy * dp[:, 0] + sy * dp[:, 1], -sy * dp[:, 0] + cy * dp[:, 1], dp[:, 2]], 1)
     dyaw = wrap_angle(np.diff(yaw))
     # corrupt them
-    scale = rng.normal(0.0, float(c["scale_error"])) + walk(float(c["scale_walk"]), (M,))
-    vel_bias = walk(float(c["velocity_bias_walk"]), (M, 3))
+    scale = rng.normal(0.0, c.scale_error) + walk(c.scale_walk, (M,))
+    vel_bias = walk(c.velocity_bias_walk, (M, 3))
     d_odo = (d * (1 + scale)[:, None] + vel_bias * dt
-             + rng.normal(0.0, float(c["trans_noise_m"]), (M, 3)))
-    yaw_bias = (np.deg2rad(rng.normal(0.0, float(c["yaw_bias_deg_s"])))
-                + np.deg2rad(walk(float(c["yaw_bias_walk_deg_s"]), (M,))))
-    dyaw_odo = dyaw + yaw_bias * dt + np.deg2rad(rng.normal(0.0, float(c["yaw_noise_deg"]), M))
+             + rng.normal(0.0, c.trans_noise_m, (M, 3)))
+    yaw_bias = (np.deg2rad(rng.normal(0.0, c.yaw_bias_deg_s))
+                + np.deg2rad(walk(c.yaw_bias_walk_deg_s, (M,))))
+    dyaw_odo = dyaw + yaw_bias * dt + np.deg2rad(rng.normal(0.0, c.yaw_noise_deg, M))
     # integrate
     yaw_odo = yaw[0] + np.concatenate([[0.0], np.cumsum(dyaw_odo)])
     co, so = np.cos(yaw_odo[:-1]), np.sin(yaw_odo[:-1])

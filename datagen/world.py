@@ -13,12 +13,13 @@ floor at z = 0. "left" is -X (looking along +Y), "right" is +X.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from core import classes as C
 from core.dataset import World
+from datagen.config import WorldConfig, as_config
 from datagen.edges import extract_edges
 
 # Kinds of free-space boxes.
@@ -48,7 +49,6 @@ class CorridorModel:
     frame: np.ndarray
     lights: np.ndarray
     height: float
-    spec: dict = field(default_factory=dict)
 
 
 def _side_geometry(side: str, width: float, length: float) -> tuple[int, float, int]:
@@ -72,58 +72,35 @@ def _recess(side: str, centre: float, w: float, z0: float, z1: float, depth: flo
     return Box(tuple(lo), tuple(hi), kind, tuple(inward))
 
 
-def corridor_boxes(spec: Mapping) -> list[Box]:
-    """Free-space boxes of a corridor config (see conf/world/*.yaml)."""
-    L, W, H = float(spec["length"]), float(spec["width"]), float(spec["height"])
+def _or(value: float | None, default: float) -> float:
+    """A door's or window's own size, else the world's (``world.door`` / ``world.window``)."""
+    return default if value is None else value
+
+
+def corridor_boxes(spec: WorldConfig) -> list[Box]:
+    """Free-space boxes of a corridor config (``WorldConfig``)."""
+    L, W, H = spec.length, spec.width, spec.height
     for key, v in (("length", L), ("width", W), ("height", H)):
         if v <= 0:
             raise ValueError(f"world.{key} must be positive, got {v}")
     boxes = [Box((-W / 2, 0.0, 0.0), (W / 2, L, H), MAIN)]
-    d = spec["door"]
-    for i, door in enumerate(spec.get("doors", [])):
-        dw, dh = float(door.get("width", d["width"])), float(door.get("height", d["height"]))
+    d, win_size = spec.door, spec.window
+    for i, door in enumerate(spec.doors):
+        dw, dh = _or(door.width, d.width), _or(door.height, d.height)
         if dh >= H:
             raise ValueError(f"world.doors[{i}]: height {dh} must be below the ceiling {H}")
-        boxes.append(_recess(door["side"], float(door["at"]), dw, 0.0, dh, float(d["depth"]),
-                             DOOR_RECESS, W, L))
-    wcfg = spec["window"]
-    for i, win in enumerate(spec.get("windows", [])):
-        ww, wh = float(win.get("width", wcfg["width"])), float(win.get("height", wcfg["height"]))
-        sill = float(win.get("sill", wcfg["sill"]))
+        boxes.append(_recess(door.side, door.at, dw, 0.0, dh, d.depth, DOOR_RECESS, W, L))
+    for i, win in enumerate(spec.windows):
+        ww, wh = _or(win.width, win_size.width), _or(win.height, win_size.height)
+        sill = _or(win.sill, win_size.sill)
         if sill + wh >= H:
             raise ValueError(f"world.windows[{i}]: sill + height exceeds the ceiling {H}")
-        boxes.append(_recess(win["side"], float(win["at"]), ww, sill, sill + wh,
-                             float(wcfg["depth"]), WINDOW_RECESS, W, L))
-    for op in spec.get("openings", []):
-        boxes.append(_recess(op["side"], float(op["at"]), float(op["width"]), 0.0, H,
-                             float(op["depth"]), OPENING, W, L))
+        boxes.append(_recess(win.side, win.at, ww, sill, sill + wh, win_size.depth,
+                             WINDOW_RECESS, W, L))
+    for op in spec.openings:
+        boxes.append(_recess(op.side, op.at, op.width, 0.0, H, op.depth, OPENING, W, L))
     _check_along_walls(boxes[1:], W, L)
     return boxes
-
-
-def recess_mouths(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The door and window recesses' mouths, where they open onto the corridor.
-
-    Args:
-        boxes: the corridor's free boxes (``corridor_boxes``).
-
-    Returns:
-        centre (R, 3): the middle of each mouth, on the wall plane (m);
-        inward (R, 3): unit normal of that wall, pointing into the corridor;
-        half (R, 3): half extents of the mouth (m), 0 along the normal.
-        R = 0 (all three empty) for a corridor without doors or windows.
-    """
-    recesses = [b for b in boxes if b.kind in (DOOR_RECESS, WINDOW_RECESS)]
-    if not recesses:
-        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
-    lo = np.array([b.lo for b in recesses], dtype=np.float64)
-    hi = np.array([b.hi for b in recesses], dtype=np.float64)
-    inward = np.array([b.inward for b in recesses], dtype=np.float64)
-    centre, half = (lo + hi) / 2, (hi - lo) / 2
-    # The mouth is the box face the inward normal points out of: hi on +, lo on -.
-    centre = np.where(inward > 0, hi, np.where(inward < 0, lo, centre))
-    half = np.where(inward != 0, 0.0, half)
-    return centre, inward, half
 
 
 def _check_along_walls(features: list[Box], width: float, length: float) -> None:
@@ -194,9 +171,6 @@ def boundary_mesh(boxes: list[Box]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return vertices, faces, np.concatenate(box_list), np.concatenate(normal_list)
 
 
-FRAME_CLASSES = ("opening", "wall")
-
-
 def recess_faces(boxes: list[Box], face_box: np.ndarray,
                  normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The faces of door and window recesses, by part.
@@ -218,22 +192,19 @@ def recess_faces(boxes: list[Box], face_box: np.ndarray,
     return back, recess & ~back & ~door_floor
 
 
-def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray,
-                   frames: str = "wall") -> np.ndarray:
+def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Semantic class of each boundary face from its box kind and inward normal.
+
+    A recess's frame faces (``recess_faces``: jambs, head, sill) take the door's or window's
+    class, so the opening's class boundary is the recess's outer edge, a crease seen from
+    every side (docs/datagen.md).
 
     Args:
         face_box: (F,) box index; normal: (F, 2) [axis, sign] of the inward normal.
-        frames: class of a recess's frame faces (``recess_faces``). ``opening``: the door's or
-            window's class, so the opening's boundary is the recess's outer edge, a crease seen
-            from every side; ``wall``: wall, so the boundary is the inner edge, where a jamb a
-            few pixels wide separates it from the wall's face (docs/datagen.md).
 
     Returns:
         (F,) uint8 class ids (floor, wall, ceiling, door, window).
     """
-    if frames not in FRAME_CLASSES:
-        raise ValueError(f"world.frames={frames!r}: use one of {', '.join(FRAME_CLASSES)}")
     kind = np.array([b.kind for b in boxes])[face_box]
     axis, sign = normal[:, 0], normal[:, 1]
     cls = np.full(len(face_box), C.WALL, dtype=np.uint8)
@@ -242,19 +213,19 @@ def classify_faces(boxes: list[Box], face_box: np.ndarray, normal: np.ndarray,
     cls[up & ~(kind == WINDOW_RECESS)] = C.FLOOR
     cls[down & ~recess] = C.CEILING
     back, frame = recess_faces(boxes, face_box, normal)
-    opening = back | frame if frames == "opening" else back
+    opening = back | frame
     for k, c in ((DOOR_RECESS, C.DOOR), (WINDOW_RECESS, C.WINDOW)):
         cls[(kind == k) & opening] = c
     return cls
 
 
-def free_space(spec: Mapping, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:
+def free_space(spec: WorldConfig, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:
     """XY boxes where a camera may fly (main corridor and openings shrunk by the margin).
 
     Returns:
         boxes (B, 4) [xmin, ymin, xmax, ymax]; z_range (2,).
     """
-    m = float(spec["camera_margin"])
+    m = spec.camera_margin
     out = []
     for b in boxes:
         if b.kind in (MAIN, OPENING):
@@ -268,8 +239,8 @@ def free_space(spec: Mapping, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]
                     lo[axis] = b.lo[axis] - m
             if hi[0] > lo[0] and hi[1] > lo[1]:
                 out.append([lo[0], lo[1], hi[0], hi[1]])
-    z = np.array(spec["z_range"], dtype=np.float64)
-    H = float(spec["height"])
+    z = np.array(spec.z_range, dtype=np.float64)
+    H = spec.height
     if not (0 <= z[0] < z[1] <= H):
         raise ValueError(f"world.z_range {z.tolist()} must satisfy 0 <= lo < hi <= height {H}")
     if not out:
@@ -277,29 +248,28 @@ def free_space(spec: Mapping, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]
     return np.array(out), z
 
 
-def light_rects(spec: Mapping) -> np.ndarray:
+def light_rects(spec: WorldConfig) -> np.ndarray:
     """(L, 4) ceiling light panels [cx, cy, size_x, size_y], evenly spaced along the corridor."""
-    lc = spec["lights"]
-    n = int(lc["count"])
-    L = float(spec["length"])
+    n = spec.lights.count
+    L = spec.length
     ys = (np.arange(n) + 0.5) * L / max(n, 1)
-    sx, sy = lc["size"]
+    sx, sy = spec.lights.size
     return np.array([[0.0, y, float(sx), float(sy)] for y in ys]).reshape(-1, 4)
 
 
-def build_world(spec: Mapping) -> CorridorModel:
-    """Build the corridor model from a world config (conf/world/*.yaml)."""
+def build_world(spec: WorldConfig | Mapping | None = None) -> CorridorModel:
+    """Build the corridor model from a world config (``WorldConfig``, or a mapping of the
+    keys that differ from its defaults; None: the defaults)."""
+    spec = as_config(WorldConfig, spec, "world")
     boxes = corridor_boxes(spec)
     vertices, faces, face_box, normal = boundary_mesh(boxes)
-    face_class = classify_faces(boxes, face_box, normal, str(spec.get("frames", "wall")))
-    segments, seg_classes, crease = extract_edges(vertices, faces, face_class,
-                                                  float(spec.get("crease_deg", 20.0)))
+    face_class = classify_faces(boxes, face_box, normal)
+    segments, seg_classes, crease = extract_edges(vertices, faces, face_class, spec.crease_deg)
     fboxes, z_range = free_space(spec, boxes)
     lights = light_rects(spec)
     info = {
-        "name": spec.get("name", "corridor"),
-        "length": float(spec["length"]), "width": float(spec["width"]),
-        "height": float(spec["height"]),
+        "name": spec.name, "length": float(spec.length), "width": float(spec.width),
+        "height": float(spec.height),
         "free_space": {"boxes": fboxes.tolist(), "z_range": z_range.tolist()},
         "lights": lights.tolist(),
         "num_faces": int(len(faces)), "num_edges": int(len(segments)),
@@ -308,5 +278,4 @@ def build_world(spec: Mapping) -> CorridorModel:
                   segment_classes=seg_classes, crease_deg=crease, free_boxes=fboxes,
                   z_range=z_range, info=info)
     frame = recess_faces(boxes, face_box, normal)[1]
-    return CorridorModel(world, boxes, face_box, frame, lights, float(spec["height"]),
-                         dict(spec))
+    return CorridorModel(world, boxes, face_box, frame, lights, spec.height)

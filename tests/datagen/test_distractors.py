@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import trimesh
-from omegaconf import OmegaConf
 
+from core.config import typed
 from datagen import distractors as D
+from datagen.config import DatagenConfig
+from tests.helpers import compose_config
 
-CONF = Path(__file__).resolve().parents[2] / "conf" / "distractors"
 # the default corridor floor (x in [-1, 1], y in [0, 10]) with a side opening on the left,
 # shrunk by a small wall margin
 FLOOR = np.array([[-0.95, 0.05, 0.95, 9.95], [-2.95, 5.45, -0.95, 6.95]])
@@ -157,11 +156,16 @@ class TestPersonTracks:
         assert D.person_tracks(np.random.default_rng(0), 0, 50, 10.0, FLOOR).shape == (0, 50, 3)
 
 
+@pytest.fixture(scope="module")
+def presets():
+    """The composed config's distractor presets (``DistractorPreset``)."""
+    return typed(DatagenConfig, compose_config("datagen"), "datagen").distractor_presets
+
+
 class TestPresets:
     @pytest.mark.parametrize("name", ["none", "paper", "cluttered"])
-    def test_presets(self, name):
-        cfg = OmegaConf.load(CONF / f"{name}.yaml")
-        assert cfg.name == name
+    def test_presets(self, name, presets):
+        cfg = presets[name]
         rng = np.random.default_rng(0)
         for _ in range(20):
             n_clutter, n_people = D.preset_counts(rng, cfg)
@@ -171,15 +175,13 @@ class TestPresets:
         if name == "none":
             assert D.preset_counts(rng, cfg) == (0, 0)
 
-    def test_presets_grow(self):
-        load = [OmegaConf.load(CONF / f"{n}.yaml") for n in ("none", "paper", "cluttered")]
+    def test_presets_grow(self, presets):
+        load = [presets[n] for n in ("none", "paper", "cluttered")]
         assert load[0].clutter.max < load[1].clutter.max < load[2].clutter.min + 1
         assert load[0].people.max < load[1].people.max <= load[2].people.max
 
     def test_bad_preset(self):
         with pytest.raises(ValueError, match="clutter"):
-            D.preset_counts(np.random.default_rng(0), {"name": "x", "clutter": {"min": 3,
-                                                                               "max": 1},
-                                                       "people": {"min": 0, "max": 0}})
+            D.preset_counts(np.random.default_rng(0), {"clutter": {"min": 3, "max": 1}})
         with pytest.raises(ValueError, match="kinds"):
-            D.sample_kinds(np.random.default_rng(0), 2, {"name": "x", "kinds": ["sofa"]})
+            D.sample_kinds(np.random.default_rng(0), 2, {"kinds": ["sofa"]})

@@ -2,24 +2,30 @@
 
 from __future__ import annotations
 
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
 from scipy.spatial.transform import Rotation
 
 from core.poses import xyzyaw_from_pose
 from datagen import trajectories as TR
+from datagen.config import OdometryConfig
+from tests.helpers import compose_config
 
-CONF = Path(__file__).resolve().parents[2] / "conf" / "flights" / "default.yaml"
+CONF = Path(__file__).resolve().parents[2] / "conf"
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 Z = np.array([0.5, 2.2])
 
 
 @pytest.fixture(scope="module")
 def flights():
-    return OmegaConf.load(CONF)
+    """The composed config's flight presets (``FlightConfig``)."""
+    from core.config import typed
+    from datagen.config import DatagenConfig
+
+    return typed(DatagenConfig, compose_config("datagen"), "datagen").flights
 
 
 def rpy(T: np.ndarray) -> np.ndarray:
@@ -79,7 +85,7 @@ class TestTrainingPoses:
 
 class TestFlightViews:
     def test_posed_as_the_flights(self, flights):
-        presets = [flights.paper, flights.cluttered]
+        presets = [flights["paper"], flights["cluttered"]]
         T = TR.sample_flight_views(np.random.default_rng(0), 300, BOXES, Z, presets)
         assert T.shape == (300, 4, 4)
         assert_rigid(T)
@@ -99,57 +105,14 @@ class TestFlightViews:
             TR.sample_flight_views(np.random.default_rng(0), 2, BOXES, Z, [])
 
 
-class TestOpeningViews:
-    # a door on the left wall (x = -1) at y = 2, a window on the front wall (y = 10)
-    CENTRE = np.array([[-1.0, 2.0, 1.05], [0.0, 10.0, 1.4]])
-    INWARD = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-    HALF = np.array([[0.0, 0.45, 1.05], [0.6, 0.0, 0.5]])
-
-    def sample(self, n=400, seed=0, **kw):
-        return TR.sample_opening_views(np.random.default_rng(seed), n, self.CENTRE,
-                                       self.INWARD, self.HALF, BOXES, Z, **kw)
-
-    def test_close_to_and_facing_an_opening(self):
-        T = self.sample(distance=(0.4, 1.5), yaw_spread_deg=20.0)
-        assert T.shape == (400, 4, 4)
-        assert_rigid(T)
-        s = xyzyaw_from_pose(T)
-        inside = ((s[:, None, :2] > BOXES[:, :2]) & (s[:, None, :2] < BOXES[:, 2:])).all(2)
-        assert inside.any(axis=1).all()
-        assert np.all((s[:, 2] >= Z[0]) & (s[:, 2] <= Z[1]))
-        # 0.4-1.5 m from the wall of a recess, looking within 20 degrees of a point of its
-        # mouth: inside the angle its two ends make, widened by 20 degrees
-        ends = self.CENTRE[:, None, :2] + np.array([-1, 1])[:, None] * self.HALF[:, None, :2]
-        rays = ends[None] - s[:, None, None, :2]  # (N, R, 2 ends, 2)
-        unit = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
-        mid = np.arctan2(*unit.sum(2)[..., ::-1].transpose(2, 0, 1))
-        half = np.arccos(np.clip((unit[:, :, 0] * unit[:, :, 1]).sum(-1), -1, 1)) / 2
-        off = np.abs(np.angle(np.exp(1j * (s[:, 3, None] - mid))))
-        depth = np.abs(((s[:, None, :3] - self.CENTRE) * self.INWARD).sum(-1))
-        aimed = (off <= half + np.deg2rad(20.0) + 1e-9) & (depth >= 0.4 - 1e-9) & (depth <= 1.5)
-        assert aimed.any(axis=1).all()
-        front = s[:, 1] > 7.0  # only the window is in reach there
-        assert 0.3 < front.mean() < 0.7, "both recesses drawn"
-        assert np.abs(rpy(T)[:, :2]).max() <= np.deg2rad(5.0) + 1e-9
-        np.testing.assert_array_equal(T, self.sample(distance=(0.4, 1.5), yaw_spread_deg=20.0))
-
-    def test_bad_input_names_the_key(self):
-        with pytest.raises(ValueError, match="opening_distance"):
-            self.sample(distance=(2.0, 1.0))
-        with pytest.raises(ValueError, match="opening_distance"):
-            self.sample(distance=(30.0, 40.0))  # no free space that far from both walls
-        with pytest.raises(ValueError, match="doors or windows"):
-            TR.sample_opening_views(np.random.default_rng(0), 2, np.zeros((0, 3)),
-                                    np.zeros((0, 3)), np.zeros((0, 3)), BOXES, Z)
-
-
 class TestFlight:
     @pytest.mark.parametrize("preset", ["paper", "cluttered"])
     def test_inside_smooth_forward(self, preset, flights):
         cfg = flights[preset]
-        fps, n = float(cfg.fps), int(cfg.num_frames)
+        fps, n = cfg.fps, cfg.num_frames
         for seed in range(5):
-            T = TR.flight_trajectory(np.random.default_rng(seed), n, fps, BOXES, Z, cfg)
+            T = TR.flight_trajectory(np.random.default_rng(seed), n, fps, BOXES, Z,
+                                     cfg.trajectory)
             assert T.shape == (n, 4, 4)
             assert_rigid(T)
             s = xyzyaw_from_pose(T)
@@ -177,7 +140,7 @@ class TestFlight:
             assert np.ptp(s[:, 0]) > 0.2 and np.ptp(s[:, 2]) > 0.1
 
     def test_pitch_follows_acceleration(self, flights):
-        cfg = OmegaConf.merge(flights.paper, {"trajectory": {"tilt_noise_deg": 0.0}})
+        cfg = replace(flights["paper"].trajectory, tilt_noise_deg=0.0)
         T = TR.flight_trajectory(np.random.default_rng(0), 240, 10.0, BOXES, Z, cfg)
         s = xyzyaw_from_pose(T)
         acc = np.gradient(np.gradient(s[:, :2], 0.1, axis=0), 0.1, axis=0)
@@ -185,14 +148,15 @@ class TestFlight:
         np.testing.assert_allclose(rpy(T)[:, 1], np.arctan(a_fwd / TR.GRAVITY), atol=1e-9)
 
     def test_reverse(self, flights):
-        cfg = OmegaConf.merge(flights.paper, {"trajectory": {"reverse": True}})
+        cfg = replace(flights["paper"].trajectory, reverse=True)
         s = xyzyaw_from_pose(TR.flight_trajectory(np.random.default_rng(0), 100, 10.0, BOXES,
                                                   Z, cfg))
         assert s[-1, 1] < s[0, 1]
 
     def test_deterministic(self, flights):
-        a = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, flights.paper)
-        b = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, flights.paper)
+        cfg = flights["paper"].trajectory
+        a = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, cfg)
+        b = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, cfg)
         np.testing.assert_array_equal(a, b)
 
     def test_defaults_and_bad_input(self):
@@ -202,15 +166,15 @@ class TestFlight:
             TR.flight_trajectory(np.random.default_rng(0), 0, 10.0, BOXES, Z, None)
         with pytest.raises(ValueError, match="speed"):
             TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, BOXES, Z,
-                                 {"trajectory": {"speed": [0.8, 0.2]}})
+                                 {"speed": [0.8, 0.2]})
 
 
 class TestOdometry:
     def make(self, flights, seed):
-        cfg = flights.paper
+        cfg = flights["paper"]
         rng = np.random.default_rng(seed)
-        gt = TR.flight_trajectory(rng, int(cfg.num_frames), float(cfg.fps), BOXES, Z, cfg)
-        return gt, TR.noisy_odometry(rng, gt, cfg)
+        gt = TR.flight_trajectory(rng, cfg.num_frames, cfg.fps, BOXES, Z, cfg.trajectory)
+        return gt, TR.noisy_odometry(rng, gt, cfg.fps, cfg.odometry)
 
     def test_starts_at_truth_keeps_roll_pitch(self, flights):
         gt, od = self.make(flights, 0)
@@ -238,26 +202,25 @@ class TestOdometry:
         assert 0.005 * distance < np.mean(end) < 0.15 * distance  # a few % of the distance
 
     def test_noise_free_is_exact(self, flights):
-        zero = {k: 0.0 for k in TR.ODOMETRY_DEFAULTS}
-        gt = TR.flight_trajectory(np.random.default_rng(1), 60, 10.0, BOXES, Z, flights.paper)
-        od = TR.noisy_odometry(np.random.default_rng(1), gt, {"odometry": zero}, fps=10.0)
+        zero = OdometryConfig(**{f.name: 0.0 for f in fields(OdometryConfig)})
+        gt = TR.flight_trajectory(np.random.default_rng(1), 60, 10.0, BOXES, Z,
+                                  flights["paper"].trajectory)
+        od = TR.noisy_odometry(np.random.default_rng(1), gt, 10.0, zero)
         np.testing.assert_allclose(od, gt, atol=1e-9)
 
     def test_deterministic_and_bad_input(self, flights):
-        gt = TR.flight_trajectory(np.random.default_rng(1), 30, 10.0, BOXES, Z, flights.paper)
-        a = TR.noisy_odometry(np.random.default_rng(2), gt, flights.paper)
-        b = TR.noisy_odometry(np.random.default_rng(2), gt, flights.paper)
+        paper = flights["paper"]
+        gt = TR.flight_trajectory(np.random.default_rng(1), 30, 10.0, BOXES, Z, paper.trajectory)
+        a = TR.noisy_odometry(np.random.default_rng(2), gt, paper.fps, paper.odometry)
+        b = TR.noisy_odometry(np.random.default_rng(2), gt, paper.fps, paper.odometry)
         np.testing.assert_array_equal(a, b)
         with pytest.raises(ValueError, match="groundtruth"):
-            TR.noisy_odometry(np.random.default_rng(0), gt[:, :3], flights.paper)
+            TR.noisy_odometry(np.random.default_rng(0), gt[:, :3], paper.fps, paper.odometry)
 
 
 def test_flight_presets(flights):
     """Both presets exist and name a distractors preset that exists."""
     assert {"paper", "cluttered"} <= set(flights)
-    conf = CONF.parents[1] / "distractors"
     for name, preset in flights.items():
-        assert (conf / f"{preset.distractors}.yaml").is_file(), name
+        assert (CONF / "distractors" / f"{preset.distractors}.yaml").is_file(), name
         assert preset.num_frames > 0 and preset.fps > 0
-        assert set(preset.trajectory) <= set(TR.TRAJECTORY_DEFAULTS), name
-        assert set(preset.odometry) <= set(TR.ODOMETRY_DEFAULTS), name

@@ -8,7 +8,7 @@ import trimesh
 
 from core import classes as C
 from datagen.edges import extract_edges
-from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces, recess_mouths
+from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces
 from tests.helpers import compose_config
 
 
@@ -58,8 +58,8 @@ class TestCorridor:
         np.testing.assert_allclose(normals[w.face_class == C.FLOOR] - [0, 0, 1], 0, atol=1e-9)
         np.testing.assert_allclose(normals[w.face_class == C.CEILING] - [0, 0, -1], 0, atol=1e-9)
 
-    def test_opening_frames_add_jambs_and_head_to_the_door(self, spec):
-        w = build_world({**spec, "frames": "opening"}).world
+    def test_frames_add_jambs_and_head_to_the_door(self, model, spec):
+        w = model.world
         area = trimesh.Trimesh(w.vertices, w.faces, process=False).area_faces
         d = spec["door"]
         leaf = d["width"] * d["height"]
@@ -67,18 +67,8 @@ class TestCorridor:
         np.testing.assert_allclose(area[w.face_class == C.DOOR].sum(),
                                    len(spec["doors"]) * (leaf + frame))
 
-    def test_wall_frames_leave_only_the_leaf(self, spec):
-        w = build_world({**spec, "frames": "wall"}).world
-        area = trimesh.Trimesh(w.vertices, w.faces, process=False).area_faces
-        d = spec["door"]
-        np.testing.assert_allclose(area[w.face_class == C.DOOR].sum(),
-                                   len(spec["doors"]) * d["width"] * d["height"])
-        # the recess's outer edge is wall | wall there, its inner edge wall | door
-        pairs = {tuple(sorted(p)) for p in w.segment_classes.tolist()}
-        assert (C.WALL, C.DOOR) in pairs
-
-    def test_opening_frames_put_the_boundary_on_the_outer_edge(self, spec):
-        w = build_world({**spec, "frames": "opening"}).world
+    def test_frames_put_the_boundary_on_the_outer_edge(self, model, spec):
+        w = model.world
         seg, pairs = w.segments, np.sort(w.segment_classes, axis=1)
         is_wd = (pairs == [C.WALL, C.DOOR]).all(axis=1)
         # a wall | door line lies in a corridor wall's plane (x = +-width/2 or y = 0), not
@@ -87,10 +77,6 @@ class TestCorridor:
         on_side = np.isclose(x, spec["width"] / 2).all(axis=1)
         on_back = np.isclose(seg[is_wd][..., 1], 0.0).all(axis=1)
         assert is_wd.any() and (on_side | on_back).all()
-
-    def test_bad_frames_value_names_the_key(self, spec):
-        with pytest.raises(ValueError, match="world.frames"):
-            build_world({**spec, "frames": "jamb"})
 
     def test_edges_are_model_edges(self, model):
         w = model.world
@@ -105,15 +91,14 @@ class TestCorridor:
         lengths = np.linalg.norm(d, axis=1)
         assert lengths.max() > 5.0
 
-    @pytest.mark.parametrize("frames,floor_lines", [("opening", 3), ("wall", 1)])
-    def test_door_outline(self, spec, frames, floor_lines):
+    def test_door_outline(self, model, spec):
         """Each door is outlined by wall | door lines (top, two sides) and floor | door lines
-        (the leaf's bottom; with door-class frames the two jambs' bottoms too)."""
-        w = build_world({**spec, "frames": frames}).world
+        (the leaf's bottom and the two door-class jambs' bottoms)."""
+        w = model.world
         pairs = np.sort(w.segment_classes, axis=1)
         n = len(spec["doors"])
         assert (pairs == [C.WALL, C.DOOR]).all(axis=1).sum() == 3 * n
-        assert (pairs == [C.FLOOR, C.DOOR]).all(axis=1).sum() == floor_lines * n
+        assert (pairs == [C.FLOOR, C.DOOR]).all(axis=1).sum() == 3 * n
         windows = (pairs == [C.WALL, C.WINDOW]).all(axis=1).sum()
         assert windows == 4 * len(spec["windows"])
 
@@ -122,28 +107,14 @@ class TestCorridor:
         assert b[0].tolist() == pytest.approx([-0.7, 0.3, 0.7, 9.7])
         assert (b[:, 2] > b[:, 0]).all() and (b[:, 3] > b[:, 1]).all()
 
-    def test_recess_mouths_lie_on_their_walls(self, model, spec):
-        centre, inward, half = recess_mouths(model.boxes)
-        assert len(centre) == len(spec["doors"]) + len(spec["windows"])
-        W, L = spec["width"], spec["length"]
-        # each mouth is on a wall plane, its normal points back into the corridor
-        on_side = np.isclose(np.abs(centre[:, 0]), W / 2) & (inward[:, 0] == -np.sign(centre[:, 0]))
-        towards_middle = np.where(centre[:, 1] == 0, 1, -1)
-        on_end = np.isin(centre[:, 1], [0.0, L]) & (inward[:, 1] == towards_middle)
-        assert np.all(on_side ^ on_end)
-        np.testing.assert_array_equal(half[inward != 0], 0.0)
-        door = spec["door"]
-        first = spec["doors"][0]
-        np.testing.assert_allclose([centre[0, 1], half[0, 1]], [first["at"], door["width"] / 2])
-        np.testing.assert_allclose(centre[0, 2], door["height"] / 2)
-        np.testing.assert_allclose(half[0, 2], door["height"] / 2)
-        bare = recess_mouths([Box((0, 0, 0), (1, 1, 1), MAIN)])
-        assert all(a.shape == (0, 3) for a in bare)
-
     @pytest.mark.parametrize("key,value", [("width", -1.0), ("height", 0.0)])
     def test_bad_sizes(self, spec, key, value):
         with pytest.raises(ValueError, match=f"world.{key}"):
             build_world({**spec, key: value})
+
+    def test_unknown_key_names_it(self, spec):
+        with pytest.raises(ValueError, match="world.frames: Key 'frames' not in 'WorldConfig'"):
+            build_world({**spec, "frames": "opening"})
 
     def test_door_outside_wall(self, spec):
         with pytest.raises(ValueError, match="outside the wall"):
@@ -154,13 +125,11 @@ class TestCorridor:
             build_world({**spec, "doors": [{"side": "up", "at": 2.0}]})
 
 
-@pytest.mark.parametrize("frames", ["wall", "opening"])
-def test_render_surfaces_cover_every_face_once_with_its_class(spec, frames):
+def test_render_surfaces_cover_every_face_once_with_its_class(model):
     """Each face is in exactly one textured surface, whose class is the face's; the frames
     keep the frame texture whatever their class."""
     from datagen.render import surfaces
 
-    model = build_world({**spec, "frames": frames})
     w = model.world
     surf = surfaces(model)
     assert sum(len(s.vertices) for s in surf) == 3 * len(w.faces)
@@ -171,4 +140,4 @@ def test_render_surfaces_cover_every_face_once_with_its_class(spec, frames):
         idx = [int(np.flatnonzero(np.abs(tri - t).sum(axis=(1, 2)) < 1e-9)[0]) for t in v]
         assert (w.face_class[idx] == s.class_id).all(), s.name
     frames_by_class = {s.class_id for s in surf if s.texture == "frame"}
-    assert frames_by_class == ({C.WALL} if frames == "wall" else {C.DOOR, C.WINDOW})
+    assert frames_by_class == {C.DOOR, C.WINDOW}

@@ -1,0 +1,373 @@
+"""The settings of ``python -m datagen``: the schema of conf/datagen.yaml, and its defaults.
+
+Hydra composes conf/datagen.yaml's groups (``conf/world/``, ``conf/camera/``,
+``conf/render/``, ``conf/appearance/``, ``conf/flights/``, ``conf/distractors/``) and the
+command line onto ``DatagenConfig`` (registered as ``datagen_schema``), so every default is
+written here once, and an unknown key or a value of the wrong type fails at start-up naming
+the key. Lengths are in metres, angles in degrees, times in seconds. See docs/datagen.md for
+what the options do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+from omegaconf import MISSING
+
+from core.config import register_schema, typed
+
+T = TypeVar("T")
+
+
+# --------------------------------------------------------------------------- world
+
+
+@dataclass
+class DoorSize:
+    """Size of every door recess (``world.door``); a door of ``world.doors`` may set its own
+    width and height."""
+
+    width: float = 0.9  # m
+    height: float = 2.1  # m
+    depth: float = 0.08  # m, how far the recess goes into the wall
+
+
+@dataclass
+class WindowSize:
+    """Size of every window recess (``world.window``); a window of ``world.windows`` may set
+    its own width, height and sill."""
+
+    width: float = 1.2  # m
+    height: float = 1.0  # m
+    sill: float = 0.9  # m, height of the window's bottom above the floor
+    depth: float = 0.12  # m
+
+
+@dataclass
+class DoorAt:
+    """A door: ``side`` left (-X) | right (+X) | back (y = 0) | front (y = length), ``at`` its
+    centre along that wall (m); width and height None: ``world.door``'s."""
+
+    side: str = MISSING
+    at: float = MISSING
+    width: float | None = None
+    height: float | None = None
+
+
+@dataclass
+class WindowAt:
+    """A window (``side``, ``at`` as for a door); width, height and sill None:
+    ``world.window``'s."""
+
+    side: str = MISSING
+    at: float = MISSING
+    width: float | None = None
+    height: float | None = None
+    sill: float | None = None
+
+
+@dataclass
+class OpeningAt:
+    """A side corridor or junction, full height (``side``, ``at`` as for a door)."""
+
+    side: str = MISSING
+    at: float = MISSING
+    width: float = MISSING  # m, along the wall
+    depth: float = MISSING  # m, into the wall
+
+
+@dataclass
+class LightPanels:
+    """Ceiling light panels, evenly spaced along the corridor (``world.lights``)."""
+
+    count: int = 5
+    size: list[float] = field(default_factory=lambda: [0.6, 1.2])  # m, (x, y) of a panel
+
+
+@dataclass
+class WorldConfig:
+    """The corridor (``world``, datagen/world.py): by default the paper's environment, a 10 m
+    office corridor, long side along +Y, doors on both sides. A recess's jambs, head and sill
+    take the door's / window's class, so the class boundary is the recess's outer edge
+    (docs/datagen.md)."""
+
+    name: str = "corridor_paper"
+    length: float = 10.0  # m, along +Y
+    width: float = 2.0  # m, x in [-width/2, width/2]
+    height: float = 2.8  # m
+    crease_deg: float = 20.0  # faces meeting at a larger angle make a model edge
+    camera_margin: float = 0.3  # m kept between a camera and any wall (free space for poses)
+    z_range: list[float] = field(default_factory=lambda: [0.5, 2.2])  # m, camera heights
+    # for training poses and flights
+    door: DoorSize = field(default_factory=DoorSize)
+    window: WindowSize = field(default_factory=WindowSize)
+    doors: list[DoorAt] = field(default_factory=lambda: [
+        DoorAt("left", 1.6), DoorAt("left", 4.0), DoorAt("left", 8.4), DoorAt("right", 2.4),
+        DoorAt("right", 5.4), DoorAt("right", 8.0), DoorAt("back", 0.0)])
+    windows: list[WindowAt] = field(default_factory=lambda: [
+        WindowAt("front", 0.0), WindowAt("right", 3.9, width=0.8)])
+    openings: list[OpeningAt] = field(default_factory=lambda: [
+        OpeningAt("left", 6.2, width=1.6, depth=2.0)])
+    lights: LightPanels = field(default_factory=LightPanels)
+
+
+# --------------------------------------------------------------------------- camera, render
+
+
+@dataclass
+class MountConfig:
+    """The camera on the copter (``camera.mount``): body_from_cam, body frame x forward,
+    y left, z up."""
+
+    xyz: list[float] = field(default_factory=lambda: [0.10, 0.0, 0.0])  # m, camera centre
+    pitch_deg: float = 0.0  # positive tilts the camera down
+
+
+@dataclass
+class CameraConfig:
+    """The forward camera (``camera``). The image size must stay fixed for one dataset."""
+
+    width: int = 320  # px
+    height: int = 240  # px
+    hfov_deg: float = 70.0  # horizontal field of view
+    mount: MountConfig = field(default_factory=MountConfig)
+
+
+@dataclass
+class RenderConfig:
+    """Mitsuba's rendering (``render``, datagen/render.py)."""
+
+    variant: str = "auto"  # auto: llvm_ad_rgb if LLVM works, else scalar_rgb (with a warning)
+    spp: int = 1  # path-tracer samples per pixel (RGB; the denoiser removes the noise)
+    max_depth: int = 3  # path length (3 = direct light + one bounce)
+    denoise_sigma_px: float = 4.0  # shading blur of the albedo-demodulation denoiser (0 = off)
+    exposure: float = 1.6  # linear scale before sRGB encoding
+    depth: bool = False  # also write depth/NNNNNN.png (uint16 millimetres)
+
+
+# --------------------------------------------------------------------------- appearance
+
+
+@dataclass
+class FeatureProbs:
+    """Probability of each optional texture feature per sample (``appearance.prob``)."""
+
+    dado: float = 0.5  # dado rail at ~0.8-1.05 m
+    two_tone: float = 0.35  # different paint below the dado height
+    sockets: float = 0.6  # wall socket and light switch plates
+    door_panels: float = 0.65  # inset panels on the door
+    door_glass: float = 0.3  # vision pane in the door
+    door_number: float = 0.5  # room-number plate
+    kick_plate: float = 0.3  # metal plate at the bottom of the door
+    ceiling_vent: float = 0.6  # a ventilation grille tile
+    ceiling_stain: float = 0.3  # a water stain on a ceiling tile
+    frame_matches_door: float = 0.3  # the door frame has the door's texture
+
+
+@dataclass
+class LightsAppearance:
+    """The ceiling lights of a scene (``appearance.lights``)."""
+
+    on_fraction: list[float] = field(default_factory=lambda: [0.4, 1.0])  # fraction of the
+    # panels switched on (at least one), [min, max]
+    intensity: list[float] = field(default_factory=lambda: [4.0, 12.0])  # emitted radiance
+    # of a panel (linear RGB luminance), [min, max]
+    jitter: float = 0.15  # relative per-panel intensity variation
+    temperature_k: list[float] = field(default_factory=lambda: [2700.0, 6500.0])  # colour
+    # temperature, [min, max] (one per scene, +/-150 K per panel)
+
+
+@dataclass
+class Roughness:
+    """Uniform [min, max] roughness per surface (``appearance.materials.roughness``)."""
+
+    floor: list[float] = field(default_factory=lambda: [0.15, 0.7])
+    wall: list[float] = field(default_factory=lambda: [0.5, 1.0])
+    ceiling: list[float] = field(default_factory=lambda: [0.7, 1.0])
+    door: list[float] = field(default_factory=lambda: [0.3, 0.8])
+    frame: list[float] = field(default_factory=lambda: [0.2, 0.7])
+    clutter: list[float] = field(default_factory=lambda: [0.3, 0.9])
+    person: list[float] = field(default_factory=lambda: [0.5, 1.0])
+
+
+@dataclass
+class Materials:
+    """Surface materials (``appearance.materials``)."""
+
+    roughness: Roughness = field(default_factory=Roughness)
+    tint_jitter: float = 0.08  # per-channel darkening of textured surfaces (tint <= 1)
+
+
+@dataclass
+class AppearanceConfig:
+    """Appearance randomization (``appearance``, datagen/appearance.py): procedural
+    textures, materials and lights. Every texture is (resolution, resolution, 3) linear
+    RGB; 512 costs about 4x the time of 256 (sharper posters and grout)."""
+
+    resolution: int = 256
+    floor_styles: dict[str, float] = field(default_factory=lambda: {
+        "tiles": 0.45, "wood": 0.3, "carpet": 0.25})  # probabilities (normalized)
+    door_styles: dict[str, float] = field(default_factory=lambda: {
+        "wood": 0.5, "painted": 0.5})
+    posters: list[int] = field(default_factory=lambda: [1, 4])  # posters / signs / notice
+    # boards per 4 m of wall, [min, max]
+    prob: FeatureProbs = field(default_factory=FeatureProbs)
+    lights: LightsAppearance = field(default_factory=LightsAppearance)
+    materials: Materials = field(default_factory=Materials)
+
+
+# --------------------------------------------------------------------------- distractors
+
+
+@dataclass
+class CountRange:
+    """How many objects of a kind per image or flight, uniform in [min, max]."""
+
+    min: int = 0
+    max: int = 0
+
+
+@dataclass
+class DistractorPreset:
+    """A distractors preset (``distractor_presets.<name>``, the ``conf/distractors/`` group;
+    datagen/distractors.py): furniture-like objects (class clutter) and walking people. The
+    defaults are the ``none`` preset: no distractors."""
+
+    clutter: CountRange = field(default_factory=CountRange)  # furniture-like objects
+    people: CountRange = field(default_factory=CountRange)  # person figures
+    kinds: list[str] = field(default_factory=lambda: [
+        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly
+    against_walls: float = 0.7  # probability an object stands against a wall
+    wall_margin: float = 0.05  # m kept between an object's footprint and a wall
+    camera_keepout_m: float = 0.6  # m kept clear around the camera (and along a flight path)
+    person_radius: float = 0.3  # m, footprint used for placement and walking
+    person_speed: list[float] = field(default_factory=lambda: [0.6, 1.4])  # m/s, [min, max]
+
+
+# --------------------------------------------------------------------------- flights
+
+
+@dataclass
+class TrajectoryConfig:
+    """A hand-flown pass along the corridor (``flights.<name>.trajectory``,
+    datagen/trajectories.py ``flight_trajectory``); pairs are [min, max], drawn per flight."""
+
+    speed: list[float] = field(default_factory=lambda: [0.3, 0.45])  # m/s, mean forward
+    # speed (capped so the flight ends inside)
+    speed_variation: float = 0.25  # relative smooth variation of the forward speed
+    ramp_s: float = 2.0  # s of speed-up at the start and slow-down at the end
+    start_offset: list[float] = field(default_factory=lambda: [0.0, 0.4])  # m past the near
+    # end of the free corridor
+    height: list[float] = field(default_factory=lambda: [1.0, 1.5])  # m, centre height (sway
+    # added, kept inside world.z_range)
+    sway_x: float = 0.3  # m, lateral sway amplitude
+    sway_z: float = 0.15  # m, height sway amplitude
+    sway_freq_hz: list[float] = field(default_factory=lambda: [0.04, 0.25])
+    yaw_amplitude_deg: list[float] = field(default_factory=lambda: [20.0, 35.0])  # yaw swings
+    # about the flight direction
+    yaw_freq_hz: list[float] = field(default_factory=lambda: [0.02, 0.12])
+    tilt_noise_deg: float = 1.0  # roll/pitch wobble on top of the acceleration tilt
+    max_tilt_deg: float = 8.0
+    reverse: bool = False  # true: fly along -Y
+
+
+@dataclass
+class OdometryConfig:
+    """The drifting VIO-like odometry of a flight (``flights.<name>.odometry``,
+    datagen/trajectories.py ``noisy_odometry``)."""
+
+    trans_noise_m: float = 0.004  # per-frame translation noise std (each axis)
+    yaw_noise_deg: float = 0.1  # per-frame heading-increment noise std
+    scale_error: float = 0.03  # std of the constant scale error (fraction of distance)
+    scale_walk: float = 0.003  # random walk of the scale error per sqrt(s)
+    yaw_bias_deg_s: float = 0.15  # std of the constant heading-rate bias
+    yaw_bias_walk_deg_s: float = 0.01  # random walk of that bias, deg/s per sqrt(s)
+    velocity_bias_walk: float = 0.002  # random walk of a velocity bias, m/s per sqrt(s)
+
+
+@dataclass
+class FlightConfig:
+    """An evaluation flight preset (``flights.<name>``): a smooth hand-flown pass along the
+    corridor (+Y) with ground truth and noisy odometry. The defaults are the ``paper``
+    preset, like the paper's: the 10 m corridor flown by hand."""
+
+    num_frames: int = 240
+    fps: float = 10.0
+    distractors: str = "paper"  # a key of distractor_presets (conf/distractors/<name>.yaml)
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+
+
+def default_flights() -> dict[str, FlightConfig]:
+    """The flight presets: ``paper``, and ``cluttered``, the same kind of flight through a
+    busy corridor."""
+    cluttered = TrajectoryConfig(speed_variation=0.3, sway_x=0.35, sway_z=0.2,
+                                 sway_freq_hz=[0.04, 0.3], yaw_amplitude_deg=[25.0, 40.0],
+                                 yaw_freq_hz=[0.02, 0.15])
+    return {"paper": FlightConfig(),
+            "cluttered": FlightConfig(distractors="cluttered", trajectory=cluttered)}
+
+
+# --------------------------------------------------------------------------- the job
+
+
+@dataclass
+class Splits:
+    """Images per split (training data is what the SegNet's accuracy depends on most;
+    docs/train.md)."""
+
+    train: int = 6400
+    val: int = 40
+    test: int = 60
+
+
+@dataclass
+class TrainingConfig:
+    """Poses and distractors of the training images (``training``)."""
+
+    distractors: dict[str, float] = field(default_factory=lambda: {
+        "none": 0.2, "paper": 0.4, "cluttered": 0.4})  # preset mix of training images
+    max_roll_pitch_deg: float = 5.0
+    yaw_along_corridor: float = 0.75  # share of images looking along the corridor (+/-Y), as
+    # flights do, within +/- yaw_spread_deg; the rest have a uniform yaw
+    yaw_spread_deg: float = 50.0
+    flight_views: float = 0.5  # share of images posed as a random frame of a flight (a
+    # `flights` preset, along +Y or -Y): the flights' heights, sway, yaw swings and tilts;
+    # 0 = none (docs/datagen.md)
+    chunk: int = 40  # images sharing one set of distractor meshes (one scene load)
+
+
+@dataclass
+class DatagenConfig:
+    """``python -m datagen``: labeled corridor renders and evaluation flights."""
+
+    name: str = "demo"  # dataset name
+    out_dir: str = "outputs/datasets/${name}"  # where the dataset is written
+    seed: int = 0
+    splits: Splits = field(default_factory=Splits)
+    training: TrainingConfig = field(default_factory=TrainingConfig)
+    render_flights: list[str] = field(default_factory=lambda: ["paper", "cluttered"])  # keys
+    # of `flights` to render
+    shard: int = 0  # this process renders shard `shard` of `num_shards` frame ranges
+    num_shards: int = 1
+    overwrite: bool = False  # true: empty an existing dataset made with another config (one
+    # that differs only by larger `splits` counts or more `render_flights` is grown, not
+    # emptied; docs/outputs.md)
+    progress: bool = True  # tqdm progress bars (not part of the dataset's config hash)
+    world: WorldConfig = field(default_factory=WorldConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
+    flights: dict[str, FlightConfig] = field(default_factory=default_flights)
+    distractor_presets: dict[str, DistractorPreset] = field(default_factory=dict)  # name ->
+    # preset, from the conf/distractors/ group (conf/datagen.yaml's defaults list)
+
+
+def as_config(cls: type[T], cfg: Any, where: str) -> T:
+    """``cfg`` if it is a ``cls`` already, else ``typed(cls, cfg, where)`` (a mapping or a
+    DictConfig, possibly partial; None: the defaults)."""
+    return cfg if isinstance(cfg, cls) else typed(cls, cfg, where)
+
+
+register_schema("datagen_schema", DatagenConfig)
