@@ -9,7 +9,7 @@ for a plain mapping (library use, tests, settings read back from a model folder)
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from typing import TypeVar
 
 from hydra.core.config_store import ConfigStore
@@ -48,17 +48,3 @@ def typed(cls: type[T], cfg: Mapping | None, where: str) -> T:
                          ) from None
     return OmegaConf.to_object(merged)
 
-
-def reject_unknown_keys(given: Iterable[str], known: Iterable[str], what: str) -> None:
-    """Raise ValueError naming the keys of ``given`` that are not in ``known`` (a typo in a
-    config or an override), and listing the known ones.
-
-    Args:
-        given: the keys found.
-        known: the keys allowed.
-        what: what the keys are, for the message, e.g. ``"filter settings"``.
-    """
-    known = set(known)
-    unknown = set(given) - known
-    if unknown:
-        raise ValueError(f"unknown {what} {sorted(unknown)}; known: {sorted(known)}")
