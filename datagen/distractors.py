@@ -470,8 +470,10 @@ class _Crowd:
 
 
 def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fps: float,
-                  boxes: np.ndarray, speed: tuple[float, float] = (0.6, 1.4),
-                  radius: float = 0.3, obstacles: np.ndarray | None = None,
+                  boxes: np.ndarray,
+                  speed: tuple[float, float] = tuple(DistractorPreset().person_speed),
+                  radius: float = DistractorPreset.person_radius,
+                  obstacles: np.ndarray | None = None,
                   avoid: np.ndarray | None = None, avoid_radius: float = 0.5,
                   max_turn_deg_s: float = 180.0, patience_s: float = 2.0) -> np.ndarray:
     """Trajectories of people walking up and down the corridor.

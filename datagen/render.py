@@ -24,6 +24,7 @@ import trimesh
 from core import classes as C
 from core.camera import mitsuba_to_world
 from core.dataset import Camera
+from datagen.config import RenderConfig
 from datagen.denoise import denoise, segment_ids
 from datagen.world import CorridorModel
 
@@ -223,7 +224,7 @@ class CorridorRenderer:
 
     def __init__(self, model: CorridorModel, camera: Camera, textures: Mapping[str, np.ndarray],
                  clutter: Sequence[trimesh.Trimesh] = (), people: Sequence[trimesh.Trimesh] = (),
-                 max_depth: int = 3):
+                 max_depth: int = RenderConfig.max_depth):
         import mitsuba as mi
 
         self.mi = mi
@@ -367,7 +368,8 @@ class CorridorRenderer:
 
     # --- rendering -------------------------------------------------------------------------
 
-    def render(self, spp: int, seed: int, exposure: float = 1.0, denoise_sigma_px: float = 4.0
+    def render(self, spp: int, seed: int, exposure: float = RenderConfig.exposure,
+               denoise_sigma_px: float = RenderConfig.denoise_sigma_px
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Render the current view: ``develop(trace(...))``.
 
@@ -405,7 +407,8 @@ class CorridorRenderer:
                                   seed=int(seed)))[..., :3] if albedo else None)
         return Traced(aux, rgb, alb)
 
-    def develop(self, traced: Traced, exposure: float = 1.0, denoise_sigma_px: float = 4.0
+    def develop(self, traced: Traced, exposure: float = RenderConfig.exposure,
+               denoise_sigma_px: float = RenderConfig.denoise_sigma_px
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``self.developer.develop``: see ``Developer.develop``."""
         return self.developer.develop(traced, exposure, denoise_sigma_px)
@@ -425,7 +428,8 @@ class Developer:
     raw: np.ndarray
     ray_norm: np.ndarray
 
-    def develop(self, traced: Traced, exposure: float = 1.0, denoise_sigma_px: float = 4.0
+    def develop(self, traced: Traced, exposure: float = RenderConfig.exposure,
+               denoise_sigma_px: float = RenderConfig.denoise_sigma_px
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Labels, depth and the denoised sRGB image of a traced view.
 

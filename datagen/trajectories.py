@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from core.poses import pose_from_xyz_rpy, wrap_angle
-from datagen.config import FlightConfig, OdometryConfig, TrajectoryConfig, as_config
+from datagen.config import FlightConfig, OdometryConfig, TrainingConfig, TrajectoryConfig, as_config
 from datagen.distractors import sample_in_boxes
 
 GRAVITY = 9.81  # m/s^2
@@ -44,9 +44,10 @@ def _check(boxes: np.ndarray, z_range: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
-                          z_range: np.ndarray, max_roll_pitch_deg: float = 5.0,
-                          along_fraction: float = 0.0,
-                          along_spread_deg: float = 50.0) -> np.ndarray:
+                          z_range: np.ndarray,
+                          max_roll_pitch_deg: float = TrainingConfig.max_roll_pitch_deg,
+                          along_fraction: float = TrainingConfig.yaw_along_corridor,
+                          along_spread_deg: float = TrainingConfig.yaw_spread_deg) -> np.ndarray:
     """Camera body poses spread over the free space, for training images.
 
     Args:

@@ -229,8 +229,8 @@ class TrainConfig:
         dataset: a dataset made by ``python -m datagen`` (relative to the working dir).
         out_root: the folder of the model folders.
         seed: seeds the initial weights, the shuffling and the augmentation.
-        precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AVX512-BF16 or
-            AMX): bfloat16 autocast for the training forward pass.
+        precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AMX tiles):
+            bfloat16 autocast for the training forward pass.
         threads: torch intra-op threads (and onnxruntime's for the export's check).
         epochs: the one-cycle schedule's span, sized to end within ``max_minutes`` on 2
             cores.

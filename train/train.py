@@ -121,15 +121,15 @@ def config_hash(train_cfg: dict, dataset_json: bytes) -> str:
 def resolve_precision(precision: str) -> bool:
     """Whether to train in bfloat16 autocast for ``precision`` (the ``precision`` key).
 
-    "bf16" uses bfloat16 convolutions (oneDNN; about 1.5-2.5x faster where the CPU has
-    AVX512-BF16 or AMX, emulated and slow elsewhere), "fp32" never does, "auto" does where the
-    CPU supports bfloat16 natively. Weights, optimizer state, validation, the test metrics and
-    the ONNX export stay float32.
+    "bf16" uses bfloat16 convolutions (oneDNN), "fp32" never does, "auto" does where the CPU
+    has AMX tiles. AVX512-BF16 alone is not enough: on such a 2-core CPU a demo training step
+    takes 1.3-1.4x longer in bfloat16 than in float32 (docs/train.md). Weights, optimizer
+    state, validation, the test metrics and the ONNX export stay float32.
     """
     if precision not in ("auto", "bf16", "fp32"):
         raise ValueError(f"precision={precision!r}: use auto, bf16 or fp32")
     if precision == "auto":
-        return bool(torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported())
+        return bool(torch.cpu._is_amx_tile_supported())
     return precision == "bf16"
 
 

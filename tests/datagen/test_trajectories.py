@@ -42,7 +42,8 @@ def assert_rigid(T: np.ndarray) -> None:
 
 class TestTrainingPoses:
     def test_inside_and_bounded(self):
-        T = TR.sample_training_poses(np.random.default_rng(0), 4000, BOXES, Z, 5.0)
+        T = TR.sample_training_poses(np.random.default_rng(0), 4000, BOXES, Z, 5.0,
+                                     along_fraction=0.0)
         assert T.shape == (4000, 4, 4)
         assert_rigid(T)
         p = T[:, :3, 3]
