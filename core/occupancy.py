@@ -9,6 +9,10 @@ band [z_lo, z_hi], is not inside a solid, and its centre is at least ``margin`` 
 cell that fails those tests (a Euclidean distance transform). ``OccupancyMap.from_mesh``
 builds that from a classed triangle mesh; ``OccupancyMap.from_boxes`` from the procedural
 corridor's free boxes (already shrunk by the margin), so both give one structure.
+
+Distances are those between cell centres: exact for a wall through cell centres, otherwise
+within half a cell; a point of a free cell may be up to half a cell nearer an obstacle than
+the margin.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from core import classes as C
 from core.atomic import atomic_write
 
 _TOL = 1e-6  # m, slack of the margin test (distances are sums of cell multiples)
-_MAX_POINTS = 1 << 21  # surface samples per chunk (memory bound of from_mesh)
+_MAX_POINTS = 1 << 19  # surface samples per chunk (memory bound of from_mesh)
 _KEYS = ("free", "clearance", "origin", "cell", "band", "margin")
 
 #: plot colours (RGB): free, within the margin of an obstacle, obstacle / outside.
@@ -64,11 +68,10 @@ class OccupancyMap:
                   exclude_solids: bool = True) -> OccupancyMap:
         """Rasterise a classed triangle mesh.
 
-        Every triangle is sampled on a regular grid of its own (spacing ``cell /
-        samples_per_cell`` along two edges, so a vertical wall marks an unbroken line of
-        cells); a sample within the band blocks its cell, a sample of a ``floor_classes``
-        face below the band gives its cell a floor. Features thinner than the sample
-        spacing within the band's edges may be missed.
+        The triangles are clipped to the band (obstacles), below it (floor faces) and above
+        it (for ``exclude_solids``), and each piece is sampled on a lattice of its own whose
+        steps are at most ``cell / samples_per_cell`` in XY, so every cell a piece's XY
+        footprint covers gets a sample (a vertical wall: an unbroken line of cells).
 
         Args:
             vertices: (V, 3) m, world frame, Z up.
@@ -78,11 +81,11 @@ class OccupancyMap:
             margin: m kept from obstacles (the camera's margin).
             cell: m, cell size.
             floor_classes: the classes that are floor.
-            samples_per_cell: samples per cell length along a triangle (>= 2).
+            samples_per_cell: lattice steps per cell length (>= 2).
             exclude_solids: a column whose lowest surface above the band faces up (the top
-                of a closed block seen from inside it) is inside a solid, not free. Needs
-                outward-facing normals (counter-clockwise winding seen from outside); False
-                for meshes whose winding is not reliable.
+                of a closed block seen from inside it; at equal heights up wins) is inside a
+                solid, not free. Needs outward-facing normals (counter-clockwise winding seen
+                from outside); False for meshes whose winding is not reliable.
 
         Returns:
             The map; its grid covers the mesh's XY bounds plus one cell.
@@ -93,38 +96,26 @@ class OccupancyMap:
         if samples_per_cell < 2:
             raise ValueError(f"samples_per_cell must be >= 2, got {samples_per_cell}")
         origin, shape = _grid(v[:, :2].min(0), v[:, :2].max(0), cell)
-        tri = v[f]  # (F, 3, 3)
+        grid = (origin, cell, shape, cell / samples_per_cell)
+        tri, index = v[f], np.arange(len(f))
+        in_band = _clip_z(*_clip_z(tri, index, z_lo, above=True), z_hi, above=False)
+        blocked = _footprint(*in_band, grid)
         is_floor = np.isin(cls_, np.asarray(floor_classes))
-        zmin, zmax = tri[:, :, 2].min(1), tri[:, :, 2].max(1)
-        keep = ((zmax >= z_lo) & (zmin <= z_hi)) | (is_floor & (zmin < z_lo))
-        if exclude_solids:
-            keep |= zmax > z_hi
-        up = _normal_z(tri) > 0
-        blocked = np.zeros(shape, bool)
-        floor = np.zeros(shape, bool)
-        top_z = np.full(shape, np.inf)  # lowest surface above the band
-        top_up = np.zeros(shape, bool)
-        spacing = cell / samples_per_cell
-        kept = np.flatnonzero(keep)
-        for pts, t in _surface_samples(tri[keep], spacing):
-            rc, inside = _cells(pts[:, :2], origin, cell, shape)
-            pts, t, rc = pts[inside], kept[t[inside]], rc[:, inside]
-            z = pts[:, 2]
-            in_band = (z >= z_lo) & (z <= z_hi)
-            blocked[rc[0, in_band], rc[1, in_band]] = True
-            below = is_floor[t] & (z < z_lo)
-            floor[rc[0, below], rc[1, below]] = True
-            if exclude_solids:
-                _lowest_above(top_z, top_up, rc[:, z > z_hi], z[z > z_hi], up[t][z > z_hi])
+        floor = _footprint(*_clip_z(tri[is_floor], index[is_floor], z_lo, above=False,
+                                    strict=True), grid)
         if not floor.any():
             raise ValueError(f"mesh: no floor below the band {[z_lo, z_hi]} (faces of classes "
                              f"{list(floor_classes)} below z = {z_lo}); check the face classes "
                              "and the band")
+        top_up = np.zeros(shape, bool)
+        if exclude_solids:
+            above, parent = _clip_z(tri, index, z_hi, above=True, strict=True)
+            top_up = _lowest_faces_up(above, _normal_z(tri)[parent] > 0, grid)
         raw = floor & ~blocked & ~top_up
         clearance = ndimage.distance_transform_edt(raw, sampling=cell).astype(np.float32)
         free = raw & (clearance >= margin - _TOL)
         occ = cls(free, clearance, origin, cell, (z_lo, z_hi), margin)
-        occ._check_not_empty(f"mesh (floor z in band? band {[z_lo, z_hi]}, margin {margin})")
+        occ._check_not_empty("mesh")
         return occ
 
     @classmethod
@@ -206,6 +197,14 @@ class OccupancyMap:
         pick = idx[rng.integers(len(idx), size=int(n))]
         r, c = np.unravel_index(pick, self.shape)
         return self.origin + (np.stack([c, r], 1) + rng.random((int(n), 2))) * self.cell
+
+    def eroded(self, extra: float) -> OccupancyMap:
+        """The map with ``extra`` m more margin (free where clearance >= margin + extra)."""
+        if extra < 0:
+            raise ValueError(f"extra margin must be >= 0, got {extra}")
+        margin = self.margin + float(extra)
+        free = self.free & (self.clearance >= margin - _TOL)
+        return OccupancyMap(free, self.clearance, self.origin, self.cell, self.band, margin)
 
     # ------------------------------------------------------------------ files and images
 
@@ -326,31 +325,66 @@ def _normal_z(tri: np.ndarray) -> np.ndarray:
     return n[:, 2]
 
 
-def _lowest_above(top_z: np.ndarray, top_up: np.ndarray, rc: np.ndarray, z: np.ndarray,
-                  up: np.ndarray) -> None:
-    """Fold samples into the per-cell lowest surface (height and whether it faces up)."""
-    if len(z) == 0:
-        return
-    flat = np.ravel_multi_index((rc[0], rc[1]), top_z.shape)
-    order = np.lexsort((z, flat))
-    flat, z, up = flat[order], z[order], up[order]
-    first = np.flatnonzero(np.r_[True, flat[1:] != flat[:-1]])  # lowest sample per cell
-    cells, z, up = flat[first], z[first], up[first]
-    lower = z < top_z.flat[cells]
-    top_z.flat[cells[lower]] = z[lower]
-    top_up.flat[cells[lower]] = up[lower]
+def _clip_z(tri: np.ndarray, parent: np.ndarray, level: float, above: bool,
+            strict: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The parts of triangles (T, 3, 3) at z >= level (``above``) or z <= level, or strictly
+    beyond it (``strict``), as triangles, each with its ``parent`` (T,) entry."""
+    d = (tri[:, :, 2] - level) * (1 if above else -1)
+    inside = d > 0 if strict else d >= 0
+    n_in = inside.sum(1)
+    out_tri, out_parent = [tri[n_in == 3]], [parent[n_in == 3]]
+    for n, odd in ((1, inside), (2, ~inside)):  # roll the odd vertex out to position 0
+        sel = n_in == n
+        first = np.argmax(odd[sel], axis=1)
+        idx = (first[:, None] + np.arange(3)) % 3
+        t = np.take_along_axis(tri[sel], idx[:, :, None], axis=1)
+        dd = np.take_along_axis(d[sel], idx, axis=1)
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        ab = a + (b - a) * (dd[:, :1] / (dd[:, :1] - dd[:, 1:2]))
+        ac = a + (c - a) * (dd[:, :1] / (dd[:, :1] - dd[:, 2:3]))
+        if n == 1:  # a inside: one triangle
+            out_tri.append(np.stack([a, ab, ac], 1))
+            out_parent.append(parent[sel])
+        else:  # a outside: the quad ab, b, c, ac
+            out_tri += [np.stack([ab, b, c], 1), np.stack([ab, c, ac], 1)]
+            out_parent += [parent[sel], parent[sel]]
+    return np.concatenate(out_tri), np.concatenate(out_parent)
+
+
+def _footprint(tri: np.ndarray, parent: np.ndarray, grid: tuple) -> np.ndarray:
+    """(H, W) bool: the cells the triangles' XY footprints touch."""
+    origin, cell, shape, spacing = grid
+    mask = np.zeros(shape, bool)
+    for pts, _ in _samples(tri, spacing):
+        rc, inside = _cells(pts[:, :2], origin, cell, shape)
+        mask[rc[0, inside], rc[1, inside]] = True
+    return mask
+
+
+def _lowest_faces_up(tri: np.ndarray, up: np.ndarray, grid: tuple) -> np.ndarray:
+    """(H, W) bool: the lowest of the triangles over a cell faces up (``up`` (T,); at equal
+    heights, to 0.1 mm, up wins)."""
+    origin, cell, shape, spacing = grid
+    z0 = tri[:, :, 2].min() if len(tri) else 0.0
+    lowest = np.full(int(np.prod(shape)), np.iinfo(np.int64).max)  # 2 * height + (not up)
+    for pts, t in _samples(tri, spacing):
+        rc, inside = _cells(pts[:, :2], origin, cell, shape)
+        key = 2 * np.round((pts[inside, 2] - z0) * 1e4).astype(np.int64) + ~up[t[inside]]
+        np.minimum.at(lowest, np.ravel_multi_index((rc[0, inside], rc[1, inside]), shape), key)
+    return ((lowest % 2 == 0) & (lowest < np.iinfo(np.int64).max)).reshape(shape)
 
 
 def _split_long(tri: np.ndarray, parent: np.ndarray,
                 max_edge: float) -> tuple[np.ndarray, np.ndarray]:
-    """Halve triangles (T, 3, 3) across their longest edge until every edge is <= max_edge.
+    """Halve triangles (T, 3, 3) across their longest XY edge until every XY edge is <=
+    max_edge.
 
     Returns:
         the pieces (P, 3, 3) and (P,) the ``parent`` entry of each.
     """
     done_tri, done_parent = [tri[:0]], [parent[:0]]
     while len(tri):
-        edge = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2)  # edge i: vertex i -> i + 1
+        edge = np.linalg.norm(tri[:, [1, 2, 0], :2] - tri[:, :, :2], axis=2)  # i -> i + 1
         ok = edge.max(1) <= max_edge
         done_tri.append(tri[ok])
         done_parent.append(parent[ok])
@@ -365,39 +399,40 @@ def _split_long(tri: np.ndarray, parent: np.ndarray,
     return np.concatenate(done_tri), np.concatenate(done_parent)
 
 
-def _surface_samples(tri: np.ndarray, spacing: float
-                     ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """Points on triangles (T, 3, 3) no farther than ``spacing`` apart along two edges.
+def _samples(tri: np.ndarray, spacing: float) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Points on triangles (T, 3, 3) whose XY lattice steps are at most ``spacing``.
 
     Each triangle gets the lattice A + i/ku (B - A) + j/kv (C - A), i/ku + j/kv <= 1, with A
-    the corner opposite its longest edge. Long triangles are split first, so a chunk holds at
-    most ``_MAX_POINTS`` points.
+    the corner opposite its longest XY edge and ku, kv the XY lengths of AB, AC over the
+    spacing: every point of the triangle's XY footprint is within ``spacing`` of a sample.
+    Triangles are split first so that one has at most ~2000 points, and a chunk at most
+    ``_MAX_POINTS``.
 
     Yields:
         points (P, 3) and (P,) the index of each point's triangle in ``tri``.
     """
     tri, parent = _split_long(tri, np.arange(len(tri)), 64 * spacing)
-    edge = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2)
+    edge = np.linalg.norm(tri[:, [1, 2, 0], :2] - tri[:, :, :2], axis=2)
     a = (edge.argmax(1) + 2) % 3  # the corner opposite the longest edge
     idx = (a[:, None] + np.arange(3)) % 3
     t = np.take_along_axis(tri, idx[:, :, None], axis=1)
     ab, ac = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    ku = np.maximum(np.ceil(np.linalg.norm(ab, axis=1) / spacing), 1).astype(np.int64)
-    kv = np.maximum(np.ceil(np.linalg.norm(ac, axis=1) / spacing), 1).astype(np.int64)
-    count = (ku + 1) * (kv + 1)
-    ends = np.cumsum(count)
+    ku = np.maximum(np.ceil(np.linalg.norm(ab[:, :2], axis=1) / spacing), 1).astype(np.int64)
+    kv = np.maximum(np.ceil(np.linalg.norm(ac[:, :2], axis=1) / spacing), 1).astype(np.int64)
+    bound = np.cumsum((ku + 1) * (kv + 1))  # points per triangle are at most this
     start = 0
     while start < len(t):
-        stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + _MAX_POINTS,
-                                       side="right")), start + 1)
-        s = slice(start, stop)
-        n = count[s]
-        which = np.repeat(np.arange(start, stop), n)
-        local = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
-        i, j = local // (kv[which] + 1), local % (kv[which] + 1)
-        u, v = i / ku[which], j / kv[which]
-        keep = u + v <= 1 + 1e-9
-        which, u, v = which[keep], u[keep], v[keep]
+        base = bound[start - 1] if start else 0
+        stop = max(int(np.searchsorted(bound, base + _MAX_POINTS, side="right")), start + 1)
+        # rows i of every triangle, then the points j of every row
+        rows = ku[start:stop] + 1
+        row_tri = np.repeat(np.arange(start, stop), rows)
+        i = np.arange(rows.sum()) - np.repeat(np.cumsum(rows) - rows, rows)
+        u = i / ku[row_tri]
+        per_row = np.floor(kv[row_tri] * (1 - u) + 1e-9).astype(np.int64) + 1
+        which = np.repeat(row_tri, per_row)
+        j = np.arange(per_row.sum()) - np.repeat(np.cumsum(per_row) - per_row, per_row)
+        u, v = np.repeat(u, per_row), j / kv[which]
         pts = t[which, 0] + u[:, None] * ab[which] + v[:, None] * ac[which]
         yield pts, parent[which]
         start = stop

@@ -291,6 +291,8 @@ class RouteConfig:
     cheapest path between two far-apart cells on the free space's ridge (the middle of
     corridors and rooms), simplified and its corners rounded."""
 
+    extra_margin: float = 0.3  # m the route keeps from obstacles beyond the map's margin
+    # (room for the flight's sway; narrower passages such as doors are left out)
     wall_cost: float = 1.0  # m; a step costs its length x (1 + wall_cost / clearance), so
     # routes keep to the middle of corridors
     far_fraction: float = 0.9  # the far end is drawn among the cells at >= this fraction of

@@ -60,7 +60,8 @@ def route_graph(occ: OccupancyMap, wall_cost: float) -> tuple[sparse.csr_matrix,
 
 def plan_route(occ: OccupancyMap, rng: np.random.Generator,
                settings: RouteConfig | Mapping | None = None) -> np.ndarray:
-    """A long route through the largest connected free region.
+    """A long route through the largest connected free region, ``extra_margin`` farther from
+    obstacles than the map's margin.
 
     Both ends lie on the ridge of the free space (cells whose clearance no neighbour
     exceeds: the middle of corridors and rooms). From a random free cell, the ridge cell
@@ -84,6 +85,13 @@ def plan_route(occ: OccupancyMap, rng: np.random.Generator,
     if c.wall_cost < 0 or c.tries < 1:
         raise ValueError(f"route.wall_cost must be >= 0 and route.tries >= 1, got "
                          f"{c.wall_cost}, {c.tries}")
+    if c.extra_margin < 0:
+        raise ValueError(f"route.extra_margin must be >= 0, got {c.extra_margin}")
+    occ = occ.eroded(c.extra_margin)
+    if not occ.free.any():
+        raise ValueError(f"route: no free space is {occ.margin} m from obstacles (the map's "
+                         f"margin plus route.extra_margin {c.extra_margin}); lower "
+                         "route.extra_margin")
     graph, cells = route_graph(occ, c.wall_cost)
     _, label = csgraph.connected_components(graph, directed=False)
     region = label == np.bincount(label).argmax()

@@ -58,3 +58,23 @@ def ring_area(size_x: float, size_y: float, width: float, margin: float) -> floa
     X, Y, w, m = size_x, size_y, width, margin
     return ((X - 2 * m) * (Y - 2 * m) - (X - 2 * w + 2 * m) * (Y - 2 * w + 2 * m)
             + 4 * (1 - np.pi / 4) * m**2)
+
+
+def corridor_with_room(door: float = 0.9):
+    """A 16 m x 2 m corridor along +X with a 4 m x 4 m room at its far end behind a door
+    ``door`` wide (centred on the corridor)."""
+    d0, d1 = 1.0 - door / 2, 1.0 + door / 2
+    floors = [(-0.2, -0.2, 16.2, 2.2), (16.0, -1.2, 20.4, 3.2)]
+    walls = [(-0.2, -0.2, 16.0, 0.0), (-0.2, 2.0, 16.0, 2.2), (-0.2, 0.0, 0.0, 2.0),
+             (16.0, -1.2, 16.2, d0), (16.0, d1, 16.2, 3.2),
+             (16.2, -1.2, 20.4, -1.0), (16.2, 3.0, 20.4, 3.2), (20.2, -1.0, 20.4, 3.0)]
+    return assemble(floors, walls)
+
+
+def with_ceiling(mesh, lo=(-1.0, -1.0), hi=(21.0, 21.0)):
+    """A mesh plus a ceiling slab from z = HEIGHT up (class ceiling) over [lo, hi] in XY."""
+    v, f, c = mesh
+    cv, cf, _ = assemble([], [(*lo, *hi)])
+    cv[:, 2] = np.where(cv[:, 2] > 0, HEIGHT + THICK, HEIGHT)
+    return (np.concatenate([v, cv]), np.concatenate([f, cf + len(v)]),
+            np.concatenate([c, np.full(len(cf), C.CEILING, np.uint8)]))

@@ -7,7 +7,7 @@ import pytest
 
 from core.occupancy import BLOCKED_RGB, FREE_RGB, MARGIN_RGB, OccupancyMap
 from datagen.world import build_world
-from tests.buildings import assemble, ell, ring, ring_area
+from tests.buildings import assemble, ell, ring, ring_area, with_ceiling
 
 BAND, MARGIN = (0.5, 2.2), 0.3
 
@@ -67,6 +67,21 @@ class TestRing:
         island = OccupancyMap.from_mesh(*ring(), BAND, MARGIN, 0.05, exclude_solids=False)
         assert island.contains(np.array([[5.0, 5.0]]))[0]
         assert island.area == pytest.approx(ring_area(10, 10, 2, MARGIN) + 5.4**2, rel=0.05)
+
+    def test_block_up_to_the_ceiling_is_solid(self, ring_map):
+        occ = OccupancyMap.from_mesh(*with_ceiling(ring(), (-0.2, -0.2), (10.2, 10.2)), BAND,
+                                     MARGIN, 0.05)
+        np.testing.assert_array_equal(occ.free, ring_map.free)  # top and ceiling touch
+
+    def test_eroded(self, ring_map):
+        more = ring_map.eroded(0.4)
+        assert more.margin == pytest.approx(0.7)
+        pts = np.array([[1.0, 5.0], [0.5, 5.0]])  # 1.0 and 0.5 m from the wall
+        np.testing.assert_array_equal(ring_map.contains(pts), [True, True])
+        np.testing.assert_array_equal(more.contains(pts), [True, False])
+        assert more.area < ring_map.area
+        with pytest.raises(ValueError, match="extra margin"):
+            ring_map.eroded(-0.1)
 
     def test_grid_is_a_lattice_of_the_cell(self, ring_map):
         centre = ring_map.centres(np.array([[0], [0]]))[0]

@@ -15,7 +15,7 @@ from datagen.routes import (
     route_length,
     route_to_trajectory,
 )
-from tests.buildings import ell, ring
+from tests.buildings import corridor_with_room, ell, ring
 
 BAND, MARGIN = (0.5, 2.2), 0.3
 
@@ -62,6 +62,19 @@ class TestPlanRoute:
         assert route_length(route) >= 10.0
         turns = find_turns(route)
         assert len(turns) == 1 and abs(turns[0, 1]) == pytest.approx(90.0, abs=10.0)
+
+    def test_extra_margin_keeps_routes_out_of_narrow_doors(self):
+        occ = OccupancyMap.from_mesh(*corridor_with_room(door=0.9), BAND, MARGIN, 0.05)
+        assert occ.contains(np.array([[16.1, 1.0], [18.0, 1.0]])).all()  # door, room
+        for seed in range(3):
+            route = plan_route(occ, np.random.default_rng(seed))
+            assert route[:, 0].max() < 16.0  # stays in the corridor
+            assert occ.distance(route).min() >= MARGIN + 0.3 - 0.05
+            assert route_length(route) >= 13.0
+        route = plan_route(occ, np.random.default_rng(0), {"extra_margin": 0.0})
+        assert route[:, 0].max() > 17.0  # through the door into the room
+        with pytest.raises(ValueError, match="lower route.extra_margin"):
+            plan_route(occ, np.random.default_rng(0), {"extra_margin": 2.0})
 
     def test_seeded(self, ring_map):
         a = plan_route(ring_map, np.random.default_rng(5))
