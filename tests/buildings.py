@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import trimesh
 
 from core import classes as C
+from core.occupancy import OccupancyMap
 
 HEIGHT = 2.8  # m, walls
 THICK = 0.2  # m, walls and floor slab
+BAND, MARGIN = (0.5, 2.2), 0.3  # m, the maps' flyable heights and margin
 
 
 def _box(lo, hi) -> trimesh.Trimesh:
@@ -78,3 +82,11 @@ def with_ceiling(mesh, lo=(-1.0, -1.0), hi=(21.0, 21.0)):
     cv[:, 2] = np.where(cv[:, 2] > 0, HEIGHT + THICK, HEIGHT)
     return (np.concatenate([v, cv]), np.concatenate([f, cf + len(v)]),
             np.concatenate([c, np.full(len(cf), C.CEILING, np.uint8)]))
+
+
+@functools.cache
+def occupancy(name: str, cell: float = 0.05) -> OccupancyMap:
+    """The map (BAND, MARGIN) of one of this module's buildings by name, built once: read it,
+    do not change it."""
+    builders = {"ring": ring, "ell": ell, "corridor_with_room": corridor_with_room}
+    return OccupancyMap.from_mesh(*builders[name](), BAND, MARGIN, cell)

@@ -7,19 +7,7 @@ import pytest
 
 from core.occupancy import BLOCKED_RGB, FREE_RGB, MARGIN_RGB, OccupancyMap
 from datagen.world import build_world
-from tests.buildings import assemble, ell, ring, ring_area, with_ceiling
-
-BAND, MARGIN = (0.5, 2.2), 0.3
-
-
-@pytest.fixture(scope="module")
-def ring_map() -> OccupancyMap:
-    return OccupancyMap.from_mesh(*ring(), BAND, MARGIN, 0.05)
-
-
-@pytest.fixture(scope="module")
-def ell_map() -> OccupancyMap:
-    return OccupancyMap.from_mesh(*ell(), BAND, MARGIN, 0.05)
+from tests.buildings import BAND, MARGIN, assemble, occupancy, ring, ring_area, with_ceiling
 
 
 def _iou(a: OccupancyMap, b: OccupancyMap, step: float) -> float:
@@ -54,7 +42,8 @@ class TestCorridor:
 
 
 class TestRing:
-    def test_area_and_shape(self, ring_map):
+    def test_area_and_shape(self):
+        ring_map = occupancy("ring")
         assert ring_map.area == pytest.approx(ring_area(10, 10, 2, MARGIN), rel=0.05)
         pts = np.array([[1.0, 5.0], [9.0, 5.0], [5.0, 1.0], [5.0, 9.0],  # corridor
                         [5.0, 5.0], [2.1, 5.0],  # inside the solid block, its wall
@@ -68,12 +57,14 @@ class TestRing:
         assert island.contains(np.array([[5.0, 5.0]]))[0]
         assert island.area == pytest.approx(ring_area(10, 10, 2, MARGIN) + 5.4**2, rel=0.05)
 
-    def test_block_up_to_the_ceiling_is_solid(self, ring_map):
+    def test_block_up_to_the_ceiling_is_solid(self):
+        ring_map = occupancy("ring")
         occ = OccupancyMap.from_mesh(*with_ceiling(ring(), (-0.2, -0.2), (10.2, 10.2)), BAND,
                                      MARGIN, 0.05)
         np.testing.assert_array_equal(occ.free, ring_map.free)  # top and ceiling touch
 
-    def test_eroded(self, ring_map):
+    def test_eroded(self):
+        ring_map = occupancy("ring")
         more = ring_map.eroded(0.4)
         assert more.margin == pytest.approx(0.7)
         pts = np.array([[1.0, 5.0], [0.5, 5.0]])  # 1.0 and 0.5 m from the wall
@@ -83,7 +74,8 @@ class TestRing:
         with pytest.raises(ValueError, match="extra margin"):
             ring_map.eroded(-0.1)
 
-    def test_grid_is_a_lattice_of_the_cell(self, ring_map):
+    def test_grid_is_a_lattice_of_the_cell(self):
+        ring_map = occupancy("ring")
         centre = ring_map.centres(np.array([[0], [0]]))[0]
         np.testing.assert_allclose(centre / 0.05, np.round(centre / 0.05), atol=1e-9)
 
@@ -104,13 +96,15 @@ class TestRing:
 
 
 class TestEll:
-    def test_area_and_shape(self, ell_map):
+    def test_area_and_shape(self):
+        ell_map = occupancy("ell")
         legs = 9.4 * 1.4 + 1.4 * 6.0  # [0.3, 9.7] x [0.3, 1.7] and [0.3, 1.7] x [1.7, 7.7]
         assert ell_map.area == pytest.approx(legs, rel=0.06)
         pts = np.array([[8.0, 1.0], [1.0, 7.0], [1.0, 1.0], [5.0, 5.0], [1.0, 7.9]])
         np.testing.assert_array_equal(ell_map.contains(pts), [1, 1, 1, 0, 0])
 
-    def test_sample_is_inside_and_uniform(self, ell_map):
+    def test_sample_is_inside_and_uniform(self):
+        ell_map = occupancy("ell")
         pts = ell_map.sample(np.random.default_rng(0), 20000)
         assert pts.shape == (20000, 2)
         assert ell_map.contains(pts).all()
@@ -122,14 +116,16 @@ class TestEll:
         frac = (pts - ell_map.origin) / ell_map.cell % 1
         assert np.histogram(frac[:, 0], 4, (0, 1))[0].min() > 0.23 * len(pts)
 
-    def test_sample_is_seeded(self, ell_map):
+    def test_sample_is_seeded(self):
+        ell_map = occupancy("ell")
         a = ell_map.sample(np.random.default_rng(3), 50)
         np.testing.assert_array_equal(a, ell_map.sample(np.random.default_rng(3), 50))
         assert not np.array_equal(a, ell_map.sample(np.random.default_rng(4), 50))
 
 
 class TestFilesAndImages:
-    def test_save_load_round_trip(self, ell_map, tmp_path):
+    def test_save_load_round_trip(self, tmp_path):
+        ell_map = occupancy("ell")
         path = tmp_path / "maps" / "occupancy.npz"
         ell_map.save(path)
         back = OccupancyMap.load(path)
@@ -147,7 +143,8 @@ class TestFilesAndImages:
         with pytest.raises(FileNotFoundError, match="missing.npz"):
             OccupancyMap.load(tmp_path / "missing.npz")
 
-    def test_plot(self, ell_map):
+    def test_plot(self):
+        ell_map = occupancy("ell")
         img = ell_map.plot()
         assert img.shape == (*ell_map.shape, 3) and img.dtype == np.uint8
         colours = {tuple(c) for c in img.reshape(-1, 3)}

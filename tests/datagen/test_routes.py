@@ -15,19 +15,7 @@ from datagen.routes import (
     route_length,
     route_to_trajectory,
 )
-from tests.buildings import corridor_with_room, ell, ring
-
-BAND, MARGIN = (0.5, 2.2), 0.3
-
-
-@pytest.fixture(scope="module")
-def ring_map() -> OccupancyMap:
-    return OccupancyMap.from_mesh(*ring(), BAND, MARGIN, 0.05)
-
-
-@pytest.fixture(scope="module")
-def ell_map() -> OccupancyMap:
-    return OccupancyMap.from_mesh(*ell(), BAND, MARGIN, 0.05)
+from tests.buildings import BAND, MARGIN, corridor_with_room, occupancy
 
 
 def _check_route(occ: OccupancyMap, route: np.ndarray, spacing: float = 0.05) -> None:
@@ -39,7 +27,8 @@ def _check_route(occ: OccupancyMap, route: np.ndarray, spacing: float = 0.05) ->
 
 
 class TestPlanRoute:
-    def test_ring_gives_a_long_route_with_two_right_angle_turns(self, ring_map):
+    def test_ring_gives_a_long_route_with_two_right_angle_turns(self):
+        ring_map = occupancy("ring")
         for seed in range(3):
             route = plan_route(ring_map, np.random.default_rng(seed), {"min_turns": 2})
             _check_route(ring_map, route)
@@ -48,7 +37,8 @@ class TestPlanRoute:
             assert len(turns) >= 2
             np.testing.assert_allclose(np.abs(turns[:, 1]), 90.0, atol=15.0)
 
-    def test_route_keeps_to_the_middle(self, ring_map):
+    def test_route_keeps_to_the_middle(self):
+        ring_map = occupancy("ring")
         route = plan_route(ring_map, np.random.default_rng(0))
         s = np.cumsum(np.linalg.norm(np.diff(route, axis=0), axis=1))
         turn_s = find_turns(route)[:, 0]
@@ -56,7 +46,8 @@ class TestPlanRoute:
         straight &= (s > 1.0) & (s < s[-1] - 1.0)
         assert np.median(ring_map.distance(route[1:][straight])) >= 0.9  # 2 m wide: 1 m
 
-    def test_ell_turns_once(self, ell_map):
+    def test_ell_turns_once(self):
+        ell_map = occupancy("ell")
         route = plan_route(ell_map, np.random.default_rng(0))
         _check_route(ell_map, route)
         assert route_length(route) >= 10.0
@@ -76,13 +67,15 @@ class TestPlanRoute:
         with pytest.raises(ValueError, match="lower route.extra_margin"):
             plan_route(occ, np.random.default_rng(0), {"extra_margin": 2.0})
 
-    def test_seeded(self, ring_map):
+    def test_seeded(self):
+        ring_map = occupancy("ring")
         a = plan_route(ring_map, np.random.default_rng(5))
         np.testing.assert_array_equal(a, plan_route(ring_map, np.random.default_rng(5)))
         others = [plan_route(ring_map, np.random.default_rng(s)) for s in (6, 7)]
         assert any(len(o) != len(a) or not np.allclose(o, a) for o in others)
 
-    def test_impossible_demand_is_a_clear_error(self, ell_map):
+    def test_impossible_demand_is_a_clear_error(self):
+        ell_map = occupancy("ell")
         with pytest.raises(ValueError, match=r"no route of >= 100.0 m .* in 2 tries \(best: "):
             plan_route(ell_map, np.random.default_rng(0), {"min_length": 100.0, "tries": 2})
         with pytest.raises(ValueError, match="far_fraction"):
@@ -90,7 +83,8 @@ class TestPlanRoute:
 
 
 class TestWaypoints:
-    def test_around_the_ring(self, ring_map):
+    def test_around_the_ring(self):
+        ring_map = occupancy("ring")
         wp = [[1.0, 1.0], [9.0, 1.0], [9.0, 9.0], [1.0, 9.0]]
         route = route_from_waypoints(ring_map, wp)
         _check_route(ring_map, route)
@@ -98,19 +92,22 @@ class TestWaypoints:
         assert route_length(route) == pytest.approx(24.0, abs=1.0)  # corners cut
         assert count_turns(route) == 2
 
-    def test_segment_through_a_wall_is_named(self, ring_map):
+    def test_segment_through_a_wall_is_named(self):
+        ring_map = occupancy("ring")
         where = (r"segment 1 -> 2 \(9.00, 1.00\) -> \(1.00, 9.00\) is blocked at "
                  r"\(8.2\d, 1.7\d\), 1.1\d m after waypoint 1")
         with pytest.raises(ValueError, match=where):
             route_from_waypoints(ring_map, [[1.0, 1.0], [9.0, 1.0], [1.0, 9.0]])
 
-    def test_waypoint_outside_is_named(self, ring_map):
+    def test_waypoint_outside_is_named(self):
+        ring_map = occupancy("ring")
         with pytest.raises(ValueError, match=r"waypoint 1 \(5.00, 5.00\) is not in the free"):
             route_from_waypoints(ring_map, [[1.0, 1.0], [5.0, 5.0]])
         with pytest.raises(ValueError, match="at least two"):
             route_from_waypoints(ring_map, [[1.0, 1.0]])
 
-    def test_tight_corner_is_rounded_less(self, ell_map):
+    def test_tight_corner_is_rounded_less(self):
+        ell_map = occupancy("ell")
         wp = [[9.0, 1.0], [1.0, 1.0], [1.0, 7.0]]
         route = route_from_waypoints(ell_map, wp, {"turn_radius": 5.0})
         _check_route(ell_map, route)
@@ -124,7 +121,8 @@ class TestMotion:
         np.testing.assert_allclose(t[[0, 1, 3]], [[1, 0], [1, 0], [0, 1]], atol=1e-9)
         np.testing.assert_allclose(np.linalg.norm(t, axis=1), 1.0)
 
-    def test_whole_route_at_speed(self, ell_map):
+    def test_whole_route_at_speed(self):
+        ell_map = occupancy("ell")
         route = plan_route(ell_map, np.random.default_rng(0))
         xy, heading, s = route_to_trajectory(route, speed=0.4, fps=10.0, ramp_s=2.0)
         np.testing.assert_allclose(xy[[0, -1]], route[[0, -1]], atol=1e-9)
