@@ -194,6 +194,8 @@ class OccupancyMap:
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """(n, 2) m points uniform over the free cells (a free cell, then uniform in it)."""
         idx = np.flatnonzero(self.free)
+        if len(idx) == 0:
+            raise ValueError(f"no free cells to sample (margin {self.margin} m)")
         pick = idx[rng.integers(len(idx), size=int(n))]
         r, c = np.unravel_index(pick, self.shape)
         return self.origin + (np.stack([c, r], 1) + rng.random((int(n), 2))) * self.cell

@@ -73,6 +73,8 @@ class TestRing:
         assert more.area < ring_map.area
         with pytest.raises(ValueError, match="extra margin"):
             ring_map.eroded(-0.1)
+        with pytest.raises(ValueError, match="no free cells to sample"):
+            ring_map.eroded(2.0).sample(np.random.default_rng(0), 3)
 
     def test_grid_is_a_lattice_of_the_cell(self):
         ring_map = occupancy("ring")
