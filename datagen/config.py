@@ -286,6 +286,28 @@ class OdometryConfig:
 
 
 @dataclass
+class RouteConfig:
+    """A route planned through the free space (datagen/routes.py ``plan_route``): the
+    cheapest path between two far-apart cells on the free space's ridge (the middle of
+    corridors and rooms), simplified and its corners rounded."""
+
+    extra_margin: float = 0.3  # m the route keeps from obstacles beyond the map's margin
+    # (room for the flight's sway; narrower passages such as doors are left out)
+    wall_cost: float = 1.0  # m; a step costs its length x (1 + wall_cost / clearance), so
+    # routes keep to the middle of corridors
+    far_fraction: float = 0.9  # the far end is drawn among the cells at >= this fraction of
+    # the costliest route from the near end (1: the farthest cell)
+    simplify_m: float = 0.25  # m the simplified route may leave the cell path
+    turn_radius: float = 1.0  # m; a corner is rounded from this far before to this far after
+    # it (less where the free space is tighter)
+    spacing: float = 0.05  # m between the route's points
+    min_length: float = 0.0  # m; a shorter route is drawn again (up to `tries` routes)
+    min_turns: int = 0  # turns of >= turn_deg a route must have (else drawn again)
+    turn_deg: float = 60.0
+    tries: int = 8  # routes drawn before giving up on min_length / min_turns
+
+
+@dataclass
 class FlightConfig:
     """An evaluation flight preset (``flights.<name>``): a smooth hand-flown pass along the
     corridor (+Y) with ground truth and noisy odometry. The defaults are the ``paper``

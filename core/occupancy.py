@@ -1,0 +1,440 @@
+"""Free space as a 2D occupancy map: where a camera may fly, for one band of heights.
+
+The grid covers world x, y (metres, Z up). Cell centres lie at integer multiples of ``cell``,
+so maps of one cell size line up whatever they were built from. ``free[r, c]`` is the cell
+whose lower-left corner is ``origin + (c, r) * cell``: rows run along +Y, columns along +X.
+
+A cell is free when its column has floor below the band, no surface of the model within the
+band [z_lo, z_hi], is not inside a solid, and its centre is at least ``margin`` from every
+cell that fails those tests (a Euclidean distance transform). ``OccupancyMap.from_mesh``
+builds that from a classed triangle mesh; ``OccupancyMap.from_boxes`` from the procedural
+corridor's free boxes (already shrunk by the margin), so both give one structure.
+
+Distances are those between cell centres: exact for a wall through cell centres, otherwise
+within half a cell; a point of a free cell may be up to half a cell nearer an obstacle than
+the margin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from core import classes as C
+from core.atomic import atomic_write
+
+_TOL = 1e-6  # m, slack of the margin test (distances are sums of cell multiples)
+_MAX_POINTS = 1 << 19  # surface samples per chunk (memory bound of from_mesh)
+_KEYS = ("free", "clearance", "origin", "cell", "band", "margin")
+
+#: plot colours (RGB): free, within the margin of an obstacle, obstacle / outside.
+FREE_RGB, MARGIN_RGB, BLOCKED_RGB = (255, 255, 255), (200, 200, 200), (60, 60, 60)
+#: plot colours of the paths, in turn.
+PATH_RGB = ((220, 20, 60), (30, 110, 220), (0, 160, 70), (230, 140, 0))
+
+
+@dataclass
+class OccupancyMap:
+    """A 2D occupancy map of the flyable heights.
+
+    free: (H, W) bool, cells a camera centre may occupy.
+    clearance: (H, W) float32 m, distance from a cell centre to the nearest obstacle (from
+        ``from_boxes``: the margin plus the distance to the free region's edge); 0 where
+        the cell is an obstacle or outside the building.
+    origin: (2,) float64 m, x, y of the lower-left corner of cell [0, 0].
+    cell: m, cell size.
+    band: (z_lo, z_hi) m, the flyable heights the map is for.
+    margin: m, the clearance a free cell keeps from obstacles.
+    """
+
+    free: np.ndarray
+    clearance: np.ndarray
+    origin: np.ndarray
+    cell: float
+    band: tuple[float, float]
+    margin: float
+
+    # ------------------------------------------------------------------ construction
+
+    @classmethod
+    def from_mesh(cls, vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
+                  band: Sequence[float], margin: float, cell: float,
+                  floor_classes: Sequence[int] = (C.FLOOR,), samples_per_cell: float = 2.0,
+                  exclude_solids: bool = True) -> OccupancyMap:
+        """Rasterise a classed triangle mesh.
+
+        The triangles are clipped to the band (obstacles), below it (floor faces) and above
+        it (for ``exclude_solids``), and each piece is sampled on a lattice of its own whose
+        steps are at most ``cell / samples_per_cell`` in XY, so every cell a piece's XY
+        footprint covers gets a sample (a vertical wall: an unbroken line of cells).
+
+        Args:
+            vertices: (V, 3) m, world frame, Z up.
+            faces: (F, 3) vertex indices.
+            face_class: (F,) class ids (core.classes).
+            band: (z_lo, z_hi) m, the flyable heights.
+            margin: m kept from obstacles (the camera's margin).
+            cell: m, cell size.
+            floor_classes: the classes that are floor.
+            samples_per_cell: lattice steps per cell length (>= 2).
+            exclude_solids: a column whose lowest surface above the band faces up (the top
+                of a closed block seen from inside it; at equal heights up wins) is inside a
+                solid, not free. Needs outward-facing normals (counter-clockwise winding seen
+                from outside); False for meshes whose winding is not reliable.
+
+        Returns:
+            The map; its grid covers the mesh's XY bounds plus one cell.
+        """
+        v, f, cls_ = _check_mesh(vertices, faces, face_class)
+        z_lo, z_hi = _check_band(band)
+        cell, margin = _positive(cell, "cell"), float(margin)
+        if samples_per_cell < 2:
+            raise ValueError(f"samples_per_cell must be >= 2, got {samples_per_cell}")
+        origin, shape = _grid(v[:, :2].min(0), v[:, :2].max(0), cell)
+        grid = (origin, cell, shape, cell / samples_per_cell)
+        tri, index = v[f], np.arange(len(f))
+        in_band = _clip_z(*_clip_z(tri, index, z_lo, above=True), z_hi, above=False)
+        blocked = _footprint(*in_band, grid)
+        is_floor = np.isin(cls_, np.asarray(floor_classes))
+        floor = _footprint(*_clip_z(tri[is_floor], index[is_floor], z_lo, above=False,
+                                    strict=True), grid)
+        if not floor.any():
+            raise ValueError(f"mesh: no floor below the band {[z_lo, z_hi]} (faces of classes "
+                             f"{list(floor_classes)} below z = {z_lo}); check the face classes "
+                             "and the band")
+        top_up = np.zeros(shape, bool)
+        if exclude_solids:
+            above, parent = _clip_z(tri, index, z_hi, above=True, strict=True)
+            top_up = _lowest_faces_up(above, _normal_z(tri)[parent] > 0, grid)
+        raw = floor & ~blocked & ~top_up
+        clearance = ndimage.distance_transform_edt(raw, sampling=cell).astype(np.float32)
+        free = raw & (clearance >= margin - _TOL)
+        occ = cls(free, clearance, origin, cell, (z_lo, z_hi), margin)
+        occ._check_not_empty("mesh")
+        return occ
+
+    @classmethod
+    def from_boxes(cls, free_boxes: np.ndarray, band: Sequence[float], cell: float,
+                   margin: float = 0.0) -> OccupancyMap:
+        """Rasterise free-space boxes (the procedural corridor's ``World.free_boxes``).
+
+        Args:
+            free_boxes: (B, 4) m [xmin, ymin, xmax, ymax], already shrunk by the margin; a
+                cell is free when its centre lies in one of them (edges included).
+            band: (z_lo, z_hi) m.
+            cell: m, cell size.
+            margin: m, the margin the boxes were shrunk by (for ``clearance``).
+        """
+        boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
+        if len(boxes) == 0 or np.any(boxes[:, 2:] <= boxes[:, :2]):
+            raise ValueError(f"free_boxes must be (B, 4) [xmin, ymin, xmax, ymax] with "
+                             f"max > min, got {boxes.tolist()}")
+        z_lo, z_hi = _check_band(band)
+        cell = _positive(cell, "cell")
+        origin, shape = _grid(boxes[:, :2].min(0), boxes[:, 2:].max(0), cell)
+        # first / one-past-last cell whose centre is in each box, per axis
+        first = np.ceil((boxes[:, :2] - origin) / cell - 0.5 - 1e-9).astype(np.int64)
+        last = np.floor((boxes[:, 2:] - origin) / cell - 0.5 + 1e-9).astype(np.int64) + 1
+        diff = np.zeros((shape[0] + 1, shape[1] + 1), np.int64)  # summed-area corners
+        np.add.at(diff, (first[:, 1], first[:, 0]), 1)
+        np.add.at(diff, (first[:, 1], last[:, 0]), -1)
+        np.add.at(diff, (last[:, 1], first[:, 0]), -1)
+        np.add.at(diff, (last[:, 1], last[:, 0]), 1)
+        free = diff.cumsum(0).cumsum(1)[:-1, :-1] > 0
+        edge = ndimage.distance_transform_edt(free, sampling=cell)
+        clearance = np.where(free, margin + edge - cell, 0.0).astype(np.float32)
+        occ = cls(free, clearance, origin, cell, (z_lo, z_hi), float(margin))
+        occ._check_not_empty("free_boxes")
+        return occ
+
+    # ------------------------------------------------------------------ queries
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) cells: rows along +Y, columns along +X."""
+        return self.free.shape
+
+    @property
+    def area(self) -> float:
+        """Free area, m^2."""
+        return float(self.free.sum()) * self.cell**2
+
+    @property
+    def extent(self) -> np.ndarray:
+        """(4,) m [xmin, ymin, xmax, ymax] of the grid."""
+        h, w = self.shape
+        return np.concatenate([self.origin, self.origin + np.array([w, h]) * self.cell])
+
+    def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cells of points: (2, N) int64 [row, col] (clipped) and (N,) bool inside the grid."""
+        return _cells(np.asarray(xy, dtype=np.float64).reshape(-1, 2), self.origin,
+                      self.cell, self.shape)
+
+    def centres(self, rc: np.ndarray) -> np.ndarray:
+        """(N, 2) m centres of the cells (2, N) [row, col]."""
+        rc = np.asarray(rc)
+        return self.origin + (np.stack([rc[1], rc[0]], 1) + 0.5) * self.cell
+
+    def contains(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: the points (N, 2) m lie in free cells."""
+        rc, inside = self.cell_of(xy)
+        return inside & self.free[rc[0], rc[1]]
+
+    def distance(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) m from the points (N, 2) to the nearest obstacle, to within a cell (the
+        clearance of their cells; 0 outside the grid)."""
+        rc, inside = self.cell_of(xy)
+        return np.where(inside, self.clearance[rc[0], rc[1]], 0.0)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """(n, 2) m points uniform over the free cells (a free cell, then uniform in it)."""
+        idx = np.flatnonzero(self.free)
+        if len(idx) == 0:
+            raise ValueError(f"no free cells to sample (margin {self.margin} m)")
+        pick = idx[rng.integers(len(idx), size=int(n))]
+        r, c = np.unravel_index(pick, self.shape)
+        return self.origin + (np.stack([c, r], 1) + rng.random((int(n), 2))) * self.cell
+
+    def eroded(self, extra: float) -> OccupancyMap:
+        """The map with ``extra`` m more margin (free where clearance >= margin + extra)."""
+        if extra < 0:
+            raise ValueError(f"extra margin must be >= 0, got {extra}")
+        margin = self.margin + float(extra)
+        free = self.free & (self.clearance >= margin - _TOL)
+        return OccupancyMap(free, self.clearance, self.origin, self.cell, self.band, margin)
+
+    # ------------------------------------------------------------------ files and images
+
+    def save(self, path: str | Path) -> None:
+        """Write an .npz file atomically (``load`` reads it)."""
+        arrays = {"free": self.free, "clearance": self.clearance.astype(np.float32),
+                  "origin": np.asarray(self.origin, np.float64), "cell": np.float64(self.cell),
+                  "band": np.asarray(self.band, np.float64), "margin": np.float64(self.margin)}
+
+        def write(tmp: Path) -> None:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+
+        atomic_write(path, write)
+
+    @classmethod
+    def load(cls, path: str | Path) -> OccupancyMap:
+        """Read a map written by ``save``."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"occupancy map {path} not found")
+        with np.load(path) as z:
+            missing = [k for k in _KEYS if k not in z.files]
+            if missing:
+                raise ValueError(f"{path}: not an occupancy map (missing {missing}); write one "
+                                 "with OccupancyMap.save")
+            d = {k: z[k] for k in _KEYS}
+        if d["free"].shape != d["clearance"].shape or d["free"].ndim != 2:
+            raise ValueError(f"{path}: free {d['free'].shape} and clearance "
+                             f"{d['clearance'].shape} must be the same (H, W)")
+        return cls(d["free"].astype(bool), d["clearance"].astype(np.float32),
+                   d["origin"].astype(np.float64), float(d["cell"]),
+                   (float(d["band"][0]), float(d["band"][1])), float(d["margin"]))
+
+    def to_pixels(self, xy: np.ndarray, scale: int = 1) -> np.ndarray:
+        """(N, 2) float pixel (u, v) of world points (N, 2) m in ``plot``'s image."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        uv = (xy - self.origin) / self.cell * scale - 0.5
+        return np.stack([uv[:, 0], self.shape[0] * scale - 1 - uv[:, 1]], 1)
+
+    def plot(self, paths: Sequence[np.ndarray] = (), scale: int = 1) -> np.ndarray:
+        """Top-down image of the map, +Y up: free white, within the margin light grey,
+        obstacles and outside dark; ``paths`` ((K, 2) m each) drawn in colours in turn.
+
+        Returns:
+            (H * scale, W * scale, 3) uint8 RGB.
+        """
+        img = np.empty((*self.shape, 3), np.uint8)
+        img[:] = BLOCKED_RGB
+        img[self.clearance > 0] = MARGIN_RGB
+        img[self.free] = FREE_RGB
+        img = np.ascontiguousarray(np.repeat(np.repeat(img[::-1], scale, 0), scale, 1))
+        for i, path in enumerate(paths):
+            uv = np.round(self.to_pixels(path, scale)).astype(np.int32)
+            cv2.polylines(img, [uv.reshape(-1, 1, 2)], False, PATH_RGB[i % len(PATH_RGB)],
+                          max(1, scale // 2), cv2.LINE_AA)
+        return img
+
+    def _check_not_empty(self, source: str) -> None:
+        if not self.free.any():
+            raise ValueError(f"{source}: no free space left (band {list(self.band)}, margin "
+                             f"{self.margin} m, cell {self.cell} m); lower the margin or "
+                             "check the band against the floor and ceiling heights")
+
+
+# ---------------------------------------------------------------------- helpers
+
+
+def _positive(value: float, key: str) -> float:
+    value = float(value)
+    if not value > 0:
+        raise ValueError(f"{key} must be positive, got {value}")
+    return value
+
+
+def _check_band(band: Sequence[float]) -> tuple[float, float]:
+    b = np.asarray(band, dtype=np.float64).reshape(-1)
+    if b.shape != (2,) or not b[0] < b[1]:
+        raise ValueError(f"band must be [z_lo, z_hi] with z_lo < z_hi, got {b.tolist()}")
+    return float(b[0]), float(b[1])
+
+
+def _check_mesh(vertices: np.ndarray, faces: np.ndarray,
+                face_class: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    cls_ = np.asarray(face_class).reshape(-1)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+        raise ValueError(f"vertices must be (V, 3), got {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"faces must be (F, 3) integer vertex indices, got {f.shape} {f.dtype}")
+    if f.min() < 0 or f.max() >= len(v):
+        raise ValueError(f"faces index vertices {f.min()}..{f.max()}, but there are {len(v)}")
+    if len(cls_) != len(f):
+        raise ValueError(f"face_class has {len(cls_)} entries for {len(f)} faces")
+    return v, f.astype(np.int64), cls_
+
+
+def _grid(lo: np.ndarray, hi: np.ndarray, cell: float) -> tuple[np.ndarray, tuple[int, int]]:
+    """Origin and (H, W) of the lattice grid covering [lo, hi] plus one cell on each side."""
+    k0 = np.floor(lo / cell + 0.5).astype(np.int64) - 1  # lattice index of the first centre
+    k1 = np.floor(hi / cell + 0.5).astype(np.int64) + 1
+    origin = (k0 - 0.5) * cell
+    return origin, (int(k1[1] - k0[1] + 1), int(k1[0] - k0[0] + 1))
+
+
+def _cells(xy: np.ndarray, origin: np.ndarray, cell: float,
+           shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    cr = np.floor((xy - origin) / cell).astype(np.int64)
+    inside = ((cr >= 0) & (cr < np.array([shape[1], shape[0]]))).all(1)
+    rc = np.stack([np.clip(cr[:, 1], 0, shape[0] - 1), np.clip(cr[:, 0], 0, shape[1] - 1)])
+    return rc, inside
+
+
+def _normal_z(tri: np.ndarray) -> np.ndarray:
+    """(F,) z of the triangles' (unnormalised) normals, counter-clockwise winding."""
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    return n[:, 2]
+
+
+def _clip_z(tri: np.ndarray, parent: np.ndarray, level: float, above: bool,
+            strict: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The parts of triangles (T, 3, 3) at z >= level (``above``) or z <= level, or strictly
+    beyond it (``strict``), as triangles, each with its ``parent`` (T,) entry."""
+    d = (tri[:, :, 2] - level) * (1 if above else -1)
+    inside = d > 0 if strict else d >= 0
+    n_in = inside.sum(1)
+    out_tri, out_parent = [tri[n_in == 3]], [parent[n_in == 3]]
+    for n, odd in ((1, inside), (2, ~inside)):  # roll the odd vertex out to position 0
+        sel = n_in == n
+        first = np.argmax(odd[sel], axis=1)
+        idx = (first[:, None] + np.arange(3)) % 3
+        t = np.take_along_axis(tri[sel], idx[:, :, None], axis=1)
+        dd = np.take_along_axis(d[sel], idx, axis=1)
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        ab = a + (b - a) * (dd[:, :1] / (dd[:, :1] - dd[:, 1:2]))
+        ac = a + (c - a) * (dd[:, :1] / (dd[:, :1] - dd[:, 2:3]))
+        if n == 1:  # a inside: one triangle
+            out_tri.append(np.stack([a, ab, ac], 1))
+            out_parent.append(parent[sel])
+        else:  # a outside: the quad ab, b, c, ac
+            out_tri += [np.stack([ab, b, c], 1), np.stack([ab, c, ac], 1)]
+            out_parent += [parent[sel], parent[sel]]
+    return np.concatenate(out_tri), np.concatenate(out_parent)
+
+
+def _footprint(tri: np.ndarray, parent: np.ndarray, grid: tuple) -> np.ndarray:
+    """(H, W) bool: the cells the triangles' XY footprints touch."""
+    origin, cell, shape, spacing = grid
+    mask = np.zeros(shape, bool)
+    for pts, _ in _samples(tri, spacing):
+        rc, inside = _cells(pts[:, :2], origin, cell, shape)
+        mask[rc[0, inside], rc[1, inside]] = True
+    return mask
+
+
+def _lowest_faces_up(tri: np.ndarray, up: np.ndarray, grid: tuple) -> np.ndarray:
+    """(H, W) bool: the lowest of the triangles over a cell faces up (``up`` (T,); at equal
+    heights, to 0.1 mm, up wins)."""
+    origin, cell, shape, spacing = grid
+    z0 = tri[:, :, 2].min() if len(tri) else 0.0
+    lowest = np.full(int(np.prod(shape)), np.iinfo(np.int64).max)  # 2 * height + (not up)
+    for pts, t in _samples(tri, spacing):
+        rc, inside = _cells(pts[:, :2], origin, cell, shape)
+        key = 2 * np.round((pts[inside, 2] - z0) * 1e4).astype(np.int64) + ~up[t[inside]]
+        np.minimum.at(lowest, np.ravel_multi_index((rc[0, inside], rc[1, inside]), shape), key)
+    return ((lowest % 2 == 0) & (lowest < np.iinfo(np.int64).max)).reshape(shape)
+
+
+def _split_long(tri: np.ndarray, parent: np.ndarray,
+                max_edge: float) -> tuple[np.ndarray, np.ndarray]:
+    """Halve triangles (T, 3, 3) across their longest XY edge until every XY edge is <=
+    max_edge.
+
+    Returns:
+        the pieces (P, 3, 3) and (P,) the ``parent`` entry of each.
+    """
+    done_tri, done_parent = [tri[:0]], [parent[:0]]
+    while len(tri):
+        edge = np.linalg.norm(tri[:, [1, 2, 0], :2] - tri[:, :, :2], axis=2)  # i -> i + 1
+        ok = edge.max(1) <= max_edge
+        done_tri.append(tri[ok])
+        done_parent.append(parent[ok])
+        tri, parent, longest = tri[~ok], parent[~ok], edge[~ok].argmax(1)
+        # roll so the longest edge is vertex 0 -> 1, then split it at its midpoint
+        idx = (longest[:, None] + np.arange(3)) % 3
+        t = np.take_along_axis(tri, idx[:, :, None], axis=1)
+        mid = (t[:, 0] + t[:, 1]) / 2
+        tri = np.concatenate([np.stack([t[:, 0], mid, t[:, 2]], 1),
+                              np.stack([mid, t[:, 1], t[:, 2]], 1)])
+        parent = np.concatenate([parent, parent])
+    return np.concatenate(done_tri), np.concatenate(done_parent)
+
+
+def _samples(tri: np.ndarray, spacing: float) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Points on triangles (T, 3, 3) whose XY lattice steps are at most ``spacing``.
+
+    Each triangle gets the lattice A + i/ku (B - A) + j/kv (C - A), i/ku + j/kv <= 1, with A
+    the corner opposite its longest XY edge and ku, kv the XY lengths of AB, AC over the
+    spacing: every point of the triangle's XY footprint is within ``spacing`` of a sample.
+    Triangles are split first so that one has at most ~2000 points, and a chunk at most
+    ``_MAX_POINTS``.
+
+    Yields:
+        points (P, 3) and (P,) the index of each point's triangle in ``tri``.
+    """
+    tri, parent = _split_long(tri, np.arange(len(tri)), 64 * spacing)
+    edge = np.linalg.norm(tri[:, [1, 2, 0], :2] - tri[:, :, :2], axis=2)
+    a = (edge.argmax(1) + 2) % 3  # the corner opposite the longest edge
+    idx = (a[:, None] + np.arange(3)) % 3
+    t = np.take_along_axis(tri, idx[:, :, None], axis=1)
+    ab, ac = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    ku = np.maximum(np.ceil(np.linalg.norm(ab[:, :2], axis=1) / spacing), 1).astype(np.int64)
+    kv = np.maximum(np.ceil(np.linalg.norm(ac[:, :2], axis=1) / spacing), 1).astype(np.int64)
+    bound = np.cumsum((ku + 1) * (kv + 1))  # points per triangle are at most this
+    start = 0
+    while start < len(t):
+        base = bound[start - 1] if start else 0
+        stop = max(int(np.searchsorted(bound, base + _MAX_POINTS, side="right")), start + 1)
+        # rows i of every triangle, then the points j of every row
+        rows = ku[start:stop] + 1
+        row_tri = np.repeat(np.arange(start, stop), rows)
+        i = np.arange(rows.sum()) - np.repeat(np.cumsum(rows) - rows, rows)
+        u = i / ku[row_tri]
+        per_row = np.floor(kv[row_tri] * (1 - u) + 1e-9).astype(np.int64) + 1
+        which = np.repeat(row_tri, per_row)
+        j = np.arange(per_row.sum()) - np.repeat(np.cumsum(per_row) - per_row, per_row)
+        u, v = np.repeat(u, per_row), j / kv[which]
+        pts = t[which, 0] + u[:, None] * ab[which] + v[:, None] * ac[which]
+        yield pts, parent[which]
+        start = stop
