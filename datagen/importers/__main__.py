@@ -32,6 +32,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--doors", choices=("open", "closed"), default="open")
     p.add_argument("--ceiling", choices=("auto", "none"), default="auto")
     p.add_argument("--px", type=float, default=None, help="plan image metres per pixel")
+    p.add_argument("--cut", type=float, default=None, help="plan cut height in metres "
+                   "(default: 1.5 m above the floor)")
     return p.parse_args(argv)
 
 
@@ -71,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = Path(args.out)
     stem = Path(args.file).stem
-    plan = write_plan(b, out / f"{stem}_plan.png", args.px)
+    plan = write_plan(b, out / f"{stem}_plan.png", args.px, args.cut)
     (out / f"{stem}_import.json").write_text(json.dumps(b.info, indent=1))
     print(summary(b.info))
     print(f"plan: {plan}")

@@ -143,13 +143,15 @@ def _shapes(model, elements: list, settings) -> list[tuple[object, np.ndarray, n
     return sorted(out, key=lambda s: s[0].id())
 
 
-def _parts(shapes, ceiling_only: bool) -> list[Part]:
-    """A part per (element, material); for ceiling sources only the down-facing faces."""
+def _parts(shapes, ceiling_only: bool, floor_z: float = -np.inf) -> list[Part]:
+    """A part per (element, material); for ceiling sources only the down-facing faces; the
+    undersides of floor slabs below ``floor_z`` (m; never seen from the storey) left out."""
     parts = []
     for element, v, f, mats, mat_id in shapes:
         _, normal = face_areas_normals(v, f)
         cls = element_classes(element, normal)
-        keep = np.ones(len(f), bool)
+        keep = ~((normal[:, 2] <= -HORIZONTAL) & (v[f][:, :, 2].max(axis=1) < floor_z)
+                 & (cls != UNSET))
         if ceiling_only:
             keep = normal[:, 2] <= -HORIZONTAL
             cls = np.full(len(f), C.CEILING, np.uint8)
@@ -200,10 +202,10 @@ def load_ifc(path: Path, storey: str | None, doors: str) -> tuple[list[Part], di
         raise ValueError(f"{path}: the storey has no elements with geometry")
     settings = ifcopenshell.geom.settings()
     settings.set("use-world-coords", True)
-    parts = _parts(_shapes(model, own, settings), False)
+    name, z = (storeys[index][0].Name, storeys[index][1]) if storeys else (None, -np.inf)
+    parts = _parts(_shapes(model, own, settings), False, z - 0.05)
     _reveals(model, settings, parts)
     parts += _parts(_shapes(model, above, settings), True)
-    name, z = (storeys[index][0].Name, storeys[index][1]) if storeys else (None, 0.0)
-    return parts, {"schema": model.schema, "storey": name, "elevation": z,
+    return parts, {"schema": model.schema, "storey": name, "elevation": float(max(z, -1e9)),
                    "storeys": {s.Name or f"#{s.id()}": round(e, 3) for s, e in storeys},
                    "elements": len(own), "ceiling_elements": len(above), "units": 1.0}

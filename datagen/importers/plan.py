@@ -1,8 +1,10 @@
 """A top-down plan image of a building's classes (orthographic, numpy rasterisation).
 
-Per pixel the class of the highest surface below the ceiling: triangles with an area in plan
-are filled with their interpolated height; vertical ones (walls) are drawn as their outline at
-their top height, so walls show over floors.
+As an architect's plan: the building is cut at a height (default 1.5 m above the floor) and
+each pixel shows the class of the highest surface below the cut. Triangles with an area in
+plan are filled with their interpolated height; vertical ones (walls, door frames, window
+reveals) are drawn as their outline (3 px wide) at their top height (at most the cut), so they
+show over the floor, and door openings show as gaps in the walls.
 """
 
 from __future__ import annotations
@@ -62,27 +64,30 @@ def _zbuffer(z_buf: np.ndarray, label: np.ndarray, pix: np.ndarray, z: np.ndarra
 
 
 def _outline(tri: np.ndarray, cls: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, ...]:
-    """Pixels along the plan outline of triangles, at each triangle's top height."""
+    """Pixels along the plan outline of triangles (3 px wide), at each triangle's top
+    height."""
     p0 = tri[:, [0, 1, 2], :2].reshape(-1, 2)
     p1 = tri[:, [1, 2, 0], :2].reshape(-1, 2)
     n = np.ceil(np.linalg.norm(p1 - p0, axis=1)).astype(np.int64) + 1
     e = np.repeat(np.arange(len(p0)), n)
     s = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)) / np.maximum(n[e] - 1, 1)
-    pts = p0[e] + (p1[e] - p0[e]) * s[:, None]
-    px = np.clip(pts[:, 0].astype(np.int64), 0, shape[1] - 1)
-    py = np.clip(pts[:, 1].astype(np.int64), 0, shape[0] - 1)
-    f = e // 3
+    pts = (p0[e] + (p1[e] - p0[e]) * s[:, None]).astype(np.int64)
+    step = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
+    pts = (pts[:, None, :] + step).reshape(-1, 2)
+    px = np.clip(pts[:, 0], 0, shape[1] - 1)
+    py = np.clip(pts[:, 1], 0, shape[0] - 1)
+    f = np.repeat(e // 3, len(step))
     return py * shape[1] + px, tri[f, :, 2].max(axis=1), cls[f]
 
 
-def plan_labels(b: Building, metres_per_px: float | None = None, below: float | None = None
+def plan_labels(b: Building, metres_per_px: float | None = None, cut: float | None = None
                 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Class per pixel seen from above (+Y up in the image).
 
     Args:
         b: the building. metres_per_px: pixel size (None: the longer side ~1200 px, at least
-            0.02 m). below: only faces starting below this height (None: the top of the walls
-            ``info["wall_top_z"]``, ceilings are left out in any case).
+            0.02 m). cut: the height (m) of the cut (None: ``info["floor_z"]`` + 1.5 m);
+            ceiling faces are left out in any case.
 
     Returns:
         labels (H, W) uint8 (255 where nothing is), origin (2,) the world XY of pixel (0, H-1)'s
@@ -91,9 +96,9 @@ def plan_labels(b: Building, metres_per_px: float | None = None, below: float | 
     lo, hi = b.vertices[:, :2].min(axis=0) - 0.5, b.vertices[:, :2].max(axis=0) + 0.5
     res = metres_per_px or max(0.02, float((hi - lo).max()) / 1200)
     shape = (int(np.ceil((hi[1] - lo[1]) / res)), int(np.ceil((hi[0] - lo[0]) / res)))
-    top = b.info.get("wall_top_z", np.inf) if below is None else below
+    top = b.info.get("floor_z", 0.0) + 1.5 if cut is None else cut
     tri = b.vertices[b.faces]
-    keep = (b.face_class != C.CEILING) & (tri[:, :, 2].min(axis=1) < top - 0.05)
+    keep = (b.face_class != C.CEILING) & (tri[:, :, 2].min(axis=1) < top)
     tri = np.concatenate([(tri[keep, :, :2] - lo) / res, tri[keep, :, 2:]], axis=2)
     tri[:, :, 2] = np.minimum(tri[:, :, 2], top)
     cls = b.face_class[keep]
@@ -108,10 +113,11 @@ def plan_labels(b: Building, metres_per_px: float | None = None, below: float | 
     return labels.reshape(shape)[::-1], lo, res
 
 
-def plan_image(b: Building, metres_per_px: float | None = None) -> np.ndarray:
+def plan_image(b: Building, metres_per_px: float | None = None, cut: float | None = None
+               ) -> np.ndarray:
     """(H, W + legend, 3) uint8 RGB plan of the classes with a legend (class, area share) and
-    a scale bar."""
-    labels, _, res = plan_labels(b, metres_per_px)
+    a scale bar (at most 200 px)."""
+    labels, _, res = plan_labels(b, metres_per_px, cut)
     rgb = C.palette()[labels]
     rgb[labels == 255] = BACKGROUND
     h, w = labels.shape
@@ -122,22 +128,23 @@ def plan_image(b: Building, metres_per_px: float | None = None) -> np.ndarray:
         cv2.rectangle(panel, (10, y - 12), (30, y + 4), C.CLASSES[C.ID[name]][2], -1)
         cv2.putText(panel, f"{name} {100 * shares[name]:.1f}%", (38, y), cv2.FONT_HERSHEY_SIMPLEX,
                     0.5, (0, 0, 0), 1, cv2.LINE_AA)
-    bar = max(1, round(5.0 / res))
+    metres = max([m for m in (0.5, 1, 2, 5, 10, 20, 50) if m / res <= 200] or [0.5])
     y = 20 + 26 * (len(shares) + 1)
-    cv2.line(panel, (10, y), (10 + min(bar, 200), y), (0, 0, 0), 2)
-    cv2.putText(panel, f"{5.0 * min(bar, 200) / bar:.1f} m", (10, y + 20),
-                cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.line(panel, (10, y), (10 + round(metres / res), y), (0, 0, 0), 2)
+    cv2.putText(panel, f"{metres:g} m", (10, y + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                (0, 0, 0), 1, cv2.LINE_AA)
     out = np.full((max(h, panel.shape[0]), w + panel.shape[1], 3), 255, np.uint8)
     out[:h, :w] = rgb
     out[: panel.shape[0], w:] = panel
     return out
 
 
-def write_plan(b: Building, path: str | Path, metres_per_px: float | None = None) -> Path:
+def write_plan(b: Building, path: str | Path, metres_per_px: float | None = None,
+               cut: float | None = None) -> Path:
     """Write ``plan_image`` as a PNG; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(plan_image(b, metres_per_px),
+    if not cv2.imwrite(str(path), cv2.cvtColor(plan_image(b, metres_per_px, cut),
                                                cv2.COLOR_RGB2BGR)):
         raise OSError(f"{path}: could not write the plan image")
     return path

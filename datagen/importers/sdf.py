@@ -73,6 +73,7 @@ class _Walk:
     missing: Counter = field(default_factory=Counter)  # model name -> includes not found
     missing_meshes: Counter = field(default_factory=Counter)  # mesh uri -> visuals
     meshes: dict[Path, list[Part]] = field(default_factory=dict)
+    units: dict[Path, float] = field(default_factory=dict)  # mesh file -> metres per unit
     trees: dict[Path, ET.Element] = field(default_factory=dict)
     notes: set[str] = field(default_factory=set)
     includes: int = 0
@@ -113,7 +114,7 @@ class _Walk:
                         target = d / name / rest
                         return target if target.exists() else None
                 return None
-        path = Path(uri[len("file://"):]) if uri.startswith("file://") else base / uri
+        path = base / (uri[len("file://"):] if uri.startswith("file://") else uri)
         return path if path.exists() else None
 
 
@@ -156,7 +157,8 @@ def _visual(w: _Walk, vis: ET.Element, matrix: np.ndarray, name: str, base: Path
     geometry = vis.find("geometry")
     if geometry is None:
         return
-    colour = _floats(vis.findtext("material/diffuse"), 4, [np.nan] * 4, f"{name} diffuse")[:3]
+    diffuse = (vis.findtext("material/diffuse") or "").split()
+    colour = _floats(" ".join(diffuse[:3]) or None, 3, [np.nan] * 3, f"{name} diffuse")
     script = (vis.findtext("material/script/name") or "").strip()
     name = f"{name}/{script}" if script else name
     for g in geometry:
@@ -169,7 +171,8 @@ def _visual(w: _Walk, vis: ET.Element, matrix: np.ndarray, name: str, base: Path
             if g.find("submesh") is not None:
                 w.note("<submesh> is not supported: the whole mesh is used")
             if path not in w.meshes:
-                w.meshes[path] = load_mesh_file(path)[0]
+                w.meshes[path], info = load_mesh_file(path)
+                w.units[path] = info["units"]
             scaled = matrix @ np.diag([*_floats(g.findtext("scale"), 3, [1, 1, 1],
                                                 f"{name} scale"), 1.0])
             for p in w.meshes[path]:
@@ -227,7 +230,8 @@ def _include(w: _Walk, inc: ET.Element, parent: np.ndarray, prefix: str, base: P
 
 def _cut_planes(w: _Walk) -> None:
     """Cut horizontal planes to the XY extent of the other parts (if any)."""
-    others = [p for i, p in enumerate(w.parts) if i not in set(w.planes)]
+    planes = set(w.planes)
+    others = [p for i, p in enumerate(w.parts) if i not in planes]
     if not w.planes or not others:
         return
     pts = np.concatenate([p.vertices for p in others])
@@ -252,7 +256,7 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
     Returns:
         parts (face_class UNSET, named ``model/.../link/visual[/script]/geometry/material``)
         and info: ``includes``, ``missing_models`` (name -> count), ``missing_meshes``,
-        ``model_path`` (the folders searched).
+        ``model_path`` (the folders searched), ``units`` (metres per file unit -> mesh files).
     """
     root = parse_xml(path)
     if root.tag != "sdf":
@@ -282,4 +286,5 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
                     ", ".join(w.missing_meshes))
     return w.parts, {"includes": w.includes, "missing_models": dict(w.missing.most_common()),
                      "missing_meshes": dict(w.missing_meshes),
-                     "model_path": [str(d) for d in w.search]}
+                     "model_path": [str(d) for d in w.search],
+                     "units": dict(Counter(w.units.values()).most_common())}

@@ -177,7 +177,7 @@ PRIMITIVES = """
   <visual name="pillar"><pose>2 3 1.25 0 0 0</pose><geometry><cylinder><radius>0.25</radius>
     <length>2.5</length></cylinder></geometry></visual>
   <visual name="ball"><pose>4 3 1 0 0 0</pose><geometry><sphere><radius>0.3</radius></sphere>
-    </geometry></visual></link></model>
+    </geometry><material><diffuse>1 0 0 1</diffuse></material></visual></link></model>
 """
 
 
@@ -196,6 +196,7 @@ def test_primitives_and_ground_plane(tmp_path):
     np.testing.assert_allclose([pillar[:, 2].min(), pillar[:, 2].max()], [0, 2.5], atol=1e-9)
     ball = b.vertices[np.unique(b.faces[faces_named(b, "ball/sphere")])]
     np.testing.assert_allclose(np.linalg.norm(ball - [4, 3, 1], axis=1), 0.3, atol=1e-9)
+    assert (b.face_colour[faces_named(b, "ball/sphere")] == [1, 0, 0]).all()
     # geometry rules: box tops (up, 2.5 m) are wall, box bottoms (down) ceiling-facing
     assert (b.face_class[faces_named(b, "north/box")] != C.FLOOR).all()
 
