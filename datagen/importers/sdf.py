@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
@@ -24,6 +25,8 @@ from datagen.importers.building import Part, transformed
 from datagen.importers.meshfile import load_mesh_file
 
 log = logging.getLogger(__name__)
+#: An ``<sdf version="...">file</sdf>`` entry of a model.config, read as text.
+SDF_ENTRY = re.compile(r"""<sdf(?:\s+version\s*=\s*["']([^"']*)["'])?[^>]*>\s*([^<\s]+)\s*</sdf>""")
 
 
 def model_search_path(source: Path, extra: list[str]) -> list[Path]:
@@ -120,16 +123,21 @@ class _Walk:
 
 def _model_sdf(folder: Path) -> Path:
     """The SDF file of a model folder: model.config's ``<sdf>`` of the highest version,
-    else model.sdf."""
+    else model.sdf. A model.config that is not well-formed XML (a bare ``&`` is common) is
+    searched for its ``<sdf>`` entries as text."""
     config = folder / "model.config"
-    if config.is_file():
-        entries = parse_xml(config).findall("sdf")
-        if entries:
-            best = max(entries, key=lambda e: [int(x) for x in
-                                               (e.get("version") or "0").split(".") if x.isdigit()])
-            if (folder / (best.text or "").strip()).is_file():
-                return folder / best.text.strip()
-    return folder / "model.sdf"
+    if not config.is_file():
+        return folder / "model.sdf"
+    text = config.read_text(errors="replace")
+    try:
+        entries = [(e.get("version") or "0", (e.text or "").strip())
+                   for e in ET.fromstring(text).findall("sdf")]
+    except ET.ParseError:
+        entries = SDF_ENTRY.findall(text)
+    found = [(v, f) for v, f in entries if (folder / f).is_file()]
+    if not found:
+        return folder / "model.sdf"
+    return folder / max(found, key=lambda e: [int(x) for x in e[0].split(".") if x.isdigit()])[1]
 
 
 def _shape(tag: str, g: ET.Element, where: str) -> trimesh.Trimesh | None:

@@ -217,3 +217,21 @@ def test_world_errors(tmp_path):
     pose = write_world(tmp_path / "pose.world", "<model name='m'><pose>1 2</pose></model>")
     with pytest.raises(ValueError, match="pose"):
         load_building(pose)
+
+
+def test_model_config_not_well_formed(tmp_path):
+    """A bare & in model.config (as in the AWS hospital's elevator) still finds its SDF."""
+    folder = write_model(tmp_path / "models", "lift", "")
+    (folder / "model.sdf").unlink()
+    (folder / "lift.sdf").write_text(
+        '<sdf version="1.6"><model name="lift">' + visual(
+            "<box><size>1 1 1</size></box>", "0 0 0.5 0 0 0") + "</model></sdf>")
+    (folder / "model.config").write_text(
+        '<?xml version="1.0"?><model><name>lift</name><sdf version="1.6">lift.sdf</sdf>'
+        "<description>portal, door & car</description></model>")
+    world = write_world(tmp_path / "worlds" / "a.world",
+                        "<include><uri>model://lift</uri></include><model name='g'>"
+                        + visual("<plane><size>4 4</size></plane>") + "</model>")
+    b = load_building(world)
+    assert not b.info["missing_models"]
+    np.testing.assert_allclose(b.vertices.max(axis=0), [0.5, 0.5, 1.0])
