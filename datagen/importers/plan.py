@@ -43,12 +43,11 @@ def _fill(tri: np.ndarray, cls: np.ndarray, shape: tuple[int, int]) -> tuple[np.
     return (py * shape[1] + px)[inside], z[inside], cls[t][inside]
 
 
-def _chunks(tri: np.ndarray, budget: int = 2_000_000) -> list[slice]:
-    """Slices of ``tri`` whose plan bounding boxes hold about ``budget`` pixels each."""
-    size = np.ceil(tri[:, :, :2].max(axis=1) - tri[:, :, :2].min(axis=1)) + 2
-    cum = np.cumsum(size[:, 0] * size[:, 1])
+def _chunks(cost: np.ndarray, budget: int = 500_000) -> list[slice]:
+    """Consecutive slices whose ``cost`` (samples per triangle) adds up to about ``budget``."""
+    cum = np.cumsum(cost)
     cuts = np.searchsorted(cum, np.arange(budget, cum[-1] if len(cum) else 0, budget))
-    edges = np.unique(np.r_[0, cuts, len(tri)])
+    edges = np.unique(np.r_[0, cuts, len(cost)])
     return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
@@ -107,9 +106,13 @@ def plan_labels(b: Building, metres_per_px: float | None = None, cut: float | No
     labels = np.full(shape[0] * shape[1], 255, np.uint8)
     z_buf = np.full(shape[0] * shape[1], -np.inf)
     filled, fc = tri[flat], cls[flat]
-    for part in _chunks(filled):
+    size = np.ceil(filled[:, :, :2].max(axis=1) - filled[:, :, :2].min(axis=1)) + 2
+    for part in _chunks(size[:, 0] * size[:, 1]):
         _zbuffer(z_buf, labels, *_fill(filled[part], fc[part], shape))
-    _zbuffer(z_buf, labels, *_outline(tri[~flat], cls[~flat], shape))
+    upright, uc = tri[~flat], cls[~flat]
+    perimeter = np.linalg.norm(upright[:, [1, 2, 0], :2] - upright[:, :, :2], axis=2).sum(axis=1)
+    for part in _chunks(9 * (perimeter + 6)):
+        _zbuffer(z_buf, labels, *_outline(upright[part], uc[part], shape))
     return labels.reshape(shape)[::-1], lo, res
 
 

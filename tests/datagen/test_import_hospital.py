@@ -51,3 +51,12 @@ def test_hospital_import(hospital):
     assert (b.face_class[named(b, "floor_01_ceiling")] == C.CEILING).all()
     assert b.info["ceiling_added"] == 0 and abs(b.info["floor_z"]) < 0.05
     assert abs(b.info["wall_top_z"] - 3.0) < 0.1
+
+
+def test_hospital_plan(hospital):
+    from datagen.importers.plan import plan_labels
+
+    labels, _, res = plan_labels(hospital[0], metres_per_px=0.1)
+    counts = np.bincount(labels.ravel(), minlength=256)
+    assert counts[C.FLOOR] * res**2 > 900  # m^2 of floor seen from above at the 1.5 m cut
+    assert min(counts[C.WALL], counts[C.DOOR], counts[C.WINDOW], counts[C.CLUTTER]) > 0
