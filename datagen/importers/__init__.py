@@ -1,0 +1,9 @@
+"""Import a building model (Gazebo SDF, a mesh file, IFC) as one triangle mesh with a class
+per face: ``load_building(path, settings) -> Building``. ``python -m datagen.importers FILE``
+checks an import (counts, class shares, missing models, a plan image)."""
+
+from datagen.importers.building import Building
+from datagen.importers.load import EXTENSIONS, load_building
+from datagen.importers.settings import ImportSettings, NameRule
+
+__all__ = ["EXTENSIONS", "Building", "ImportSettings", "NameRule", "load_building"]

@@ -1,0 +1,114 @@
+"""``load_building``: any supported building model file to one classed triangle mesh."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from core import classes as C
+from datagen.config import as_config
+from datagen.importers.building import Building, Part, assemble, face_areas_normals
+from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
+from datagen.importers.settings import ImportSettings
+
+SDF_EXTENSIONS = (".world", ".sdf")
+MESH_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
+IFC_EXTENSIONS = (".ifc",)
+EXTENSIONS = SDF_EXTENSIONS + MESH_EXTENSIONS + IFC_EXTENSIONS
+CHOICES = {"up_axis": ("z", "y"), "doors": ("open", "closed"), "ceiling": ("auto", "none")}
+
+
+def check_settings(s: ImportSettings) -> None:
+    """Raise ValueError naming the setting for a value out of its range."""
+    for key, allowed in CHOICES.items():
+        if getattr(s, key) not in allowed:
+            raise ValueError(f"{key}: {getattr(s, key)!r} is not one of {', '.join(allowed)}")
+    if not s.units > 0:
+        raise ValueError(f"units: {s.units} must be > 0 (metres per file unit)")
+    if not s.floor_tolerance >= 0:
+        raise ValueError(f"floor_tolerance: {s.floor_tolerance} must be >= 0")
+
+
+def has_ceiling(b: Building, floor_z: float, top: float) -> bool:
+    """Whether ceiling faces above the walls' mid-height cover at least half the floor's
+    area (down-facing faces lower down, e.g. table undersides, do not count)."""
+    area, _ = face_areas_normals(b.vertices, b.faces)
+    z = b.vertices[b.faces][:, :, 2].mean(axis=1)
+    high = (b.face_class == C.CEILING) & (z > (floor_z + top) / 2)
+    return bool(area[high].sum() >= 0.5 * area[b.face_class == C.FLOOR].sum())
+
+
+def read_parts(path: Path, s: ImportSettings) -> tuple[list[Part], dict]:
+    """The reader for the file's extension: parts and the reader's info."""
+    ext = path.suffix.lower()
+    if ext in SDF_EXTENSIONS:
+        from datagen.importers.sdf import load_sdf
+
+        parts, info = load_sdf(path, list(s.model_path))
+        return parts, {"format": "sdf", **info}
+    if ext in MESH_EXTENSIONS:
+        from datagen.importers.meshfile import load_mesh_file
+
+        parts, info = load_mesh_file(path, s.units, s.up_axis)
+        return parts, {"format": ext.lstrip("."), **info}
+    if ext in IFC_EXTENSIONS:
+        from datagen.importers.ifc import load_ifc
+
+        parts, info = load_ifc(path, s.storey, s.doors)
+        return parts, {"format": "ifc", **info}
+    raise ValueError(f"{path}: unknown extension {ext or '(none)'!r}; a building model is one "
+                     f"of {', '.join(EXTENSIONS)}")
+
+
+def load_building(path: str | Path | None = None,
+                  settings: ImportSettings | Mapping | None = None) -> Building:
+    """Import a building model as one triangle mesh with a class per face.
+
+    Args:
+        path: the model file, chosen by extension: .world/.sdf (Gazebo), .glb/.gltf/.obj/
+            .ply/.dae/.stl (a mesh), .ifc; None: ``settings.path``.
+        settings: ``ImportSettings`` or a mapping of the keys that differ (None: defaults).
+
+    Returns:
+        the Building (metres, Z up); ``info`` holds format, counts, missing models, class area
+        shares, floor and ceiling heights, units and the import time (s).
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ValueError: an unknown extension, a bad setting, an unreadable file, a model with no
+            floor or no walls, a storey that does not exist; each naming the file or key.
+    """
+    t0 = time.perf_counter()
+    s = as_config(ImportSettings, settings, "world")
+    check_settings(s)
+    path = Path(path if path is not None else s.path)
+    if not str(path):
+        raise ValueError("path: no building model file given (set path / world.path)")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file (path / world.path must name a "
+                                f"building model file: {', '.join(EXTENSIONS)})")
+    parts, info = read_parts(path, s)
+    if not any(len(p.faces) for p in parts):
+        raise ValueError(f"{path}: no triangles found (nothing to import)")
+    b = assemble(parts)
+    floor_z = classify(b, s.name_rules, s.floor_tolerance, str(path))
+    added = 0
+    top = ceiling_height(b)
+    if s.ceiling == "auto" and not has_ceiling(b, floor_z, top):
+        added = add_ceiling(b, top)
+    lo, hi = b.vertices.min(axis=0), b.vertices.max(axis=0)
+    counts = np.bincount(b.face_class, minlength=C.NUM_CLASSES)
+    b.info = {
+        "source": str(path), **info,
+        "vertices": int(len(b.vertices)), "faces": int(len(b.faces)),
+        "faces_per_class": {C.NAMES[i]: int(counts[i]) for i in range(C.NUM_CLASSES)
+                            if counts[i]},
+        "class_shares": class_shares(b), "floor_z": round(floor_z, 4),
+        "wall_top_z": round(top, 4), "ceiling_added": added,
+        "bounds": [lo.round(4).tolist(), hi.round(4).tolist()],
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+    return b

@@ -1,0 +1,87 @@
+"""Single mesh files: glTF/GLB, OBJ, PLY, STL through trimesh, COLLADA through ``dae``.
+
+Units: glTF is metres by its spec, COLLADA says its ``<unit>``; OBJ/PLY/STL take ``units``
+(metres per file unit). Up axis: glTF is Y-up by its spec; the others take ``up_axis``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from datagen.importers.building import Part, transformed
+from datagen.importers.dae import load_dae
+
+#: Y-up to Z-up: (x, y, z) -> (x, -z, y).
+Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], np.float64)
+
+
+def _trimesh_colour(mesh) -> np.ndarray:
+    """(3,) or (m, 3) linear-ish RGB in [0, 1] of a trimesh mesh's visual, NaN if it has
+    only a texture or nothing."""
+    visual = mesh.visual
+    if visual.kind == "face" or visual.kind == "vertex":
+        return np.asarray(visual.face_colors[:, :3], np.float64) / 255.0
+    material = getattr(visual, "material", None)
+    if material is not None and getattr(material, "baseColorTexture", None) is None \
+            and getattr(material, "image", None) is None:
+        rgba = getattr(material, "baseColorFactor", None)
+        if rgba is None:
+            rgba = getattr(material, "main_color", None)
+        if rgba is not None:
+            rgba = np.asarray(rgba, np.float64)
+            return rgba[:3] / (255.0 if rgba.dtype.kind in "ui" or rgba.max() > 1 else 1.0)
+    return np.full(3, np.nan)
+
+
+def _load_trimesh(path: Path) -> list[Part]:
+    """Parts of a file trimesh reads, in the file's frame and units (scene graph applied)."""
+    import trimesh
+
+    try:
+        scene = trimesh.load(str(path), force="scene", process=False)
+    except Exception as err:  # trimesh raises many kinds for broken files
+        raise ValueError(f"{path}: not a readable mesh file ({type(err).__name__}: {err})"
+                         ) from None
+    parts = []
+    for node in scene.graph.nodes_geometry:
+        matrix, gname = scene.graph[node]
+        mesh = scene.geometry[gname]
+        if not isinstance(mesh, trimesh.Trimesh) or not len(mesh.faces):
+            continue
+        material = getattr(getattr(mesh.visual, "material", None), "name", None)
+        v, f = transformed(np.asarray(matrix, np.float64), mesh.vertices, mesh.faces)
+        parts.append(Part(vertices=v, faces=f, name=f"{node}/{material or gname}",
+                          colour=_trimesh_colour(mesh)))
+    return parts
+
+
+def load_mesh_file(path: Path, units: float = 1.0, up_axis: str = "z"
+                   ) -> tuple[list[Part], dict]:
+    """The triangles of a mesh file in metres, Z up.
+
+    Args:
+        path: a .glb/.gltf/.obj/.ply/.dae/.stl file.
+        units: metres per file unit for OBJ/PLY/STL.
+        up_axis: "z" or "y", the file's up axis for OBJ/PLY/STL/DAE.
+
+    Returns:
+        parts (face_class UNSET) and info: ``units`` (metres per file unit applied) and
+        ``up_axis`` (the axis converted from).
+    """
+    ext = path.suffix.lower()
+    if ext == ".dae":
+        parts, scale = load_dae(path)
+        up = up_axis
+    else:
+        parts = _load_trimesh(path)
+        gltf = ext in (".glb", ".gltf")
+        scale = 1.0 if gltf else units
+        up = "y" if gltf else up_axis
+        for p in parts:
+            p.vertices = p.vertices * scale
+    if up == "y":
+        for p in parts:
+            p.vertices, p.faces = transformed(Y_UP_TO_Z_UP, p.vertices, p.faces)
+    return parts, {"units": scale, "up_axis": up}

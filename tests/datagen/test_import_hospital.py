@@ -1,0 +1,62 @@
+"""The AWS RoboMaker hospital (../shared/worlds, third-party, read in place; skipped where
+absent): imported as it is, with its ~40 online-library models missing."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core import classes as C
+from datagen.importers import load_building
+
+HOSPITAL = (Path(__file__).resolve().parents[2] / ".." / "shared" / "worlds" / "aws_hospital"
+            / "worlds" / "hospital.world")
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def hospital():
+    if not HOSPITAL.is_file():
+        pytest.skip(f"{HOSPITAL} is absent (../shared/worlds not here)")
+    t0 = time.perf_counter()
+    b = load_building(HOSPITAL)
+    return b, time.perf_counter() - t0
+
+
+def named(b, text: str) -> np.ndarray:
+    return np.array([text in n for n in b.names])[b.face_name]
+
+
+def test_hospital_import(hospital):
+    b, seconds = hospital
+    assert seconds <= 120
+    missing = b.info["missing_models"]
+    assert 35 <= len(missing) <= 50 and missing["PotatoChipChair"] == 16
+    assert {C.FLOOR, C.WALL, C.CEILING, C.DOOR, C.WINDOW, C.CLUTTER} <= set(b.face_class)
+    # door frames and windows by the name rules on the walls' COLLADA materials
+    assert (b.face_class[named(b, "floor_01_doorframes")] == C.DOOR).all()
+    assert (b.face_class[named(b, "floor_01_windows")] == C.WINDOW).all()
+    assert (b.face_class[named(b, "floor_01_walls/link/visual/ID43")] == C.WALL).all()
+    # extent about 25 x 57 m (the shell: floor, walls, ceiling)
+    shell = named(b, "hospital_floor_01_")
+    size = np.ptp(b.vertices[np.unique(b.faces[shell])], axis=0)
+    assert abs(size[0] - 25) < 1.5 and abs(size[1] - 57) < 2
+    # its own ceiling at 3 m covers the floor: nothing added
+    ceiling = b.vertices[b.faces[named(b, "floor_01_ceiling")]][:, :, 2]
+    np.testing.assert_allclose(ceiling, 3.0, atol=0.02)
+    assert (b.face_class[named(b, "floor_01_ceiling")] == C.CEILING).all()
+    assert b.info["ceiling_added"] == 0 and abs(b.info["floor_z"]) < 0.05
+    assert abs(b.info["wall_top_z"] - 3.0) < 0.1
+
+
+def test_hospital_plan(hospital):
+    from datagen.importers.plan import plan_labels
+
+    labels, _, res = plan_labels(hospital[0], metres_per_px=0.1)
+    counts = np.bincount(labels.ravel(), minlength=256)
+    assert counts[C.FLOOR] * res**2 > 900  # m^2 of floor seen from above at the 1.5 m cut
+    assert min(counts[C.WALL], counts[C.DOOR], counts[C.WINDOW], counts[C.CLUTTER]) > 0
