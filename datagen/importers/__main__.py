@@ -1,20 +1,28 @@
 """Check a building import: ``python -m datagen.importers FILE [--out DIR]``.
 
-Prints the counts, class area shares, missing models and the time, and writes
-``DIR/<name>_plan.png`` (top-down plan of the classes) and ``DIR/<name>_import.json`` (info).
+Prints the counts, class area shares, missing models and the time, the free space and a
+planned route, and writes ``DIR/<name>_plan.png`` (top-down plan of the classes),
+``DIR/<name>_free.png`` (the free space of the flyable heights, with the route) and
+``DIR/<name>_import.json`` (info).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from core.atomic import atomic_write_json, write_png
+from core.occupancy import OccupancyMap
+from datagen.config import RouteConfig, WorldConfig
+from datagen.importers.building import Building
 from datagen.importers.load import EXTENSIONS, load_building
 from datagen.importers.plan import write_plan
 from datagen.importers.settings import ImportSettings
+from datagen.routes import find_turns, plan_route, route_length
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -34,7 +42,35 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--px", type=float, default=None, help="plan image metres per pixel")
     p.add_argument("--cut", type=float, default=None, help="plan cut height in metres "
                    "(default: 1.5 m above the floor)")
+    p.add_argument("--route-length", type=float, default=40.0, help="metres the planned route "
+                   "should reach (drawn again up to 8 times; default 40)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the route's ends")
     return p.parse_args(argv)
+
+
+def free_space_and_route(b: Building, min_length: float, seed: int
+                         ) -> tuple[OccupancyMap, np.ndarray | None, dict]:
+    """The free space of the corridor world's flyable heights and camera margin above the
+    building's floor (``WorldConfig.z_range``, ``camera_margin``; 0.1 m cells), and a route
+    through it with at least two turns of 60 deg and ``min_length`` metres if one is found.
+
+    Returns:
+        the map, the route ((K, 2) m, or None) and the figures printed and stored in info.
+    """
+    spec = WorldConfig()
+    band = b.info["floor_z"] + np.asarray(spec.z_range)
+    occ = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class, band, spec.camera_margin,
+                                 0.1)
+    figures = {"free_area_m2": round(occ.area, 1)}
+    try:
+        route = plan_route(occ, np.random.default_rng(seed),
+                           RouteConfig(min_length=min_length, min_turns=2))
+    except ValueError as err:
+        figures["route_error"] = str(err)
+        return occ, None, figures
+    figures.update(route_m=round(route_length(route), 1),
+                   route_turns_deg=[round(float(a)) for _, a in find_turns(route)])
+    return occ, route, figures
 
 
 def summary(info: dict) -> str:
@@ -74,9 +110,14 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     stem = Path(args.file).stem
     plan = write_plan(b, out / f"{stem}_plan.png", args.px, args.cut)
-    (out / f"{stem}_import.json").write_text(json.dumps(b.info, indent=1))
+    occ, route, figures = free_space_and_route(b, args.route_length, args.seed)
+    write_png(out / f"{stem}_free.png", occ.plot([] if route is None else [route], scale=2))
+    atomic_write_json(out / f"{stem}_import.json", {**b.info, **figures})
     print(summary(b.info))
-    print(f"plan: {plan}")
+    print(f"free space {figures['free_area_m2']} m2; " + (
+        f"route {figures['route_m']} m, turns {figures['route_turns_deg']} deg" if route is not None
+        else f"no route: {figures['route_error']}"))
+    print(f"plan: {plan}\nfree space: {out / f'{stem}_free.png'}")
     return 0
 
 

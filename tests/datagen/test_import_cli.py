@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import cv2
 import numpy as np
 
@@ -20,7 +22,9 @@ def test_cli_and_plan(tmp_path, capsys):
     assert "floor" in out and "wall" in out and "ceiling added" in out
     image = cv2.imread(str(tmp_path / "out" / "room_plan.png"))
     assert image is not None and image.shape[0] >= (3 + 1) / 0.05
-    assert (tmp_path / "out" / "room_import.json").is_file()
+    info = json.loads((tmp_path / "out" / "room_import.json").read_text())
+    assert info["free_area_m2"] > 0 and "route_error" in info  # one room: no two turns
+    assert cv2.imread(str(tmp_path / "out" / "room_free.png")) is not None
     assert main([str(tmp_path / "none.obj"), "--out", str(tmp_path)]) == 2
     assert "no such file" in capsys.readouterr().err
 

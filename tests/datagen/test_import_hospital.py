@@ -60,3 +60,15 @@ def test_hospital_plan(hospital):
     counts = np.bincount(labels.ravel(), minlength=256)
     assert counts[C.FLOOR] * res**2 > 900  # m^2 of floor seen from above at the 1.5 m cut
     assert min(counts[C.WALL], counts[C.DOOR], counts[C.WINDOW], counts[C.CLUTTER]) > 0
+
+
+def test_hospital_free_space_and_route(hospital):
+    """The issue's flight target: a route of >= 40 m with >= 2 turns of >= 60 deg."""
+    from datagen.importers.__main__ import free_space_and_route
+
+    occ, route, figures = free_space_and_route(hospital[0], 40.0, seed=0)
+    assert route is not None, figures
+    assert 700 < figures["free_area_m2"] < 1300  # the floor less walls and the camera margin
+    assert figures["route_m"] >= 40 and len(figures["route_turns_deg"]) >= 2
+    assert all(abs(a) >= 60 for a in figures["route_turns_deg"])
+    assert occ.contains(route).all()
