@@ -10,7 +10,7 @@ for a plain mapping (library use, tests, settings read back from a model folder)
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
@@ -36,7 +36,8 @@ def typed(cls: type[T], cfg: Mapping | None, where: str) -> T:
 
     Raises:
         ValueError: an unknown key or a value of the wrong type, naming ``where.key``, the
-            value and (for a typo) the known keys.
+            value and (for a typo) the known keys; or a check of ``cls`` failing, prefixed
+            with ``where`` unless its message starts with it.
     """
     base = OmegaConf.structured(cls)
     try:
@@ -46,5 +47,15 @@ def typed(cls: type[T], cfg: Mapping | None, where: str) -> T:
         known = ", ".join(base.keys())
         raise ValueError(f"{key}: {err.msg.splitlines()[0]} (known keys of {where}: {known})"
                          ) from None
-    return OmegaConf.to_object(merged)
+    try:
+        return OmegaConf.to_object(merged)
+    except ValueError as err:  # a check of the dataclass's own (``__post_init__``)
+        if str(err).startswith(where):  # names the key already
+            raise
+        raise ValueError(f"{where}: {err}") from None
 
+
+def as_config(cls: type[T], cfg: Any, where: str) -> T:
+    """``cfg`` if it is a ``cls`` already, else ``typed(cls, cfg, where)`` (a mapping or a
+    DictConfig, possibly partial; None: the defaults)."""
+    return cfg if isinstance(cfg, cls) else typed(cls, cfg, where)

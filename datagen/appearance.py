@@ -22,7 +22,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from datagen.config import AppearanceConfig, as_config
+from core.config import as_config
+from datagen.config import AppearanceConfig
 
 #: name -> (extent_u, extent_v) in metres of surface covered by one copy of the texture.
 TEXTURE_SPECS: dict[str, tuple[float, float]] = {

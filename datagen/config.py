@@ -10,14 +10,10 @@ times in seconds. See docs/datagen.md for what the options do.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
 
 from omegaconf import MISSING
 
-from core.config import register_schema, typed
-
-T = TypeVar("T")
-
+from core.config import register_schema
 
 # --------------------------------------------------------------------------- world
 
@@ -383,12 +379,6 @@ class DatagenConfig:
     flights: dict[str, FlightConfig] = field(default_factory=default_flights)
     distractor_presets: dict[str, DistractorPreset] = field(default_factory=dict)  # name ->
     # preset, from the conf/distractors/ group (conf/datagen.yaml's defaults list)
-
-
-def as_config(cls: type[T], cfg: Any, where: str) -> T:
-    """``cfg`` if it is a ``cls`` already, else ``typed(cls, cfg, where)`` (a mapping or a
-    DictConfig, possibly partial; None: the defaults)."""
-    return cfg if isinstance(cfg, cls) else typed(cls, cfg, where)
 
 
 register_schema("datagen_schema", DatagenConfig)

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from core.config import as_config
 from core.poses import pose_from_xyzyaw, wrap_angle
-from datagen.config import DistractorPreset, as_config
+from datagen.config import DistractorPreset
 
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
 MAX_HEIGHT = 1.8  # m, tallest clutter object

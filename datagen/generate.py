@@ -27,12 +27,12 @@ from tqdm import tqdm
 from core import classes as C
 from core.atomic import atomic_write_json, png_complete, remove_temp_files, write_png
 from core.camera import intrinsics
-from core.config import typed
+from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from datagen import appearance, distractors, trajectories
-from datagen.config import CameraConfig, DatagenConfig, DistractorPreset, as_config
+from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.pipeline import Pipeline
 from datagen.world import MAIN, OPENING, CorridorModel, build_world
 

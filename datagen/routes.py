@@ -16,8 +16,9 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
+from core.config import as_config
 from core.occupancy import OccupancyMap
-from datagen.config import RouteConfig, as_config
+from datagen.config import RouteConfig
 
 _BEZIER_POINTS = 16  # samples of a rounded corner before resampling
 _HALVINGS = 6  # times a corner's radius is halved before it is left sharp

@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from core.config import as_config
 from core.poses import pose_from_xyz_rpy, wrap_angle
-from datagen.config import FlightConfig, OdometryConfig, TrainingConfig, TrajectoryConfig, as_config
+from datagen.config import FlightConfig, OdometryConfig, TrainingConfig, TrajectoryConfig
 from datagen.distractors import sample_in_boxes
 
 GRAVITY = 9.81  # m/s^2

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from core import classes as C
+from core.config import as_config
 from core.dataset import World
-from datagen.config import WorldConfig, as_config
+from datagen.config import WorldConfig
 from datagen.edges import extract_edges
 
 # Kinds of free-space boxes.

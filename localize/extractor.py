@@ -23,7 +23,7 @@ from dataclasses import asdict
 import numpy as np
 
 from core import classes as C
-from core.config import typed
+from core.config import as_config
 from localize.config import MODES, CnnSettings, EdgeSettings
 from localize.edges import EdgeImage, canny_edges, dilate, label_edges
 from localize.segmenter import LabelPredictor
@@ -35,7 +35,7 @@ __all__ = ["MODES", "CnnSettings", "EdgeExtractor", "edge_settings"]
 def edge_settings(edges: EdgeSettings | Mapping | None) -> EdgeSettings:
     """The ``edges`` settings: ``edges`` itself, or a (partial) mapping of them over the
     defaults (``localize.config.EdgeSettings``; a typo raises naming the key)."""
-    return edges if isinstance(edges, EdgeSettings) else typed(EdgeSettings, edges, "edges")
+    return as_config(EdgeSettings, edges, "edges")
 
 
 class EdgeExtractor:

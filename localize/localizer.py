@@ -58,13 +58,7 @@ def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
     over = fparams.mode_likelihood.get(mode)
     if not over:
         return lp
-    where = f"filter.mode_likelihood.{mode}"
-    try:
-        return typed(LikelihoodParams, {**asdict(lp), **over}, where)
-    except ValueError as err:
-        if str(err).startswith(where):  # names the key already
-            raise
-        raise ValueError(f"{where}: {err}") from None
+    return typed(LikelihoodParams, {**asdict(lp), **over}, f"filter.mode_likelihood.{mode}")
 
 
 def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> LikelihoodParams:

@@ -21,7 +21,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from core.config import typed
+from core.config import as_config
 from core.dataset import Camera
 from localize.config import BagTopics
 from localize.recording import (
@@ -187,7 +187,7 @@ def _read_images(reader: AnyReader, conns, path: Path, topic: str):
 def read_bag(path: Path, target: Camera | None, *, topics: Mapping | BagTopics | None = None,
              body_from_cam: np.ndarray | None = None, name: str | None = None) -> Recording:
     """Read a ROS 1 or ROS 2 bag recording (see ``localize.recording.read_recording``)."""
-    topics = topics if isinstance(topics, BagTopics) else typed(BagTopics, topics, CONFIG_KEY)
+    topics = as_config(BagTopics, topics, CONFIG_KEY)
     path = Path(path)
     with _open(path) as reader:
         img = _connections(reader, topics.image, "image", IMAGE_TYPES, path)

@@ -7,7 +7,7 @@ from collections.abc import Mapping
 import torch
 from torch.optim.swa_utils import AveragedModel
 
-from core.config import typed
+from core.config import as_config
 from train.config import OptimConfig
 from train.segnet import SegNet
 
@@ -37,7 +37,7 @@ def make_ema(model: SegNet, decay: float) -> AveragedModel | None:
 
 
 def _optim(cfg: OptimConfig | Mapping) -> OptimConfig:
-    return cfg if isinstance(cfg, OptimConfig) else typed(OptimConfig, cfg, "optim")
+    return as_config(OptimConfig, cfg, "optim")
 
 
 def make_optimizer(

@@ -39,7 +39,7 @@ from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
 from core.atomic import atomic_write_json, atomic_write_text
-from core.config import typed
+from core.config import as_config
 from core.dataset import Dataset
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
 from train.budget import fit_epochs, training_budget
@@ -100,7 +100,7 @@ MODEL_POLICY = FolderPolicy(record="config.json", keys=("config", "dataset_diges
 def train_settings(cfg: DictConfig | Mapping | TrainConfig) -> TrainConfig:
     """The typed settings of a composed conf/train.yaml (or of a mapping of some of its keys,
     the others at their defaults); an unknown key or a wrong type raises ValueError."""
-    return cfg if isinstance(cfg, TrainConfig) else typed(TrainConfig, cfg, "train")
+    return as_config(TrainConfig, cfg, "train")
 
 
 def training_config(cfg: DictConfig | TrainConfig) -> dict:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from core import classes as C
-from datagen.config import as_config
+from core.config import as_config
 from datagen.importers.building import Building, Part, assemble, face_areas_normals
 from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
 from datagen.importers.settings import ImportSettings
