@@ -19,10 +19,11 @@ from omegaconf.errors import OmegaConfBaseException
 T = TypeVar("T")
 
 
-def register_schema(name: str, node: type) -> None:
-    """Store dataclass ``node`` in Hydra's ConfigStore as ``name``, for a primary config's
-    defaults list (``defaults: [name, ...]``): every key then has its type and default."""
-    ConfigStore.instance().store(name=name, node=node)
+def register_schema(name: str, node: type, group: str | None = None) -> None:
+    """Store dataclass ``node`` in Hydra's ConfigStore as ``name`` (in config group ``group``),
+    for a defaults list (``defaults: [name, ...]``): every key then has its type and
+    default."""
+    ConfigStore.instance().store(name=name, node=node, group=group)
 
 
 def typed(cls: type[T], cfg: Mapping | None, where: str) -> T:

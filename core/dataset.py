@@ -7,7 +7,8 @@
   world/model.ply              structural mesh, face colour = class colour
   world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
   world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8
-  world/world.json             corridor parameters, free space boxes, z range
+  world/world.json             the world's parameters, free space summary, lights
+  world/free.npz               free space: the occupancy map of the flyable heights
   train|val|test/rgb/NNNNNN.png, label/NNNNNN.png, depth/NNNNNN.npy (optional), poses.txt
   flights/<name>/rgb/, label/, groundtruth.txt, odometry.txt, flight.json
 ```
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import png_complete
+from core.occupancy import OccupancyMap
 from core.poses import read_tum
 
 SCHEMA_VERSION = 1
@@ -53,8 +55,8 @@ class World:
     """The structural model the localizer uses.
 
     vertices (V,3) metres, faces (F,3), face_class (F,) class ids; segments (M,2,3) metres,
-    segment_classes (M,2), crease_deg (M,); free_boxes (B,4) [xmin, ymin, xmax, ymax] of free
-    space; z_range (2,) flyable heights; info: world.json.
+    segment_classes (M,2), crease_deg (M,); free: where a camera centre may be (an occupancy
+    map of the flyable heights, ``free.band``); info: world.json.
     """
 
     vertices: np.ndarray
@@ -63,9 +65,13 @@ class World:
     segments: np.ndarray
     segment_classes: np.ndarray
     crease_deg: np.ndarray
-    free_boxes: np.ndarray
-    z_range: np.ndarray
+    free: OccupancyMap
     info: dict
+
+    @property
+    def z_range(self) -> np.ndarray:
+        """(2,) m, the flyable heights (the free space's band)."""
+        return np.array(self.free.band, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -197,9 +203,9 @@ class Dataset:
 
 
 def load_world(world_dir: str | Path) -> World:
-    """Load ``world/`` (model.npz, edges.npz, world.json)."""
+    """Load ``world/`` (model.npz, edges.npz, free.npz, world.json)."""
     d = Path(world_dir)
-    for f in ("model.npz", "edges.npz", "world.json"):
+    for f in ("model.npz", "edges.npz", "free.npz", "world.json"):
         if not (d / f).is_file():
             raise FileNotFoundError(f"world model file missing: {d / f}; re-run datagen")
     m = np.load(d / "model.npz")
@@ -208,8 +214,7 @@ def load_world(world_dir: str | Path) -> World:
     return World(
         vertices=m["vertices"], faces=m["faces"], face_class=m["face_class"],
         segments=e["segments"], segment_classes=e["classes"], crease_deg=e["crease_deg"],
-        free_boxes=np.array(info["free_space"]["boxes"], dtype=np.float64).reshape(-1, 4),
-        z_range=np.array(info["free_space"]["z_range"], dtype=np.float64), info=info,
+        free=OccupancyMap.load(d / "free.npz"), info=info,
     )
 
 

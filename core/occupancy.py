@@ -17,6 +17,7 @@ the margin.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -190,6 +191,31 @@ class OccupancyMap:
         clearance of their cells; 0 outside the grid)."""
         rc, inside = self.cell_of(xy)
         return np.where(inside, self.clearance[rc[0], rc[1]], 0.0)
+
+    @property
+    def free_bounds(self) -> np.ndarray:
+        """(4,) m [xmin, ymin, xmax, ymax] of the free cells' centres."""
+        r, c = np.nonzero(self.free)
+        if len(r) == 0:
+            raise ValueError("the map has no free cells")
+        lo = self.centres(np.stack([[r.min()], [c.min()]]))[0]
+        hi = self.centres(np.stack([[r.max()], [c.max()]]))[0]
+        return np.concatenate([lo, hi])
+
+    @functools.cached_property
+    def _outside(self) -> np.ndarray:
+        """(H, W) float64 m, distance from a cell centre to the nearest free cell centre."""
+        return ndimage.distance_transform_edt(~self.free, sampling=self.cell)
+
+    def outside_distance(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) m from the points (N, 2) to the free space: 0 in a free cell, else the
+        distance between cell centres to the nearest free cell plus, for a point beyond the
+        grid, its distance to the grid."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        rc, _ = self.cell_of(xy)
+        ext = self.extent
+        beyond = np.hypot(*np.maximum(np.maximum(ext[:2] - xy, xy - ext[2:]), 0.0).T)
+        return np.where(self.free[rc[0], rc[1]], 0.0, self._outside[rc[0], rc[1]] + beyond)
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """(n, 2) m points uniform over the free cells (a free cell, then uniform in it)."""

@@ -10,10 +10,12 @@ times in seconds. See docs/datagen.md for what the options do.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from omegaconf import MISSING
 
 from core.config import register_schema
+from datagen.importers.settings import ImportSettings
 
 # --------------------------------------------------------------------------- world
 
@@ -87,6 +89,7 @@ class WorldConfig:
     take the door's / window's class, so the class boundary is the recess's outer edge
     (docs/datagen.md)."""
 
+    kind: str = "corridor"  # corridor (this) | file (FileWorldConfig: ``world=file``)
     name: str = "corridor_paper"
     length: float = 10.0  # m, along +Y
     width: float = 2.0  # m, x in [-width/2, width/2]
@@ -105,6 +108,38 @@ class WorldConfig:
     openings: list[OpeningAt] = field(default_factory=lambda: [
         OpeningAt("left", 6.2, width=1.6, depth=2.0)])
     lights: LightPanels = field(default_factory=LightPanels)
+
+
+@dataclass
+class FileWorldConfig(ImportSettings):
+    """A building model read from a file (``world=file world.path=FILE``; datagen/site.py):
+    a Gazebo world, a mesh or an IFC file (the import keys: ``ImportSettings``,
+    docs/importers.md), with the free space a camera may fly in."""
+
+    kind: str = "file"
+    name: str = "file"  # the world's name in world.json
+    crease_deg: float = 20.0  # faces meeting at a larger angle make a model edge
+    camera_margin: float = 0.3  # m kept between a camera and any surface
+    z_range: list[float] = field(default_factory=lambda: [0.5, 2.2])  # m above the floor,
+    # camera heights
+    free_cell: float = 0.1  # m, cell of the free-space map (world/free.npz)
+    light_spacing: float = 3.0  # m between the ceiling panels added along the free space when
+    # the file has no lights
+
+
+def world_config(world: object, where: str = "world") -> WorldConfig | FileWorldConfig:
+    """The typed world settings of ``world``: a ``WorldConfig`` or ``FileWorldConfig``, or a
+    mapping with ``kind`` corridor (the default) or file (None: the corridor's defaults)."""
+    if isinstance(world, (WorldConfig, FileWorldConfig)):
+        return world
+    from core.config import typed
+
+    kind = (world or {}).get("kind", "corridor")
+    kinds = {"corridor": WorldConfig, "file": FileWorldConfig}
+    if kind not in kinds:
+        raise ValueError(f"{where}.kind: unknown world kind {kind!r}; use one of "
+                         f"{sorted(kinds)} (world=corridor_paper or world=file)")
+    return typed(kinds[kind], world, where)
 
 
 # --------------------------------------------------------------------------- camera, render
@@ -372,7 +407,8 @@ class DatagenConfig:
     # that differs only by larger `splits` counts or more `render_flights` is grown, not
     # emptied; docs/outputs.md)
     progress: bool = True  # tqdm progress bars (not part of the dataset's config hash)
-    world: WorldConfig = field(default_factory=WorldConfig)
+    world: Any = None  # WorldConfig (conf/world/corridor_paper, also None) or FileWorldConfig
+    # (conf/world/file); ``world_config`` types a mapping
     camera: CameraConfig = field(default_factory=CameraConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
     appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
@@ -380,5 +416,10 @@ class DatagenConfig:
     distractor_presets: dict[str, DistractorPreset] = field(default_factory=dict)  # name ->
     # preset, from the conf/distractors/ group (conf/datagen.yaml's defaults list)
 
+    def __post_init__(self) -> None:
+        self.world = world_config(self.world)
+
 
 register_schema("datagen_schema", DatagenConfig)
+register_schema("corridor_schema", WorldConfig, group="world")
+register_schema("file_schema", FileWorldConfig, group="world")

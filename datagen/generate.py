@@ -33,8 +33,10 @@ from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from datagen import appearance, distractors, trajectories
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
+from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
-from datagen.world import MAIN, OPENING, CorridorModel, build_world
+from datagen.site import Site, build_site, floor_boxes
+from datagen.world import CorridorModel
 
 log = logging.getLogger(__name__)
 
@@ -90,24 +92,24 @@ def make_camera(cam_cfg: CameraConfig | Mapping) -> Camera:
     return Camera(K, W, H, body_from_cam)
 
 
-def floor_boxes(model: CorridorModel, margin: float) -> np.ndarray:
-    """(B, 4) floor regions of the corridor and its openings, shrunk by margin (m)."""
-    out = [[b.lo[0] + margin, b.lo[1] + margin, b.hi[0] - margin, b.hi[1] - margin]
-           for b in model.boxes if b.kind in (MAIN, OPENING)]
-    return np.array(out)
-
-
 @dataclass
 class Job:
     """Everything a shard needs, resolved and checked before any rendering."""
 
     cfg: DatagenConfig
     out: Path
-    model: CorridorModel
+    site: Site
     camera: Camera
     split_poses: dict[str, np.ndarray]  # split -> (N, 4, 4) world_from_body
     flights: dict[str, dict[str, Any]]  # name -> preset (FlightConfig), groundtruth,
     # odometry, timestamps
+
+    @property
+    def model(self) -> CorridorModel:
+        """The corridor's model (its boxes and lights) for rendering."""
+        if self.site.corridor is None:
+            raise NotImplementedError("rendering a world=file world")
+        return self.site.corridor
 
 
 def _check_counts(cfg: DatagenConfig) -> None:
@@ -153,17 +155,20 @@ def _check_presets(cfg: DatagenConfig) -> None:
                              f"known: {sorted(presets)}")
 
 
-def _check_inside(model: CorridorModel, camera: Camera, poses: np.ndarray, where: str) -> None:
-    """Every camera centre must lie inside the corridor's free space."""
+def _check_inside(site: Site, camera: Camera, poses: np.ndarray, where: str) -> None:
+    """Every camera centre must lie within the camera margin of the free space (its cells and
+    its band of heights): nearer to no surface than the margin allows."""
+    free = site.world.free
     centres = (poses @ camera.body_from_cam)[:, :3, 3]
-    inside = np.zeros(len(centres), dtype=bool)
-    for b in model.boxes:
-        inside |= np.all((centres > np.array(b.lo)) & (centres < np.array(b.hi)), axis=1)
-    if not inside.all():
-        i = int(np.flatnonzero(~inside)[0])
-        raise ValueError(f"{where}: camera {i} at {np.round(centres[i], 3).tolist()} is outside "
-                         "the corridor; check world.camera_margin, world.z_range, camera.mount "
-                         "and the flight preset's trajectory")
+    off = np.maximum(free.outside_distance(centres[:, :2]),
+                     np.maximum(free.band[0] - centres[:, 2], centres[:, 2] - free.band[1]))
+    bad = np.flatnonzero(off >= free.margin)
+    if len(bad):
+        i = int(bad[0])
+        raise ValueError(f"{where}: camera {i} at {np.round(centres[i], 3).tolist()} is "
+                         f"{off[i]:.2f} m outside the free space (more than its margin "
+                         f"{free.margin} m); check world.camera_margin, world.z_range, "
+                         "camera.mount and the flight preset's trajectory")
 
 
 def poses_of_split(cfg: DatagenConfig, model: CorridorModel, split: str) -> np.ndarray:
@@ -180,10 +185,10 @@ def poses_of_split(cfg: DatagenConfig, model: CorridorModel, split: str) -> np.n
     for i in range(len(poses)):
         if tr.flight_views > 0 and rng_for(seed, stream, i, 3).random() < tr.flight_views:
             poses[i] = trajectories.sample_flight_views(
-                rng_for(seed, stream, i, 4), 1, world.free_boxes, world.z_range, presets)[0]
+                rng_for(seed, stream, i, 4), 1, model.free_boxes, world.z_range, presets)[0]
         else:
             poses[i] = trajectories.sample_training_poses(
-                rng_for(seed, stream, i, 0), 1, world.free_boxes, world.z_range,
+                rng_for(seed, stream, i, 0), 1, model.free_boxes, world.z_range,
                 tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg)[0]
     return poses
 
@@ -195,26 +200,29 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     cfg = typed(DatagenConfig, cfg, "datagen")
     _check_counts(cfg)
     _check_presets(cfg)
-    model = build_world(cfg.world)
+    site = build_site(cfg.world)
+    model = site.corridor
+    if model is None:
+        raise NotImplementedError("world=file: flights and renders of an imported building")
     camera = make_camera(cfg.camera)
     w = model.world
     split_poses = {}
     for split in SPLITS:
         poses = poses_of_split(cfg, model, split)
-        _check_inside(model, camera, poses, f"splits.{split}")
+        _check_inside(site, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}
     for name in cfg.render_flights:
         preset = cfg.flights[name]
         r = rng_for(cfg.seed, flight_stream(name), 0)
         n, fps = preset.num_frames, preset.fps
-        gt = trajectories.flight_trajectory(r, n, fps, w.free_boxes, w.z_range,
+        gt = trajectories.flight_trajectory(r, n, fps, model.free_boxes, w.z_range,
                                             preset.trajectory)
         odo = trajectories.noisy_odometry(r, gt, fps, preset.odometry)
-        _check_inside(model, camera, gt, f"flights.{name}")
+        _check_inside(site, camera, gt, f"flights.{name}")
         flights[name] = {"preset": preset, "groundtruth": gt, "odometry": odo,
                          "timestamps": trajectories.timestamps(n, fps)}
-    return Job(cfg, Path(cfg.out_dir), model, camera, split_poses, flights)
+    return Job(cfg, Path(cfg.out_dir), site, camera, split_poses, flights)
 
 
 def shard_range(n: int, shard: int, num_shards: int) -> range:
@@ -254,7 +262,10 @@ def write_metadata(job: Job, variant: str) -> None:
         "command": datagen_command(),
         "software": software_versions(variant),
     }
-    save_world(out / "world", job.model)
+    save_world(out / "world", job.site.world)
+    write_plan(job.site.building, out / "world" / "plan.png", free=job.site.world.free,
+               paths=[(f["groundtruth"] @ cam.body_from_cam)[:, :2, 3]
+                      for f in job.flights.values()])
     for split, poses in job.split_poses.items():
         if len(poses):
             write_tum(out / split / "poses.txt", np.arange(len(poses), dtype=float), poses)

@@ -10,7 +10,7 @@ import trimesh
 
 from core import classes as C
 from core.atomic import atomic_write_bytes, atomic_write_json
-from datagen.world import CorridorModel
+from core.dataset import World
 
 
 def _npz_bytes(**arrays: np.ndarray) -> bytes:
@@ -19,14 +19,14 @@ def _npz_bytes(**arrays: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def save_world(d: str | Path, model: CorridorModel) -> None:
-    """model.npz, edges.npz, world.json and model.ply (face colour = class colour)."""
+def save_world(d: str | Path, w: World) -> None:
+    """model.npz, edges.npz, free.npz, world.json and model.ply (face colour = class colour)."""
     d = Path(d)
-    w = model.world
     atomic_write_bytes(d / "model.npz", _npz_bytes(
         vertices=w.vertices, faces=w.faces.astype(np.int64), face_class=w.face_class))
     atomic_write_bytes(d / "edges.npz", _npz_bytes(
         segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg))
+    w.free.save(d / "free.npz")
     atomic_write_json(d / "world.json", w.info)
     colors = np.concatenate([C.palette()[w.face_class],
                              np.full((len(w.faces), 1), 255, np.uint8)], axis=1)

@@ -20,8 +20,13 @@ import numpy as np
 from core import classes as C
 from core.config import as_config
 from core.dataset import World
+from core.occupancy import OccupancyMap
 from datagen.config import WorldConfig
 from datagen.edges import extract_edges
+
+#: m, the cell of the corridor's occupancy map (its box bounds are multiples of it, so the
+#: free cells' centres span the boxes exactly).
+FREE_CELL = 0.05
 
 # Kinds of free-space boxes.
 MAIN, OPENING, DOOR_RECESS, WINDOW_RECESS = range(4)
@@ -42,6 +47,8 @@ class CorridorModel:
     face_box: (F,) index into boxes of the free box each face bounds.
     frame: (F,) bool, the frame faces of door and window recesses (``recess_faces``).
     lights: (L, 4) ceiling light rectangles [cx, cy, size_x, size_y] at z = height - 0.01.
+    free_boxes: (B, 4) m [xmin, ymin, xmax, ymax], the camera's free space as boxes (the
+        world's occupancy map ``world.free`` is made from them).
     """
 
     world: World
@@ -50,6 +57,7 @@ class CorridorModel:
     frame: np.ndarray
     lights: np.ndarray
     height: float
+    free_boxes: np.ndarray
 
 
 def _side_geometry(side: str, width: float, length: float) -> tuple[int, float, int]:
@@ -267,16 +275,18 @@ def build_world(spec: WorldConfig | Mapping | None = None) -> CorridorModel:
     face_class = classify_faces(boxes, face_box, normal)
     segments, seg_classes, crease = extract_edges(vertices, faces, face_class, spec.crease_deg)
     fboxes, z_range = free_space(spec, boxes)
+    free = OccupancyMap.from_boxes(fboxes, z_range, FREE_CELL, spec.camera_margin)
     lights = light_rects(spec)
     info = {
         "name": spec.name, "length": float(spec.length), "width": float(spec.width),
         "height": float(spec.height),
-        "free_space": {"boxes": fboxes.tolist(), "z_range": z_range.tolist()},
+        "free_space": {"boxes": fboxes.tolist(), "z_range": z_range.tolist(),
+                       "cell": FREE_CELL, "margin": float(spec.camera_margin),
+                       "area_m2": round(free.area, 3)},
         "lights": lights.tolist(),
         "num_faces": int(len(faces)), "num_edges": int(len(segments)),
     }
     world = World(vertices=vertices, faces=faces, face_class=face_class, segments=segments,
-                  segment_classes=seg_classes, crease_deg=crease, free_boxes=fboxes,
-                  z_range=z_range, info=info)
+                  segment_classes=seg_classes, crease_deg=crease, free=free, info=info)
     frame = recess_faces(boxes, face_box, normal)[1]
-    return CorridorModel(world, boxes, face_box, frame, lights, spec.height)
+    return CorridorModel(world, boxes, face_box, frame, lights, spec.height, fboxes)

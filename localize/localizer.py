@@ -197,7 +197,7 @@ class Localizer:
                                          model.pairs)
         self._global_likelihood = None
         self.likelihood_override = likelihood_override
-        self.filter = ParticleFilter(self.filter_params, world.free_boxes, world.z_range, rng)
+        self.filter = ParticleFilter(self.filter_params, world.free, rng)
         self._last_time = None
 
     @property

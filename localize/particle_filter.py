@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
+from core.occupancy import OccupancyMap
 from core.poses import wrap_angle, xyzyaw_from_pose
 from localize.config import FilterParams
 
@@ -48,27 +49,19 @@ def init_tracking(rng: np.random.Generator, start: np.ndarray, n: int,
     return p
 
 
-def init_global(rng: np.random.Generator, free_boxes: np.ndarray, z_range: np.ndarray,
-                n: int) -> np.ndarray:
-    """Particles uniform over the free space: boxes (by area) x z range x yaw.
+def init_global(rng: np.random.Generator, free: OccupancyMap, n: int) -> np.ndarray:
+    """Particles uniform over the free space: its free cells x its band of heights x yaw.
 
     Args:
         rng: random generator.
-        free_boxes: (B, 4) [xmin, ymin, xmax, ymax], metres.
-        z_range: (2,) heights, metres.
+        free: the world's free space (``World.free``).
         n: number of particles.
 
     Returns:
         (n, 4) float64.
     """
-    boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
-    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
-    if len(boxes) == 0 or not (area > 0).any():
-        raise ValueError("the world has no free space to draw particles from (free_boxes)")
-    pick = rng.choice(len(boxes), size=n, p=np.maximum(area, 0) / np.maximum(area, 0).sum())
-    b = boxes[pick]
-    xy = b[:, :2] + rng.random((n, 2)) * (b[:, 2:] - b[:, :2])
-    z = rng.uniform(z_range[0], z_range[1], n)
+    xy = free.sample(rng, n)
+    z = rng.uniform(free.band[0], free.band[1], n)
     yaw = rng.uniform(-np.pi, np.pi, n)
     return np.column_stack([xy, z, yaw])
 
@@ -119,18 +112,17 @@ def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
     return out
 
 
-def free_space_log_prior(particles: np.ndarray, free_boxes: np.ndarray, z_range: np.ndarray,
-                         slack: float, penalty: float) -> np.ndarray:
+def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float,
+                         penalty: float) -> np.ndarray:
     """Log prior (N,): 0 inside the free space (grown by ``slack``), negative outside.
 
-    The penalty grows with the distance beyond the slack: ``-penalty * (1 + excess / 0.1)``.
+    The penalty grows with the distance beyond the slack: ``-penalty * (1 + excess / 0.1)``,
+    the distance being the larger of the horizontal one to the free cells
+    (``OccupancyMap.outside_distance``) and the vertical one to the band.
     """
-    boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
-    x, y, z = particles[:, 0:1], particles[:, 1:2], particles[:, 2]
-    dx = np.maximum(np.maximum(boxes[None, :, 0] - x, x - boxes[None, :, 2]), 0.0)
-    dy = np.maximum(np.maximum(boxes[None, :, 1] - y, y - boxes[None, :, 3]), 0.0)
-    d_xy = np.hypot(dx, dy).min(axis=1)
-    d_z = np.maximum(np.maximum(z_range[0] - z, z - z_range[1]), 0.0)
+    z = particles[:, 2]
+    d_xy = free.outside_distance(particles[:, :2])
+    d_z = np.maximum(np.maximum(free.band[0] - z, z - free.band[1]), 0.0)
     excess = np.maximum(np.maximum(d_xy, d_z) - slack, 0.0)
     return np.where(excess > 0, -penalty * (1.0 + excess / 0.1), 0.0)
 
@@ -221,15 +213,12 @@ class ParticleFilter:
 
     Args:
         params: settings.
-        free_boxes, z_range: the world's free space (init_global, prior, recovery).
+        free: the world's free space (init_global, prior, recovery).
         rng: random generator (the only source of randomness).
     """
 
-    def __init__(self, params: FilterParams, free_boxes: np.ndarray, z_range: np.ndarray,
-                 rng: np.random.Generator):
-        self.params, self.rng = params, rng
-        self.free_boxes = np.asarray(free_boxes, dtype=np.float64).reshape(-1, 4)
-        self.z_range = np.asarray(z_range, dtype=np.float64)
+    def __init__(self, params: FilterParams, free: OccupancyMap, rng: np.random.Generator):
+        self.params, self.rng, self.free = params, rng, free
         self.particles = np.zeros((0, 4))
         self.logw = np.zeros(0)
         self.frame = 0
@@ -248,7 +237,7 @@ class ParticleFilter:
         """Start uniform over the free space, with ``global_particles`` particles."""
         p = self.params
         n = max(p.global_particles, p.num_particles)
-        self.particles = init_global(self.rng, self.free_boxes, self.z_range, n)
+        self.particles = init_global(self.rng, self.free, n)
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._low = 0, None, None, 0
         self._thin_at = p.global_frames
@@ -279,8 +268,8 @@ class ParticleFilter:
         loglik, score = log_likelihood(self.particles)
         if self.in_global_phase:
             loglik = loglik * p.global_temper
-        prior = free_space_log_prior(self.particles, self.free_boxes, self.z_range,
-                                     p.free_space_slack, p.outside_log_penalty)
+        prior = free_space_log_prior(self.particles, self.free, p.free_space_slack,
+                                     p.outside_log_penalty)
         self.logw = normalize_log_weights(self.logw + loglik + prior)
         est = estimate(self.particles, self.logw)
         pos_std, yaw_std = spread(self.particles, self.logw)
@@ -338,7 +327,7 @@ class ParticleFilter:
         slots = self.rng.choice(len(self.particles), size=n, replace=False)
         n_local = n // 2
         local = init_tracking(self.rng, around, n_local, p.recovery_local_std)
-        uniform = init_global(self.rng, self.free_boxes, self.z_range, n - n_local)
+        uniform = init_global(self.rng, self.free, n - n_local)
         self.particles[slots] = np.concatenate([local, uniform])
         return slots
 

@@ -213,10 +213,11 @@ def plot_xy(records: list[dict], flight: str, path: Path) -> None:
 
 
 def corridor_outline(world) -> np.ndarray:
-    """Floor edges of the model (K, 2, 2) in XY: the corridor plan."""
+    """Floor edges of the model (K, 2, 2) in XY: the building's plan."""
     seg = np.asarray(world.segments)
-    floor = (np.abs(seg[:, :, 2]).max(axis=1) < 1e-6) & (np.asarray(world.segment_classes)
-                                                         .min(axis=1) <= 1)
+    floor_z = float(world.info.get("floor_z", 0.0))
+    floor = (np.abs(seg[:, :, 2] - floor_z).max(axis=1) < 1e-3) & (
+        np.asarray(world.segment_classes).min(axis=1) <= 1)
     return seg[floor][:, :, :2]
 
 
@@ -226,9 +227,10 @@ def plot_topdown(records: list[dict], flight: str, world, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(5, 9))
     for s in corridor_outline(world):
         ax.plot(s[:, 0], s[:, 1], color="0.4", lw=1)
-    for b in np.asarray(world.free_boxes).reshape(-1, 4):
-        ax.add_patch(plt.Rectangle(b[:2], b[2] - b[0], b[3] - b[1], fill=False, ls=":",
-                                   ec="0.7"))
+    free = world.free
+    ext = free.extent
+    ax.contour(free.free.astype(float), levels=[0.5], colors="0.7", linestyles=":",
+               extent=(ext[0], ext[2], ext[1], ext[3]), origin="lower")
     any_run = next(iter(runs.values()))
     gt = np.array(any_run["truth"])
     ax.plot(gt[:, 0], gt[:, 1], "k-", lw=2, label="ground truth")

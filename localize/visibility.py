@@ -66,16 +66,16 @@ class VisibilityGrid:
 
 def grid_layout(world: World, cell_xy: float, cell_z: float,
                 pad: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Grid over the free space's bounding box, padded by ``pad`` metres.
+    """Grid over the bounding box of the free cells' centres, padded by ``pad`` metres.
 
     Returns:
         origin (3,), cell (3,), shape (3,) int64.
     """
     if cell_xy <= 0 or cell_z <= 0:
         raise ValueError(f"visibility cell sizes must be positive, got {cell_xy}, {cell_z}")
-    boxes = np.asarray(world.free_boxes, dtype=np.float64).reshape(-1, 4)
-    lo = np.array([boxes[:, 0].min() - pad, boxes[:, 1].min() - pad, world.z_range[0] - pad])
-    hi = np.array([boxes[:, 2].max() + pad, boxes[:, 3].max() + pad, world.z_range[1] + pad])
+    b, z = world.free.free_bounds, world.z_range
+    lo = np.array([b[0] - pad, b[1] - pad, z[0] - pad])
+    hi = np.array([b[2] + pad, b[3] + pad, z[1] + pad])
     cell = np.array([cell_xy, cell_xy, cell_z], dtype=np.float64)
     shape = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1) + 1
     origin = (lo + hi) / 2 - cell * (shape - 1) / 2
@@ -157,7 +157,7 @@ def build_visibility_grid(world: World, points: np.ndarray, cell_xy: float = 0.2
     """Ray-cast the visibility of sample points from every grid cell centre.
 
     Args:
-        world: the model; the grid covers its free_boxes x z_range, padded by ``pad`` metres.
+        world: the model; the grid covers its free cells x z_range, padded by ``pad`` metres.
         points: (P, 3) edge samples, metres.
         cell_xy, cell_z: cell sizes, metres.
         eps: tolerance at the sample (metres).
@@ -172,7 +172,7 @@ def build_visibility_grid(world: World, points: np.ndarray, cell_xy: float = 0.2
 def cache_key(world: World, points: np.ndarray, settings: dict) -> str:
     """Hash (16 hex digits) of the mesh, the sample points and the grid settings."""
     h = hashlib.sha256()
-    for a in (world.vertices, world.faces, world.free_boxes, world.z_range, points):
+    for a in (world.vertices, world.faces, world.free.free_bounds, world.z_range, points):
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     h.update(repr(sorted(settings.items())).encode())
     return h.hexdigest()[:16]

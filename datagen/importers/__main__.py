@@ -109,8 +109,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = Path(args.out)
     stem = Path(args.file).stem
-    plan = write_plan(b, out / f"{stem}_plan.png", args.px, args.cut)
     occ, route, figures = free_space_and_route(b, args.route_length, args.seed)
+    plan = write_plan(b, out / f"{stem}_plan.png", args.px, args.cut, occ,
+                      [] if route is None else [route])
     write_png(out / f"{stem}_free.png", occ.plot([] if route is None else [route], scale=2))
     atomic_write_json(out / f"{stem}_import.json", {**b.info, **figures})
     print(summary(b.info))

@@ -4,20 +4,25 @@ As an architect's plan: the building is cut at a height (default 1.5 m above the
 each pixel shows the class of the highest surface below the cut. Triangles with an area in
 plan are filled with their interpolated height; vertical ones (walls, door frames, window
 reveals) are drawn as their outline (3 px wide) at their top height (at most the cut), so they
-show over the floor, and door openings show as gaps in the walls.
+show over the floor, and door openings show as gaps in the walls. The free space and paths
+(flights, routes) may be drawn over it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from core import classes as C
+from core.atomic import write_png
+from core.occupancy import PATH_RGB, OccupancyMap
 from datagen.importers.building import Building
 
 BACKGROUND = (255, 255, 255)
+FREE_TINT = (120, 200, 255)  # RGB blended into the free space's pixels
 
 
 def _fill(tri: np.ndarray, cls: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, ...]:
@@ -116,14 +121,25 @@ def plan_labels(b: Building, metres_per_px: float | None = None, cut: float | No
     return labels.reshape(shape)[::-1], lo, res
 
 
-def plan_image(b: Building, metres_per_px: float | None = None, cut: float | None = None
-               ) -> np.ndarray:
+def plan_image(b: Building, metres_per_px: float | None = None, cut: float | None = None,
+               free: OccupancyMap | None = None, paths: Sequence[np.ndarray] = ()) -> np.ndarray:
     """(H, W + legend, 3) uint8 RGB plan of the classes with a legend (class, area share) and
-    a scale bar (at most 200 px)."""
-    labels, _, res = plan_labels(b, metres_per_px, cut)
+    a scale bar (at most 200 px); ``free`` tints the free space's cells, and ``paths`` ((K, 2)
+    m each, e.g. the flights) are drawn over it in the colours of ``OccupancyMap.plot``."""
+    labels, lo, res = plan_labels(b, metres_per_px, cut)
     rgb = C.palette()[labels]
     rgb[labels == 255] = BACKGROUND
     h, w = labels.shape
+    if free is not None:
+        u, v = np.meshgrid(np.arange(w), np.arange(h))
+        xy = lo + np.stack([u.ravel() + 0.5, h - 0.5 - v.ravel()], 1) * res
+        inside = free.contains(xy).reshape(h, w)
+        rgb[inside] = (0.55 * rgb[inside] + 0.45 * np.array(FREE_TINT)).astype(np.uint8)
+    for i, path in enumerate(paths):
+        p = np.asarray(path, dtype=np.float64).reshape(-1, 2)
+        uv = np.stack([(p[:, 0] - lo[0]) / res, h - (p[:, 1] - lo[1]) / res], 1)
+        cv2.polylines(rgb, [np.round(uv).astype(np.int32).reshape(-1, 1, 2)], False,
+                      PATH_RGB[i % len(PATH_RGB)], 2, cv2.LINE_AA)
     panel = np.full((max(h, 260), 230, 3), 255, np.uint8)
     shares = b.info.get("class_shares", {})
     for row, name in enumerate(n for n in C.NAMES if n in shares):
@@ -143,11 +159,9 @@ def plan_image(b: Building, metres_per_px: float | None = None, cut: float | Non
 
 
 def write_plan(b: Building, path: str | Path, metres_per_px: float | None = None,
-               cut: float | None = None) -> Path:
-    """Write ``plan_image`` as a PNG; returns the path."""
+               cut: float | None = None, free: OccupancyMap | None = None,
+               paths: Sequence[np.ndarray] = ()) -> Path:
+    """Write ``plan_image`` as a PNG (atomically); returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(plan_image(b, metres_per_px, cut),
-                                               cv2.COLOR_RGB2BGR)):
-        raise OSError(f"{path}: could not write the plan image")
+    write_png(path, plan_image(b, metres_per_px, cut, free, paths))
     return path

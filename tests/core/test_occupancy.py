@@ -21,14 +21,15 @@ def _iou(a: OccupancyMap, b: OccupancyMap, step: float) -> float:
 
 class TestCorridor:
     def test_mesh_and_boxes_agree(self):
-        w = build_world().world
+        model = build_world()
+        w = model.world
         for cell in (0.05, 0.1):
             mesh = OccupancyMap.from_mesh(w.vertices, w.faces, w.face_class, w.z_range,
                                           MARGIN, cell)
-            boxes = OccupancyMap.from_boxes(w.free_boxes, w.z_range, cell, margin=MARGIN)
+            boxes = OccupancyMap.from_boxes(model.free_boxes, w.z_range, cell, margin=MARGIN)
             assert mesh.area == pytest.approx(boxes.area, rel=0.03)
             assert _iou(mesh, boxes, cell / 3) >= 0.95
-            truth = sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in w.free_boxes)
+            truth = sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in model.free_boxes)
             assert boxes.area == pytest.approx(truth, rel=0.1)  # cells on the box edges
             np.testing.assert_allclose(mesh.distance(np.array([[0.0, 5.0], [0.9, 5.0]])),
                                        [1.0, 0.1], atol=cell / 2)

@@ -14,6 +14,7 @@ import datagen.generate as gen
 from core import classes as C
 from core.atomic import read_png
 from core.dataset import Dataset
+from core.occupancy import PATH_RGB
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME, OutputFolderError
 from datagen.pipeline import Pipeline
 from tests.helpers import compose_config
@@ -153,7 +154,7 @@ class TestBadConfig:
     def test_camera_outside_corridor(self, tmp_path):
         cfg = small_cfg(tmp_path / "bad", "world.z_range=[2.5,2.79]",
                         "camera.mount.xyz=[0.0,0.0,0.45]")
-        with pytest.raises(ValueError, match="outside the corridor"):
+        with pytest.raises(ValueError, match="outside the free space"):
             gen.run(cfg, progress=False)
 
     def test_existing_output_with_other_config(self, tmp_path):
@@ -165,6 +166,21 @@ class TestBadConfig:
         gen.run(small_cfg(out, "splits.val=0", "render_flights=[]", "seed=3",
                           "overwrite=true"), progress=False)
         assert json.loads((out / "dataset.json").read_text())["seed"] == 3
+
+    def test_world_files(self, tmp_path):
+        """world/: the free space map, the class shares and the plan with the flights."""
+        out = tmp_path / "ds"
+        gen.run(small_cfg(out, "splits.train=1", "splits.val=0", "splits.test=0"),
+                progress=False)
+        ds = Dataset(out)
+        w = ds.world()
+        assert w.free.area == pytest.approx(w.info["free_space"]["area_m2"], abs=1e-3)
+        assert w.free.band == (0.5, 2.2)
+        assert set(w.info["class_shares"]) == {"floor", "wall", "ceiling", "door", "window"}
+        assert sum(w.info["class_shares"].values()) == pytest.approx(1.0, abs=1e-3)
+        plan = read_png(out / "world" / "plan.png")
+        flown = np.all(plan == PATH_RGB[0], axis=2).sum()
+        assert flown >= 5, "the first flight is drawn on the plan"
 
     def test_more_frames_grow_the_dataset(self, tmp_path):
         out, base = tmp_path / "ds", ["splits.val=0", "render_flights=[]"]

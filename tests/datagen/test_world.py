@@ -103,9 +103,13 @@ class TestCorridor:
         assert windows == 4 * len(spec["windows"])
 
     def test_free_space_inside_corridor(self, model, spec):
-        b = model.world.free_boxes
+        b = model.free_boxes
         assert b[0].tolist() == pytest.approx([-0.7, 0.3, 0.7, 9.7])
         assert (b[:, 2] > b[:, 0]).all() and (b[:, 3] > b[:, 1]).all()
+        free = model.world.free  # its free cells' centres span the boxes
+        np.testing.assert_allclose(free.free_bounds[[0, 2]], [b[:, 0].min(), b[:, 2].max()])
+        np.testing.assert_allclose(free.free_bounds[[1, 3]], [b[:, 1].min(), b[:, 3].max()])
+        assert free.band == (0.5, 2.2) and free.margin == 0.3
 
     @pytest.mark.parametrize("key,value", [("width", -1.0), ("height", 0.0)])
     def test_bad_sizes(self, spec, key, value):

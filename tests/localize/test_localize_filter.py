@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core.config import typed
+from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy, pose_from_xyzyaw, wrap_angle, xyzyaw_from_pose
 from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
 from localize.particle_filter import (
@@ -23,16 +24,19 @@ from localize.particle_filter import (
 
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 Z = np.array([0.5, 2.2])
+FREE = OccupancyMap.from_boxes(BOXES, Z, 0.05, margin=0.3)
+HALF = 0.025  # m, half a cell: a free cell's points may lie this far beyond its box
 
 
 class TestDraws:
     def test_init_global_inside_free_space(self):
-        p = init_global(np.random.default_rng(0), BOXES, Z, 5000)
+        p = init_global(np.random.default_rng(0), FREE, 5000)
         assert p.shape == (5000, 4)
-        inside = ((p[:, None, 0] >= BOXES[:, 0]) & (p[:, None, 0] <= BOXES[:, 2])
-                  & (p[:, None, 1] >= BOXES[:, 1]) & (p[:, None, 1] <= BOXES[:, 3])).any(1)
+        lo, hi = BOXES[:, :2] - HALF, BOXES[:, 2:] + HALF
+        inside = ((p[:, None, :2] >= lo) & (p[:, None, :2] <= hi)).all(2).any(1)
         assert inside.all() and (p[:, 2] >= Z[0]).all() and (p[:, 2] <= Z[1]).all()
-        assert abs(np.mean(p[:, 0] < -0.7) - 2.0 / (2.0 + 13.16)) < 0.03  # by area
+        assert FREE.contains(p[:, :2]).all()
+        assert abs(np.mean(p[:, 0] < -0.725) - 2.0 / (2.0 + 13.16)) < 0.03  # by area
         assert np.abs(p[:, 3]).max() <= np.pi
 
     def test_init_tracking_spread(self):
@@ -43,8 +47,10 @@ class TestDraws:
                                    3.0 * np.sqrt(2 / np.pi), rtol=0.1)
 
     def test_no_free_space(self):
-        with pytest.raises(ValueError, match="free space"):
-            init_global(np.random.default_rng(0), np.zeros((0, 4)), Z, 10)
+        empty = OccupancyMap(np.zeros((4, 4), bool), np.zeros((4, 4), np.float32),
+                             np.zeros(2), 0.1, (0.5, 2.2), 0.3)
+        with pytest.raises(ValueError, match="no free cells"):
+            init_global(np.random.default_rng(0), empty, 10)
 
 
 class TestMotion:
@@ -69,9 +75,13 @@ class TestMotion:
         assert b[:, 0].mean() == pytest.approx(0.5, abs=0.01)
 
     def test_free_space_prior(self):
-        p = np.array([[0, 5, 1, 0], [0.9, 5, 1, 0], [1.5, 5, 1, 0], [0, 5, 3.0, 0]])
-        lp = free_space_log_prior(p, BOXES, Z, slack=0.25, penalty=10.0)
+        p = np.array([[0, 5, 1, 0], [0.9, 5, 1, 0], [1.5, 5, 1, 0], [0, 5, 3.0, 0],
+                      [40.0, 5, 1, 0]])
+        lp = free_space_log_prior(p, FREE, slack=0.25, penalty=10.0)
         assert lp[0] == 0 and lp[1] == 0 and lp[2] < -10 and lp[3] < -10
+        # 0.8 m beyond the free cells: -10 * (1 + 0.55 / 0.1), to within a cell
+        assert lp[2] == pytest.approx(-65.0, abs=10 * 0.05 / 0.1)
+        assert lp[4] < lp[2]  # beyond the map: its distance to the map counts too
 
 
 class TestWeights:
@@ -130,7 +140,7 @@ def bowl(target: np.ndarray, k: float = 50.0):
 class TestParticleFilter:
     def test_tracking_follows_the_target(self):
         params = FilterParams(num_particles=300, recovery=False)
-        pf = ParticleFilter(params, BOXES, Z, np.random.default_rng(0))
+        pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         truth = np.array([0.0, 1.0, 1.0, 1.5])
         pf.init_tracking(truth)
         for _ in range(20):
@@ -145,7 +155,7 @@ class TestParticleFilter:
 
     def test_global_set_is_thinned(self):
         params = FilterParams(num_particles=100, global_particles=1000, global_frames=2)
-        pf = ParticleFilter(params, BOXES, Z, np.random.default_rng(0))
+        pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_global()
         assert len(pf.particles) == 1000 and pf.in_global_phase
         pf.update(bowl(np.array([0, 5, 1, 0])))
@@ -155,7 +165,7 @@ class TestParticleFilter:
 
     def test_recovery_injects_on_collapse(self):
         params = FilterParams(num_particles=200, recovery_patience=2, recovery_threshold=0.5)
-        pf = ParticleFilter(params, BOXES, Z, np.random.default_rng(0))
+        pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
         good = lambda s: (np.zeros(len(s)), np.full(len(s), 0.9))  # noqa: E731
         bad = lambda s: (np.zeros(len(s)), np.full(len(s), 0.05))  # noqa: E731
@@ -167,7 +177,7 @@ class TestParticleFilter:
 
     @pytest.mark.parametrize("case", ["nan_quality", "flat", "huge"])
     def test_degenerate_likelihood_keeps_the_filter_alive(self, case):
-        pf = ParticleFilter(FilterParams(num_particles=100), BOXES, Z, np.random.default_rng(0))
+        pf = ParticleFilter(FilterParams(num_particles=100), FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
         for _ in range(5):
             def f(s):

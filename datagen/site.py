@@ -1,0 +1,116 @@
+"""A built world: everything the datagen job reads of it, whatever it was built from.
+
+``build_site`` makes one from the world settings: the procedural corridor (``WorldConfig``,
+datagen/world.py) or a building model file (``FileWorldConfig``, datagen/importers). Both give
+the same structures: the ``World`` the localizer reads (classed mesh, model edges, free space
+as an occupancy map), a map of where distractors and people may stand, and the world's own
+flight route if it has one.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.dataset import World
+from core.occupancy import OccupancyMap
+from datagen.config import FileWorldConfig, WorldConfig, world_config
+from datagen.edges import extract_edges
+from datagen.importers import Building, load_building
+from datagen.importers.classify import class_shares
+from datagen.world import FREE_CELL, MAIN, OPENING, CorridorModel, build_world
+
+log = logging.getLogger(__name__)
+
+#: m above the floor: the heights a distractor or a person occupies (the floor map's band).
+STANDING_BAND = (0.05, 1.9)
+
+
+@dataclass
+class Site:
+    """A built world.
+
+    world: the model the localizer reads (world/ files).
+    floor: where distractors and people may stand: an occupancy map of STANDING_BAND above
+        the floor with no margin (its clearance is the room an object has).
+    route: (K, 2) m the world's own flight route (the corridor's centre line), or None: the
+        flights plan theirs (``flights.<name>.route``).
+    building: the classed mesh with the file's names and colours (for a corridor: its mesh).
+    corridor: the corridor's boxes and lights, None for a file.
+    """
+
+    world: World
+    floor: OccupancyMap
+    route: np.ndarray | None
+    building: Building
+    corridor: CorridorModel | None = None
+
+
+def floor_boxes(model: CorridorModel, margin: float) -> np.ndarray:
+    """(B, 4) floor regions of the corridor and its openings, shrunk by margin (m)."""
+    out = [[b.lo[0] + margin, b.lo[1] + margin, b.hi[0] - margin, b.hi[1] - margin]
+           for b in model.boxes if b.kind in (MAIN, OPENING)]
+    return np.array(out)
+
+
+def corridor_site(spec: WorldConfig) -> Site:
+    """The procedural corridor; its route runs along the main corridor's centre line (+Y)."""
+    model = build_world(spec)
+    w = model.world
+    floor = OccupancyMap.from_boxes(floor_boxes(model, 0.0), STANDING_BAND, FREE_CELL, 0.0)
+    main = model.free_boxes[0]
+    cx = (main[0] + main[2]) / 2
+    route = np.array([[cx, main[1]], [cx, main[3]]])
+    b = Building(w.vertices, w.faces, w.face_class, np.zeros(len(w.faces), np.int32),
+                 [spec.name], np.full((len(w.faces), 3), np.nan), {"floor_z": 0.0})
+    b.info["class_shares"] = w.info["class_shares"] = class_shares(b)
+    return Site(w, floor, route, b, model)
+
+
+def file_site(spec: FileWorldConfig) -> Site:
+    """A building model file (``world.path``): import, model edges, free space.
+
+    Raises:
+        FileNotFoundError, ValueError: from the import (unknown extension, no floor, no walls,
+            a storey that does not exist, ...) or no free space left, naming the file or key.
+    """
+    t0 = time.perf_counter()
+    b = load_building(settings=spec)
+    floor_z = float(b.info["floor_z"])
+    z = np.asarray(spec.z_range, dtype=np.float64)
+    if z.shape != (2,) or not 0 <= z[0] < z[1]:
+        raise ValueError(f"world.z_range {z.tolist()} must be [lo, hi] m above the floor with "
+                         "0 <= lo < hi")
+    band = floor_z + z
+    where = f"{spec.path}: world.camera_margin / world.z_range"
+    try:
+        free = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class, band,
+                                      spec.camera_margin, spec.free_cell)
+        floor = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
+                                       floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
+    except ValueError as err:
+        raise ValueError(f"{where}: {err}") from None
+    segments, seg_classes, crease = extract_edges(b.vertices, b.faces, b.face_class,
+                                                  spec.crease_deg)
+    info = {
+        "name": spec.name, "kind": "file", **b.info,
+        "free_space": {"z_range": band.tolist(), "cell": spec.free_cell,
+                       "margin": float(spec.camera_margin), "area_m2": round(free.area, 3)},
+        "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
+    }
+    world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
+                  segments=segments, segment_classes=seg_classes, crease_deg=crease,
+                  free=free, info=info)
+    log.info("%s: %d faces, %d model edges, %.0f m2 free, built in %.1f s", spec.path,
+             len(b.faces), len(segments), free.area, time.perf_counter() - t0)
+    return Site(world, floor, None, b)
+
+
+def build_site(spec: object) -> Site:
+    """The site of world settings (``WorldConfig``, ``FileWorldConfig`` or a mapping with
+    ``kind``; None: the corridor's defaults)."""
+    spec = world_config(spec)
+    return file_site(spec) if isinstance(spec, FileWorldConfig) else corridor_site(spec)
