@@ -102,7 +102,7 @@ class FilterParams:
         mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}``.
         motion_rel: (2,) extra noise per unit of odometry translation and of yaw change.
         resample_ess: resample when ESS < this fraction of the particle count.
-        free_space_slack: metres beyond the free boxes and z range before the free-space prior
+        free_space_slack: metres beyond the free space (cells and band) before the free-space prior
             applies.
         outside_log_penalty: log-weight taken from particles outside (metres beyond the slack
             scale it up: penalty * (1 + excess / 0.1)).
