@@ -1,0 +1,304 @@
+"""What the renderer draws, whatever the geometry came from: textured surfaces and light panels.
+
+A ``Scene`` is a list of ``Surface``s (unshared triangle soups with a class, a procedural
+texture key and UVs in texture repeats, or the file's own per-vertex colours) and the corners
+of the emitting ceiling panels. ``corridor_scene`` makes it from the procedural corridor,
+``building_scene`` from an imported ``datagen.importers.Building`` and its free space.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from core import classes as C
+from core.occupancy import OccupancyMap
+from datagen.world import CorridorModel
+
+#: Physical size (u, v) in metres each texture image covers; the corridor's doors and windows
+#: cover their panel exactly (None).
+TEXTURE_EXTENT = {"floor": (2.0, 2.0), "ceiling": (2.0, 2.0), "wall": (4.0, 2.8),
+                  "frame": (0.5, 0.5), "door": None, "window": None}
+#: The same for imported buildings, whose doors and windows are not boxes: one door or window
+#: image repeats every (u, v) metres from the floor up.
+BUILDING_TEXTURE_EXTENT = {**TEXTURE_EXTENT, "door": (1.0, 2.1), "window": (1.2, 1.2)}
+#: Procedural texture of each class of an imported building; other classes (clutter, person)
+#: keep the file's colours, void faces are dropped.
+CLASS_TEXTURE = {C.FLOOR: "floor", C.CEILING: "ceiling", C.WALL: "wall", C.DOOR: "door",
+                 C.WINDOW: "window"}
+#: Reflectance (linear RGB) of faces drawn in the file's colours where the file gives none.
+DEFAULT_COLOUR = (0.4, 0.4, 0.4)
+QUAD = np.array([[0, 1, 2], [0, 2, 3]])  # the two triangles of a light panel's corners
+
+
+@dataclass
+class Surface:
+    """One part of the scene: unshared triangle soup of one class and one look.
+
+    vertices (3T, 3) m; uv (3T, 2) texture coordinates in repeats of ``texture`` (a key of
+    ``appearance.sample_textures``); colour: None, or (3T, 3) linear-RGB reflectance per
+    vertex (the file's own colours), in which case ``texture`` is not used.
+    """
+
+    name: str
+    class_id: int
+    texture: str
+    vertices: np.ndarray
+    uv: np.ndarray
+    colour: np.ndarray | None = None
+
+
+@dataclass
+class Scene:
+    """Everything ``render.Renderer`` draws besides the distractors.
+
+    surfaces: the textured or coloured parts (names unique). lights: (L, 4, 3) m corners of
+    the emitting ceiling panels, wound so they emit downwards (labelled ceiling).
+    """
+
+    surfaces: list[Surface]
+    lights: np.ndarray
+
+    @property
+    def num_lights(self) -> int:
+        return len(self.lights)
+
+
+def _face_uv(tri: np.ndarray, axis: np.ndarray, origin: np.ndarray,
+             extent: np.ndarray) -> np.ndarray:
+    """Planar UVs of triangles: u along the wall (or x on floors), v up (or y on floors).
+
+    Args:
+        tri: (T, 3, 3) corners; axis: (T,) normal axis; origin: (T, 2) uv origin in metres;
+        extent: (T, 2) metres per texture repeat.
+    """
+    u_axis = np.where(axis == 0, 1, 0)  # walls facing x run along y; else along x
+    v_axis = np.where(axis == 2, 1, 2)  # floors/ceilings: v along y; walls: v up
+    u = np.take_along_axis(tri, u_axis[:, None, None], 2)[..., 0]
+    v = np.take_along_axis(tri, v_axis[:, None, None], 2)[..., 0]
+    uv = np.stack([(u - origin[:, None, 0]) / extent[:, None, 0],
+                   (v - origin[:, None, 1]) / extent[:, None, 1]], axis=-1)
+    return uv
+
+
+def _normals(tri: np.ndarray) -> np.ndarray:
+    """(T, 3) unnormalised right-hand normals of (T, 3, 3) triangles."""
+    return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+
+
+def corridor_scene(model: CorridorModel) -> Scene:
+    """The corridor's surfaces (UVs from its boxes, see ``TEXTURE_EXTENT``; frames textured
+    as frames whatever their class) and its ceiling light panels."""
+    w = model.world
+    tri = w.vertices[w.faces]  # (F, 3, 3)
+    axis = np.argmax(np.abs(_normals(tri)), axis=1)
+    lo = np.array([b.lo for b in model.boxes])[model.face_box]
+    hi = np.array([b.hi for b in model.boxes])[model.face_box]
+    frame = model.frame  # jambs, heads and sills
+    fc = w.face_class
+    groups = {
+        "floor": (C.FLOOR, "floor", fc == C.FLOOR),
+        "ceiling": (C.CEILING, "ceiling", fc == C.CEILING),
+        "wall": (C.WALL, "wall", (fc == C.WALL) & ~frame),
+        "frame": (C.WALL, "frame", (fc == C.WALL) & frame),
+        "door_frame": (C.DOOR, "frame", (fc == C.DOOR) & frame),
+        "window_frame": (C.WINDOW, "frame", (fc == C.WINDOW) & frame),
+        "door": (C.DOOR, "door", (fc == C.DOOR) & ~frame),
+        "window": (C.WINDOW, "window", (fc == C.WINDOW) & ~frame),
+    }
+    out = []
+    for name, (cls, tex, mask) in groups.items():
+        if not mask.any():
+            continue
+        ext = TEXTURE_EXTENT[tex]
+        if ext is None:  # the panel's own box: u across it, v from its bottom to its top
+            u_axis = np.where(axis[mask] == 0, 1, 0)
+            r = np.arange(mask.sum())
+            origin = np.stack([lo[mask][r, u_axis], lo[mask][r, 2]], axis=1)
+            extent = np.stack([hi[mask][r, u_axis] - lo[mask][r, u_axis],
+                               hi[mask][r, 2] - lo[mask][r, 2]], axis=1)
+        else:
+            origin = np.zeros((mask.sum(), 2))
+            extent = np.tile(ext, (mask.sum(), 1))
+        uv = _face_uv(tri[mask], axis[mask], origin, extent)
+        out.append(Surface(name, cls, tex, tri[mask].reshape(-1, 3), uv.reshape(-1, 2)))
+    return Scene(out, light_quads(model.lights[:, :2], model.lights[:, 2:],
+                                  np.full(len(model.lights), model.height - 0.01)))
+
+
+def light_quads(centre: np.ndarray, size: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Horizontal light panels wound to emit downwards.
+
+    Args:
+        centre: (L, 2) m x, y; size: (L, 2) or (2,) m along x, y; z: (L,) m heights.
+
+    Returns:
+        (L, 4, 3) m corners.
+    """
+    c = np.asarray(centre, np.float64).reshape(-1, 2)
+    h = np.broadcast_to(np.asarray(size, np.float64), c.shape) / 2
+    sx, sy = h[:, 0], h[:, 1]
+    x = c[:, :1] + np.stack([-sx, -sx, sx, sx], 1)
+    y = c[:, 1:] + np.stack([-sy, sy, sy, -sy], 1)
+    zz = np.broadcast_to(np.asarray(z, np.float64).reshape(-1, 1), x.shape)
+    return np.stack([x, y, zz], axis=-1)
+
+
+def box_uv(tri: np.ndarray, extent: tuple[float, float], v0: float) -> np.ndarray:
+    """Box-projected UVs of triangles in texture repeats: each triangle is projected on the
+    plane of its dominant normal axis. On vertical faces u runs to the right seen from the
+    front (the side the normal points to) and v up from ``v0``; on horizontal faces u = x,
+    v = y.
+
+    Args:
+        tri: (T, 3, 3) m corners; extent: (u, v) m one texture image covers; v0: m, the
+        height of v = 0 (the floor, so skirting boards and door bottoms sit on it).
+
+    Returns:
+        (T, 3, 2) texture coordinates.
+    """
+    n = _normals(tri)
+    axis = np.argmax(np.abs(n), axis=1)
+    origin = np.zeros((len(tri), 2))
+    origin[axis != 2, 1] = v0
+    uv = _face_uv(tri, axis, origin, np.tile(np.asarray(extent, np.float64), (len(tri), 1)))
+    # seen from the front, +y runs right on a wall facing +x, -x on one facing +y
+    flip = np.where(axis == 0, n[:, 0] < 0, (axis == 1) & (n[:, 1] > 0))
+    uv[flip, :, 0] *= -1
+    return uv
+
+
+def building_scene(building, free: OccupancyMap, light_spacing: float = 3.0,
+                   light_size: tuple[float, float] = (0.6, 0.6), file_lights: bool = True,
+                   extents: Mapping[str, tuple[float, float]] | None = None,
+                   floor_z: float | None = None) -> Scene:
+    """The scene of an imported building.
+
+    Surfaces: one per class; floor, wall, ceiling, door and window faces get the procedural
+    textures (``CLASS_TEXTURE``) through ``box_uv``; the other classes (clutter, person) the
+    file's face colours (``DEFAULT_COLOUR`` where it gives none); void faces are dropped.
+    Lights: the file's lights (``info["lights"]``, see ``lights_from_file``) if it has any
+    and ``file_lights``, else ``lattice_lights`` over ``free``.
+
+    Args:
+        building: a ``datagen.importers.Building``.
+        free: the free space the camera flies in (``OccupancyMap.from_mesh`` of the building).
+        light_spacing: m between lattice lights. light_size: m (x, y) of a panel.
+        file_lights: use the file's lights where it has them.
+        extents: metres per texture image, by texture key (default ``BUILDING_TEXTURE_EXTENT``).
+        floor_z: m, where v = 0 on walls, doors and windows (default ``info["floor_z"]``, 0).
+    """
+    ext = {**BUILDING_TEXTURE_EXTENT, **(extents or {})}
+    v0 = float(building.info.get("floor_z", 0.0) if floor_z is None else floor_z)
+    tri = np.asarray(building.vertices, np.float64)[building.faces]
+    fc = np.asarray(building.face_class)
+    out = []
+    for cls in np.unique(fc):
+        mask = fc == cls
+        if cls == C.VOID or cls >= C.NUM_CLASSES:
+            continue
+        name, t = C.NAMES[cls], tri[mask]
+        if cls in CLASS_TEXTURE:
+            tex = CLASS_TEXTURE[int(cls)]
+            uv = box_uv(t, ext[tex], v0)
+            out.append(Surface(name, int(cls), tex, t.reshape(-1, 3), uv.reshape(-1, 2)))
+            continue
+        colour = np.asarray(building.face_colour, np.float64)[mask]
+        colour = np.where(np.isnan(colour), np.asarray(DEFAULT_COLOUR), colour)
+        out.append(Surface(name, int(cls), "", t.reshape(-1, 3), np.zeros((3 * len(t), 2)),
+                           np.clip(np.repeat(colour, 3, axis=0), 0.0, 1.0)))
+    points = np.asarray(building.info.get("lights") or np.zeros((0, 3)), np.float64)
+    if file_lights and len(points):
+        lights = lights_from_file(building, points.reshape(-1, 3), free, light_size)
+    else:
+        lights = lattice_lights(building, free, light_spacing, light_size)
+    return Scene(out, lights)
+
+
+def ceiling_above(vertices: np.ndarray, faces: np.ndarray, xyz: np.ndarray,
+                  chunk: int = 1 << 22) -> np.ndarray:
+    """Height of the lowest surface straight above each point (a ray cast up).
+
+    Args:
+        vertices (V, 3), faces (F, 3): the mesh, m. xyz: (N, 3) m the rays' origins.
+        chunk: point-face pairs tested at once (memory bound).
+
+    Returns:
+        (N,) m, NaN where nothing is above.
+    """
+    p = np.asarray(xyz, np.float64).reshape(-1, 3)
+    tri = np.asarray(vertices, np.float64)[faces]
+    tri = tri[tri[:, :, 2].max(axis=1) > p[:, 2].min()]
+    lo, hi = tri[:, :, :2].min(axis=1), tri[:, :, :2].max(axis=1)
+    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    out = np.full(len(p), np.nan)
+    step = max(1, chunk // max(len(tri), 1))
+    for s in range(0, len(p), step):
+        q = p[s:s + step]
+        i, j = np.nonzero((q[:, None, :2] >= lo).all(-1) & (q[:, None, :2] <= hi).all(-1)
+                          & (np.abs(det) > 1e-12))
+        d = q[i, :2] - a[j, :2]
+        u = (d[:, 0] * e2[j, 1] - d[:, 1] * e2[j, 0]) / det[j]
+        v = (e1[j, 0] * d[:, 1] - e1[j, 1] * d[:, 0]) / det[j]
+        z = a[j, 2] + u * e1[j, 2] + v * e2[j, 2]
+        hit = (u >= 0) & (v >= 0) & (u + v <= 1) & (z > q[i, 2])
+        best = np.full(len(q), np.inf)
+        np.minimum.at(best, i[hit], z[hit])
+        out[s:s + step] = np.where(np.isfinite(best), best, np.nan)
+    return out
+
+
+def lattice_centres(free: OccupancyMap, spacing: float) -> np.ndarray:
+    """One point per ``spacing`` x ``spacing`` block of the map that has free cells: its free
+    cell farthest from obstacles (clearance capped at spacing / 2, so corridors get their
+    centre line and open rooms a regular grid), then nearest the block's centre.
+
+    Returns:
+        (N, 2) m cell centres.
+    """
+    if not spacing > 0:
+        raise ValueError(f"light_spacing must be > 0, got {spacing}")
+    rc = np.array(np.nonzero(free.free))
+    xy = free.centres(rc)
+    block = np.floor((xy - free.origin) / spacing).astype(np.int64)
+    centre = free.origin + (block + 0.5) * spacing
+    clear = np.minimum(free.clearance[rc[0], rc[1]], spacing / 2)
+    clear = np.round(clear / free.cell)  # within a cell counts as equal
+    dist = np.linalg.norm(xy - centre, axis=1)
+    key = block[:, 0] * (block[:, 1].max() + 1) + block[:, 1]
+    order = np.lexsort((dist, -clear, key))
+    first = order[np.r_[True, key[order][1:] != key[order][:-1]]]
+    return xy[first]
+
+
+def lattice_lights(building, free: OccupancyMap, spacing: float,
+                   size: tuple[float, float]) -> np.ndarray:
+    """Ceiling panels over the free space (``lattice_centres``), 1 cm below the surface
+    above each (panels with nothing above are left out).
+
+    Returns:
+        (L, 4, 3) m corners.
+    """
+    xy = lattice_centres(free, spacing)
+    start = np.concatenate([xy, np.full((len(xy), 1), free.band[1])], axis=1)
+    z = ceiling_above(building.vertices, building.faces, start)
+    ok = np.isfinite(z)
+    return light_quads(xy[ok], size, z[ok] - 0.01)
+
+
+def lights_from_file(building, points: np.ndarray, free: OccupancyMap,
+                     size: tuple[float, float]) -> np.ndarray:
+    """Panels at the file's light positions (N, 3) m, facing down; a light higher than the
+    surface above the top of ``free``'s band (a bulb inside a fixture or above the ceiling)
+    is moved to 1 cm below that surface.
+
+    Returns:
+        (N, 4, 3) m corners.
+    """
+    start = np.concatenate([points[:, :2], np.full((len(points), 1), free.band[1])], axis=1)
+    z = ceiling_above(building.vertices, building.faces, start)
+    z = np.where(np.isfinite(z), np.minimum(points[:, 2], z - 0.01), points[:, 2])
+    return light_quads(points[:, :2], size, z)
