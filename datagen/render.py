@@ -255,10 +255,10 @@ class Renderer:
         self.params["label_sensor.to_world"] = T
 
     def set_textures(self, textures: Mapping[str, np.ndarray]) -> None:
-        """Replace texture images in place (shapes must match the ones the scene was built with)."""
+        """Replace the texture image of every textured surface in place (shapes must match the
+        ones the scene was built with)."""
         for key, name in self._texture_keys:
-            if key.split(".")[0] == name:  # (as before: surfaces named after their texture)
-                self._put_texture(key, name, textures[name])
+            self._put_texture(key, name, textures[name])
 
     def _put_texture(self, key: str, name: str, img: np.ndarray) -> None:
         if img.shape != self._textures[name]:

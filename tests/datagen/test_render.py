@@ -181,3 +181,23 @@ def test_develop_smooths_all_but_the_raw_shapes():
     assert (label == C.WINDOW).all()
     np.testing.assert_array_equal(out[:, W // 2:], linear_to_srgb8(rgb[:, W // 2:]))
     assert out[:, : W // 2].std() < 0.2 * linear_to_srgb8(rgb[:, : W // 2]).std()
+
+
+def test_set_textures_reaches_every_textured_surface():
+    """The door and window frames (texture ``frame``, surfaces of their own) follow
+    ``set_textures`` like the rest."""
+    from core.variant import choose_variant
+    from datagen.render import Renderer
+
+    choose_variant()
+
+    cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
+    camera = make_camera(cfg["camera"])
+    first = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    second = appearance.sample_textures(np.random.default_rng(1), 16, cfg["appearance"])
+    r = Renderer(corridor_scene(build_world(cfg["world"])), camera, first)
+    r.set_textures(second)
+    for name in ("door_frame", "window_frame", "wall"):
+        tex = "wall" if name == "wall" else "frame"
+        got = np.array(r.params[f"{name}.bsdf.reflectance.data"])
+        np.testing.assert_allclose(got, np.flipud(second[tex]), atol=1e-6)
