@@ -251,10 +251,11 @@ def ceiling_above(vertices: np.ndarray, faces: np.ndarray, xyz: np.ndarray,
     return out
 
 
-def lattice_centres(free: OccupancyMap, spacing: float) -> np.ndarray:
-    """One point per ``spacing`` x ``spacing`` block of the map that has free cells: its free
-    cell farthest from obstacles (clearance capped at spacing / 2, so corridors get their
-    centre line and open rooms a regular grid), then nearest the block's centre.
+def light_centres(free: OccupancyMap, spacing: float) -> np.ndarray:
+    """Points over the free space at least ``spacing`` apart, every free cell within
+    ``spacing`` of one: free cells taken greedily, farthest from obstacles first (clearance
+    capped at spacing / 2, so corridors get their centre line and open rooms a regular
+    grid), ties in row order (a sweep: regular steps along straight corridors).
 
     Returns:
         (N, 2) m cell centres.
@@ -262,27 +263,24 @@ def lattice_centres(free: OccupancyMap, spacing: float) -> np.ndarray:
     if not spacing > 0:
         raise ValueError(f"light_spacing must be > 0, got {spacing}")
     rc = np.array(np.nonzero(free.free))
-    xy = free.centres(rc)
-    block = np.floor((xy - free.origin) / spacing).astype(np.int64)
-    centre = free.origin + (block + 0.5) * spacing
-    clear = np.minimum(free.clearance[rc[0], rc[1]], spacing / 2)
-    clear = np.round(clear / free.cell)  # within a cell counts as equal
-    dist = np.linalg.norm(xy - centre, axis=1)
-    key = block[:, 0] * (block[:, 1].max() + 1) + block[:, 1]
-    order = np.lexsort((dist, -clear, key))
-    first = order[np.r_[True, key[order][1:] != key[order][:-1]]]
-    return xy[first]
+    clear = np.round(np.minimum(free.clearance[rc[0], rc[1]], spacing / 2) / free.cell)
+    xy = free.centres(rc)[np.argsort(-clear, kind="stable")]
+    picked = []
+    while len(xy):  # one step per light, each over the cells left
+        picked.append(xy[0])
+        xy = xy[np.sum((xy - xy[0]) ** 2, axis=1) >= spacing**2]
+    return np.array(picked).reshape(-1, 2)
 
 
 def lattice_lights(building, free: OccupancyMap, spacing: float,
                    size: tuple[float, float]) -> np.ndarray:
-    """Ceiling panels over the free space (``lattice_centres``), 1 cm below the surface
+    """Ceiling panels over the free space (``light_centres``), 1 cm below the surface
     above each (panels with nothing above are left out).
 
     Returns:
         (L, 4, 3) m corners.
     """
-    xy = lattice_centres(free, spacing)
+    xy = light_centres(free, spacing)
     start = np.concatenate([xy, np.full((len(xy), 1), free.band[1])], axis=1)
     z = ceiling_above(building.vertices, building.faces, start)
     ok = np.isfinite(z)
