@@ -188,8 +188,8 @@ class Renderer:
 
     def _surface_shapes(self, scene: Scene, textures: Mapping[str, np.ndarray]
                         ) -> dict[str, object]:
-        """The scene's surfaces: textured (the window's view is an emitter) or in their own
-        vertex colours."""
+        """The scene's surfaces: procedurally textured (the window's view is an emitter), in
+        the file's images or in their own vertex colours."""
         mi, out = self.mi, {}
         for s in scene.surfaces:
             F = np.arange(len(s.vertices)).reshape(-1, 3)
@@ -204,6 +204,10 @@ class Renderer:
                                         "radiance": _bitmap(mi, textures["window"])})
                 out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf, emitter)
                 self._texture_keys.append((f"{s.name}.emitter.radiance.data", s.texture))
+            elif s.texture in scene.images:  # the file's own image, fixed
+                bsdf = mi.load_dict({"type": "diffuse",
+                                     "reflectance": _bitmap(mi, scene.images[s.texture])})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf)
             else:
                 bsdf = mi.load_dict({"type": "diffuse",
                                      "reflectance": _bitmap(mi, textures[s.texture])})

@@ -9,7 +9,7 @@ of the emitting ceiling panels. ``corridor_scene`` makes it from the procedural 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,9 +37,10 @@ QUAD = np.array([[0, 1, 2], [0, 2, 3]])  # the two triangles of a light panel's 
 class Surface:
     """One part of the scene: unshared triangle soup of one class and one look.
 
-    vertices (3T, 3) m; uv (3T, 2) texture coordinates in repeats of ``texture`` (a key of
-    ``appearance.sample_textures``); colour: None, or (3T, 3) linear-RGB reflectance per
-    vertex (the file's own colours), in which case ``texture`` is not used.
+    vertices (3T, 3) m; uv (3T, 2) texture coordinates (v up) into ``texture``: a key of
+    ``appearance.sample_textures`` (in repeats of its ``TEXTURE_EXTENT``) or of
+    ``Scene.images`` (the file's own image); colour: None, or (3T, 3) linear-RGB reflectance
+    per vertex (the file's own colours), in which case ``texture`` is not used.
     """
 
     name: str
@@ -55,11 +56,14 @@ class Scene:
     """Everything ``render.Renderer`` draws besides the distractors.
 
     surfaces: the textured or coloured parts (names unique). lights: (L, 4, 3) m corners of
-    the emitting ceiling panels, wound so they emit downwards (labelled ceiling).
+    the emitting ceiling panels, wound so they emit downwards (labelled ceiling). images:
+    the file's own texture images by key ((H, W, 3) float32 linear RGB, row 0 at the top),
+    fixed (``Renderer.set_textures`` redraws the procedural ones only).
     """
 
     surfaces: list[Surface]
     lights: np.ndarray
+    images: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def num_lights(self) -> int:
@@ -172,49 +176,80 @@ def box_uv(tri: np.ndarray, extent: tuple[float, float], v0: float) -> np.ndarra
 
 def building_scene(building, free: OccupancyMap, light_spacing: float = 3.0,
                    light_size: tuple[float, float] = (0.6, 0.6), file_lights: bool = True,
+                   file_look: bool = False,
                    extents: Mapping[str, tuple[float, float]] | None = None,
                    floor_z: float | None = None) -> Scene:
-    """The scene of an imported building.
-
-    Surfaces: one per class; floor, wall, ceiling, door and window faces get the procedural
-    textures (``CLASS_TEXTURE``) through ``box_uv``; the other classes (clutter, person) the
-    file's face colours (``DEFAULT_COLOUR`` where it gives none); void faces are dropped.
-    Lights: the file's lights (``info["lights"]``, see ``lights_from_file``) if it has any
-    and ``file_lights``, else ``lattice_lights`` over ``free``.
+    """The scene of an imported building: ``building_surfaces`` and its lights, the file's
+    (``info["lights"]``, see ``lights_from_file``) if it has any and ``file_lights``, else
+    ``lattice_lights`` over ``free``.
 
     Args:
         building: a ``datagen.importers.Building``.
         free: the free space the camera flies in (``OccupancyMap.from_mesh`` of the building).
         light_spacing: m between lattice lights. light_size: m (x, y) of a panel.
         file_lights: use the file's lights where it has them.
-        extents: metres per texture image, by texture key (default ``BUILDING_TEXTURE_EXTENT``).
-        floor_z: m, where v = 0 on walls, doors and windows (default ``info["floor_z"]``, 0).
+        file_look, extents, floor_z: as ``building_surfaces``.
     """
-    ext = {**BUILDING_TEXTURE_EXTENT, **(extents or {})}
-    v0 = float(building.info.get("floor_z", 0.0) if floor_z is None else floor_z)
-    tri = np.asarray(building.vertices, np.float64)[building.faces]
-    fc = np.asarray(building.face_class)
-    out = []
-    for cls in np.unique(fc):
-        mask = fc == cls
-        if cls == C.VOID or cls >= C.NUM_CLASSES:
-            continue
-        name, t = C.NAMES[cls], tri[mask]
-        if cls in CLASS_TEXTURE:
-            tex = CLASS_TEXTURE[int(cls)]
-            uv = box_uv(t, ext[tex], v0)
-            out.append(Surface(name, int(cls), tex, t.reshape(-1, 3), uv.reshape(-1, 2)))
-            continue
-        colour = np.asarray(building.face_colour, np.float64)[mask]
-        colour = np.where(np.isnan(colour), np.asarray(DEFAULT_COLOUR), colour)
-        out.append(Surface(name, int(cls), "", t.reshape(-1, 3), np.zeros((3 * len(t), 2)),
-                           np.clip(np.repeat(colour, 3, axis=0), 0.0, 1.0)))
+    surfaces, images = building_surfaces(building, file_look, extents, floor_z)
     points = np.asarray(building.info.get("lights") or np.zeros((0, 3)), np.float64)
     if file_lights and len(points):
         lights = lights_from_file(building, points.reshape(-1, 3), free, light_size)
     else:
         lights = lattice_lights(building, free, light_spacing, light_size)
-    return Scene(out, lights)
+    return Scene(surfaces, lights, images)
+
+
+def building_surfaces(building, file_look: bool = False,
+                      extents: Mapping[str, tuple[float, float]] | None = None,
+                      floor_z: float | None = None
+                      ) -> tuple[list[Surface], dict[str, np.ndarray]]:
+    """An imported building's surfaces, by class (void faces dropped) and look.
+
+    Floor, wall, ceiling, door and window faces get the procedural textures
+    (``CLASS_TEXTURE``, redrawn per image) through ``box_uv``; the other classes (clutter,
+    person) the file's look: its image textures (surfaces ``<class>_image<k>``, texture key
+    ``image<k>``), else its face colours (``<class>_colour``; ``DEFAULT_COLOUR`` where it
+    gives none). With ``file_look`` the structural faces take the file's look too where it
+    has one.
+
+    Args:
+        building: a ``datagen.importers.Building``.
+        extents: metres per procedural texture image, by key (``BUILDING_TEXTURE_EXTENT``).
+        floor_z: m, where v = 0 on walls, doors and windows (default ``info["floor_z"]``, 0).
+
+    Returns:
+        the surfaces, and the file's images they use (key -> (H, W, 3) linear RGB).
+    """
+    ext = {**BUILDING_TEXTURE_EXTENT, **(extents or {})}
+    v0 = float(building.info.get("floor_z", 0.0) if floor_z is None else floor_z)
+    tri = np.asarray(building.vertices, np.float64)[building.faces]
+    fc = np.asarray(building.face_class)
+    image = np.asarray(building.face_texture)
+    colour = np.asarray(building.face_colour, np.float64)
+    has_colour = ~np.isnan(colour).any(axis=1)
+    out, images = [], {}
+    for cls in np.unique(fc[(fc != C.VOID) & (fc < C.NUM_CLASSES)]):
+        name, cls = C.NAMES[cls], int(cls)
+        structural = cls in CLASS_TEXTURE
+        faces = fc == cls
+        own = faces if file_look or not structural else np.zeros(len(fc), bool)  # file look
+        for k in np.unique(image[own & (image >= 0)]):
+            m = own & (image == k)
+            images[f"image{k}"] = building.textures[k]
+            out.append(Surface(f"{name}_image{k}", cls, f"image{k}", tri[m].reshape(-1, 3),
+                               np.asarray(building.face_uv[m], np.float64).reshape(-1, 2)))
+        m = own & (image < 0) & (has_colour | (not structural))
+        if m.any():
+            rgb = np.where(has_colour[m, None], colour[m], np.asarray(DEFAULT_COLOUR))
+            out.append(Surface(f"{name}_colour", cls, "", tri[m].reshape(-1, 3),
+                               np.zeros((3 * m.sum(), 2)),
+                               np.clip(np.repeat(rgb, 3, axis=0), 0.0, 1.0)))
+        m = faces & ~(own & ((image >= 0) | has_colour | (not structural)))  # procedural
+        if m.any():
+            tex = CLASS_TEXTURE[cls]
+            uv = box_uv(tri[m], ext[tex], v0)
+            out.append(Surface(name, cls, tex, tri[m].reshape(-1, 3), uv.reshape(-1, 2)))
+    return out, images
 
 
 def ceiling_above(vertices: np.ndarray, faces: np.ndarray, xyz: np.ndarray,

@@ -198,9 +198,8 @@ def _visual(w: _Walk, vis: ET.Element, matrix: np.ndarray, name: str, base: Path
             scaled = matrix @ np.diag([*_floats(g.findtext("scale"), 3, [1, 1, 1],
                                                 f"{name} scale"), 1.0])
             for p in w.meshes[path]:
-                v, f = transformed(scaled, p.vertices, p.faces)
-                w.parts.append(Part(v, f, f"{name}/{p.name}",
-                                    p.colour if np.isnan(colour).all() else colour))
+                w.parts.append(p.moved(scaled, f"{name}/{p.name}",
+                                       None if np.isnan(colour).all() else colour))
             continue
         mesh = _shape(g.tag, g, name)
         if mesh is None:

@@ -23,8 +23,14 @@ from datagen.scene import (
 )
 from datagen.world import build_world
 from tests import buildings
-from tests.datagen.building_files import ROOM, open_room, visual, write_dae, write_model, \
-    write_world
+from tests.datagen.building_files import (
+    ROOM,
+    open_room,
+    visual,
+    write_dae,
+    write_model,
+    write_world,
+)
 from tests.helpers import compose_config
 
 CABINET_RGB = (0.8, 0.1, 0.1)
@@ -66,12 +72,12 @@ def test_building_surfaces_by_class_with_box_uvs_and_file_colours(room):
     b, free = room
     scene = building_scene(b, free)
     by_name = {s.name: s for s in scene.surfaces}
-    assert set(by_name) == {"floor", "wall", "ceiling", "clutter"}
+    assert set(by_name) == {"floor", "wall", "ceiling", "clutter_colour"}
     assert sum(len(s.vertices) for s in scene.surfaces) == 3 * len(b.faces)
     for s in scene.surfaces:
-        assert s.class_id == C.ID[s.name] and s.uv.shape == (len(s.vertices), 2)
-        assert (s.colour is None) == (s.name != "clutter")
-    np.testing.assert_allclose(by_name["clutter"].colour, np.tile(CABINET_RGB, (36, 1)))
+        assert s.class_id == C.ID[s.name.split("_")[0]] and s.uv.shape == (len(s.vertices), 2)
+        assert (s.colour is None) == (s.name != "clutter_colour")
+    np.testing.assert_allclose(by_name["clutter_colour"].colour, np.tile(CABINET_RGB, (36, 1)))
     assert by_name["wall"].texture == "wall" and by_name["floor"].texture == "floor"
     # floors: u = x, v = y in texture repeats
     floor = by_name["floor"]
@@ -84,7 +90,7 @@ def test_building_surfaces_by_class_with_box_uvs_and_file_colours(room):
 def test_colourless_faces_get_the_default_colour(room):
     b, free = room
     b2 = type(b)(**{**vars(b), "face_colour": np.full_like(b.face_colour, np.nan)})
-    clutter = next(s for s in building_scene(b2, free).surfaces if s.name == "clutter")
+    clutter = next(s for s in building_scene(b2, free).surfaces if s.name == "clutter_colour")
     np.testing.assert_allclose(clutter.colour, np.tile(DEFAULT_COLOUR, (36, 1)))
 
 
