@@ -15,6 +15,7 @@ import numpy as np
 
 from core import classes as C
 from core.occupancy import OccupancyMap
+from datagen.importers.building import Building
 from datagen.world import CorridorModel
 
 #: Physical size (u, v) in metres each texture image covers; the corridor's doors and windows
@@ -174,7 +175,7 @@ def box_uv(tri: np.ndarray, extent: tuple[float, float], v0: float) -> np.ndarra
     return uv
 
 
-def building_scene(building, free: OccupancyMap, light_spacing: float = 3.0,
+def building_scene(building: Building, free: OccupancyMap, light_spacing: float = 3.0,
                    light_size: tuple[float, float] = (0.6, 0.6), file_lights: bool = True,
                    file_look: bool = False,
                    extents: Mapping[str, tuple[float, float]] | None = None,
@@ -199,7 +200,7 @@ def building_scene(building, free: OccupancyMap, light_spacing: float = 3.0,
     return Scene(surfaces, lights, images)
 
 
-def building_surfaces(building, file_look: bool = False,
+def building_surfaces(building: Building, file_look: bool = False,
                       extents: Mapping[str, tuple[float, float]] | None = None,
                       floor_z: float | None = None
                       ) -> tuple[list[Surface], dict[str, np.ndarray]]:
@@ -307,7 +308,7 @@ def light_centres(free: OccupancyMap, spacing: float) -> np.ndarray:
     return np.array(picked).reshape(-1, 2)
 
 
-def lattice_lights(building, free: OccupancyMap, spacing: float,
+def lattice_lights(building: Building, free: OccupancyMap, spacing: float,
                    size: tuple[float, float]) -> np.ndarray:
     """Ceiling panels over the free space (``light_centres``), 1 cm below the surface
     above each (panels with nothing above are left out).
@@ -322,16 +323,16 @@ def lattice_lights(building, free: OccupancyMap, spacing: float,
     return light_quads(xy[ok], size, z[ok] - 0.01)
 
 
-def lights_from_file(building, points: np.ndarray, free: OccupancyMap,
+def lights_from_file(building: Building, points: np.ndarray, free: OccupancyMap,
                      size: tuple[float, float]) -> np.ndarray:
-    """Panels at the file's light positions (N, 3) m, facing down; a light higher than the
-    surface above the top of ``free``'s band (a bulb inside a fixture or above the ceiling)
-    is moved to 1 cm below that surface.
+    """Panels for the file's lights (N, 3) m, facing down, 1 cm under the surface above each
+    light's x, y (seen from the top of ``free``'s band): labelled ceiling, they belong there,
+    whatever height the file gives its (invisible) point lights; at the light's own height
+    where nothing is above.
 
     Returns:
         (N, 4, 3) m corners.
     """
     start = np.concatenate([points[:, :2], np.full((len(points), 1), free.band[1])], axis=1)
     z = ceiling_above(building.vertices, building.faces, start)
-    z = np.where(np.isfinite(z), np.minimum(points[:, 2], z - 0.01), points[:, 2])
-    return light_quads(points[:, :2], size, z)
+    return light_quads(points[:, :2], size, np.where(np.isfinite(z), z - 0.01, points[:, 2]))
