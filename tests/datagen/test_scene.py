@@ -23,14 +23,8 @@ from datagen.scene import (
 )
 from datagen.world import build_world
 from tests import buildings
-from tests.datagen.building_files import (
-    ROOM,
-    open_room,
-    visual,
-    write_dae,
-    write_model,
-    write_world,
-)
+from tests.datagen import building_files as files
+from tests.datagen.building_files import ROOM
 from tests.helpers import compose_config
 
 CABINET_RGB = (0.8, 0.1, 0.1)
@@ -40,21 +34,21 @@ def write_room_world(tmp_path, light: bool = True):
     """worlds/room.world: the 4 x 3 x 2.5 m open room (COLLADA, metres; the importer adds its
     ceiling), a red 0.6 x 0.6 x 0.8 m cabinet at (3, 1.5) and a point light over the room's
     centre."""
-    room = open_room()
+    room = files.open_room()
     up = room.face_normals[:, 2] > 0.9
     pieces = [(name, part.vertices, part.faces) for name, part in
               [("floor_tiles", room.submesh([up], append=True)),
                ("wall_paint", room.submesh([~up], append=True))]]
-    write_dae(tmp_path / "models" / "room" / "meshes" / "room.dae", pieces)
-    write_model(tmp_path / "models", "room",
-                visual("<mesh><uri>model://room/meshes/room.dae</uri></mesh>"))
-    cabinet = visual("<box><size>0.6 0.6 0.8</size></box>", name="cabinet").replace(
+    files.write_dae(tmp_path / "models" / "room" / "meshes" / "room.dae", pieces)
+    files.write_model(tmp_path / "models", "room",
+                      files.visual("<mesh><uri>model://room/meshes/room.dae</uri></mesh>"))
+    cabinet = files.visual("<box><size>0.6 0.6 0.8</size></box>", name="cabinet").replace(
         "</geometry>", "</geometry><material><diffuse>{} {} {} 1</diffuse></material>".format(
             *CABINET_RGB), 1)
     bulb = '<light name="bulb" type="point"><pose>2 1.5 2.3 0 0 0</pose></light>'
     body = (f'<include><uri>model://room</uri></include>{bulb if light else ""}'
             f'<model name="cabinet"><pose>3 1.5 0.4 0 0 0</pose>{cabinet}</model>')
-    return write_world(tmp_path / "worlds" / "room.world", body)
+    return files.write_world(tmp_path / "worlds" / "room.world", body)
 
 
 @pytest.fixture(scope="module")
