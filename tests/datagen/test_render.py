@@ -201,3 +201,11 @@ def test_set_textures_reaches_every_textured_surface():
         tex = "wall" if name == "wall" else "frame"
         got = np.array(r.params[f"{name}.bsdf.reflectance.data"])
         np.testing.assert_allclose(got, np.flipud(second[tex]), atol=1e-6)
+
+
+def test_renderer_takes_a_scene():
+    from datagen.render import Renderer
+
+    cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
+    with pytest.raises(TypeError, match="corridor_scene"):
+        Renderer(build_world(cfg["world"]), make_camera(cfg["camera"]), {})
