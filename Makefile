@@ -77,6 +77,7 @@ contact-sheet: setup
 # Speed and accuracy figures; the last five read the demo's outputs (run `make demo` first).
 bench: setup
 	$(PY) benchmarks/datagen_throughput.py
+	$(PY) benchmarks/render_building.py  # an imported building (the AWS hospital, if ../shared has it)
 	-$(PY) benchmarks/train_accuracy.py outputs/models/demo  # exits 1 when a target is missed
 	$(PY) benchmarks/segnet_speed.py
 	$(PY) benchmarks/localize_speed.py

@@ -342,10 +342,11 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
 
 
 def _new_renderer(job: Job, textures, clutter, people):
-    from datagen.render import CorridorRenderer
+    from datagen.render import Renderer
+    from datagen.scene import corridor_scene
 
-    return CorridorRenderer(job.model, job.camera, textures, clutter, people,
-                            max_depth=job.cfg.render.max_depth)
+    return Renderer(corridor_scene(job.model), job.camera, textures, clutter, people,
+                    max_depth=job.cfg.render.max_depth)
 
 
 def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPreset,

@@ -1,6 +1,7 @@
-"""Mitsuba 3 scene of a corridor and a renderer that moves the camera and re-dresses the scene.
+"""A renderer of a ``datagen.scene.Scene`` (the corridor or an imported building) that moves the
+camera and re-dresses the scene.
 
-The scene is loaded once per world (and per set of distractor meshes); per frame only
+The Mitsuba scene is loaded once per world (and per set of distractor meshes); per frame only
 parameters change through ``mi.traverse``: the camera pose, texture images, light radiance,
 distractor positions and colours. That re-uses Dr.Jit's compiled kernels.
 
@@ -26,19 +27,13 @@ from core.camera import mitsuba_to_world
 from core.dataset import Camera
 from datagen.config import RenderConfig
 from datagen.denoise import denoise, segment_ids
-from datagen.world import CorridorModel
+from datagen.scene import QUAD, Scene
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor
 
-#: Physical size (u, v) in metres each texture image covers; doors and windows cover their
-#: panel exactly (None).
-TEXTURE_EXTENT = {"floor": (2.0, 2.0), "ceiling": (2.0, 2.0), "wall": (4.0, 2.8),
-                  "frame": (0.5, 0.5), "door": None, "window": None}
-
-
 @dataclass(frozen=True)
 class Traced:
-    """The raw passes of one view, as ``CorridorRenderer.trace`` returns them.
+    """The raw passes of one view, as ``Renderer.trace`` returns them.
 
     aux: (H, W, 5) float32 at the pixel centres: shape index, ray length (m; 0 = no hit),
     shading normal. rgb: (H, W, 3) float32 linear path-traced radiance. albedo: (H, W, 3)
@@ -63,83 +58,6 @@ def shape_index(mi, shape, pos: int) -> int:
 
         return int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
     return pos + 1  # scalar: position in scene.shapes(), counted from 1
-
-
-@dataclass
-class Surface:
-    """One textured part of the structural model: unshared triangle soup."""
-
-    name: str
-    class_id: int
-    texture: str
-    vertices: np.ndarray  # (3T, 3)
-    uv: np.ndarray  # (3T, 2)
-
-
-def _face_uv(tri: np.ndarray, axis: np.ndarray, origin: np.ndarray,
-             extent: np.ndarray) -> np.ndarray:
-    """Planar UVs of triangles: u along the wall (or x on floors), v up (or y on floors).
-
-    Args:
-        tri: (T, 3, 3) corners; axis: (T,) normal axis; origin: (T, 2) uv origin in metres;
-        extent: (T, 2) metres per texture repeat.
-    """
-    u_axis = np.where(axis == 0, 1, 0)  # walls facing x run along y; else along x
-    v_axis = np.where(axis == 2, 1, 2)  # floors/ceilings: v along y; walls: v up
-    u = np.take_along_axis(tri, u_axis[:, None, None], 2)[..., 0]
-    v = np.take_along_axis(tri, v_axis[:, None, None], 2)[..., 0]
-    uv = np.stack([(u - origin[:, None, 0]) / extent[:, None, 0],
-                   (v - origin[:, None, 1]) / extent[:, None, 1]], axis=-1)
-    return uv
-
-
-def surfaces(model: CorridorModel) -> list[Surface]:
-    """Split the model into textured surfaces with UVs (see ``TEXTURE_EXTENT``)."""
-    w = model.world
-    tri = w.vertices[w.faces]  # (F, 3, 3)
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    axis = np.argmax(np.abs(n), axis=1)
-    lo = np.array([b.lo for b in model.boxes])[model.face_box]
-    hi = np.array([b.hi for b in model.boxes])[model.face_box]
-    frame = model.frame  # jambs, heads and sills: textured as frames, whatever their class
-    fc = w.face_class
-    groups = {
-        "floor": (C.FLOOR, "floor", fc == C.FLOOR),
-        "ceiling": (C.CEILING, "ceiling", fc == C.CEILING),
-        "wall": (C.WALL, "wall", (fc == C.WALL) & ~frame),
-        "frame": (C.WALL, "frame", (fc == C.WALL) & frame),
-        "door_frame": (C.DOOR, "frame", (fc == C.DOOR) & frame),
-        "window_frame": (C.WINDOW, "frame", (fc == C.WINDOW) & frame),
-        "door": (C.DOOR, "door", (fc == C.DOOR) & ~frame),
-        "window": (C.WINDOW, "window", (fc == C.WINDOW) & ~frame),
-    }
-    out = []
-    for name, (cls, tex, mask) in groups.items():
-        if not mask.any():
-            continue
-        ext = TEXTURE_EXTENT[tex]
-        if ext is None:  # the panel's own box: u across it, v from its bottom to its top
-            u_axis = np.where(axis[mask] == 0, 1, 0)
-            r = np.arange(mask.sum())
-            origin = np.stack([lo[mask][r, u_axis], lo[mask][r, 2]], axis=1)
-            extent = np.stack([hi[mask][r, u_axis] - lo[mask][r, u_axis],
-                               hi[mask][r, 2] - lo[mask][r, 2]], axis=1)
-        else:
-            origin = np.zeros((mask.sum(), 2))
-            extent = np.tile(ext, (mask.sum(), 1))
-        uv = _face_uv(tri[mask], axis[mask], origin, extent)
-        out.append(Surface(name, cls, tex, tri[mask].reshape(-1, 3), uv.reshape(-1, 2)))
-    return out
-
-
-def light_panels(model: CorridorModel) -> list[np.ndarray]:
-    """(4, 3) corners of each ceiling light, wound so the panel emits downwards."""
-    z = model.height - 0.01
-    out = []
-    for cx, cy, sx, sy in model.lights:
-        out.append(np.array([[cx - sx / 2, cy - sy / 2, z], [cx - sx / 2, cy + sy / 2, z],
-                             [cx + sx / 2, cy + sy / 2, z], [cx + sx / 2, cy - sy / 2, z]]))
-    return out
 
 
 def _set(params, key: str, value: np.ndarray) -> None:
@@ -169,9 +87,10 @@ def _ray_norm(camera: Camera) -> np.ndarray:
 
 
 def _mesh(mi, name: str, V: np.ndarray, F: np.ndarray, UV: np.ndarray | None, bsdf,
-          emitter=None):
-    """A Mitsuba mesh of vertices V (n, 3), faces F (m, 3) and optional texture coordinates
-    UV (n, 2), with a loaded bsdf and emitter."""
+          emitter=None, colour: np.ndarray | None = None):
+    """A Mitsuba mesh of vertices V (n, 3), faces F (m, 3), optional texture coordinates
+    UV (n, 2) and optional per-vertex colours (n, 3) (the ``vertex_color`` attribute a
+    ``mesh_attribute`` texture reads), with a loaded bsdf and emitter."""
     props = mi.Properties()
     props["bsdf"] = bsdf
     if emitter is not None:
@@ -184,6 +103,8 @@ def _mesh(mi, name: str, V: np.ndarray, F: np.ndarray, UV: np.ndarray | None, bs
     if UV is not None:
         _set(p, "vertex_texcoords", UV.astype(np.float32).ravel())
     p.update()
+    if colour is not None:
+        m.add_attribute("vertex_color", 3, np.ascontiguousarray(colour, np.float32).ravel())
     return m
 
 
@@ -210,23 +131,32 @@ def _sensors(camera: Camera, hfov: float) -> dict[str, dict]:
     }
 
 
-class CorridorRenderer:
-    """Renders RGB, labels and depth of a corridor world from OpenCV-convention poses.
+class Renderer:
+    """Renders RGB, labels and depth of a ``Scene`` from OpenCV-convention poses.
 
     Args:
-        model: the built corridor.
+        scene: the surfaces and light panels (``datagen.scene.corridor_scene``,
+            ``building_scene``).
         camera: intrinsics and image size (K must be centred with square pixels).
-        textures: name -> (R, R, 3) float32 linear RGB, row 0 = top (see ``TEXTURE_EXTENT``).
+        textures: name -> (R, R, 3) float32 linear RGB, row 0 = top, for every texture key
+            the scene's textured surfaces use (``appearance.sample_textures``).
         clutter: distractor meshes labelled clutter (origin on the floor, z up).
         people: distractor meshes labelled person.
         max_depth: path length limit of the path tracer.
+        near_lights: at each ``trace`` weight each light's chance to be sampled by its mean
+            radiance over its squared distance to the camera (at least 1 m^2): unbiased, and
+            much less noise where most of many lights are out of view (a building floor);
+            False: Mitsuba's uniform choice (the corridor's renders as they were).
     """
 
-    def __init__(self, model: CorridorModel, camera: Camera, textures: Mapping[str, np.ndarray],
+    def __init__(self, scene: Scene, camera: Camera, textures: Mapping[str, np.ndarray],
                  clutter: Sequence[trimesh.Trimesh] = (), people: Sequence[trimesh.Trimesh] = (),
-                 max_depth: int = RenderConfig.max_depth):
+                 max_depth: int = RenderConfig.max_depth, near_lights: bool = False):
         import mitsuba as mi
 
+        if not isinstance(scene, Scene):
+            raise TypeError(f"Renderer takes a datagen.scene.Scene, got {type(scene).__name__}"
+                            " (use corridor_scene(model) or building_scene(building, free))")
         self.mi = mi
         self.camera = camera
         hfov = _hfov_deg(camera)
@@ -235,14 +165,19 @@ class CorridorRenderer:
         self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden)
         for i in range(len(self.slots)):
             self._slot_pose[i] = np.full(3, np.nan)
-        self.num_lights = len(model.lights)
+        self.num_lights = scene.num_lights
+        self.near_lights = near_lights
+        self._light_centres = np.asarray(scene.lights, np.float64).reshape(-1, 4, 3).mean(1)
+        self._radiance = np.ones((self.num_lights, 3), np.float32)
+        self._camera_at = np.zeros(3)
         self.class_of: dict[str, int] = {}  # shape id -> class id
-        scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
-        scene.update(self._surface_shapes(model, textures))
-        scene.update(self._light_shapes(model))
-        scene.update(self._object_shapes())
-        scene.update(_sensors(camera, hfov))
-        self.scene = mi.load_dict(scene)
+        self._texture_keys: list[tuple[str, str]] = []  # (parameter key, texture name)
+        desc = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
+        desc.update(self._surface_shapes(scene, textures))
+        desc.update(self._light_shapes(scene))
+        desc.update(self._object_shapes())
+        desc.update(_sensors(camera, hfov))
+        self.scene = mi.load_dict(desc)
         self.params = mi.traverse(self.scene)
         self.aov = mi.load_dict({"type": "aov", "aovs": "si:shape_index,dd:depth,nn:sh_normal"})
         # Albedo in its own pass: an aov integrator wrapping the path tracer is ~5x slower.
@@ -251,34 +186,44 @@ class CorridorRenderer:
         self._textures = {k: np.asarray(v).shape for k, v in textures.items()}
         self.developer = Developer(lut, raw, _ray_norm(camera))
 
-    def _surface_shapes(self, model: CorridorModel, textures: Mapping[str, np.ndarray]
+    def _surface_shapes(self, scene: Scene, textures: Mapping[str, np.ndarray]
                         ) -> dict[str, object]:
-        """The model's textured surfaces (``surfaces``); the window's view is an emitter."""
+        """The scene's surfaces: procedurally textured (the window's view is an emitter), in
+        the file's images or in their own vertex colours."""
         mi, out = self.mi, {}
-        for s in surfaces(model):
+        for s in scene.surfaces:
             F = np.arange(len(s.vertices)).reshape(-1, 3)
-            if s.texture == "window":
+            if s.colour is not None:
+                bsdf = mi.load_dict({"type": "diffuse", "reflectance": {
+                    "type": "mesh_attribute", "name": "vertex_color"}})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, None, bsdf, colour=s.colour)
+            elif s.texture == "window":
                 bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                          "value": 0.05}})
                 emitter = mi.load_dict({"type": "area",
                                         "radiance": _bitmap(mi, textures["window"])})
                 out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf, emitter)
+                self._texture_keys.append((f"{s.name}.emitter.radiance.data", s.texture))
+            elif s.texture in scene.images:  # the file's own image, fixed
+                bsdf = mi.load_dict({"type": "diffuse",
+                                     "reflectance": _bitmap(mi, scene.images[s.texture])})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf)
             else:
                 bsdf = mi.load_dict({"type": "diffuse",
                                      "reflectance": _bitmap(mi, textures[s.texture])})
                 out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf)
+                self._texture_keys.append((f"{s.name}.bsdf.reflectance.data", s.texture))
             self.class_of[s.name] = s.class_id
         return out
 
-    def _light_shapes(self, model: CorridorModel) -> dict[str, object]:
-        """The ceiling light panels (``light_panels``), labelled ceiling."""
+    def _light_shapes(self, scene: Scene) -> dict[str, object]:
+        """The ceiling light panels, labelled ceiling."""
         mi, out = self.mi, {}
-        quad = np.array([[0, 1, 2], [0, 2, 3]])
-        for i, corners in enumerate(light_panels(model)):
+        for i, corners in enumerate(scene.lights):
             name = f"light{i}"
             emitter = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": 1.0}})
             bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}})
-            out[name] = _mesh(mi, name, corners, quad, None, bsdf, emitter)
+            out[name] = _mesh(mi, name, corners, QUAD, None, bsdf, emitter)
             self.class_of[name] = C.CEILING
         return out
 
@@ -317,18 +262,16 @@ class CorridorRenderer:
 
     def set_camera(self, world_from_cam: np.ndarray) -> None:
         """Place both sensors at an OpenCV-convention pose (4, 4)."""
+        self._camera_at = np.asarray(world_from_cam, np.float64)[:3, 3].copy()
         T = self.mi.ScalarTransform4f(mitsuba_to_world(world_from_cam).tolist())
         self.params["sensor.to_world"] = T
         self.params["label_sensor.to_world"] = T
 
     def set_textures(self, textures: Mapping[str, np.ndarray]) -> None:
-        """Replace texture images in place (shapes must match the ones the scene was built with)."""
-        for s in ("floor", "ceiling", "wall", "frame", "door"):
-            key = f"{s}.bsdf.reflectance.data"
-            if key in self.params:
-                self._put_texture(key, s, textures[s])
-        if "window.emitter.radiance.data" in self.params:
-            self._put_texture("window.emitter.radiance.data", "window", textures["window"])
+        """Replace the texture image of every textured surface in place (shapes must match the
+        ones the scene was built with)."""
+        for key, name in self._texture_keys:
+            self._put_texture(key, name, textures[name])
 
     def _put_texture(self, key: str, name: str, img: np.ndarray) -> None:
         if img.shape != self._textures[name]:
@@ -339,8 +282,17 @@ class CorridorRenderer:
     def set_lights(self, radiance: np.ndarray) -> None:
         """Set the ceiling lights' emitted radiance, (L, 3) linear RGB (0 = off)."""
         radiance = np.asarray(radiance, dtype=np.float32).reshape(self.num_lights, 3)
+        self._radiance = radiance.copy()
         for i, rad in enumerate(radiance):
             self.params[f"light{i}.emitter.radiance.value"] = self.mi.Color3f(*rad.tolist())
+
+    def _weigh_lights(self) -> None:
+        """Sampling weights of the lights for the current camera (``near_lights``)."""
+        d2 = np.sum((self._light_centres - self._camera_at) ** 2, axis=1)
+        w = self._radiance.mean(axis=1) / np.maximum(d2, 1.0)
+        w = w if w.max() > 0 else np.ones(self.num_lights)  # all off: any distribution
+        for i, wi in enumerate(w.tolist()):
+            self.params[f"light{i}.emitter.sampling_weight"] = wi
 
     def set_objects(self, poses: np.ndarray, colors: np.ndarray) -> None:
         """Place the distractor slots.
@@ -398,6 +350,8 @@ class CorridorRenderer:
             albedo: also trace the albedo pass the denoiser needs.
         """
         mi = self.mi
+        if self.near_lights and self.num_lights:
+            self._weigh_lights()
         self.params.update()
         # np.array copies: np.asarray would view Dr.Jit's memory, and freeing that on another
         # thread while this one renders deadlocks Dr.Jit.
@@ -420,7 +374,7 @@ class Developer:
     it may run on another thread while the renderer it came from traces the next view.
 
     lut: (S,) uint8 class id per Mitsuba shape index. raw: (S,) bool, the shapes whose pixels
-    the denoiser keeps as rendered (emitters; ``CorridorRenderer._class_lookup``).
+    the denoiser keeps as rendered (emitters; ``Renderer._class_lookup``).
     ray_norm: (H, W) |K^-1 [u, v, 1]| per pixel (ray length -> z depth).
     """
 
@@ -434,7 +388,7 @@ class Developer:
         """Labels, depth and the denoised sRGB image of a traced view.
 
         Returns:
-            As ``CorridorRenderer.render``.
+            As ``Renderer.render``.
         """
         aux = traced.aux
         index = np.rint(aux[..., 0]).astype(np.int64)
@@ -457,3 +411,7 @@ def linear_to_srgb8(img: np.ndarray) -> np.ndarray:
     x = np.clip(np.nan_to_num(img, nan=0.0), 0.0, 1.0)
     s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return np.rint(s * 255.0).astype(np.uint8)
+
+
+#: The name datagen.generate and older callers use.
+CorridorRenderer = Renderer

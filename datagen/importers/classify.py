@@ -123,15 +123,7 @@ def add_ceiling(b: Building, height: float, name: str = "auto_ceiling") -> int:
     used, inv = np.unique(floor, return_inverse=True)
     top = b.vertices[used].copy()
     top[:, 2] = height
-    faces = inv.reshape(-1, 3)[:, ::-1] + len(b.vertices)
-    n = len(faces)
-    b.vertices = np.concatenate([b.vertices, top])
-    b.faces = np.concatenate([b.faces, faces])
-    b.face_class = np.concatenate([b.face_class, np.full(n, C.CEILING, np.uint8)])
-    b.names = [*b.names, name]
-    b.face_name = np.concatenate([b.face_name, np.full(n, len(b.names) - 1, np.int32)])
-    b.face_colour = np.concatenate([b.face_colour, np.full((n, 3), np.nan)])
-    return n
+    return b.add_faces(top, inv.reshape(-1, 3)[:, ::-1], C.CEILING, name)
 
 
 def class_shares(b: Building) -> dict[str, float]:

@@ -8,10 +8,12 @@ either: files declared Y_UP often carry node matrices that already give Z-up geo
 from __future__ import annotations
 
 from pathlib import Path
+from urllib.parse import unquote
 
 import numpy as np
 
 from datagen.importers.building import Part
+from datagen.importers.images import load_image
 
 
 def _colour(material) -> np.ndarray:
@@ -22,11 +24,27 @@ def _colour(material) -> np.ndarray:
     return np.full(3, np.nan)
 
 
+def _texture(prim, material, folder: Path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The diffuse image of a triangle primitive's material (``images.load_image``) and
+    (T, 3, 2) corner UVs of its first texture coordinate set; (None, None) without."""
+    diffuse = getattr(getattr(material, "effect", None), "diffuse", None)
+    image = getattr(getattr(getattr(diffuse, "sampler", None), "surface", None), "image", None)
+    sets, index = getattr(prim, "texcoordset", ()), getattr(prim, "texcoord_indexset", ())
+    if image is None or not getattr(image, "path", None) or not len(sets) or not len(index):
+        return None, None
+    name = unquote(image.path.removeprefix("file://"))
+    img = load_image(str((folder / name).resolve()))
+    if img is None:
+        return None, None
+    return img, np.asarray(sets[0], np.float32)[np.asarray(index[0]).reshape(-1, 3)]
+
+
 def load_dae(path: Path) -> tuple[list[Part], float]:
     """The triangles of a COLLADA file in its scene's frame, in metres.
 
     Returns:
-        parts: one per primitive, named ``geometry/material``; face_class UNSET.
+        parts: one per primitive, named ``geometry/material``, with the material's diffuse
+            colour or image texture (and corner UVs); face_class UNSET.
         unit: metres per file unit (``<unit meter=...>``, 1 if absent).
     """
     import collada
@@ -54,6 +72,8 @@ def load_dae(path: Path) -> tuple[list[Part], float]:
             if not len(idx):
                 continue
             mname = (material.name or material.id) if material is not None else "default"
+            texture, uv = _texture(prim, material, path.parent)
             parts.append(Part(vertices=np.asarray(prim.vertex, np.float64) * unit, faces=idx,
-                              name=f"{gname}/{mname}", colour=_colour(material)))
+                              name=f"{gname}/{mname}", colour=_colour(material),
+                              texture=texture, uv=uv))
     return parts, unit

@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.importers.building import Part, transformed
+from datagen.importers.building import Part
 from datagen.importers.dae import load_dae
+from datagen.importers.images import linear_image
 
 #: Y-up to Z-up: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], np.float64)
@@ -35,6 +36,23 @@ def _trimesh_colour(mesh) -> np.ndarray:
     return np.full(3, np.nan)
 
 
+def _trimesh_texture(mesh, images: dict[int, np.ndarray]
+                     ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The base colour image of a textured trimesh mesh (``images.linear_image``; ``images``
+    caches them by PIL image) and (m, 3, 2) corner UVs; (None, None) without."""
+    visual = mesh.visual
+    uv = getattr(visual, "uv", None)
+    material = getattr(visual, "material", None)
+    pil = getattr(material, "baseColorTexture", None)
+    if pil is None:
+        pil = getattr(material, "image", None)
+    if visual.kind != "texture" or uv is None or pil is None or len(uv) != len(mesh.vertices):
+        return None, None
+    if id(pil) not in images:
+        images[id(pil)] = linear_image(np.asarray(pil.convert("RGB")))
+    return images[id(pil)], np.asarray(uv, np.float32)[np.asarray(mesh.faces)]
+
+
 def _load_trimesh(path: Path) -> list[Part]:
     """Parts of a file trimesh reads, in the file's frame and units (scene graph applied)."""
     import trimesh
@@ -44,16 +62,17 @@ def _load_trimesh(path: Path) -> list[Part]:
     except Exception as err:  # trimesh raises many kinds for broken files
         raise ValueError(f"{path}: not a readable mesh file ({type(err).__name__}: {err})"
                          ) from None
-    parts = []
+    parts, images = [], {}
     for node in scene.graph.nodes_geometry:
         matrix, gname = scene.graph[node]
         mesh = scene.geometry[gname]
         if not isinstance(mesh, trimesh.Trimesh) or not len(mesh.faces):
             continue
         material = getattr(getattr(mesh.visual, "material", None), "name", None)
-        v, f = transformed(np.asarray(matrix, np.float64), mesh.vertices, mesh.faces)
-        parts.append(Part(vertices=v, faces=f, name=f"{node}/{material or gname}",
-                          colour=_trimesh_colour(mesh)))
+        texture, uv = _trimesh_texture(mesh, images)
+        part = Part(mesh.vertices, mesh.faces, f"{node}/{material or gname}",
+                    _trimesh_colour(mesh), texture=texture, uv=uv)
+        parts.append(part.moved(np.asarray(matrix, np.float64)))
     return parts
 
 
@@ -82,6 +101,5 @@ def load_mesh_file(path: Path, units: float = 1.0, up_axis: str = "z"
         for p in parts:
             p.vertices = p.vertices * scale
     if up == "y":
-        for p in parts:
-            p.vertices, p.faces = transformed(Y_UP_TO_Z_UP, p.vertices, p.faces)
+        parts = [p.moved(Y_UP_TO_Z_UP) for p in parts]
     return parts, {"units": scale, "up_axis": up}

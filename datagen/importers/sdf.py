@@ -2,8 +2,9 @@
 
 Reads ``<model>`` (nested too), ``<include>`` of ``model://NAME`` (found through the model
 search path), link and visual ``<pose>`` (x y z roll pitch yaw, R = Rz(yaw) Ry(pitch)
-Rx(roll), as SDF defines it), and the ``<visual>`` geometry only: ``<mesh>`` (with
-``<scale>``), ``<box>``, ``<cylinder>``, ``<sphere>``, ``<plane>``. A horizontal plane (a
+Rx(roll), as SDF defines it), the ``<visual>`` geometry only: ``<mesh>`` (with ``<scale>``),
+``<box>``, ``<cylinder>``, ``<sphere>``, ``<plane>``, and the positions of the point and spot
+``<light>``s (of the world, of links and of included light-only files). A horizontal plane (a
 ground plane) is cut to the rest of the world's XY extent. A model that cannot be found is
 counted, reported once and skipped.
 """
@@ -80,6 +81,19 @@ class _Walk:
     trees: dict[Path, ET.Element] = field(default_factory=dict)
     notes: set[str] = field(default_factory=set)
     includes: int = 0
+    lights: list[list[float]] = field(default_factory=list)  # point and spot lights, m
+    directional: int = 0  # directional lights (suns) seen, not placed
+
+    def light(self, elem: ET.Element, matrix: np.ndarray) -> None:
+        """Record a ``<light>``'s position (point and spot lights; directional ones are
+        counted: they stand for the sun, not for a fixture in the building)."""
+        kind = elem.get("type", "point")
+        if kind == "directional":
+            self.directional += 1
+        elif kind in ("point", "spot"):
+            self.lights.append((matrix @ self.pose(elem))[:3, 3].round(6).tolist())
+        else:
+            self.note(f"<light type={kind!r}> is not point, spot or directional; skipped")
 
     def note(self, text: str) -> None:
         if text not in self.notes:
@@ -184,9 +198,8 @@ def _visual(w: _Walk, vis: ET.Element, matrix: np.ndarray, name: str, base: Path
             scaled = matrix @ np.diag([*_floats(g.findtext("scale"), 3, [1, 1, 1],
                                                 f"{name} scale"), 1.0])
             for p in w.meshes[path]:
-                v, f = transformed(scaled, p.vertices, p.faces)
-                w.parts.append(Part(v, f, f"{name}/{p.name}",
-                                    p.colour if np.isnan(colour).all() else colour))
+                w.parts.append(p.moved(scaled, f"{name}/{p.name}",
+                                       None if np.isnan(colour).all() else colour))
             continue
         mesh = _shape(g.tag, g, name)
         if mesh is None:
@@ -205,6 +218,8 @@ def _model(w: _Walk, elem: ET.Element, parent: np.ndarray, prefix: str, base: Pa
     mname = f"{prefix}/{name or elem.get('name', 'model')}".lstrip("/")
     for link in elem.findall("link"):
         lm = matrix @ w.pose(link)
+        for light in link.findall("light"):
+            w.light(light, lm)
         for vis in link.findall("visual"):
             _visual(w, vis, lm @ w.pose(vis), f"{mname}/{link.get('name')}/{vis.get('name')}",
                     base)
@@ -230,9 +245,11 @@ def _include(w: _Walk, inc: ET.Element, parent: np.ndarray, prefix: str, base: P
     if sdf not in w.trees:
         w.trees[sdf] = parse_xml(sdf)
     model = w.trees[sdf].find("model")
-    if model is None:
-        return  # a light or actor only (e.g. Gazebo's sun)
     pose = w.pose(inc) if inc.find("pose") is not None else None
+    if model is None:  # a light (e.g. Gazebo's sun) or an actor
+        for light in w.trees[sdf].findall("light"):
+            w.light(light, parent @ (np.eye(4) if pose is None else pose))
+        return
     _model(w, model, parent, prefix, sdf.parent, pose, (inc.findtext("name") or "").strip())
 
 
@@ -264,7 +281,9 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
     Returns:
         parts (face_class UNSET, named ``model/.../link/visual[/script]/geometry/material``)
         and info: ``includes``, ``missing_models`` (name -> count), ``missing_meshes``,
-        ``model_path`` (the folders searched), ``units`` (metres per file unit -> mesh files).
+        ``model_path`` (the folders searched), ``units`` (metres per file unit -> mesh files),
+        ``lights`` ([[x, y, z], ...] m, the point and spot lights of the world and its
+        models' links) and ``directional_lights`` (their count, not placed).
     """
     root = parse_xml(path)
     if root.tag != "sdf":
@@ -283,6 +302,8 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
                 _model(w, child, np.eye(4), "", path.parent)
             elif child.tag == "include":
                 _include(w, child, np.eye(4), "", path.parent)
+            elif child.tag == "light":
+                w.light(child, np.eye(4))
     _cut_planes(w)
     if w.missing:
         listed = ", ".join(f"{n} x{c}" for n, c in w.missing.most_common())
@@ -295,4 +316,5 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
     return w.parts, {"includes": w.includes, "missing_models": dict(w.missing.most_common()),
                      "missing_meshes": dict(w.missing_meshes),
                      "model_path": [str(d) for d in w.search],
-                     "units": dict(Counter(w.units.values()).most_common())}
+                     "units": dict(Counter(w.units.values()).most_common()),
+                     "lights": w.lights, "directional_lights": w.directional}

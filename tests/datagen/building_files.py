@@ -23,9 +23,12 @@ def open_room(size: tuple[float, float, float] = ROOM) -> trimesh.Trimesh:
 
 def write_dae(path: Path, pieces: list[tuple[str, np.ndarray, np.ndarray]],
               unit: float = 1.0, matrix: np.ndarray | None = None,
-              colours: dict[str, tuple[float, float, float]] | None = None) -> Path:
+              colours: dict[str, tuple[float, float, float]] | None = None,
+              textures: dict[str, tuple[str, np.ndarray]] | None = None) -> Path:
     """A COLLADA file (pycollada) with one geometry per (material name, vertices in file
-    units, faces) piece, all under one node with ``matrix``, and ``<unit meter=unit>``."""
+    units, faces) piece, all under one node with ``matrix``, and ``<unit meter=unit>``;
+    ``textures``: material name -> (image file name next to the file, (n, 2) UV per vertex)
+    for pieces with an image texture."""
     from collada import Collada, asset, geometry, material, scene, source
 
     doc = Collada()
@@ -35,15 +38,27 @@ def write_dae(path: Path, pieces: list[tuple[str, np.ndarray, np.ndarray]],
     nodes = []
     for i, (name, verts, faces) in enumerate(pieces):
         rgb = (colours or {}).get(name, (0.5, 0.5, 0.5))
-        effect = material.Effect(f"effect{i}", [], "phong", diffuse=rgb)
+        sources = [source.FloatSource(f"verts{i}", np.asarray(verts, np.float32).ravel(),
+                                      ("X", "Y", "Z"))]
+        inputs = source.InputList()
+        inputs.addInput(0, "VERTEX", f"#verts{i}")
+        if name in (textures or {}):
+            file, uv = textures[name]
+            image = material.CImage(f"image{i}", file)
+            surface = material.Surface(f"surface{i}", image)
+            sampler = material.Sampler2D(f"sampler{i}", surface)
+            effect = material.Effect(f"effect{i}", [surface, sampler], "lambert",
+                                     diffuse=material.Map(sampler, "UVSET0"))
+            doc.images.append(image)
+            sources.append(source.FloatSource(f"uv{i}", np.asarray(uv, np.float32).ravel(),
+                                              ("S", "T")))
+            inputs.addInput(0, "TEXCOORD", f"#uv{i}", set="0")
+        else:
+            effect = material.Effect(f"effect{i}", [], "phong", diffuse=rgb)
         mat = material.Material(f"material{i}", name, effect)
         doc.effects.append(effect)
         doc.materials.append(mat)
-        src = source.FloatSource(f"verts{i}", np.asarray(verts, np.float32).ravel(),
-                                 ("X", "Y", "Z"))
-        geom = geometry.Geometry(doc, f"geometry{i}", f"piece{i}", [src])
-        inputs = source.InputList()
-        inputs.addInput(0, "VERTEX", f"#verts{i}")
+        geom = geometry.Geometry(doc, f"geometry{i}", f"piece{i}", sources)
         geom.primitives.append(geom.createTriangleSet(np.asarray(faces, np.int32).ravel(),
                                                       inputs, f"symbol{i}"))
         doc.geometries.append(geom)

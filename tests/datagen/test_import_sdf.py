@@ -235,3 +235,24 @@ def test_model_config_not_well_formed(tmp_path):
     b = load_building(world)
     assert not b.info["missing_models"]
     np.testing.assert_allclose(b.vertices.max(axis=0), [0.5, 0.5, 1.0])
+
+
+def test_lights(tmp_path):
+    """Point and spot lights of the world and of links (poses composed) are kept as positions;
+    directional ones (a world's own and an included sun) are counted only."""
+    write_room_model(tmp_path / "models")
+    sun = tmp_path / "models" / "sun"
+    sun.mkdir()
+    (sun / "model.sdf").write_text('<?xml version="1.0"?><sdf version="1.6"><light name="sun" '
+                                   'type="directional"><pose>0 0 10 0 0 0</pose></light></sdf>')
+    body = """
+    <include><uri>model://room</uri></include>
+    <include><uri>model://sun</uri></include>
+    <light name="bulb" type="point"><pose>1 1.5 2.3 0 0 0</pose></light>
+    <light name="sky" type="directional"><pose>0 0 5 0 0 0</pose></light>
+    <model name="lamp"><pose>2 0 0 0 0 1.5707963267948966</pose>
+      <link name="link"><pose>1 0 0 0 0 0</pose>
+        <light name="spot" type="spot"><pose>0 0 2 0 0 0</pose></light></link></model>"""
+    b = load_building(write_world(tmp_path / "worlds" / "lights.world", body))
+    np.testing.assert_allclose(b.info["lights"], [[1, 1.5, 2.3], [2, 1, 2]], atol=1e-9)
+    assert b.info["directional_lights"] == 2

@@ -10,6 +10,7 @@ from core import classes as C
 from core.poses import pose_from_xyz_rpy
 from datagen import appearance
 from datagen.generate import make_camera
+from datagen.scene import corridor_scene
 from datagen.world import build_world
 from tests.helpers import compose_config
 
@@ -18,14 +19,14 @@ from tests.helpers import compose_config
 def view():
     """A 160x120 render of the default corridor from a tilted pose looking down +Y."""
     from core.variant import choose_variant
-    from datagen.render import CorridorRenderer
+    from datagen.render import Renderer
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=160", "camera.height=120"])
     model = build_world(cfg["world"])
     camera = make_camera(cfg["camera"])
     tex = appearance.sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
-    r = CorridorRenderer(model, camera, tex)
+    r = Renderer(corridor_scene(model), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 6.0))
     body = pose_from_xyz_rpy([0.25, 0.8, 1.3], [0.06, -0.08, np.pi / 2 + 0.25])[0]
     world_from_cam = body @ camera.body_from_cam
@@ -111,12 +112,12 @@ class TestRender:
 
 def test_render_is_develop_of_trace():
     """``render`` = ``develop(trace(...))``; the traced arrays survive the scene moving on."""
-    from datagen.render import CorridorRenderer
+    from datagen.render import Renderer
 
     cfg = compose_config("datagen", ["camera.width=64", "camera.height=48"])
     camera = make_camera(cfg["camera"])
     tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
-    r = CorridorRenderer(build_world(cfg["world"]), camera, tex)
+    r = Renderer(corridor_scene(build_world(cfg["world"])), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 6.0))
     poses = [pose_from_xyz_rpy([0.2, y, 1.3], [0.0, 0.0, np.pi / 2])[0] @ camera.body_from_cam
              for y in (0.8, 2.0)]
@@ -145,13 +146,13 @@ def test_render_is_develop_of_trace():
 def test_denoiser_keeps_only_emitters_raw():
     """The denoiser leaves the emitters as rendered (the ceiling lights, the window's outdoor
     view) and smooths every diffuse surface, the window's frame faces too (labelled window)."""
-    from datagen.render import CorridorRenderer, shape_index
+    from datagen.render import Renderer, shape_index
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
     tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     model = build_world(cfg["world"])
-    r = CorridorRenderer(model, camera, tex)
+    r = Renderer(corridor_scene(model), camera, tex)
     shapes = list(r.scene.shapes())
     raw = r.developer.raw[[shape_index(r.mi, s, i) for i, s in enumerate(shapes)]]
     emitter = np.array([s.is_emitter() for s in shapes])
@@ -180,3 +181,31 @@ def test_develop_smooths_all_but_the_raw_shapes():
     assert (label == C.WINDOW).all()
     np.testing.assert_array_equal(out[:, W // 2:], linear_to_srgb8(rgb[:, W // 2:]))
     assert out[:, : W // 2].std() < 0.2 * linear_to_srgb8(rgb[:, : W // 2]).std()
+
+
+def test_set_textures_reaches_every_textured_surface():
+    """The door and window frames (texture ``frame``, surfaces of their own) follow
+    ``set_textures`` like the rest."""
+    from core.variant import choose_variant
+    from datagen.render import Renderer
+
+    choose_variant()
+
+    cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
+    camera = make_camera(cfg["camera"])
+    first = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    second = appearance.sample_textures(np.random.default_rng(1), 16, cfg["appearance"])
+    r = Renderer(corridor_scene(build_world(cfg["world"])), camera, first)
+    r.set_textures(second)
+    for name in ("door_frame", "window_frame", "wall"):
+        tex = "wall" if name == "wall" else "frame"
+        got = np.array(r.params[f"{name}.bsdf.reflectance.data"])
+        np.testing.assert_allclose(got, np.flipud(second[tex]), atol=1e-6)
+
+
+def test_renderer_takes_a_scene():
+    from datagen.render import Renderer
+
+    cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
+    with pytest.raises(TypeError, match="corridor_scene"):
+        Renderer(build_world(cfg["world"]), make_camera(cfg["camera"]), {})

@@ -132,10 +132,10 @@ class TestCorridor:
 def test_render_surfaces_cover_every_face_once_with_its_class(model):
     """Each face is in exactly one textured surface, whose class is the face's; the frames
     keep the frame texture whatever their class."""
-    from datagen.render import surfaces
+    from datagen.scene import corridor_scene
 
     w = model.world
-    surf = surfaces(model)
+    surf = corridor_scene(model).surfaces
     assert sum(len(s.vertices) for s in surf) == 3 * len(w.faces)
     tri = w.vertices[w.faces]
     for s in surf:
