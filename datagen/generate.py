@@ -41,6 +41,7 @@ from datagen.world import CorridorModel
 log = logging.getLogger(__name__)
 
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
+NEAR_LIGHTS_FROM = 16  # lights
 # Keys that do not change the dataset's content (left out of the config hash).
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "progress")
 #: A dataset folder belongs to its ``generator`` config (core.outputs). Split counts and the
@@ -342,11 +343,14 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
 
 
 def _new_renderer(job: Job, textures, clutter, people):
+    """The renderer of the site's scene; with more than ``NEAR_LIGHTS_FROM`` lights (a floor,
+    most lights out of view) it samples lights by radiance / distance^2 (``near_lights``)."""
     from datagen.render import Renderer
-    from datagen.scene import corridor_scene
 
-    return Renderer(corridor_scene(job.model), job.camera, textures, clutter, people,
-                    max_depth=job.cfg.render.max_depth)
+    scene = job.site.scene
+    return Renderer(scene, job.camera, textures, clutter, people,
+                    max_depth=job.cfg.render.max_depth,
+                    near_lights=scene.num_lights > NEAR_LIGHTS_FROM)
 
 
 def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPreset,
@@ -449,7 +453,7 @@ def flight_scene(job: Job, name: str) -> FlightScene:
                for k in distractors.sample_kinds(rng, n_clutter, dp)]
     people = [distractors.make_person_mesh(rng) for _ in range(n_people)]
     textures = appearance.sample_textures(rng, None, cfg.appearance)
-    lights = appearance.sample_lights(rng, len(job.model.lights), cfg.appearance)[1]
+    lights = appearance.sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
     colours = appearance.object_colours(rng, n_clutter + n_people)
     cam_xy = (gt @ job.camera.body_from_cam)[:, :2, 3]
     path = cam_xy[:: max(1, len(cam_xy) // 60)]

@@ -21,6 +21,7 @@ from datagen.config import FileWorldConfig, WorldConfig, world_config
 from datagen.edges import extract_edges
 from datagen.importers import Building, load_building
 from datagen.importers.classify import class_shares
+from datagen.scene import Scene, building_scene, corridor_scene
 from datagen.world import FREE_CELL, MAIN, OPENING, CorridorModel, build_world
 
 log = logging.getLogger(__name__)
@@ -34,6 +35,7 @@ class Site:
     """A built world.
 
     world: the model the localizer reads (world/ files).
+    scene: what the renderer draws: textured surfaces and light panels.
     floor: where distractors and people may stand: an occupancy map of STANDING_BAND above
         the floor with no margin (its clearance is the room an object has).
     route: (K, 2) m the world's own flight route (the corridor's centre line), or None: the
@@ -43,6 +45,7 @@ class Site:
     """
 
     world: World
+    scene: Scene
     floor: OccupancyMap
     route: np.ndarray | None
     building: Building
@@ -67,7 +70,7 @@ def corridor_site(spec: WorldConfig) -> Site:
     b = Building(w.vertices, w.faces, w.face_class, np.zeros(len(w.faces), np.int32),
                  [spec.name], np.full((len(w.faces), 3), np.nan), {"floor_z": 0.0})
     b.info["class_shares"] = w.info["class_shares"] = class_shares(b)
-    return Site(w, floor, route, b, model)
+    return Site(w, corridor_scene(model), floor, route, b, model)
 
 
 def file_site(spec: FileWorldConfig) -> Site:
@@ -104,9 +107,11 @@ def file_site(spec: FileWorldConfig) -> Site:
     world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
                   segments=segments, segment_classes=seg_classes, crease_deg=crease,
                   free=free, info=info)
-    log.info("%s: %d faces, %d model edges, %.0f m2 free, built in %.1f s", spec.path,
-             len(b.faces), len(segments), free.area, time.perf_counter() - t0)
-    return Site(world, floor, None, b)
+    scene = building_scene(b, free, light_spacing=spec.light_spacing)
+    log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
+             spec.path, len(b.faces), len(segments), free.area, scene.num_lights,
+             time.perf_counter() - t0)
+    return Site(world, scene, floor, None, b)
 
 
 def build_site(spec: object) -> Site:
