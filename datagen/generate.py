@@ -29,6 +29,7 @@ from core.atomic import atomic_write_json, png_complete, remove_temp_files, writ
 from core.camera import intrinsics
 from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
+from core.occupancy import OccupancyMap
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from datagen import appearance, distractors, trajectories
@@ -98,12 +99,37 @@ def floor_boxes(model: CorridorModel, margin: float) -> np.ndarray:
 
 
 @dataclass
+class Grounds:
+    """Where cameras fly and distractors stand, and the world's own flight route.
+
+    free: the camera's free space (margin: the camera margin); floor: where distractors and
+    people stand (margin 0); route: (K, 2) m the world's own route (None: planned).
+    """
+
+    free: OccupancyMap
+    floor: OccupancyMap
+    route: np.ndarray | None
+
+
+def corridor_grounds(model: CorridorModel, camera_margin: float, cell: float = 0.05) -> Grounds:
+    """The corridor's maps (from its boxes) and its own route: the main free box's centre
+    line along +Y."""
+    w = model.world
+    free = OccupancyMap.from_boxes(w.free_boxes, band=w.z_range, cell=cell, margin=camera_margin)
+    floor = OccupancyMap.from_boxes(floor_boxes(model, 0.0), band=w.z_range, cell=cell)
+    main = w.free_boxes[int(np.argmax(w.free_boxes[:, 3] - w.free_boxes[:, 1]))]
+    x = (main[0] + main[2]) / 2
+    return Grounds(free, floor, np.array([[x, main[1]], [x, main[3]]]))
+
+
+@dataclass
 class Job:
     """Everything a shard needs, resolved and checked before any rendering."""
 
     cfg: DatagenConfig
     out: Path
     model: CorridorModel
+    grounds: Grounds
     camera: Camera
     split_poses: dict[str, np.ndarray]  # split -> (N, 4, 4) world_from_body
     flights: dict[str, dict[str, Any]]  # name -> preset (FlightConfig), groundtruth,
@@ -166,24 +192,32 @@ def _check_inside(model: CorridorModel, camera: Camera, poses: np.ndarray, where
                          "and the flight preset's trajectory")
 
 
-def poses_of_split(cfg: DatagenConfig, model: CorridorModel, split: str) -> np.ndarray:
+def poses_of_split(cfg: DatagenConfig, grounds: Grounds, split: str) -> np.ndarray:
     """(N, 4, 4) body poses of a split's frames; frame i's depends only on (seed, split, i).
 
     A share ``training.flight_views`` of them (decided per frame by its own generator) are
-    posed as the flights fly (``trajectories.sample_flight_views``), the rest spread over the
-    free space (``trajectories.sample_training_poses``).
+    posed as the flights fly (``trajectories.sample_flight_views``, along each preset's route,
+    resolved once per split), the rest spread over the free space
+    (``trajectories.sample_training_poses``).
     """
-    tr, world, seed = cfg.training, model.world, cfg.seed
-    presets = list(cfg.flights.values())
+    tr, seed, free = cfg.training, cfg.seed, grounds.free
+    z_range = np.asarray(free.band)
     stream = SPLIT_STREAM[split]
     poses = np.zeros((getattr(cfg.splits, split), 4, 4))
+    views = {i for i in range(len(poses)) if tr.flight_views > 0
+             and rng_for(seed, stream, i, 3).random() < tr.flight_views}
+    if views:
+        presets = list(cfg.flights.values())
+        routes = [trajectories.flight_route(p, free, grounds.route,
+                                            rng_for(seed, 100 + stream, k), f"flights.{name}")
+                  for k, (name, p) in enumerate(cfg.flights.items())]
     for i in range(len(poses)):
-        if tr.flight_views > 0 and rng_for(seed, stream, i, 3).random() < tr.flight_views:
+        if i in views:
             poses[i] = trajectories.sample_flight_views(
-                rng_for(seed, stream, i, 4), 1, world.free_boxes, world.z_range, presets)[0]
+                rng_for(seed, stream, i, 4), 1, free, z_range, presets, routes)[0]
         else:
             poses[i] = trajectories.sample_training_poses(
-                rng_for(seed, stream, i, 0), 1, world.free_boxes, world.z_range,
+                rng_for(seed, stream, i, 0), 1, free, z_range,
                 tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg)[0]
     return poses
 
@@ -196,11 +230,12 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     _check_counts(cfg)
     _check_presets(cfg)
     model = build_world(cfg.world)
+    grounds = corridor_grounds(model, cfg.world.camera_margin)
     camera = make_camera(cfg.camera)
-    w = model.world
+    z_range = np.asarray(grounds.free.band)
     split_poses = {}
     for split in SPLITS:
-        poses = poses_of_split(cfg, model, split)
+        poses = poses_of_split(cfg, grounds, split)
         _check_inside(model, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}
@@ -208,13 +243,16 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
         preset = cfg.flights[name]
         r = rng_for(cfg.seed, flight_stream(name), 0)
         n, fps = preset.num_frames, preset.fps
-        gt = trajectories.flight_trajectory(r, n, fps, w.free_boxes, w.z_range,
+        route = trajectories.flight_route(preset, grounds.free, grounds.route,
+                                          rng_for(cfg.seed, flight_stream(name), 3),
+                                          f"flights.{name}")
+        gt = trajectories.flight_trajectory(r, n, fps, route, grounds.free, z_range,
                                             preset.trajectory)
         odo = trajectories.noisy_odometry(r, gt, fps, preset.odometry)
         _check_inside(model, camera, gt, f"flights.{name}")
         flights[name] = {"preset": preset, "groundtruth": gt, "odometry": odo,
                          "timestamps": trajectories.timestamps(n, fps)}
-    return Job(cfg, Path(cfg.out_dir), model, camera, split_poses, flights)
+    return Job(cfg, Path(cfg.out_dir), model, grounds, camera, split_poses, flights)
 
 
 def shard_range(n: int, shard: int, num_shards: int) -> range:
@@ -355,8 +393,8 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
         cam = (body_pose @ job.camera.body_from_cam)[:3, 3]
         keep = np.array([[cam[0], cam[1], preset.camera_keepout_m]])
         xy_yaw, _ = distractors.place_objects(
-            rng, radii, floor_boxes(job.model, preset.wall_margin), keep,
-            against_walls=preset.against_walls)
+            rng, radii, job.grounds.floor, keep, against_walls=preset.against_walls,
+            wall_margin=preset.wall_margin)
         poses[use] = xy_yaw
     renderer.set_objects(poses, appearance.object_colours(rng, len(slots)))
 
@@ -443,14 +481,16 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     path = cam_xy[:: max(1, len(cam_xy) // 60)]
     keep = np.concatenate([path, np.full((len(path), 1), dp.camera_keepout_m)], axis=1)
     radii = np.array([distractors.footprint_radius(m) for m in clutter])
-    boxes = floor_boxes(job.model, dp.wall_margin)
-    placed = distractors.place_objects(rng, radii, boxes, keep,
-                                       against_walls=dp.against_walls)[0]
+    floor = job.grounds.floor
+    placed = distractors.place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
+                                       wall_margin=dp.wall_margin)[0]
     ok = ~np.isnan(placed[:, 0])
     obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
     tracks = distractors.person_tracks(
-        rng, n_people, len(gt), preset.fps, boxes, speed=tuple(dp.person_speed),
+        rng, n_people, len(gt), preset.fps, floor, speed=tuple(dp.person_speed),
         radius=dp.person_radius, obstacles=obstacles, avoid=cam_xy,
+        avoid_radius=dp.person_camera_keepout, max_turn_deg_s=dp.person_max_turn_deg_s,
+        patience_s=dp.person_patience_s,
     ) if n_people else np.zeros((0, len(gt), 3))
     return FlightScene(clutter, people, textures, lights, colours, placed, tracks)
 
