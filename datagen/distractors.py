@@ -22,6 +22,7 @@ from core.config import as_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, wrap_angle
 from datagen.config import DistractorPreset
+from datagen.map_cache import derived
 from datagen.routes import first_blocked
 
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
@@ -277,9 +278,15 @@ class _Floor:
 
     @classmethod
     def of(cls, occ: OccupancyMap) -> _Floor:
+        """The floor of a map, built once per map (cached while the map lives: treat it as
+        read-only)."""
         if not isinstance(occ, OccupancyMap):
             raise TypeError(f"floor must be an OccupancyMap (where things stand), got "
                             f"{type(occ).__name__}")
+        return derived(occ, "floor", cls._build)
+
+    @classmethod
+    def _build(cls, occ: OccupancyMap) -> _Floor:
         idx = np.flatnonzero(occ.free)
         clear = occ.clearance.ravel()[idx]
         order = np.argsort(clear, kind="stable")

@@ -7,18 +7,14 @@ look along it as a copter flying there would (``trajectories.sample_training_pos
 
 from __future__ import annotations
 
-import weakref
-
 import cv2
 import numpy as np
 from scipy import ndimage
 
 from core.occupancy import OccupancyMap
+from datagen.map_cache import derived
 
 DIRECTIONS = 12  # chord directions tried, evenly over 180 deg (15 deg apart)
-
-_CACHE: dict[int, tuple[weakref.ref, np.ndarray]] = {}
-
 
 def chord_lengths(free: np.ndarray, angle: float, cell: float) -> np.ndarray:
     """(H, W) float32 m: the length of the run of free cells along direction ``angle`` (rad,
@@ -50,11 +46,11 @@ def chord_lengths(free: np.ndarray, angle: float, cell: float) -> np.ndarray:
 def free_axes(occ: OccupancyMap) -> np.ndarray:
     """(H, W) float32 rad in [0, pi): per free cell, the direction of the longest free chord
     through it (``DIRECTIONS`` directions tried); 0 in blocked cells. Computed once per map
-    (cached while the map lives): treat the map as read-only."""
-    key = id(occ)
-    hit = _CACHE.get(key)
-    if hit is not None and hit[0]() is occ:
-        return hit[1]
+    (datagen.map_cache): treat the map as read-only."""
+    return derived(occ, "free_axes", _longest_chords)
+
+
+def _longest_chords(occ: OccupancyMap) -> np.ndarray:
     angles = np.arange(DIRECTIONS) * np.pi / DIRECTIONS
     best = np.zeros(occ.shape, np.float32)
     axis = np.zeros(occ.shape, np.float32)
@@ -63,7 +59,6 @@ def free_axes(occ: OccupancyMap) -> np.ndarray:
         longer = length > best
         best = np.where(longer, length, best)
         axis = np.where(longer, np.float32(a), axis)
-    _CACHE[key] = (weakref.ref(occ, lambda _, k=key: _CACHE.pop(k, None)), axis)
     return axis
 
 
