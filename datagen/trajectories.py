@@ -35,7 +35,8 @@ log = logging.getLogger(__name__)
 
 GRAVITY = 9.81  # m/s^2
 END_MARGIN = 0.5  # m a flight stops short of its route's far end (at most 5 % of the route)
-ROOM_STEP = 0.05  # m between the route points where the sway room is measured
+ROOM_STEP = 0.1  # m between the route points where the sway room is measured
+DRIFT = 0.5  # m beyond the sway amplitude a flight's centre line may drift off its route
 
 
 def _pair(cfg: Any, key: str, where: str) -> tuple[float, float]:
@@ -328,13 +329,21 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
 
     # sway across the route (its right normal) and in height, centred so the extremes fit
     f_sway = _pair(c, "sway_freq_hz", where)
-    room = _sway_room(route, s, free, reach=2 * max(c.sway_x, 0.05) + 1.0)
+    room = _sway_room(route, s, free, reach=max(c.sway_x, 0.0) + DRIFT)
     mid_room = float(np.median(room))
     ax = min(c.sway_x, 0.9 * mid_room)
     offset = rng.uniform(-(mid_room - ax), mid_room - ax)
     across = offset + ax * smooth_noise(rng, t, f_sway)
     across *= np.minimum(1.0, room / max(abs(offset) + ax, 1e-9))
-    xy = centre + across[:, None] * np.stack([tangent[:, 1], -tangent[:, 0]], 1)
+    right = np.stack([tangent[:, 1], -tangent[:, 0]], 1)
+    xy = centre + across[:, None] * right
+    for _ in range(4):  # the room is sampled every ROOM_STEP: where a position slipped out
+        if free.contains(xy).all():
+            break
+        across *= 0.5
+        xy = centre + across[:, None] * right
+    else:
+        xy = centre
     az = min(c.sway_z, 0.45 * (z[1] - z[0]))
     h_lo, h_hi = _pair(c, "height", where)
     lo, hi = max(h_lo, z[0] + az), min(h_hi, z[1] - az)
