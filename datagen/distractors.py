@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 import trimesh
-from scipy import ndimage
 
 from core.config import as_config
 from core.occupancy import OccupancyMap
@@ -398,27 +397,20 @@ def object_poses(xy_yaw: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- people
 
-GOAL_CANDIDATES = 32  # goals drawn per new goal; the farthest one in sight is taken
+GOAL_CANDIDATES = 32  # goals drawn per new goal, among those in sight a far one is taken
+FAR_SHARE = 0.7  # a goal is far at >= this share of the farthest candidate's distance
 ARRIVED_M = 0.3  # m from its goal a walker picks a new one
-
-
-def _middles(floor: OccupancyMap, radius: float) -> np.ndarray:
-    """Flat indices of the floor cells people walk to: at least ``radius`` + 0.1 m from the
-    walls and in the middle of the local free space (clearance >= 0.6 x the largest within
-    1 m)."""
-    size = max(int(round(2.0 / floor.cell)) | 1, 3)
-    local = ndimage.maximum_filter(floor.clearance, size=size)
-    ok = floor.free & (floor.clearance >= np.maximum(radius + 0.1, 0.6 * local) - _TOL)
-    return np.flatnonzero(ok)
+GOAL_ROOM = 0.1  # m a goal keeps from the walls beyond a person's radius
 
 
 @dataclass
 class _Crowd:
     """The walkers of ``person_tracks``: P people on a floor map.
 
-    floor: where people stand; walk: the cells a person's centre may occupy (clearance >=
-    radius); goals: flat indices of the cells goals are drawn from; speed: (P,) m/s; pos,
-    goal: (P, 2) m; heading: (P,) rad; blocked: (P,) frames a person has been blocked for.
+    floor: where people stand; walk_map: the cells a person's centre may occupy (clearance
+    >= radius; the lines of sight to goals); goals: flat indices of the cells goals are drawn
+    from; speed: (P,) m/s; pos, goal: (P, 2) m; heading: (P,) rad; blocked: (P,) frames a
+    person has been blocked for.
     """
 
     rng: np.random.Generator
@@ -446,9 +438,9 @@ class _Crowd:
         if not ok.all():
             start[~ok, :2] = where.points(rng, walkable[rng.integers(len(walkable),
                                                                      size=int((~ok).sum()))])
-        middle = _middles(floor, radius)
+        roomy = where.fitting(radius + GOAL_ROOM)
         crowd = cls(rng, radius, where, floor.eroded(max(radius - floor.margin, 0.0)),
-                    middle if len(middle) else walkable, rng.uniform(speed[0], speed[1], n),
+                    roomy if len(roomy) else walkable, rng.uniform(speed[0], speed[1], n),
                     start[:, :2].copy(), np.zeros((n, 2)), np.zeros(n), np.zeros(n, int))
         crowd.new_goals(np.ones(n, bool))
         crowd.heading = np.arctan2(*(crowd.goal - crowd.pos)[:, ::-1].T)
@@ -472,8 +464,10 @@ class _Crowd:
             rel = cand - origin
             ahead = rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading) > 0
             score *= np.where(np.repeat(back[idx], k) & ahead, 1e-3, 1.0)
-        best = np.argmax(score.reshape(len(idx), k), axis=1)
-        self.goal[idx] = cand.reshape(len(idx), k, 2)[np.arange(len(idx)), best]
+        score = score.reshape(len(idx), k)
+        far = score >= FAR_SHARE * score.max(axis=1, keepdims=True)  # the far ones: any
+        pick = np.argmax(far * self.rng.random(far.shape), axis=1)
+        self.goal[idx] = cand.reshape(len(idx), k, 2)[np.arange(len(idx)), pick]
 
     def turn_around(self, stuck: np.ndarray) -> None:
         """Who arrived at their goal picks a new goal, who is ``stuck`` (P,) one behind."""
@@ -507,7 +501,8 @@ class _Crowd:
         perp = np.stack([-want[:, 1], want[:, 0]], 1)  # left of the wanted direction
         side = np.sign(np.einsum("poc,pc->po", away, perp) + 1e-6)  # sidestep away
         side[:, : len(pos)] = -1.0  # people keep right of each other
-        occ, reach = self.floor.occ, 0.5 * self.radius
+        occ = self.floor.occ
+        reach = occ.cell  # a sidestep with no room for one cell goes the other way
         room = [occ.distance(pos + sign * reach * perp) >= self.radius for sign in (1, -1)]
         side = np.where((side > 0) & ~room[0][:, None] & room[1][:, None], -1.0, side)
         side = np.where((side < 0) & ~room[1][:, None] & room[0][:, None], 1.0, side)  # not
