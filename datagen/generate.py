@@ -478,7 +478,9 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     lights = appearance.sample_lights(rng, len(job.model.lights), cfg.appearance)[1]
     colours = appearance.object_colours(rng, n_clutter + n_people)
     cam_xy = (gt @ job.camera.body_from_cam)[:, :2, 3]
-    path = cam_xy[:: max(1, len(cam_xy) // 60)]
+    flown = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cam_xy, axis=0), axis=1))])
+    step = max(dp.camera_keepout_m / 2, 0.05)  # keep-out circles along the path, overlapping
+    path = cam_xy[np.unique(np.floor(flown / step), return_index=True)[1]]
     keep = np.concatenate([path, np.full((len(path), 1), dp.camera_keepout_m)], axis=1)
     radii = np.array([distractors.footprint_radius(m) for m in clutter])
     floor = job.grounds.floor
