@@ -273,6 +273,9 @@ class DistractorPreset:
     camera_keepout_m: float = 0.6  # m kept clear around the camera (and along a flight path)
     person_radius: float = 0.3  # m, footprint used for placement and walking
     person_speed: list[float] = field(default_factory=lambda: [0.6, 1.4])  # m/s, [min, max]
+    person_camera_keepout: float = 0.5  # m people keep from the flying camera
+    person_max_turn_deg_s: float = 180.0  # fastest heading change of a walker
+    person_patience_s: float = 2.0  # s a blocked walker waits before choosing a new goal
 
 
 # --------------------------------------------------------------------------- flights
@@ -280,18 +283,20 @@ class DistractorPreset:
 
 @dataclass
 class TrajectoryConfig:
-    """A hand-flown pass along the corridor (``flights.<name>.trajectory``,
-    datagen/trajectories.py ``flight_trajectory``); pairs are [min, max], drawn per flight."""
+    """A hand-flown pass along a route (``flights.<name>.trajectory``, datagen/trajectories.py
+    ``flight_trajectory``); pairs are [min, max], drawn per flight. The flight covers speed x
+    duration metres of its route (less if the route is shorter)."""
 
     speed: list[float] = field(default_factory=lambda: [0.3, 0.45])  # m/s, mean forward
     # speed (capped so the flight ends inside)
     speed_variation: float = 0.25  # relative smooth variation of the forward speed
     ramp_s: float = 2.0  # s of speed-up at the start and slow-down at the end
-    start_offset: list[float] = field(default_factory=lambda: [0.0, 0.4])  # m past the near
-    # end of the free corridor
+    start_offset: list[float] = field(default_factory=lambda: [0.0, 0.4])  # m past the start
+    # of the route (its end when reversed), at most a quarter of the route
     height: list[float] = field(default_factory=lambda: [1.0, 1.5])  # m, centre height (sway
     # added, kept inside world.z_range)
-    sway_x: float = 0.3  # m, lateral sway amplitude
+    sway_x: float = 0.3  # m, lateral sway amplitude (across the route; less where the free
+    # space is narrower)
     sway_z: float = 0.15  # m, height sway amplitude
     sway_freq_hz: list[float] = field(default_factory=lambda: [0.04, 0.25])
     yaw_amplitude_deg: list[float] = field(default_factory=lambda: [20.0, 35.0])  # yaw swings
@@ -299,7 +304,7 @@ class TrajectoryConfig:
     yaw_freq_hz: list[float] = field(default_factory=lambda: [0.02, 0.12])
     tilt_noise_deg: float = 1.0  # roll/pitch wobble on top of the acceleration tilt
     max_tilt_deg: float = 8.0
-    reverse: bool = False  # true: fly along -Y
+    reverse: bool = False  # true: fly the route backwards (the corridor: along -Y)
 
 
 @dataclass
@@ -340,13 +345,18 @@ class RouteConfig:
 
 @dataclass
 class FlightConfig:
-    """An evaluation flight preset (``flights.<name>``): a smooth hand-flown pass along the
-    corridor (+Y) with ground truth and noisy odometry. The defaults are the ``paper``
-    preset, like the paper's: the 10 m corridor flown by hand."""
+    """An evaluation flight preset (``flights.<name>``): a smooth hand-flown pass along a
+    route with ground truth and noisy odometry. The defaults are the ``paper`` preset, like
+    the paper's: the 10 m corridor flown by hand along +Y."""
 
     num_frames: int = 240
     fps: float = 10.0
     distractors: str = "paper"  # a key of distractor_presets (conf/distractors/<name>.yaml)
+    route: Any = "auto"  # "auto": the world's own route (the corridor's centre line), else
+    # one planned through the free space (route_settings); or waypoints [[x, y], ...] (m)
+    route_settings: RouteConfig = field(default_factory=lambda: RouteConfig(min_turns=2))
+    # planning of an `auto` route; its min_length is raised to what the flight needs (speed
+    # x duration); where none has them, a route without them is flown (a warning)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
 

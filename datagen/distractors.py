@@ -2,8 +2,10 @@
 
 Meshes are built from trimesh primitives in an object frame with z up, the origin at the
 centre of the footprint on the floor (z = 0) and, for people, facing +x. Placement works on
-floor circles: an object of footprint radius r at (x, y) must lie inside one of the free
-floor boxes and must not overlap another object or a keep-out circle (e.g. the camera).
+floor circles on a floor map (core.occupancy, margin 0: where things may stand): an object
+of footprint radius r at (x, y) fits where the map's distance to the walls is at least r
+(plus a wall margin), and must not overlap another object or a keep-out circle (e.g. the
+camera).
 """
 
 from __future__ import annotations
@@ -16,8 +18,11 @@ import numpy as np
 import trimesh
 
 from core.config import as_config
+from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, wrap_angle
 from datagen.config import DistractorPreset
+from datagen.map_cache import derived
+from datagen.routes import first_blocked
 
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
 MAX_HEIGHT = 1.8  # m, tallest clutter object
@@ -252,71 +257,103 @@ def footprint_radius(mesh: trimesh.Trimesh) -> float:
 
 # --------------------------------------------------------------------------- placement
 
-
-def _check_boxes(boxes: np.ndarray) -> np.ndarray:
-    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    if len(boxes) == 0 or np.any(boxes[:, 2] <= boxes[:, 0]) or np.any(boxes[:, 3] <= boxes[:, 1]):
-        raise ValueError(f"boxes must be (B, 4) [xmin, ymin, xmax, ymax] with B >= 1 and "
-                         f"max > min, got {boxes.tolist()}")
-    return boxes
+_TOL = 1e-6  # m, slack of the clearance tests
 
 
-def _boxes_sample(rng: np.random.Generator, n: int, boxes: np.ndarray, shrink: float
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Uniform points over the shrunk boxes; also each point's box lo, hi ((n, 2) each)."""
-    boxes = _check_boxes(boxes)
-    lo, hi = boxes[:, :2] + shrink, boxes[:, 2:] - shrink
-    area = np.prod(np.clip(hi - lo, 0, None), axis=1)
-    if area.sum() <= 0:
-        nan = np.full((n, 2), np.nan)
-        return nan, nan, nan, np.zeros(n, int)
-    which = rng.choice(len(boxes), size=n, p=area / area.sum())
-    pts = lo[which] + rng.random((n, 2)) * (hi[which] - lo[which])
-    return pts, lo[which], hi[which], which
+@dataclass
+class _Floor:
+    """A floor map's cells sorted by clearance, for drawing the cells a circle fits in, and
+    the distance to the walls within a cell.
 
-
-def sample_in_boxes(rng: np.random.Generator, n: int, boxes: np.ndarray, shrink: float = 0.0
-                    ) -> np.ndarray:
-    """Points uniform over the union of boxes (area-weighted), each shrunk by a margin.
-
-    Args:
-        rng: random generator.
-        n: number of points.
-        boxes: (B, 4) [xmin, ymin, xmax, ymax] in metres.
-        shrink: margin (m) removed from every side; boxes that vanish are skipped.
-
-    Returns:
-        (n, 2) x, y; all NaN when no box is left.
+    cells: (C,) flat indices of the floor cells, by increasing clearance (m, (C,)).
+    gradient: (H, W, 2) unit vectors x, y along which the clearance grows (away from walls;
+    0 where it is flat).
     """
-    return _boxes_sample(rng, n, boxes, shrink)[0]
+
+    occ: OccupancyMap
+    cells: np.ndarray
+    clearance: np.ndarray
+    gradient: np.ndarray
+
+    @classmethod
+    def of(cls, occ: OccupancyMap) -> _Floor:
+        """The floor of a map, built once per map (cached while the map lives: treat it as
+        read-only)."""
+        if not isinstance(occ, OccupancyMap):
+            raise TypeError(f"floor must be an OccupancyMap (where things stand), got "
+                            f"{type(occ).__name__}")
+        return derived(occ, "floor", cls._build)
+
+    @classmethod
+    def _build(cls, occ: OccupancyMap) -> _Floor:
+        idx = np.flatnonzero(occ.free)
+        clear = occ.clearance.ravel()[idx]
+        order = np.argsort(clear, kind="stable")
+        gy, gx = np.gradient(occ.clearance.astype(np.float64))
+        g = np.stack([gx, gy], -1)
+        g /= np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-12)
+        return cls(occ, idx[order], clear[order], g)
+
+    def fitting(self, need: float, band: float | None = None) -> np.ndarray:
+        """Flat indices of the cells of clearance >= need (and < need + band)."""
+        lo = np.searchsorted(self.clearance, need - _TOL)
+        hi = len(self.cells) if band is None else np.searchsorted(self.clearance,
+                                                                  need + band - _TOL)
+        return self.cells[lo:hi]
+
+    def points(self, rng: np.random.Generator, cells: np.ndarray) -> np.ndarray:
+        """(N, 2) m uniform points in the cells (N,) flat indices."""
+        r, c = np.unravel_index(cells, self.occ.shape)
+        u = rng.random((len(cells), 2))
+        return self.occ.origin + (np.stack([c, r], 1) + u) * self.occ.cell
+
+    def distance(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) m from the points (N, 2) to the nearest wall: their cell's clearance moved
+        along its gradient to the point (exact beside a straight wall); -inf off the floor."""
+        rc, inside = self.occ.cell_of(xy)
+        g = self.gradient[rc[0], rc[1]]
+        d = self.occ.clearance[rc[0], rc[1]] + np.einsum("nc,nc->n", g,
+                                                         xy - self.occ.centres(rc))
+        return np.where(inside & self.occ.free[rc[0], rc[1]], d, -np.inf)
+
+    def away(self, xy: np.ndarray) -> np.ndarray:
+        """(N, 2) unit vectors away from the nearest wall at the points (N, 2) m."""
+        rc, _ = self.occ.cell_of(xy)
+        return self.gradient[rc[0], rc[1]]
 
 
-def place_objects(rng: np.random.Generator, radii: np.ndarray, boxes: np.ndarray,
+def place_objects(rng: np.random.Generator, radii: np.ndarray, floor: OccupancyMap,
                   keepout: np.ndarray | None = None, max_tries: int = 256,
-                  against_walls: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                  against_walls: float = 0.0, wall_margin: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Place circular footprints on the floor without overlaps.
 
     Objects are placed largest first; for each, max_tries candidates are drawn at once,
-    uniform over the boxes it fits in, and the first one clear of the keep-outs and of the
-    objects already placed is taken.
+    uniform over the floor cells it fits in (the distance to the walls at least radius +
+    wall_margin: ``floor.distance``, refined within the cell along the clearance's
+    gradient), and the first one clear of the keep-outs and of the objects already placed is
+    taken.
 
     Args:
         rng: random generator.
         radii: (K,) footprint radii in metres.
-        boxes: (B, 4) [xmin, ymin, xmax, ymax] floor regions; each circle must lie entirely
-            inside one box (walls are the box sides).
+        floor: where things may stand (margin 0; its clearance is the distance to walls).
         keepout: (Q, 3) x, y, radius circles no object may overlap (camera, flight path).
         max_tries: candidates per object.
-        against_walls: probability that a candidate is pushed against a long side of its
-            box (furniture in a corridor stands along the walls), leaving the middle free.
+        against_walls: probability that a candidate stands against a wall (its footprint
+            ``wall_margin`` from it, within a cell) facing away from it (+x of the object
+            along the clearance's gradient), leaving the middle free; the others have a
+            uniform yaw.
+        wall_margin: m kept between a footprint and a wall.
 
     Returns:
-        xy_yaw: (K, 3) x, y (m) and yaw (rad, uniform) of each object; NaN where unplaced.
+        xy_yaw: (K, 3) x, y (m) and yaw (rad) of each object; NaN where unplaced.
         placed: (K,) bool.
     """
     radii = np.asarray(radii, dtype=np.float64).reshape(-1)
     if np.any(radii < 0):
         raise ValueError(f"radii must be non-negative, got {radii.tolist()}")
+    where = _Floor.of(floor)
     keep = (np.zeros((0, 3)) if keepout is None
             else np.asarray(keepout, dtype=np.float64).reshape(-1, 3))
     K = len(radii)
@@ -324,21 +361,27 @@ def place_objects(rng: np.random.Generator, radii: np.ndarray, boxes: np.ndarray
     placed = np.zeros(K, bool)
     obstacles = [keep]
     for k in np.argsort(-radii, kind="stable"):
-        cand, lo, hi, _ = _boxes_sample(rng, max_tries, boxes, radii[k])
-        snap = rng.random(max_tries) < against_walls
-        side = rng.random(max_tries) < 0.5
+        need = radii[k] + wall_margin
+        inside = where.fitting(need - floor.cell)
+        wall = where.fitting(need - floor.cell / 2, floor.cell)
         yaw = rng.uniform(-np.pi, np.pi)
-        if np.isnan(cand[0, 0]):
+        if not len(inside):
             continue
-        cross = ((hi - lo)[:, 0] > (hi - lo)[:, 1]).astype(int)  # short axis of the box
-        t = np.arange(max_tries)
-        cand[t, cross] = np.where(snap, np.where(side, lo[t, cross], hi[t, cross]),
-                                  cand[t, cross])
+        snap = rng.random(max_tries) < against_walls
+        pick = inside[rng.integers(len(inside), size=max_tries)]
+        if len(wall):
+            pick = np.where(snap, wall[rng.integers(len(wall), size=max_tries)], pick)
+        else:
+            snap[:] = False
+        cand = where.points(rng, pick)
         obs = np.concatenate(obstacles)
         d = np.linalg.norm(cand[:, None, :] - obs[None, :, :2], axis=-1)  # (T, Q)
-        ok = np.all(d >= obs[None, :, 2] + radii[k], axis=1)
+        ok = np.all(d >= obs[None, :, 2] + radii[k], axis=1) & (where.distance(cand) >= need)
         if ok.any():
             i = int(np.argmax(ok))
+            if snap[i]:
+                g = where.away(cand[i : i + 1])[0]
+                yaw = float(np.arctan2(g[1], g[0]))
             xy_yaw[k] = [cand[i, 0], cand[i, 1], yaw]
             placed[k] = True
             obstacles.append(np.array([[cand[i, 0], cand[i, 1], radii[k]]]))
@@ -354,73 +397,84 @@ def object_poses(xy_yaw: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- people
 
+GOAL_CANDIDATES = 32  # goals drawn per new goal, among those in sight a far one is taken
+FAR_SHARE = 0.7  # a goal is far at >= this share of the farthest candidate's distance
+ARRIVED_M = 0.3  # m from its goal a walker picks a new one
+GOAL_ROOM = 0.1  # m a goal keeps from the walls beyond a person's radius
+
 
 @dataclass
 class _Crowd:
-    """The walkers of ``person_tracks``: P people, each in its home box.
+    """The walkers of ``person_tracks``: P people on a floor map.
 
-    blo, bhi: (P, 2) the home box shrunk by radius; axis: (P,) its long axis (0 x, 1 y);
-    speed: (P,) m/s; direction: (P,) +1 / -1 along the axis; pos, goal: (P, 2) m;
-    heading: (P,) rad; blocked: (P,) frames a person has been blocked for.
+    floor: where people stand; walk_map: the cells a person's centre may occupy (clearance
+    >= radius; the lines of sight to goals); goals: flat indices of the cells goals are drawn
+    from; speed: (P,) m/s; pos, goal: (P, 2) m; heading: (P,) rad; blocked: (P,) frames a
+    person has been blocked for.
     """
 
     rng: np.random.Generator
     radius: float
-    blo: np.ndarray
-    bhi: np.ndarray
-    axis: np.ndarray
+    floor: _Floor
+    walk_map: OccupancyMap
+    goals: np.ndarray
     speed: np.ndarray
-    direction: np.ndarray
     pos: np.ndarray
     goal: np.ndarray
     heading: np.ndarray
     blocked: np.ndarray
 
     @classmethod
-    def start(cls, rng: np.random.Generator, n: int, boxes: np.ndarray, radius: float,
+    def start(cls, rng: np.random.Generator, n: int, floor: OccupancyMap, radius: float,
               speed: tuple[float, float], keepout: np.ndarray) -> _Crowd:
-        """n people placed like objects (clear of the keep-outs and each other), walking
-        towards a goal at one end of their box."""
-        lo, hi = boxes[:, :2] + radius, boxes[:, 2:] - radius
-        size = np.clip(hi - lo, 0, None)
-        if np.prod(size, axis=1).sum() <= 0:
-            raise ValueError(f"no box is wider than 2 * radius = {2 * radius} m: "
-                             f"{boxes.tolist()}")
-        start, ok = place_objects(rng, np.full(n, radius), boxes, keepout)
+        """n people placed like objects (clear of the keep-outs and each other), each
+        walking towards a goal in sight."""
+        where = _Floor.of(floor)
+        walkable = where.fitting(radius)
+        if not len(walkable):
+            raise ValueError(f"no floor is {radius} m from the walls: people of radius "
+                             f"{radius} m cannot stand anywhere; lower person_radius")
+        start, ok = place_objects(rng, np.full(n, radius), floor, keepout)
         if not ok.all():
-            start[~ok, :2] = sample_in_boxes(rng, int((~ok).sum()), boxes, shrink=radius)
-        pos = start[:, :2].copy()
-        inside = (pos[:, None, :] >= lo[None] - 1e-9) & (pos[:, None, :] <= hi[None] + 1e-9)
-        home = np.argmax(inside.all(-1), axis=1)  # the box each person starts in
-        axis = (size[home, 1] >= size[home, 0]).astype(int)  # long axis of each home box
-        v = rng.uniform(speed[0], speed[1], n)
-        direction = rng.choice([-1.0, 1.0], n)
-        crowd = cls(rng, radius, lo[home], hi[home], axis, v, direction, pos,
-                    np.zeros((n, 2)), np.zeros(n), np.zeros(n, int))
+            start[~ok, :2] = where.points(rng, walkable[rng.integers(len(walkable),
+                                                                     size=int((~ok).sum()))])
+        roomy = where.fitting(radius + GOAL_ROOM)
+        crowd = cls(rng, radius, where, floor.eroded(max(radius - floor.margin, 0.0)),
+                    roomy if len(roomy) else walkable, rng.uniform(speed[0], speed[1], n),
+                    start[:, :2].copy(), np.zeros((n, 2)), np.zeros(n), np.zeros(n, int))
         crowd.new_goals(np.ones(n, bool))
-        crowd.heading = np.arctan2(*(crowd.goal - pos)[:, ::-1].T)
+        crowd.heading = np.arctan2(*(crowd.goal - crowd.pos)[:, ::-1].T)
         return crowd
 
-    def new_goals(self, mask: np.ndarray) -> None:
-        """New goals for the people of ``mask``: near the end of their box they walk to, at
-        a random lateral offset."""
+    def new_goals(self, mask: np.ndarray, back: np.ndarray | None = None) -> None:
+        """New goals for the people of ``mask`` (P,): of ``GOAL_CANDIDATES`` random floor
+        cells, the farthest one in a straight line of walkable cells (any one if none is);
+        for those of ``back`` (P,), behind them if there is one."""
         idx = np.flatnonzero(mask)
-        blo, bhi = self.blo[idx], self.bhi[idx]
-        g = blo + self.rng.random((len(idx), 2)) * (bhi - blo)
-        ax = self.axis[idx]
-        rows = np.arange(len(idx))
-        g[rows, ax] = np.where(self.direction[idx] > 0, bhi[rows, ax] - 0.05,
-                               blo[rows, ax] + 0.05)
-        self.goal[idx] = g
+        if not len(idx):
+            return
+        k = GOAL_CANDIDATES
+        cand = self.floor.points(self.rng, self.goals[self.rng.integers(len(self.goals),
+                                                                        size=len(idx) * k)])
+        origin = np.repeat(self.pos[idx], k, axis=0)
+        seen = ~np.isfinite(first_blocked(self.walk_map, origin, cand))
+        score = np.linalg.norm(cand - origin, axis=1) * np.where(seen, 1.0, 1e-6)
+        if back is not None:
+            heading = np.repeat(self.heading[idx], k)
+            rel = cand - origin
+            ahead = rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading) > 0
+            score *= np.where(np.repeat(back[idx], k) & ahead, 1e-3, 1.0)
+        score = score.reshape(len(idx), k)
+        far = score >= FAR_SHARE * score.max(axis=1, keepdims=True)  # the far ones: any
+        pick = np.argmax(far * self.rng.random(far.shape), axis=1)
+        self.goal[idx] = cand.reshape(len(idx), k, 2)[np.arange(len(idx)), pick]
 
     def turn_around(self, stuck: np.ndarray) -> None:
-        """Who arrived at their goal, or is ``stuck`` (P,), heads for the other end."""
-        rows = np.arange(len(self.pos))
-        arrived = np.abs(self.goal[rows, self.axis] - self.pos[rows, self.axis]) < 0.1
+        """Who arrived at their goal picks a new goal, who is ``stuck`` (P,) one behind."""
+        arrived = np.linalg.norm(self.goal - self.pos, axis=1) < ARRIVED_M
         turn = arrived | stuck
         if turn.any():
-            self.direction[turn] *= -1
-            self.new_goals(turn)
+            self.new_goals(turn, back=stuck)
             self.blocked[turn] = 0
 
     def clearance(self, p: np.ndarray, circles: np.ndarray) -> np.ndarray:
@@ -434,8 +488,9 @@ class _Crowd:
 
     def steer(self, circles: np.ndarray, clear: np.ndarray) -> np.ndarray:
         """(P, 2) wanted walking directions: towards the goal, pushed away from the circles
-        ahead (a sidestep away from each), and off the long walls of the home box."""
-        rows, pos = np.arange(len(self.pos)), self.pos
+        ahead (a sidestep away from each thing, to the right of each person; to the other
+        side where a wall leaves no room), and off the walls (the clearance's gradient)."""
+        pos = self.pos
         want = self.goal - pos
         want /= np.linalg.norm(want, axis=1, keepdims=True) + 1e-9
         diff = pos[:, None, :] - circles[None, :, :2]  # (P, O, 2) from the others to each
@@ -445,17 +500,22 @@ class _Crowd:
         weight = np.exp(-np.clip(clear, 0, None) / 0.4) * ahead * np.isfinite(clear)
         perp = np.stack([-want[:, 1], want[:, 0]], 1)  # left of the wanted direction
         side = np.sign(np.einsum("poc,pc->po", away, perp) + 1e-6)  # sidestep away
+        side[:, : len(pos)] = -1.0  # people keep right of each other
+        occ = self.floor.occ
+        reach = occ.cell  # a sidestep with no room for one cell goes the other way
+        room = [occ.distance(pos + sign * reach * perp) >= self.radius for sign in (1, -1)]
+        side = np.where((side > 0) & ~room[0][:, None] & room[1][:, None], -1.0, side)
+        side = np.where((side < 0) & ~room[1][:, None] & room[0][:, None], 1.0, side)  # not
+        # into a wall: to the side with room
         push = away + side[..., None] * perp[:, None, :]
         steer = want + 1.5 * np.sum(weight[..., None] * push, axis=1)
-        cross = 1 - self.axis
-        gap_lo = pos[rows, cross] - self.blo[rows, cross]
-        gap_hi = self.bhi[rows, cross] - pos[rows, cross]
-        steer[rows, cross] += 0.5 * (np.exp(-gap_lo / 0.2) - np.exp(-gap_hi / 0.2))
-        return steer
+        gap = self.floor.occ.distance(pos) - self.radius
+        return steer + 0.5 * np.exp(-np.clip(gap, 0, None) / 0.2)[:, None] * self.floor.away(pos)
 
     def walk(self, circles: np.ndarray, dt: float, max_turn: float) -> None:
-        """One frame: turn (at most max_turn rad) towards ``steer``'s direction and step,
-        unless the step would overlap a circle more than now."""
+        """One frame: turn (at most max_turn rad) towards ``steer``'s direction and step;
+        a step into a wall slides along it, and a step that comes nearer a wall than the
+        radius or overlaps a circle (or another's step) more than now is not taken."""
         clear = self.clearance(self.pos, circles)
         steer = self.steer(circles, clear)
         target = np.arctan2(steer[:, 1], steer[:, 0])
@@ -463,47 +523,60 @@ class _Crowd:
         self.heading = wrap_angle(self.heading + turn)
         step = self.speed[:, None] * dt * np.stack([np.cos(self.heading),
                                                     np.sin(self.heading)], 1)
-        new = np.clip(self.pos + step, self.blo, self.bhi)
+        new = self.pos + step
+        off = self.floor.distance(new) < self.radius
+        if off.any():  # slide: drop the part of the step towards the wall
+            g = self.floor.away(self.pos[off])
+            into = np.minimum(np.einsum("pc,pc->p", step[off], g), 0.0)
+            new[off] = self.pos[off] + step[off] - into[:, None] * g
         new_clear = self.clearance(new, circles)
-        bad = np.any((new_clear < 0) & (new_clear < clear), axis=1)
+        bad = (np.any((new_clear < 0) & (new_clear < clear), axis=1)
+               | (self.floor.distance(new) < self.radius))
+        # people step at once: who would overlap another's step more stays too
+        n = len(self.pos)
+        moved = np.where(bad[:, None], self.pos, new)
+        both = self.clearance(moved, np.column_stack([moved, np.full(n, self.radius)]))
+        bad |= np.any((both < 0) & (both < clear[:, :n]), axis=1)
         self.pos = np.where(bad[:, None], self.pos, new)
         self.blocked = np.where(bad, self.blocked + 1, 0)
 
 
 def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fps: float,
-                  boxes: np.ndarray,
+                  floor: OccupancyMap,
                   speed: tuple[float, float] = tuple(DistractorPreset().person_speed),
                   radius: float = DistractorPreset.person_radius,
                   obstacles: np.ndarray | None = None,
-                  avoid: np.ndarray | None = None, avoid_radius: float = 0.5,
-                  max_turn_deg_s: float = 180.0, patience_s: float = 2.0) -> np.ndarray:
-    """Trajectories of people walking up and down the corridor.
+                  avoid: np.ndarray | None = None,
+                  avoid_radius: float = DistractorPreset.person_camera_keepout,
+                  max_turn_deg_s: float = DistractorPreset.person_max_turn_deg_s,
+                  patience_s: float = DistractorPreset.person_patience_s) -> np.ndarray:
+    """Trajectories of people walking about the floor.
 
-    Each person lives in one box (area-weighted choice) and walks towards a goal near one
-    end of the box's long axis, at a random lateral offset; on arrival the goal moves to
-    the other end. The heading turns at a bounded rate towards the goal, steered around
+    Each person walks towards a goal: of a few random floor cells, the farthest one in
+    sight (in a corridor: towards its far end); on arrival, or when blocked for patience_s,
+    it picks a new one. The heading turns at a bounded rate towards the goal, steered around
     other people, static obstacles and the avoid track (a small social-force model: a push
-    away from what is ahead plus a sidestep). A step that would overlap someone or
-    something is not taken; a person blocked for patience_s turns around. Best effort:
-    people rarely overlap, and never leave their box shrunk by radius.
+    away from what is ahead plus a sidestep) and off the walls (the clearance's gradient). A
+    step that would overlap someone or something more is not taken; a step into a wall
+    slides along it. People never stand nearer a wall than ``radius`` (within the map's
+    cell); they rarely overlap each other.
 
     Args:
         rng: random generator.
         num_people, num_frames: counts.
         fps: frame rate (Hz).
-        boxes: (B, 4) [xmin, ymin, xmax, ymax] floor regions people may walk in.
+        floor: where people may walk (margin 0; its clearance is the distance to walls).
         speed: (min, max) walking speed in m/s, drawn per person.
-        radius: body radius (m) kept from the box sides and used for avoidance.
+        radius: body radius (m) kept from the walls and used for avoidance.
         obstacles: (Q, 3) x, y, radius static circles to walk around (e.g. clutter).
         avoid: (num_frames, 2) x, y of something to keep clear of at each frame (the camera).
         avoid_radius: radius (m) of that keep-out.
         max_turn_deg_s: largest heading change rate.
-        patience_s: how long a blocked person waits before turning around.
+        patience_s: how long a blocked person waits before choosing a new goal.
 
     Returns:
         (num_people, num_frames, 3) x, y (m), yaw (rad, walking direction).
     """
-    boxes = _check_boxes(boxes)
     if fps <= 0:
         raise ValueError(f"fps must be positive, got {fps}")
     P, N, dt = int(num_people), int(num_frames), 1.0 / float(fps)
@@ -514,7 +587,7 @@ def person_tracks(rng: np.random.Generator, num_people: int, num_frames: int, fp
            else np.asarray(obstacles, dtype=np.float64).reshape(-1, 3))
     avoid_xy = None if avoid is None else np.asarray(avoid, dtype=np.float64).reshape(N, 2)
     keep = obs if avoid_xy is None else np.vstack([obs, [*avoid_xy[0], avoid_radius]])
-    crowd = _Crowd.start(rng, P, boxes, radius, speed, keep)
+    crowd = _Crowd.start(rng, P, floor, radius, speed, keep)
     max_turn = np.deg2rad(max_turn_deg_s) * dt
     for t in range(N):
         out[:, t, :2] = crowd.pos

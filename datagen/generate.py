@@ -35,8 +35,7 @@ from datagen import appearance, distractors, trajectories
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
-from datagen.site import Site, build_site, floor_boxes
-from datagen.world import CorridorModel
+from datagen.site import Site, build_site
 
 log = logging.getLogger(__name__)
 
@@ -105,12 +104,6 @@ class Job:
     flights: dict[str, dict[str, Any]]  # name -> preset (FlightConfig), groundtruth,
     # odometry, timestamps
 
-    @property
-    def model(self) -> CorridorModel:
-        """The corridor's model (its boxes and lights) for rendering."""
-        if self.site.corridor is None:
-            raise NotImplementedError("rendering a world=file world")
-        return self.site.corridor
 
 
 def _check_counts(cfg: DatagenConfig) -> None:
@@ -172,24 +165,32 @@ def _check_inside(site: Site, camera: Camera, poses: np.ndarray, where: str) -> 
                          "camera.mount and the flight preset's trajectory")
 
 
-def poses_of_split(cfg: DatagenConfig, model: CorridorModel, split: str) -> np.ndarray:
+def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
     """(N, 4, 4) body poses of a split's frames; frame i's depends only on (seed, split, i).
 
     A share ``training.flight_views`` of them (decided per frame by its own generator) are
-    posed as the flights fly (``trajectories.sample_flight_views``), the rest spread over the
-    free space (``trajectories.sample_training_poses``).
+    posed as the flights fly (``trajectories.sample_flight_views``, along each preset's route,
+    resolved once per split), the rest spread over the free space
+    (``trajectories.sample_training_poses``).
     """
-    tr, world, seed = cfg.training, model.world, cfg.seed
-    presets = list(cfg.flights.values())
+    tr, seed, free = cfg.training, cfg.seed, site.world.free
+    z_range = np.asarray(free.band)
     stream = SPLIT_STREAM[split]
     poses = np.zeros((getattr(cfg.splits, split), 4, 4))
+    views = {i for i in range(len(poses)) if tr.flight_views > 0
+             and rng_for(seed, stream, i, 3).random() < tr.flight_views}
+    if views:
+        presets = list(cfg.flights.values())
+        routes = [trajectories.flight_route(p, free, site.route,
+                                            rng_for(seed, 100 + stream, k), f"flights.{name}")
+                  for k, (name, p) in enumerate(cfg.flights.items())]
     for i in range(len(poses)):
-        if tr.flight_views > 0 and rng_for(seed, stream, i, 3).random() < tr.flight_views:
+        if i in views:
             poses[i] = trajectories.sample_flight_views(
-                rng_for(seed, stream, i, 4), 1, model.free_boxes, world.z_range, presets)[0]
+                rng_for(seed, stream, i, 4), 1, free, z_range, presets, routes)[0]
         else:
             poses[i] = trajectories.sample_training_poses(
-                rng_for(seed, stream, i, 0), 1, model.free_boxes, world.z_range,
+                rng_for(seed, stream, i, 0), 1, free, z_range,
                 tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg)[0]
     return poses
 
@@ -202,14 +203,11 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     _check_counts(cfg)
     _check_presets(cfg)
     site = build_site(cfg.world)
-    model = site.corridor
-    if model is None:
-        raise NotImplementedError("world=file: flights and renders of an imported building")
     camera = make_camera(cfg.camera)
-    w = model.world
+    z_range = site.world.z_range
     split_poses = {}
     for split in SPLITS:
-        poses = poses_of_split(cfg, model, split)
+        poses = poses_of_split(cfg, site, split)
         _check_inside(site, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}
@@ -217,7 +215,10 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
         preset = cfg.flights[name]
         r = rng_for(cfg.seed, flight_stream(name), 0)
         n, fps = preset.num_frames, preset.fps
-        gt = trajectories.flight_trajectory(r, n, fps, model.free_boxes, w.z_range,
+        route = trajectories.flight_route(preset, site.world.free, site.route,
+                                          rng_for(cfg.seed, flight_stream(name), 3),
+                                          f"flights.{name}")
+        gt = trajectories.flight_trajectory(r, n, fps, route, site.world.free, z_range,
                                             preset.trajectory)
         odo = trajectories.noisy_odometry(r, gt, fps, preset.odometry)
         _check_inside(site, camera, gt, f"flights.{name}")
@@ -371,8 +372,8 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
         cam = (body_pose @ job.camera.body_from_cam)[:3, 3]
         keep = np.array([[cam[0], cam[1], preset.camera_keepout_m]])
         xy_yaw, _ = distractors.place_objects(
-            rng, radii, floor_boxes(job.model, preset.wall_margin), keep,
-            against_walls=preset.against_walls)
+            rng, radii, job.site.floor, keep, against_walls=preset.against_walls,
+            wall_margin=preset.wall_margin)
         poses[use] = xy_yaw
     renderer.set_objects(poses, appearance.object_colours(rng, len(slots)))
 
@@ -456,17 +457,21 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     lights = appearance.sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
     colours = appearance.object_colours(rng, n_clutter + n_people)
     cam_xy = (gt @ job.camera.body_from_cam)[:, :2, 3]
-    path = cam_xy[:: max(1, len(cam_xy) // 60)]
+    flown = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cam_xy, axis=0), axis=1))])
+    step = max(dp.camera_keepout_m / 2, 0.05)  # keep-out circles along the path, overlapping
+    path = cam_xy[np.unique(np.floor(flown / step), return_index=True)[1]]
     keep = np.concatenate([path, np.full((len(path), 1), dp.camera_keepout_m)], axis=1)
     radii = np.array([distractors.footprint_radius(m) for m in clutter])
-    boxes = floor_boxes(job.model, dp.wall_margin)
-    placed = distractors.place_objects(rng, radii, boxes, keep,
-                                       against_walls=dp.against_walls)[0]
+    floor = job.site.floor
+    placed = distractors.place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
+                                       wall_margin=dp.wall_margin)[0]
     ok = ~np.isnan(placed[:, 0])
     obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
     tracks = distractors.person_tracks(
-        rng, n_people, len(gt), preset.fps, boxes, speed=tuple(dp.person_speed),
+        rng, n_people, len(gt), preset.fps, floor, speed=tuple(dp.person_speed),
         radius=dp.person_radius, obstacles=obstacles, avoid=cam_xy,
+        avoid_radius=dp.person_camera_keepout, max_turn_deg_s=dp.person_max_turn_deg_s,
+        patience_s=dp.person_patience_s,
     ) if n_people else np.zeros((0, len(gt), 3))
     return FlightScene(clutter, people, textures, lights, colours, placed, tracks)
 

@@ -1,25 +1,43 @@
 """Camera body poses: training samples, smooth hand-flown flights and noisy odometry.
 
-All poses are (N, 4, 4) world_from_body (body x forward, y left, z up; world Z up, corridor
-long axis +Y). Flight and odometry parameters come from a flight preset (``FlightConfig``:
-its ``trajectory`` and ``odometry``).
+All poses are (N, 4, 4) world_from_body (body x forward, y left, z up; world Z up). Positions
+come from an occupancy map of the free space (core.occupancy); flights fly routes through it
+(datagen.routes). Flight and odometry parameters come from a flight preset (``FlightConfig``:
+its ``route``, ``trajectory`` and ``odometry``).
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from core.config import as_config
+from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy, wrap_angle
 from datagen.config import FlightConfig, OdometryConfig, TrainingConfig, TrajectoryConfig
-from datagen.distractors import sample_in_boxes
+from datagen.free_axes import axis_at
+from datagen.routes import (
+    find_turns,
+    first_blocked,
+    plan_route,
+    route_at,
+    route_from_waypoints,
+    route_length,
+)
+
+log = logging.getLogger(__name__)
 
 GRAVITY = 9.81  # m/s^2
+END_MARGIN = 0.5  # m a flight stops short of its route's far end (at most 5 % of the route)
+ROOM_STEP = 0.1  # m between the route points where the sway room is measured
+DRIFT = 0.5  # m beyond the sway amplitude a flight's centre line may drift off its route
+
 
 def _pair(cfg: Any, key: str, where: str) -> tuple[float, float]:
     """The [min, max] pair ``cfg.<key>`` (a number: both), checked."""
@@ -33,18 +51,14 @@ def _pair(cfg: Any, key: str, where: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _check(boxes: np.ndarray, z_range: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+def _check_z(z_range: np.ndarray) -> np.ndarray:
     z = np.asarray(z_range, dtype=np.float64).reshape(-1)
-    if len(boxes) == 0 or np.any(boxes[:, 2:] <= boxes[:, :2]):
-        raise ValueError(f"free boxes must be (B, 4) [xmin, ymin, xmax, ymax] with max > min, "
-                         f"got {boxes.tolist()}")
     if z.shape != (2,) or not z[0] < z[1]:
         raise ValueError(f"z_range must be [lo, hi] with lo < hi, got {z.tolist()}")
-    return boxes, z
+    return z
 
 
-def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
+def sample_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
                           z_range: np.ndarray,
                           max_roll_pitch_deg: float = TrainingConfig.max_roll_pitch_deg,
                           along_fraction: float = TrainingConfig.yaw_along_corridor,
@@ -54,60 +68,69 @@ def sample_training_poses(rng: np.random.Generator, n: int, boxes: np.ndarray,
     Args:
         rng: random generator.
         n: number of poses.
-        boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m); positions are uniform over
-            their union, area-weighted.
+        free: where a camera may be; positions are uniform over its free cells.
         z_range: (2,) heights (m), uniform.
         max_roll_pitch_deg: roll and pitch are uniform in +/- this.
-        along_fraction: share of poses whose yaw is drawn around the corridor axis (+Y or -Y,
-            uniform within +/- ``along_spread_deg``), as a copter flying the corridor looks;
-            the others have a uniform yaw. In a 2 m corridor a uniform yaw mostly faces a
-            wall from less than a metre, a close-up that a flight rarely sees.
-        along_spread_deg: half-width of the along-corridor yaw range, degrees.
+        along_fraction: share of poses whose yaw is drawn around the local axis of the free
+            space (``free_axes``: the longest free chord through the cell; in a corridor its
+            long axis), either way, uniform within +/- ``along_spread_deg``, as a copter flying
+            there looks; the others have a uniform yaw. In a 2 m corridor a uniform yaw
+            mostly faces a wall from less than a metre, a close-up that a flight rarely sees.
+        along_spread_deg: half-width of the along-axis yaw range, degrees.
 
     Returns:
         (n, 4, 4) world_from_body.
     """
     if not 0.0 <= along_fraction <= 1.0:
         raise ValueError(f"training.yaw_along_corridor must be in [0, 1], got {along_fraction}")
-    boxes, z = _check(boxes, z_range)
-    xy = sample_in_boxes(rng, n, boxes)
+    z = _check_z(z_range)
+    xy = free.sample(rng, n)
     height = rng.uniform(z[0], z[1], n)
     tilt = np.deg2rad(max_roll_pitch_deg) * rng.uniform(-1, 1, (n, 2))
     yaw = rng.uniform(-np.pi, np.pi, n)
     along = rng.random(n) < along_fraction
-    axis = np.where(rng.random(n) < 0.5, np.pi / 2, -np.pi / 2)
+    axis = axis_at(free, xy) + np.where(rng.random(n) < 0.5, 0.0, np.pi)
     yaw_along = axis + np.deg2rad(along_spread_deg) * rng.uniform(-1, 1, n)
     yaw = np.where(along, wrap_angle(yaw_along), yaw)
     return pose_from_xyz_rpy(np.column_stack([xy, height]), np.column_stack([tilt, yaw]))
 
 
-def sample_flight_views(rng: np.random.Generator, n: int, boxes: np.ndarray,
-                        z_range: np.ndarray, presets: Sequence[FlightConfig | Mapping]
-                        ) -> np.ndarray:
-    """Camera body poses as the flights see the corridor, for training images.
+def sample_flight_views(rng: np.random.Generator, n: int, free: OccupancyMap,
+                        z_range: np.ndarray, presets: Sequence[FlightConfig | Mapping],
+                        routes: Sequence[np.ndarray]) -> np.ndarray:
+    """Camera body poses as the flights fly, for training images.
 
-    Each pose is a random frame of its own flight (``flight_trajectory``) of a random preset,
-    flown along +Y or -Y with equal chance: heights, lateral sway, yaw swings and tilts as
-    flown, over the stretch of corridor a flight covers.
+    Each pose is a random frame of its own flight (``flight_trajectory``) of a random preset
+    along that preset's route, forwards or backwards with equal chance, over a random stretch
+    of it as long as the flight needs: heights, sway, yaw swings and tilts as flown.
 
     Args:
         rng: random generator.
         n: number of poses.
-        boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
+        free: where a camera may be.
         z_range: (2,) allowed heights (m).
         presets: flight presets (``FlightConfig``, or mappings of the keys that differ from
             its defaults).
+        routes: (K, 2) m, the route of each preset (``flight_route``, resolved once by the
+            caller: planning is costly).
 
     Returns:
         (n, 4, 4) world_from_body.
     """
     if not presets:
         raise ValueError("training.flight_views needs at least one preset under `flights`")
+    if len(routes) != len(presets):
+        raise ValueError(f"sample_flight_views: {len(routes)} routes for {len(presets)} presets")
     out = np.empty((n, 4, 4))
     for i in range(n):
-        preset = as_config(FlightConfig, presets[rng.integers(len(presets))], "flights")
+        k = int(rng.integers(len(presets)))
+        preset = as_config(FlightConfig, presets[k], "flights")
         trajectory = replace(preset.trajectory, reverse=bool(rng.random() < 0.5))
-        poses = flight_trajectory(rng, preset.num_frames, preset.fps, boxes, z_range,
+        need = _route_needed(preset)
+        route, length = routes[k], route_length(routes[k])
+        if length > need:
+            route = route_window(route, rng.uniform(0.0, length - need), need)
+        poses = flight_trajectory(rng, preset.num_frames, preset.fps, route, free, z_range,
                                   trajectory)
         out[i] = poses[rng.integers(len(poses))]
     return out
@@ -136,35 +159,147 @@ def smooth_noise(rng: np.random.Generator, t: np.ndarray, freq_hz: tuple[float, 
     return s / peak if peak > 1e-12 else s
 
 
-def _main_box(boxes: np.ndarray) -> np.ndarray:
-    """The box with the longest extent along Y (the corridor)."""
-    return boxes[int(np.argmax(boxes[:, 3] - boxes[:, 1]))]
+# ---------------------------------------------------------------------- routes of flights
+
+
+def _route_needed(preset: FlightConfig, fastest: bool = True) -> float:
+    """m of route a flight of the preset may need: its fastest (or slowest) speed x duration,
+    its largest start offset and the end margin."""
+    where = "flights.trajectory"
+    duration = max(preset.num_frames - 1, 1) / float(preset.fps)
+    speed = _pair(preset.trajectory, "speed", where)[1 if fastest else 0]
+    return (speed * duration + _pair(preset.trajectory, "start_offset", where)[1]
+            + 2 * END_MARGIN)
+
+
+def route_window(route: np.ndarray, start: float, length: float) -> np.ndarray:
+    """The stretch [start, start + length] m of a route (K, 2), resampled every 5 cm."""
+    total = route_length(route)
+    a = float(np.clip(start, 0.0, total))
+    b = float(np.clip(start + length, a, total))
+    s = np.linspace(a, b, max(int(np.ceil((b - a) / 0.05)), 1) + 1)
+    return route_at(route, s)[0]
+
+
+def _stretch_with_turns(route: np.ndarray, preset: FlightConfig) -> np.ndarray:
+    """A planned route cut to the length the flight needs, where its part surely flown (the
+    slowest speed x duration after the largest start offset, from the end when reversed)
+    holds the most turns of ``route_settings.turn_deg``."""
+    need, total = _route_needed(preset), route_length(route)
+    if total <= need + 0.5:
+        return route
+    c, where = preset.trajectory, "flights.trajectory"
+    duration = max(preset.num_frames - 1, 1) / float(preset.fps)
+    start_hi = _pair(c, "start_offset", where)[1]
+    sure = _pair(c, "speed", where)[0] * duration
+    turns = find_turns(route, preset.route_settings.turn_deg)[:, 0]
+    a = np.arange(0.0, total - need, 0.25)[:, None]
+    lo = a + (need - start_hi - sure if c.reverse else start_hi)
+    count = ((turns[None] > lo) & (turns[None] < lo + sure)).sum(1)
+    return route_window(route, float(a[int(np.argmax(count)), 0]), need)
+
+
+def flight_route(preset: FlightConfig | Mapping, free: OccupancyMap,
+                 own_route: np.ndarray | None, rng: np.random.Generator,
+                 where: str = "flights") -> np.ndarray:
+    """The route a flight preset flies (its ``route``).
+
+    ``auto``: the world's own route if it has one (the corridor's centre line along +Y), else
+    one planned through ``free`` (``routes.plan_route`` with the preset's
+    ``route_settings``, at least the length the fastest flight needs; where there is none,
+    the slowest one's; where there is none either, any route, each with a warning) and cut
+    to the fastest flight's length where the part every flight flies turns most. A list of waypoints
+    [[x, y], ...] m: ``routes.route_from_waypoints``.
+
+    Args:
+        preset: a flight preset (``FlightConfig`` or a mapping of the keys that differ).
+        free: the free space of the camera.
+        own_route: (K, 2) m the world's own route, or None.
+        rng: random generator (planning).
+        where: the preset's config key (``flights.<name>``), for messages.
+
+    Returns:
+        (K, 2) m route.
+    """
+    preset = as_config(FlightConfig, preset, where)
+    route = preset.route
+    if isinstance(route, str) and route == "auto":
+        if own_route is not None:
+            return np.asarray(own_route, dtype=np.float64)
+        base = preset.route_settings
+        fallbacks = [replace(base, min_length=max(base.min_length, _route_needed(preset))),
+                     replace(base, min_length=_route_needed(preset, fastest=False)),
+                     replace(base, min_length=0.0, min_turns=0)]
+        for i, settings in enumerate(fallbacks):
+            try:
+                planned = plan_route(free, rng, settings)
+                break
+            except ValueError as err:
+                if i == len(fallbacks) - 1:
+                    raise ValueError(f"{where}.route: {err}") from None
+                log.warning("%s.route: %s; trying %s", where, err,
+                            "the slowest flight's length" if i == 0 else "any route")
+        return _stretch_with_turns(planned, preset)
+    if isinstance(route, str):
+        raise ValueError(f"{where}.route must be 'auto' or waypoints [[x, y], ...] (m), got "
+                         f"{route!r}")
+    try:
+        return route_from_waypoints(free, route, preset.route_settings)
+    except ValueError as err:
+        raise ValueError(f"{where}.route: {err}") from None
+
+
+# ---------------------------------------------------------------------- flights
+
+
+def _sway_room(route: np.ndarray, s: np.ndarray, free: OccupancyMap,
+               reach: float) -> np.ndarray:
+    """(N,) m a flight may sway across the route at arc lengths s (N,): the free run along
+    both normals (at most ``reach``), the smaller side, its minimum over +/- 1 m of route,
+    averaged over +/- 0.5 m (so never more than the room at s)."""
+    lo, hi = float(s.min()), float(s.max())
+    grid = np.arange(lo, hi + ROOM_STEP, ROOM_STEP)
+    xy, tangent = route_at(route, grid)
+    normal = np.stack([tangent[:, 1], -tangent[:, 0]], 1)  # right of the route
+    sides = [np.minimum(first_blocked(free, xy, xy + sign * reach * normal), reach)
+             for sign in (1, -1)]
+    room = np.maximum(np.minimum(*sides) - free.cell / 2, 0.0)
+    window = int(round(1.0 / ROOM_STEP))
+    room = ndimage.minimum_filter1d(room, 2 * window + 1, mode="nearest")
+    room = ndimage.uniform_filter1d(room, window + 1, mode="nearest")
+    return np.interp(s, grid, room)
 
 
 def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
-                      boxes: np.ndarray, z_range: np.ndarray,
+                      route: np.ndarray, free: OccupancyMap, z_range: np.ndarray,
                       trajectory: TrajectoryConfig | Mapping | None = None) -> np.ndarray:
-    """A smooth hand-flown copter flight along the corridor.
+    """A smooth hand-flown copter flight along a route.
 
-    The copter starts near one end of the main corridor box (the box longest along Y) and
-    flies towards the other with a smooth speed profile (speed-up, random variation,
-    slow-down), swaying sideways and in height and swinging its yaw about the flight
-    direction; roll and pitch follow the horizontal acceleration (a multirotor tilts to
-    accelerate) plus a small wobble. Position stays inside the main box and z_range.
+    The copter starts near the route's start (its end when ``reverse``) and flies along it
+    with a smooth speed profile (speed-up, random variation, slow-down), speed x duration
+    metres (less if the route is shorter), swaying across the route and in height and
+    swinging its yaw about the direction of travel; roll and pitch follow the horizontal
+    acceleration (a multirotor tilts to accelerate) plus a small wobble. The sway is
+    bounded by the free run across the route (``_sway_room``), so every position lies in a
+    free cell, and the height stays in z_range.
 
     Args:
         rng: random generator.
         num_frames: N.
         fps: frame rate (Hz).
-        boxes: (B, 4) free boxes [xmin, ymin, xmax, ymax] (m).
+        route: (K, 2) m, the route (``flight_route``), in free cells.
+        free: where the camera may be.
         z_range: (2,) allowed heights (m).
         trajectory: a flight preset's ``trajectory`` (``TrajectoryConfig``, or a mapping of
             the keys that differ from its defaults; None: the defaults).
 
     Returns:
         (N, 4, 4) world_from_body.
+
+    Raises:
+        ValueError: bad settings, or a route whose points are not in free cells.
     """
-    boxes, z = _check(boxes, z_range)
+    z = _check_z(z_range)
     if num_frames < 1 or fps <= 0:
         raise ValueError(f"need num_frames >= 1 and fps > 0, got {num_frames}, {fps}")
     c = as_config(TrajectoryConfig, trajectory, "flight.trajectory")
@@ -172,28 +307,43 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     N, dt = int(num_frames), 1.0 / float(fps)
     t = np.arange(N) * dt
     T = max(t[-1], dt)
-    x0, y0, x1, y1 = _main_box(boxes)
+    L = route_length(route)
 
-    # along the corridor: smooth monotone progress over distance D
+    # along the route: smooth monotone progress over distance D
     speed = rng.uniform(*_pair(c, "speed", where))
-    start = rng.uniform(*_pair(c, "start_offset", where))
-    start = min(start, 0.25 * (y1 - y0))
-    D = min(speed * T, (y1 - y0) - start - 0.05 * (y1 - y0))
+    start = min(rng.uniform(*_pair(c, "start_offset", where)), 0.25 * L)
+    D = min(speed * T, L - start - min(0.05 * L, END_MARGIN))
     ramp = min(c.ramp_s, T / 4)
     rise = np.clip(t / max(ramp, 1e-9), 0, 1)
     fall = np.clip((T - t) / max(ramp, 1e-9), 0, 1)
     envelope = (3 * rise**2 - 2 * rise**3) * (3 * fall**2 - 2 * fall**3) + 0.05
     var = min(c.speed_variation, 0.9)
     u = envelope * (1 + var * smooth_noise(rng, t, (0.03, 0.15)))
-    s = np.concatenate([[0.0], np.cumsum((u[1:] + u[:-1]) / 2)])
-    progress = s / s[-1] if s[-1] > 0 else np.zeros(N)
-    y = (y0 + start + D * progress) if not c.reverse else (y1 - start - D * progress)
+    cum = np.concatenate([[0.0], np.cumsum((u[1:] + u[:-1]) / 2)])
+    progress = cum / cum[-1] if cum[-1] > 0 else np.zeros(N)
+    s = start + D * progress if not c.reverse else L - start - D * progress
+    centre, tangent = route_at(route, s)
+    if not free.contains(centre).all():
+        raise ValueError("flight: the route leaves the free space; plan it on this map "
+                         "(flight_route)")
 
-    # lateral and height sway, centred so the extremes stay inside
+    # sway across the route (its right normal) and in height, centred so the extremes fit
     f_sway = _pair(c, "sway_freq_hz", where)
-    ax = min(c.sway_x, 0.45 * (x1 - x0))
-    xc = rng.uniform(x0 + ax, x1 - ax)
-    x = xc + ax * smooth_noise(rng, t, f_sway)
+    room = _sway_room(route, s, free, reach=max(c.sway_x, 0.0) + DRIFT)
+    mid_room = float(np.median(room))
+    ax = min(c.sway_x, 0.9 * mid_room)
+    offset = rng.uniform(-(mid_room - ax), mid_room - ax)
+    across = offset + ax * smooth_noise(rng, t, f_sway)
+    across *= np.minimum(1.0, room / max(abs(offset) + ax, 1e-9))
+    right = np.stack([tangent[:, 1], -tangent[:, 0]], 1)
+    xy = centre + across[:, None] * right
+    for _ in range(4):  # the room is sampled every ROOM_STEP: where a position slipped out
+        if free.contains(xy).all():
+            break
+        across *= 0.5
+        xy = centre + across[:, None] * right
+    else:
+        xy = centre
     az = min(c.sway_z, 0.45 * (z[1] - z[0]))
     h_lo, h_hi = _pair(c, "height", where)
     lo, hi = max(h_lo, z[0] + az), min(h_hi, z[1] - az)
@@ -201,14 +351,22 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
                                                             z[1] - az))
     height = zc + az * smooth_noise(rng, t, f_sway)
 
-    # yaw about the flight direction
-    heading = -np.pi / 2 if c.reverse else np.pi / 2
+    # yaw about the direction of travel
+    heading = np.arctan2(tangent[:, 1], tangent[:, 0]) + (np.pi if c.reverse else 0.0)
     yaw_amp = np.deg2rad(rng.uniform(*_pair(c, "yaw_amplitude_deg", where)))
     yaw = wrap_angle(heading + yaw_amp * smooth_noise(rng, t, _pair(c, "yaw_freq_hz", where)))
+    rpy = _tilts(rng, t, xy, yaw, c)
+    return pose_from_xyz_rpy(np.column_stack([xy, height]), rpy)
 
-    # roll / pitch from the horizontal acceleration, plus a little wobble
+
+def _tilts(rng: np.random.Generator, t: np.ndarray, xy: np.ndarray, yaw: np.ndarray,
+           c: TrajectoryConfig) -> np.ndarray:
+    """(N, 3) roll, pitch, yaw: roll / pitch from the horizontal acceleration of xy (N, 2) m at
+    times t (N,) s, plus a little wobble, clipped to ``max_tilt_deg``."""
+    N = len(t)
+    dt = t[1] - t[0] if N > 1 else 1.0
     if N >= 3:
-        acc = np.stack([np.gradient(np.gradient(v, dt), dt) for v in (x, y)], 1)
+        acc = np.stack([np.gradient(np.gradient(xy[:, i], dt), dt) for i in (0, 1)], 1)
     else:
         acc = np.zeros((N, 2))
     a_fwd = np.cos(yaw) * acc[:, 0] + np.sin(yaw) * acc[:, 1]
@@ -217,9 +375,8 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     pitch = np.arctan(a_fwd / GRAVITY) + wobble * smooth_noise(rng, t, (0.2, 1.0))
     roll = -np.arctan(a_left / GRAVITY) + wobble * smooth_noise(rng, t, (0.2, 1.0))
     max_tilt = np.deg2rad(c.max_tilt_deg)
-    rpy = np.stack([np.clip(roll, -max_tilt, max_tilt), np.clip(pitch, -max_tilt, max_tilt),
-                    yaw], 1)
-    return pose_from_xyz_rpy(np.stack([x, y, height], 1), rpy)
+    return np.stack([np.clip(roll, -max_tilt, max_tilt), np.clip(pitch, -max_tilt, max_tilt),
+                     yaw], 1)
 
 
 def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, fps: float,

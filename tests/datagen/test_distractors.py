@@ -7,21 +7,27 @@ import pytest
 import trimesh
 
 from core.config import typed
+from core.occupancy import OccupancyMap
 from datagen import distractors as D
 from datagen.config import DatagenConfig
 from tests.helpers import compose_config
 
-# the default corridor floor (x in [-1, 1], y in [0, 10]) with a side opening on the left,
-# shrunk by a small wall margin
-FLOOR = np.array([[-0.95, 0.05, 0.95, 9.95], [-2.95, 5.45, -0.95, 6.95]])
+# the default corridor floor (x in [-1, 1], y in [0, 10]) with a side opening on the left
+BOXES = np.array([[-1.0, 0.0, 1.0, 10.0], [-3.0, 5.4, -1.0, 7.0]])
+FLOOR = OccupancyMap.from_boxes(BOXES, (0.5, 2.2), cell=0.05)  # where things stand
+MAIN = OccupancyMap.from_boxes(BOXES[:1], (0.5, 2.2), cell=0.05)  # the corridor alone
+WALL_MARGIN = 0.05
 
 
-def inside_some_box(xy: np.ndarray, r: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """(K,) whether each circle lies entirely inside one of the boxes."""
-    lo, hi = boxes[None, :, :2], boxes[None, :, 2:]
-    ok = (xy[:, None] - r[:, None, None] >= lo - 1e-9) & (xy[:, None] + r[:, None, None]
-                                                          <= hi + 1e-9)
-    return ok.all(-1).any(-1)
+def circles_inside(xy: np.ndarray, r: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(K,) whether each circle lies entirely inside the union of the boxes (its rim, 64
+    points, and its centre)."""
+    a = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    rim = xy[:, None] + r[:, None, None] * np.stack([np.cos(a), np.sin(a)], 1)[None]
+    pts = np.concatenate([rim, xy[:, None]], axis=1)
+    inside = ((pts[..., None, :] >= boxes[:, :2] - 1e-9)
+              & (pts[..., None, :] <= boxes[:, 2:] + 1e-9)).all(-1).any(-1)
+    return inside.all(1)
 
 
 class TestMeshes:
@@ -76,7 +82,7 @@ class TestPlaceObjects:
         for seed in range(20):
             rng = np.random.default_rng(seed)
             radii = rng.uniform(0.15, 0.6, 10)
-            xy_yaw, placed = D.place_objects(rng, radii, FLOOR, keep)
+            xy_yaw, placed = D.place_objects(rng, radii, FLOOR, keep, wall_margin=WALL_MARGIN)
             assert xy_yaw.shape == (10, 3) and placed.shape == (10,)
             assert placed.sum() >= 6
             assert np.isnan(xy_yaw[~placed]).all()
@@ -84,7 +90,7 @@ class TestPlaceObjects:
             d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
             gap = d - r[:, None] - r[None]
             assert np.all(gap[~np.eye(len(r), dtype=bool)] >= -1e-9)
-            assert inside_some_box(xy, r, FLOOR).all()
+            assert circles_inside(xy, r + WALL_MARGIN, BOXES).all()
             dk = np.linalg.norm(xy[:, None] - keep[None, :, :2], axis=-1)
             assert np.all(dk >= r[:, None] + keep[None, :, 2] - 1e-9)
             assert np.all(np.abs(xy_yaw[placed, 2]) <= np.pi)
@@ -95,10 +101,18 @@ class TestPlaceObjects:
 
     def test_against_walls(self):
         rng = np.random.default_rng(1)
-        radii = np.full(4, 0.3)
-        xy_yaw, placed = D.place_objects(rng, radii, FLOOR[:1], against_walls=1.0)
+        radii = np.full(12, 0.3)
+        xy_yaw, placed = D.place_objects(rng, radii, MAIN, against_walls=1.0,
+                                         wall_margin=WALL_MARGIN)
         assert placed.all()
-        np.testing.assert_allclose(np.abs(xy_yaw[:, 0]), 0.95 - 0.3, atol=1e-9)
+        x, y, yaw = xy_yaw.T
+        gaps = np.stack([1 - x, 1 + x, 10 - y, y], 1)  # to the walls +x, -x, +y, -y
+        nearest = gaps.min(1)
+        assert np.all(nearest >= 0.3 + WALL_MARGIN - 1e-9)
+        assert np.all(nearest <= 0.3 + WALL_MARGIN + 0.05 + 1e-9)  # touching, within a cell
+        away = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]])[gaps.argmin(1)]
+        facing = np.cos(yaw) * away[:, 0] + np.sin(yaw) * away[:, 1]
+        assert np.all(facing > np.cos(np.deg2rad(46)))  # +x away from the wall (corners: 45)
 
     def test_deterministic(self):
         radii = np.array([0.4, 0.3, 0.2])
@@ -106,8 +120,8 @@ class TestPlaceObjects:
         b = D.place_objects(np.random.default_rng(5), radii, FLOOR)
         np.testing.assert_array_equal(a[0], b[0])
 
-    def test_bad_boxes(self):
-        with pytest.raises(ValueError, match="boxes"):
+    def test_bad_floor(self):
+        with pytest.raises(TypeError, match="OccupancyMap"):
             D.place_objects(np.random.default_rng(0), [0.2], np.array([[1.0, 0.0, 0.0, 1.0]]))
 
     def test_object_poses(self):
@@ -120,11 +134,10 @@ class TestPersonTracks:
         fps, radius = 10.0, 0.3
         for seed in range(4):
             rng = np.random.default_rng(seed)
-            tracks = D.person_tracks(rng, 3, 200, fps, FLOOR[:1], radius=radius)
+            tracks = D.person_tracks(rng, 3, 200, fps, MAIN, radius=radius)
             assert tracks.shape == (3, 200, 3)
             xy = tracks[..., :2]
-            lo, hi = FLOOR[0, :2] + radius, FLOOR[0, 2:] - radius
-            assert np.all((xy >= lo - 1e-9) & (xy <= hi + 1e-9))
+            assert circles_inside(xy.reshape(-1, 2), np.full(600, radius), BOXES[:1]).all()
             step = np.diff(xy, axis=1)
             speed = np.linalg.norm(step, axis=-1) * fps
             assert speed.max() <= 1.4 + 1e-6
@@ -141,7 +154,7 @@ class TestPersonTracks:
         rng = np.random.default_rng(2)
         obstacles = np.array([[0.6, 3.0, 0.3], [-0.6, 7.0, 0.3]])
         camera = np.column_stack([np.zeros(150), np.linspace(1, 9, 150)])
-        tracks = D.person_tracks(rng, 2, 150, 10.0, FLOOR[:1], obstacles=obstacles,
+        tracks = D.person_tracks(rng, 2, 150, 10.0, MAIN, obstacles=obstacles,
                                  avoid=camera, avoid_radius=0.4)
         xy = tracks[..., :2]
         d_obs = np.linalg.norm(xy[:, :, None] - obstacles[None, None, :, :2], axis=-1)

@@ -138,6 +138,9 @@ class TestBadConfig:
         ("flights.cluttered.distractors=crowd", "unknown preset 'crowd'"),
         ("shard=2", "shard=2"),
         ("flights.cluttered.num_frames=0", "flights.cluttered: num_frames"),
+        ("flights.cluttered.route=[[0,1],[0,50]]", r"flights.cluttered.route: .*waypoint 1"),
+        ("flights.cluttered.route=[[-2,6.2],[0,9]]", r"flights.cluttered.route: .*blocked"),
+        ("flights.paper.route=spiral", r"flights.paper.route must be 'auto'"),
     ])
     def test_clear_error_before_rendering(self, tmp_path, override, match):
         out = tmp_path / "bad"

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from core.occupancy import OccupancyMap
 from core.poses import xyzyaw_from_pose
 from datagen import trajectories as TR
 from datagen.config import OdometryConfig
@@ -17,6 +18,8 @@ from tests.helpers import compose_config
 CONF = Path(__file__).resolve().parents[2] / "conf"
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 Z = np.array([0.5, 2.2])
+FREE = OccupancyMap.from_boxes(BOXES, Z, cell=0.05, margin=0.3)  # the corridor's free space
+ROUTE = np.array([[0.0, 0.3], [0.0, 9.7]])  # its own route, the centre line
 
 
 @pytest.fixture(scope="module")
@@ -42,14 +45,12 @@ def assert_rigid(T: np.ndarray) -> None:
 
 class TestTrainingPoses:
     def test_inside_and_bounded(self):
-        T = TR.sample_training_poses(np.random.default_rng(0), 4000, BOXES, Z, 5.0,
+        T = TR.sample_training_poses(np.random.default_rng(0), 4000, FREE, Z, 5.0,
                                      along_fraction=0.0)
         assert T.shape == (4000, 4, 4)
         assert_rigid(T)
         p = T[:, :3, 3]
-        in_box = ((p[:, None, 0] >= BOXES[:, 0]) & (p[:, None, 0] <= BOXES[:, 2])
-                  & (p[:, None, 1] >= BOXES[:, 1]) & (p[:, None, 1] <= BOXES[:, 3]))
-        assert in_box.any(1).all()
+        assert FREE.contains(p[:, :2]).all()
         assert np.all((p[:, 2] >= Z[0]) & (p[:, 2] <= Z[1]))
         angles = rpy(T)
         assert np.abs(angles[:, :2]).max() <= np.deg2rad(5.0) + 1e-9
@@ -57,11 +58,12 @@ class TestTrainingPoses:
         hist = np.histogram(angles[:, 2], bins=8, range=(-np.pi, np.pi))[0]
         assert hist.min() > 0.7 * 4000 / 8
         area = np.prod(BOXES[:, 2:] - BOXES[:, :2], axis=1)
-        in_opening = (p[:, 0] < -0.7).mean()
+        in_opening = (p[:, 0] < -0.725).mean()
         assert in_opening == pytest.approx(area[1] / area.sum(), abs=0.02)
 
     def test_along_corridor_share(self):
-        T = TR.sample_training_poses(np.random.default_rng(1), 4000, BOXES, Z, 5.0,
+        main = OccupancyMap.from_boxes(BOXES[:1], Z, cell=0.05, margin=0.3)
+        T = TR.sample_training_poses(np.random.default_rng(1), 4000, main, Z, 5.0,
                                      along_fraction=0.75, along_spread_deg=30.0)
         yaw = rpy(T)[:, 2]
         off_axis = np.abs(np.abs(yaw) - np.pi / 2)  # angle from the nearest of +Y, -Y
@@ -70,24 +72,22 @@ class TestTrainingPoses:
         assert near.mean() == pytest.approx(0.75 + 0.25 / 3, abs=0.03)
         assert (yaw > 0).mean() == pytest.approx(0.5, abs=0.04)  # both directions
         with pytest.raises(ValueError, match="yaw_along_corridor"):
-            TR.sample_training_poses(np.random.default_rng(0), 3, BOXES, Z, along_fraction=1.5)
+            TR.sample_training_poses(np.random.default_rng(0), 3, FREE, Z, along_fraction=1.5)
 
     def test_deterministic(self):
-        a = TR.sample_training_poses(np.random.default_rng(4), 10, BOXES, Z)
-        b = TR.sample_training_poses(np.random.default_rng(4), 10, BOXES, Z)
+        a = TR.sample_training_poses(np.random.default_rng(4), 10, FREE, Z)
+        b = TR.sample_training_poses(np.random.default_rng(4), 10, FREE, Z)
         np.testing.assert_array_equal(a, b)
 
     def test_bad_input(self):
         with pytest.raises(ValueError, match="z_range"):
-            TR.sample_training_poses(np.random.default_rng(0), 3, BOXES, [2.0, 1.0])
-        with pytest.raises(ValueError, match="boxes"):
-            TR.sample_training_poses(np.random.default_rng(0), 3, np.zeros((0, 4)), Z)
+            TR.sample_training_poses(np.random.default_rng(0), 3, FREE, [2.0, 1.0])
 
 
 class TestFlightViews:
     def test_posed_as_the_flights(self, flights):
         presets = [flights["paper"], flights["cluttered"]]
-        T = TR.sample_flight_views(np.random.default_rng(0), 300, BOXES, Z, presets)
+        T = TR.sample_flight_views(np.random.default_rng(0), 300, FREE, Z, presets, [ROUTE] * 2)
         assert T.shape == (300, 4, 4)
         assert_rigid(T)
         s = xyzyaw_from_pose(T)
@@ -98,12 +98,13 @@ class TestFlightViews:
         assert off_axis.max() <= np.deg2rad(40.0) + 1e-9  # the presets' largest yaw swing
         assert (s[:, 3] > 0).mean() == pytest.approx(0.5, abs=0.1)
         assert np.abs(rpy(T)[:, :2]).max() <= np.deg2rad(8.0) + 1e-9
-        again = TR.sample_flight_views(np.random.default_rng(0), 300, BOXES, Z, presets)
+        again = TR.sample_flight_views(np.random.default_rng(0), 300, FREE, Z, presets,
+                                       [ROUTE] * 2)
         np.testing.assert_array_equal(T, again)
 
     def test_needs_a_preset(self):
         with pytest.raises(ValueError, match="flight_views"):
-            TR.sample_flight_views(np.random.default_rng(0), 2, BOXES, Z, [])
+            TR.sample_flight_views(np.random.default_rng(0), 2, FREE, Z, [], [])
 
 
 class TestFlight:
@@ -112,7 +113,7 @@ class TestFlight:
         cfg = flights[preset]
         fps, n = cfg.fps, cfg.num_frames
         for seed in range(5):
-            T = TR.flight_trajectory(np.random.default_rng(seed), n, fps, BOXES, Z,
+            T = TR.flight_trajectory(np.random.default_rng(seed), n, fps, ROUTE, FREE, Z,
                                      cfg.trajectory)
             assert T.shape == (n, 4, 4)
             assert_rigid(T)
@@ -142,7 +143,7 @@ class TestFlight:
 
     def test_pitch_follows_acceleration(self, flights):
         cfg = replace(flights["paper"].trajectory, tilt_noise_deg=0.0)
-        T = TR.flight_trajectory(np.random.default_rng(0), 240, 10.0, BOXES, Z, cfg)
+        T = TR.flight_trajectory(np.random.default_rng(0), 240, 10.0, ROUTE, FREE, Z, cfg)
         s = xyzyaw_from_pose(T)
         acc = np.gradient(np.gradient(s[:, :2], 0.1, axis=0), 0.1, axis=0)
         a_fwd = np.cos(s[:, 3]) * acc[:, 0] + np.sin(s[:, 3]) * acc[:, 1]
@@ -150,31 +151,34 @@ class TestFlight:
 
     def test_reverse(self, flights):
         cfg = replace(flights["paper"].trajectory, reverse=True)
-        s = xyzyaw_from_pose(TR.flight_trajectory(np.random.default_rng(0), 100, 10.0, BOXES,
-                                                  Z, cfg))
+        s = xyzyaw_from_pose(TR.flight_trajectory(np.random.default_rng(0), 100, 10.0, ROUTE,
+                                                  FREE, Z, cfg))
         assert s[-1, 1] < s[0, 1]
 
     def test_deterministic(self, flights):
         cfg = flights["paper"].trajectory
-        a = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, cfg)
-        b = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, BOXES, Z, cfg)
+        a = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, ROUTE, FREE, Z, cfg)
+        b = TR.flight_trajectory(np.random.default_rng(3), 50, 10.0, ROUTE, FREE, Z, cfg)
         np.testing.assert_array_equal(a, b)
 
     def test_defaults_and_bad_input(self):
-        T = TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, BOXES, Z, None)
+        T = TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, ROUTE, FREE, Z, None)
         assert T.shape == (30, 4, 4)
         with pytest.raises(ValueError, match="num_frames"):
-            TR.flight_trajectory(np.random.default_rng(0), 0, 10.0, BOXES, Z, None)
+            TR.flight_trajectory(np.random.default_rng(0), 0, 10.0, ROUTE, FREE, Z, None)
         with pytest.raises(ValueError, match="speed"):
-            TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, BOXES, Z,
+            TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, ROUTE, FREE, Z,
                                  {"speed": [0.8, 0.2]})
+        with pytest.raises(ValueError, match="leaves the free space"):
+            TR.flight_trajectory(np.random.default_rng(0), 30, 10.0, ROUTE + [1.5, 0.0], FREE,
+                                 Z, None)
 
 
 class TestOdometry:
     def make(self, flights, seed):
         cfg = flights["paper"]
         rng = np.random.default_rng(seed)
-        gt = TR.flight_trajectory(rng, cfg.num_frames, cfg.fps, BOXES, Z, cfg.trajectory)
+        gt = TR.flight_trajectory(rng, cfg.num_frames, cfg.fps, ROUTE, FREE, Z, cfg.trajectory)
         return gt, TR.noisy_odometry(rng, gt, cfg.fps, cfg.odometry)
 
     def test_starts_at_truth_keeps_roll_pitch(self, flights):
@@ -204,14 +208,15 @@ class TestOdometry:
 
     def test_noise_free_is_exact(self, flights):
         zero = OdometryConfig(**{f.name: 0.0 for f in fields(OdometryConfig)})
-        gt = TR.flight_trajectory(np.random.default_rng(1), 60, 10.0, BOXES, Z,
+        gt = TR.flight_trajectory(np.random.default_rng(1), 60, 10.0, ROUTE, FREE, Z,
                                   flights["paper"].trajectory)
         od = TR.noisy_odometry(np.random.default_rng(1), gt, 10.0, zero)
         np.testing.assert_allclose(od, gt, atol=1e-9)
 
     def test_deterministic_and_bad_input(self, flights):
         paper = flights["paper"]
-        gt = TR.flight_trajectory(np.random.default_rng(1), 30, 10.0, BOXES, Z, paper.trajectory)
+        gt = TR.flight_trajectory(np.random.default_rng(1), 30, 10.0, ROUTE, FREE, Z,
+                                  paper.trajectory)
         a = TR.noisy_odometry(np.random.default_rng(2), gt, paper.fps, paper.odometry)
         b = TR.noisy_odometry(np.random.default_rng(2), gt, paper.fps, paper.odometry)
         np.testing.assert_array_equal(a, b)
