@@ -280,20 +280,26 @@ class ModelEdgeSettings:
 
     Attributes:
         spacing: metres between samples along a segment.
+        min_length: metres; shorter segments are not sampled (tessellation crumbs of curved
+            surfaces). Segments with no structural class on either side (clutter, people,
+            void only) never are.
     """
 
     spacing: float = 0.1
+    min_length: float = 0.0
 
 
 @dataclass
 class VisibilitySettings:
-    """``visibility``: the occlusion grid (``localize.visibility``; cached under
-    ``<report>/cache/``).
+    """``visibility``: the samples visible from each camera cell (``localize.visibility``;
+    cached under ``<report>/cache/``).
 
     Attributes:
         cell_xy, cell_z: grid cell size, metres.
         pad: metres the grid extends beyond the free space.
         eps: metres of surface tolerance at a sample.
+        max_range: metres; samples farther from a cell are not cast nor scored (memory and
+            time grow with the samples within it).
         variant: Mitsuba variant of the ray casts.
     """
 
@@ -301,6 +307,7 @@ class VisibilitySettings:
     cell_z: float = 0.25
     pad: float = 0.3
     eps: float = 0.02
+    max_range: float = 15.0
     variant: str = "auto"
 
 
