@@ -125,17 +125,26 @@ class SparseVisibility:
         rows = self.rows(positions)
         return self.visible_in(rows, np.arange(self.num_samples))
 
-    def select(self, cols: np.ndarray) -> SparseVisibility:
-        """The lists for a subset of the samples: ``cols`` (ascending) become ids 0..C-1."""
+    def select(self, cols: np.ndarray, chunk: int = 1 << 22) -> SparseVisibility:
+        """The lists for a subset of the samples: ``cols`` (ascending) become ids 0..C-1
+        (``chunk`` ids at a time, bounding the temporaries)."""
         cols = np.asarray(cols, dtype=np.int64)
         new = np.full(self.num_samples, -1, dtype=np.int64)
         new[cols] = np.arange(len(cols))
-        mapped = new[self.ids]
-        keep = mapped >= 0
-        csum = np.concatenate([[0], np.cumsum(keep)])
+        ids, indptr = [np.zeros(0, np.uint32)], np.zeros(len(self.indptr), np.int64)
+        done, lo = 0, 0  # ids kept so far; first row pointer not yet set
+        for a in range(0, len(self.ids), chunk):
+            mapped = new[self.ids[a:a + chunk]]
+            keep = mapped >= 0
+            ids.append(mapped[keep].astype(np.uint32))
+            before = np.cumsum(keep)  # kept up to and including each position
+            hi = np.searchsorted(self.indptr, a + len(keep), side="right")
+            p = self.indptr[lo:hi] - a  # row pointers in this chunk
+            indptr[lo:hi] = done + np.where(p > 0, before[np.maximum(p - 1, 0)], 0)
+            done, lo = done + int(before[-1]), hi
+        indptr[lo:] = done
         return SparseVisibility(self.origin, self.cell, self.shape, self.row_of, self.flat,
-                                csum[self.indptr], mapped[keep].astype(np.uint32), len(cols),
-                                self.max_range)
+                                indptr, np.concatenate(ids), len(cols), self.max_range)
 
 
 def free_map(world: World) -> OccupancyMap:

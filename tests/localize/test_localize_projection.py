@@ -248,6 +248,9 @@ class TestAgainstRender:
         c = vis.centres()
         np.testing.assert_array_equal(sub.mask(c), vis.mask(c)[:, cols])
         assert sub.num_samples == len(cols)
+        small = vis.select(cols, chunk=7)  # chunk borders inside and between rows
+        np.testing.assert_array_equal(small.indptr, sub.indptr)
+        np.testing.assert_array_equal(small.ids, sub.ids)
 
     def test_cache_round_trip(self, small_world, scene, tmp_path):
         s = scene[0]
