@@ -45,9 +45,11 @@ class LikelihoodParams:
         class_pairs: match each model sample only to image edges between its own two classes
             (label modes).
         near: samples closer to the camera than this are dropped, metres.
-        chunk: particles scored per block.
+        chunk: particles scored per block (a block projects the samples its particles' cells
+            see: with visibility lists, larger blocks cost less per particle while tracking).
         workers: threads scoring the blocks and the score maps (1: the calling thread).
-            Neither ``chunk`` nor ``workers`` changes a result.
+            Neither ``chunk`` nor ``workers`` changes a result (with visibility lists, the
+            samples a block culls may move a score by float64 rounding, ~1e-16).
     """
 
     alpha: float = 1.0

@@ -111,11 +111,13 @@ class SparseVisibility:
         return mark
 
     def visible_in(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """(N, C) bool: sample ``cols[c]`` visible from row ``rows[n]``; ``cols`` ascending."""
+        """(N, C) bool: sample ``cols[c]`` visible from row ``rows[n]``; ``cols`` distinct."""
         urows, inv = np.unique(rows, return_inverse=True)
         ids, which = self._gather(urows)
-        at = np.minimum(np.searchsorted(cols, ids), max(len(cols) - 1, 0))
-        hit = np.zeros(len(ids), dtype=bool) if len(cols) == 0 else cols[at] == ids
+        pos = np.full(self.num_samples, -1, dtype=np.int64)
+        pos[cols] = np.arange(len(cols))
+        at = pos[ids]
+        hit = at >= 0
         out = np.zeros((len(urows), len(cols)), dtype=bool)
         out[which[hit], at[hit]] = True
         return out[inv.ravel()]
