@@ -83,10 +83,16 @@ from localize.projection import (
     image_directions,
     in_view_cone,
     pixel_index,
+    pixel_index_each,
     projection_matrices,
     view_half_width,
 )
 from localize.visibility import SparseVisibility
+
+#: a block of particles projects the union of its cells' visible samples unless that union
+#: is more than this many times one cell's list (particles spread over the floor): then each
+#: particle projects its own list (evidence aggregate only).
+EACH_RATIO = 2.0
 
 
 @dataclass
@@ -379,24 +385,22 @@ class EdgeLikelihood:
         return score, quality, lines
 
     def _seen(self, rows: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
-              half_width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              half_width: float) -> np.ndarray | None:
         """The samples a block of particles may see: visible from one of ``rows`` and within
         the azimuths the cameras (``centres`` (n, 3), ``yaws`` (n,)) see
-        (``in_view_cone``); at least one.
-
-        Returns:
-            live (C,) their ids, ascending; lines (L,) the sampled segments they lie on
-            (indices into ``samples.starts``); line_of (C,) each one's position in ``lines``.
+        (``in_view_cone``), (C,) ascending, at least one; None when they are more than
+        ``EACH_RATIO`` times a particle's list and only the evidence is scored (then each
+        particle projects its own list: ``_project``).
         """
-        s = self.samples
+        s, p = self.samples, self.params
         mark = self.visibility.union(rows)
         cand = np.flatnonzero(mark)
-        mark[cand[~in_view_cone(s.points[cand], centres, yaws, half_width)]] = False
-        live = np.flatnonzero(mark)
-        if len(live) == 0:
-            live = np.zeros(1, np.int64)  # nothing visible: one sample, masked
-        lines, line_of = np.unique(s.run[live], return_inverse=True)
-        return live, lines, line_of.ravel()
+        cone = in_view_cone(s.points[cand], centres, yaws, half_width)
+        if (p.aggregate == "evidence" and p.lines_ref <= 0 and cone.all()
+                and len(cand) > EACH_RATIO * self.visibility.counts()[rows].mean()):
+            return None
+        live = cand[cone]
+        return live if len(live) else np.zeros(1, np.int64)  # none: one sample, masked
 
     def _project(self, states: np.ndarray, near: tuple | None, tilt: np.ndarray | None,
                  bins: int) -> tuple:
@@ -404,21 +408,33 @@ class EdgeLikelihood:
 
         Returns:
             idx (n, C) int32 flat pixel (plus the orientation bin's map offset when ``bins``),
-            valid (n, C) bool, cols (C,) the sample ids, starts (L,) each line's first
-            column, lines (L,) the lines (None: all of them, in order).
+            valid (n, C) bool, cols (C,) the sample ids (or (n, C), each particle's own, when
+            ``_seen`` says so), starts (L,) each line's first column, lines (L,) the lines
+            (None: all of them, in order; both None for particles' own lists).
         """
         p, cam, s = self.params, self.camera, self.samples
         W, H = cam.width, cam.height
         proj = projection_matrices(cam_from_world(states, cam.body_from_cam, tilt), cam.K)
+        cols = None if near is None else self._seen(near[0], near[1], states[:, 3], near[2])
         if near is None:
             cols, starts, lines = slice(None), self._starts, None
             idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
+        elif cols is None:  # each particle its own list: evidence only, no lines
+            ids = self.visibility.ids_of(near[0])
+            cols = np.maximum(ids, 0)
+            idx, valid, xh = pixel_index_each(proj, s.points_h, cols, W, H, p.near)
+            valid &= ids >= 0
+            if bins:  # per sample: (n, K) directions
+                d = proj[:, :, :3] @ s.dirs.T[:, cols].transpose(1, 0, 2)
+                self._add_bin(idx, d[:, 0] * xh[:, 2] - xh[:, 0] * d[:, 2],
+                              d[:, 1] * xh[:, 2] - xh[:, 1] * d[:, 2], bins, None)
+            return idx, valid, cols, None, None
         else:
-            rows, centres, half = near
-            cols, lines, line_of = self._seen(rows, centres, states[:, 3], half)
+            lines, line_of = np.unique(s.run[cols], return_inverse=True)
+            line_of = line_of.ravel()
             starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
             idx, valid, xh = pixel_index(proj, s.points_h[:, cols], W, H, p.near)
-            valid &= self.visibility.visible_in(rows, cols)
+            valid &= self.visibility.visible_in(near[0], cols)
         if bins:
             # a 3D segment projects onto one image line: (du, dv) is the same at each of its
             # samples (``image_directions``), so its bin is found once, at its first sample
@@ -428,12 +444,19 @@ class EdgeLikelihood:
                 seg_dirs = self._segment_dirs[lines]
                 xh0 = pixel_index(proj, s.points_h[:, s.starts[lines]], W, H, p.near)[2]
             du, dv = image_directions(proj, seg_dirs, xh0)
-            # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
-            theta = np.arctan2(du, -dv)
-            b = np.rint(theta * np.float32(bins / np.pi)).astype(np.int32) % bins
-            b *= np.int32(W * H)
-            idx += b[:, s.run[cols] if lines is None else line_of]
+            self._add_bin(idx, du, dv, bins, s.run[cols] if lines is None else line_of)
         return idx, valid, cols, starts, lines
+
+    def _add_bin(self, idx: np.ndarray, du: np.ndarray, dv: np.ndarray, bins: int,
+                 line: np.ndarray | None) -> None:
+        """Offset ``idx`` by the score map of each sample's orientation bin, from the image
+        direction (du, dv) of its line: per line (n, L) with ``line`` (C,) each column's
+        line, or per column (n, C) with None."""
+        # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
+        theta = np.arctan2(du, -dv)
+        b = np.rint(theta * np.float32(bins / np.pi)).astype(np.int32) % bins
+        b *= np.int32(self.camera.width * self.camera.height)
+        idx += b if line is None else b[:, line]
 
     def _line_sums(self, g: np.ndarray, cols: np.ndarray, lines: np.ndarray | None,
                    starts: np.ndarray) -> np.ndarray:

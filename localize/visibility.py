@@ -97,7 +97,11 @@ class SparseVisibility:
     def lookup(self, positions: np.ndarray) -> np.ndarray:
         """(N, K) int64 ids of the samples visible from each camera centre (N, 3), ascending,
         padded with -1; K the longest of the N lists."""
-        rows = self.rows(positions)
+        return self.ids_of(self.rows(positions))
+
+    def ids_of(self, rows: np.ndarray) -> np.ndarray:
+        """(N, K) int64 ids of the samples visible from each of ``rows`` (N,), ascending,
+        padded with -1; K the longest of the N lists."""
         ids, which = self._gather(rows)
         n = np.diff(self.indptr)[rows]
         out = np.full((len(rows), int(n.max(initial=0))), -1, dtype=np.int64)
