@@ -2,11 +2,12 @@
 
 For every particle the model edge samples (``projection.ModelSamples``) are projected into its
 camera; samples behind the camera, outside the image or occluded (``visibility``) are dropped.
-With visibility lists, a block of particles projects only the segments (whole lines, so a
-line's sums run over the same samples in the same order) that have a sample visible from one
-of its particles' cells; the particles are grouped by cell (rows are ordered tile by tile), so
-a block's union stays near one particle's list. Work per frame grows with what the cameras can
-see, not with the building.
+With visibility lists (``visibility.SparseVisibility``) the particles are grouped by cell
+(rows run tile by tile) and a block of them projects only the samples its cells see and its
+cameras face (``projection.in_view_cone``); a line's sums still run over all its samples, the
+others 0, so the scores are those of projecting everything. A block spread over the floor
+(global start) projects each particle's own list instead. Work per frame grows with what the
+cameras can see, not with the building.
 Each remaining sample reads ``g(d) = exp(-d^2 / (2 sigma^2))`` from a precomputed score map,
 where d is the distance from the pixel to the nearest image edge:
 
@@ -415,21 +416,13 @@ class EdgeLikelihood:
         p, cam, s = self.params, self.camera, self.samples
         W, H = cam.width, cam.height
         proj = projection_matrices(cam_from_world(states, cam.body_from_cam, tilt), cam.K)
-        cols = None if near is None else self._seen(near[0], near[1], states[:, 3], near[2])
         if near is None:
             cols, starts, lines = slice(None), self._starts, None
             idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
-        elif cols is None:  # each particle its own list: evidence only, no lines
-            ids = self.visibility.ids_of(near[0])
-            cols = np.maximum(ids, 0)
-            idx, valid, xh = pixel_index_each(proj, s.points_h, cols, W, H, p.near)
-            valid &= ids >= 0
-            if bins:  # per sample: (n, K) directions
-                d = proj[:, :, :3] @ s.dirs.T[:, cols].transpose(1, 0, 2)
-                self._add_bin(idx, d[:, 0] * xh[:, 2] - xh[:, 0] * d[:, 2],
-                              d[:, 1] * xh[:, 2] - xh[:, 1] * d[:, 2], bins, None)
-            return idx, valid, cols, None, None
         else:
+            cols = self._seen(near[0], near[1], states[:, 3], near[2])
+            if cols is None:
+                return self._project_each(proj, near[0], bins)
             lines, line_of = np.unique(s.run[cols], return_inverse=True)
             line_of = line_of.ravel()
             starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
@@ -446,6 +439,21 @@ class EdgeLikelihood:
             du, dv = image_directions(proj, seg_dirs, xh0)
             self._add_bin(idx, du, dv, bins, s.run[cols] if lines is None else line_of)
         return idx, valid, cols, starts, lines
+
+    def _project_each(self, proj: np.ndarray, rows: np.ndarray, bins: int) -> tuple:
+        """``_project`` with each particle's own list (evidence only, no lines): cols (n, K)
+        the ids of the samples its row sees, padded (and masked) with sample 0."""
+        s, cam = self.samples, self.camera
+        ids = self.visibility.ids_of(rows)
+        cols = np.maximum(ids, 0)
+        idx, valid, xh = pixel_index_each(proj, s.points_h, cols, cam.width, cam.height,
+                                          self.params.near)
+        valid &= ids >= 0
+        if bins:  # each sample's own line direction (n, 3, K)
+            d = proj[:, :, :3] @ s.dirs.T[:, cols].transpose(1, 0, 2)
+            self._add_bin(idx, d[:, 0] * xh[:, 2] - xh[:, 0] * d[:, 2],
+                          d[:, 1] * xh[:, 2] - xh[:, 1] * d[:, 2], bins, None)
+        return idx, valid, cols, None, None
 
     def _add_bin(self, idx: np.ndarray, du: np.ndarray, dv: np.ndarray, bins: int,
                  line: np.ndarray | None) -> None:
