@@ -343,9 +343,9 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
     centres = vis.centres()
     tree = cKDTree(points)
     near = tree.query_ball_point(centres, max_range, return_length=True)
-    caster = RayCaster(world, variant) if len(points) else None
+    caster = RayCaster(world, variant) if near.any() else None
     ids, counts = [], np.zeros(len(flat), dtype=np.int64)
-    for b in _batches(near, chunk):
+    for b in _batches(near, chunk) if near.any() else []:
         pairs = cKDTree(centres[b]).sparse_distance_matrix(tree, max_range,
                                                            output_type="ndarray")
         i, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
