@@ -41,10 +41,10 @@ from localize.localizer import mode_likelihood_params  # noqa: E402
 from localize.particle_filter import estimate as estimate_pose  # noqa: E402
 from localize.projection import ModelSamples, tilt_from_pose  # noqa: E402
 from localize.runner import Context, load_runs, prepare  # noqa: E402
-from localize.visibility import VisibilityGrid  # noqa: E402
+from localize.visibility import SparseVisibility  # noqa: E402
 
 
-def pair_likelihoods(samples: ModelSamples, vis: VisibilityGrid, sample_pairs: np.ndarray,
+def pair_likelihoods(samples: ModelSamples, vis: SparseVisibility, sample_pairs: np.ndarray,
                      camera, params) -> dict[str, EdgeLikelihood]:
     """``{"all": ..., <pair code>: ...}``: the likelihood of all samples and of each class
     pair's samples alone (pair codes as strings), with the same settings."""

@@ -90,7 +90,7 @@ def main() -> None:
           f"{a.images} views")
     model = build_world(cfg["world"])
     run("corridor", corridor_scene(model),
-        views(OccupancyMap.from_boxes(model.world.free_boxes, model.world.z_range, 0.05),
+        views(model.world.free,
               a.images, 0, 1.3), cfg)
     if not HOSPITAL.is_file():
         print(f"{HOSPITAL} absent: hospital skipped")

@@ -45,9 +45,11 @@ class LikelihoodParams:
         class_pairs: match each model sample only to image edges between its own two classes
             (label modes).
         near: samples closer to the camera than this are dropped, metres.
-        chunk: particles scored per block.
+        chunk: particles scored per block (a block projects the samples its particles' cells
+            see: with visibility lists, larger blocks cost less per particle while tracking).
         workers: threads scoring the blocks and the score maps (1: the calling thread).
-            Neither ``chunk`` nor ``workers`` changes a result.
+            Neither ``chunk`` nor ``workers`` changes a result (with visibility lists, the
+            samples a block culls may move a score by float64 rounding, ~1e-16).
     """
 
     alpha: float = 1.0
@@ -280,20 +282,26 @@ class ModelEdgeSettings:
 
     Attributes:
         spacing: metres between samples along a segment.
+        min_length: metres; shorter segments are not sampled (tessellation crumbs of curved
+            surfaces). Segments with no structural class on either side (clutter, people,
+            void only) never are.
     """
 
     spacing: float = 0.1
+    min_length: float = 0.0
 
 
 @dataclass
 class VisibilitySettings:
-    """``visibility``: the occlusion grid (``localize.visibility``; cached under
-    ``<report>/cache/``).
+    """``visibility``: the samples visible from each camera cell (``localize.visibility``;
+    cached under ``<report>/cache/``).
 
     Attributes:
         cell_xy, cell_z: grid cell size, metres.
         pad: metres the grid extends beyond the free space.
         eps: metres of surface tolerance at a sample.
+        max_range: metres; samples farther from a cell are not cast nor scored (memory and
+            time grow with the samples within it).
         variant: Mitsuba variant of the ray casts.
     """
 
@@ -301,6 +309,7 @@ class VisibilitySettings:
     cell_z: float = 0.25
     pad: float = 0.3
     eps: float = 0.02
+    max_range: float = 15.0
     variant: str = "auto"
 
 

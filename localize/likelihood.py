@@ -2,6 +2,12 @@
 
 For every particle the model edge samples (``projection.ModelSamples``) are projected into its
 camera; samples behind the camera, outside the image or occluded (``visibility``) are dropped.
+With visibility lists (``visibility.SparseVisibility``) the particles are grouped by cell
+(rows run tile by tile) and a block of them projects only the samples its cells see and its
+cameras face (``projection.in_view_cone``); a line's sums still run over all its samples, the
+others 0, so the scores are those of projecting everything. A block spread over the floor
+(global start) projects each particle's own list instead. Work per frame grows with what the
+cameras can see, not with the building.
 Each remaining sample reads ``g(d) = exp(-d^2 / (2 sigma^2))`` from a precomputed score map,
 where d is the distance from the pixel to the nearest image edge:
 
@@ -76,10 +82,18 @@ from localize.projection import (
     cam_from_world,
     camera_centres,
     image_directions,
+    in_view_cone,
     pixel_index,
+    pixel_index_each,
     projection_matrices,
+    view_half_width,
 )
-from localize.visibility import VisibilityGrid
+from localize.visibility import SparseVisibility
+
+#: a block of particles projects the union of its cells' visible samples unless that union
+#: is more than this many times one cell's list (particles spread over the floor): then each
+#: particle projects its own list (evidence aggregate only).
+EACH_RATIO = 2.0
 
 
 @dataclass
@@ -289,17 +303,18 @@ class EdgeLikelihood:
         samples: the model edge samples.
         camera: K, image size and body_from_cam.
         params: likelihood settings.
-        visibility: occlusion grid (None: every in-view sample counts as visible).
+        visibility: per-cell visible samples (None: every in-view sample counts as
+            visible).
         sample_pairs: (P,) uint8 ``edges.pair_code`` of the two classes each sample's segment
             separates; needed with ``params.class_pairs``.
     """
 
     def __init__(self, samples: ModelSamples, camera: Camera, params: LikelihoodParams,
-                 visibility: VisibilityGrid | None = None,
+                 visibility: SparseVisibility | None = None,
                  sample_pairs: np.ndarray | None = None):
-        if visibility is not None and visibility.visible.shape[1] != len(samples):
-            raise ValueError(f"visibility grid has {visibility.visible.shape[1]} samples, the "
-                             f"model {len(samples)}; rebuild it for these samples")
+        if visibility is not None and visibility.num_samples != len(samples):
+            raise ValueError(f"visibility lists index {visibility.num_samples} samples, the "
+                             f"model {len(samples)}; rebuild them for these samples")
         self.samples, self.camera, self.params, self.visibility = (samples, camera, params,
                                                                    visibility)
         # run starts of segments, for per-line sums along the sample axis
@@ -354,34 +369,129 @@ class EdgeLikelihood:
         quality = np.empty(N)
         lines = np.empty(N, dtype=np.int64)
         step = max(1, int(self.params.chunk))
-        blocks = [slice(i, i + step) for i in range(0, N, step)]  # vectorized within a block
-        done = run_all(lambda b: self._block(states[b], obs, tilt), blocks, self.params.workers)
+        order, near = np.arange(N), None
+        if self.visibility is not None:  # blocks of particles in neighbouring cells
+            cam = self.camera
+            centres = camera_centres(states, cam.body_from_cam, tilt)
+            rows = self.visibility.rows(centres)
+            order = np.argsort(rows, kind="stable")
+            half = view_half_width(cam.K, cam.width, cam.height, cam.body_from_cam, tilt)
+            near = (rows, centres, half)
+        blocks = [order[i:i + step] for i in range(0, N, step)]  # vectorized within a block
+        done = run_all(lambda b: self._block(
+            states[b], None if near is None else (near[0][b], near[1][b], near[2]), obs, tilt),
+            blocks, self.params.workers)
         for b, (s_b, q_b, l_b) in zip(blocks, done, strict=True):
             score[b], quality[b], lines[b] = s_b, q_b, l_b
         return score, quality, lines
 
-    def _block(self, states: np.ndarray, obs: Observation,
-               tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _seen(self, rows: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
+              half_width: float) -> np.ndarray | None:
+        """The samples a block of particles may see: visible from one of ``rows`` and within
+        the azimuths the cameras (``centres`` (n, 3), ``yaws`` (n,)) see
+        (``in_view_cone``), (C,) ascending, at least one; None when they are more than
+        ``EACH_RATIO`` times a particle's list and only the evidence is scored (then each
+        particle projects its own list: ``_project``).
+        """
+        s, p = self.samples, self.params
+        mark = self.visibility.union(rows)
+        cand = np.flatnonzero(mark)
+        cone = in_view_cone(s.points[cand], centres, yaws, half_width)
+        if (p.aggregate == "evidence" and p.lines_ref <= 0 and cone.all()
+                and len(cand) > EACH_RATIO * self.visibility.counts()[rows].mean()):
+            return None
+        live = cand[cone]
+        return live if len(live) else np.zeros(1, np.int64)  # none: one sample, masked
+
+    def _project(self, states: np.ndarray, near: tuple | None, tilt: np.ndarray | None,
+                 bins: int) -> tuple:
+        """Pixel indices of the samples a block scores, see ``_block``.
+
+        Returns:
+            idx (n, C) int32 flat pixel (plus the orientation bin's map offset when ``bins``),
+            valid (n, C) bool, cols (C,) the sample ids (or (n, C), each particle's own, when
+            ``_seen`` says so), starts (L,) each line's first column, lines (L,) the lines
+            (None: all of them, in order; both None for particles' own lists).
+        """
         p, cam, s = self.params, self.camera, self.samples
         W, H = cam.width, cam.height
         proj = projection_matrices(cam_from_world(states, cam.body_from_cam, tilt), cam.K)
-        idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
-        if self.visibility is not None:
-            valid &= self.visibility.lookup(camera_centres(states, cam.body_from_cam, tilt))
-        if obs.bins:
+        if near is None:
+            cols, starts, lines = slice(None), self._starts, None
+            idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
+        else:
+            cols = self._seen(near[0], near[1], states[:, 3], near[2])
+            if cols is None:
+                return self._project_each(proj, near[0], bins)
+            lines, line_of = np.unique(s.run[cols], return_inverse=True)
+            line_of = line_of.ravel()
+            starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
+            idx, valid, xh = pixel_index(proj, s.points_h[:, cols], W, H, p.near)
+            valid &= self.visibility.visible_in(near[0], cols)
+        if bins:
             # a 3D segment projects onto one image line: (du, dv) is the same at each of its
             # samples (``image_directions``), so its bin is found once, at its first sample
-            du, dv = image_directions(proj, self._segment_dirs, xh[:, :, self._starts])
-            # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
-            theta = np.arctan2(du, -dv)
-            b = np.rint(theta * np.float32(obs.bins / np.pi)).astype(np.int32) % obs.bins
-            b *= np.int32(W * H)
-            idx += b[:, s.run]
+            if lines is None:
+                seg_dirs, xh0 = self._segment_dirs, xh[:, :, starts]
+            else:
+                seg_dirs = self._segment_dirs[lines]
+                xh0 = pixel_index(proj, s.points_h[:, s.starts[lines]], W, H, p.near)[2]
+            du, dv = image_directions(proj, seg_dirs, xh0)
+            self._add_bin(idx, du, dv, bins, s.run[cols] if lines is None else line_of)
+        return idx, valid, cols, starts, lines
+
+    def _project_each(self, proj: np.ndarray, rows: np.ndarray, bins: int) -> tuple:
+        """``_project`` with each particle's own list (evidence only, no lines): cols (n, K)
+        the ids of the samples its row sees, padded (and masked) with sample 0."""
+        s, cam = self.samples, self.camera
+        ids = self.visibility.ids_of(rows)
+        cols = np.maximum(ids, 0)
+        idx, valid, xh = pixel_index_each(proj, s.points_h, cols, cam.width, cam.height,
+                                          self.params.near)
+        valid &= ids >= 0
+        if bins:  # each sample's own line direction (n, 3, K)
+            d = proj[:, :, :3] @ s.dirs.T[:, cols].transpose(1, 0, 2)
+            self._add_bin(idx, d[:, 0] * xh[:, 2] - xh[:, 0] * d[:, 2],
+                          d[:, 1] * xh[:, 2] - xh[:, 1] * d[:, 2], bins, None)
+        return idx, valid, cols, None, None
+
+    def _add_bin(self, idx: np.ndarray, du: np.ndarray, dv: np.ndarray, bins: int,
+                 line: np.ndarray | None) -> None:
+        """Offset ``idx`` by the score map of each sample's orientation bin, from the image
+        direction (du, dv) of its line: per line (n, L) with ``line`` (C,) each column's
+        line, or per column (n, C) with None."""
+        # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
+        theta = np.arctan2(du, -dv)
+        b = np.rint(theta * np.float32(bins / np.pi)).astype(np.int32) % bins
+        b *= np.int32(self.camera.width * self.camera.height)
+        idx += b if line is None else b[:, line]
+
+    def _line_sums(self, g: np.ndarray, cols: np.ndarray, lines: np.ndarray | None,
+                   starts: np.ndarray) -> np.ndarray:
+        """(n, L) float32 sums of g (n, C) over each line's samples. With culled columns the
+        sums run over every sample of the lines, the others 0, as without culling (float32
+        sums depend on where the zeros are)."""
+        if lines is None:
+            return np.add.reduceat(g, starts, axis=1)
+        s = self.samples
+        n = np.diff(np.r_[s.starts, len(s)])[lines]
+        whole = np.cumsum(n) - n  # each line's start in the whole-line layout
+        full = np.zeros((len(g), int(n.sum())), dtype=np.float32)
+        full[:, cols - s.starts[s.run[cols]] + np.repeat(whole, np.diff(np.r_[starts,
+                                                                           len(cols)]))] = g
+        return np.add.reduceat(full, whole, axis=1)
+
+    def _block(self, states: np.ndarray, near: tuple | None, obs: Observation,
+               tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Scores of a block of particles; ``near``: their visibility rows (n,), camera
+        centres (n, 3) and the view's half-width (radians), or None without visibility."""
+        p, cam = self.params, self.camera
+        idx, valid, cols, starts, lines = self._project(states, near, tilt, obs.bins)
         if obs.pairs:
             if self.pair_codes is None or obs.pairs != len(self.pair_codes):
                 raise ValueError(f"the observation has {obs.pairs} class-pair map sets, this "
                                  "likelihood's model another count; make it with its observe()")
-            idx += self._pair_slot * np.int32(max(obs.bins, 1) * W * H)
+            idx += self._pair_slot[cols] * np.int32(max(obs.bins, 1) * cam.width * cam.height)
         idx = np.where(valid, idx, np.int32(len(obs.g) - 1))  # the last entry reads 0
         chance = obs.chance
         ev = obs.e[idx]  # exactly 0 where not visible or unknown
@@ -393,14 +503,14 @@ class EdgeLikelihood:
         quality = np.where(known >= p.min_quality_samples, e_mean / e_top, np.nan)
         ok = None  # (n, L) lines with enough visible samples: the lines aggregate, lines_ref
         if p.aggregate == "lines" or p.lines_ref > 0:
-            ns = np.add.reduceat(valid.view(np.uint8), self._starts, axis=1, dtype=np.int16)
+            ns = np.add.reduceat(valid.view(np.uint8), starts, axis=1, dtype=np.int16)
             ok = ns >= p.min_line_samples
         m = np.zeros(len(states), np.int64) if ok is None else ok.sum(axis=1)
         if p.aggregate == "evidence":
             # unknown samples count with the particle's own mean evidence (they may or may not
             # match; moving lines off a masked object onto empty wall must not pay)
             return e_mean * n / p.evidence_norm, quality, m
-        gs = np.add.reduceat(obs.g[idx], self._starts, axis=1)
+        gs = self._line_sums(obs.g[idx], cols, lines, starts)
         line = np.where(ok, gs / np.maximum(ns, 1), np.float32(0.0))
         total = line.sum(axis=1, dtype=np.float64) + np.maximum(p.min_lines - m, 0) * chance
         return total / np.maximum(np.maximum(m, p.min_lines), 1), quality, m

@@ -32,8 +32,10 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from core import classes as C
 from core.config import typed
 from core.dataset import Camera, World
+from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import FilterParams, LikelihoodParams, Settings
 from localize.edges import EdgeImage, pair_code
@@ -41,7 +43,7 @@ from localize.frontend import Frame, FrontEnd
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, sample_segments, tilt_from_pose
-from localize.visibility import VisibilityGrid, load_or_build
+from localize.visibility import SparseVisibility, load_or_build
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
@@ -70,35 +72,56 @@ def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> Lik
     return replace(gp, evidence_norm=gp.evidence_norm / max(fparams.global_thin, 1))
 
 
+#: classes that make a segment worth scoring: one of its sides must be one of them (an edge
+#: between clutter, people or void only is not part of the structural model).
+STRUCTURAL = (C.FLOOR, C.WALL, C.CEILING, C.DOOR, C.WINDOW)
+
+
+def scored_segments(world: World, min_length: float = 0.0) -> np.ndarray:
+    """(M,) bool: the world's segments the model samples: a structural class on one side
+    (``STRUCTURAL``) and at least ``min_length`` metres long."""
+    seg = np.asarray(world.segments, dtype=np.float64).reshape(-1, 2, 3)
+    sc = np.asarray(world.segment_classes).reshape(-1, 2)
+    length = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
+    return np.isin(sc, STRUCTURAL).any(axis=1) & (length >= min_length)
+
+
 @dataclass
 class EdgeModel:
-    """The model edges a mode scores: samples, their occlusion grid and class pairs.
+    """The model edges a mode scores: samples, their visibility lists and class pairs.
 
     Attributes:
-        samples: points along the world's edge segments.
-        visibility: their visibility from a grid of camera positions (None: every sample in
-            view counts as visible).
+        samples: points along the world's structural edge segments (``scored_segments``).
+        visibility: the samples visible from each camera cell (None: every sample in view
+            counts as visible).
         pairs: (P,) uint8 ``edges.pair_code`` of the two classes each sample's segment
             separates.
     """
 
     samples: ModelSamples
-    visibility: VisibilityGrid | None
+    visibility: SparseVisibility | None
     pairs: np.ndarray
     _thinned: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def build(cls, world: World, settings: Settings, cache_dir: str | Path | None = None,
-              occlusion: bool = True) -> EdgeModel:
-        """All the world's edges, sampled every ``settings.model_edges.spacing`` m, with their
-        visibility grid (ray-cast, cached under ``cache_dir`` when given; ``occlusion=False``
-        skips it)."""
-        samples = sample_segments(world.segments, settings.model_edges.spacing)
+              occlusion: bool = True, free: OccupancyMap | None = None) -> EdgeModel:
+        """The world's structural edges (``scored_segments``), sampled every
+        ``settings.model_edges.spacing`` m, with their visibility lists (ray-cast from the
+        cells of ``free``, default ``world.free``; cached under ``cache_dir``
+        when given; ``occlusion=False`` skips them)."""
+        me = settings.model_edges
+        keep = scored_segments(world, me.min_length)
+        if not keep.any():
+            raise ValueError(f"no model edge segment has a structural class on a side and "
+                             f">= model_edges.min_length ({me.min_length} m); check the "
+                             "world's segment classes")
+        samples, _ = sample_segments(world.segments, me.spacing).select(keep)
         vis = None
         if occlusion:
             v = settings.visibility
-            vis = load_or_build(world, samples.points, cache_dir, v.cell_xy, v.cell_z, v.pad,
-                                v.eps, v.variant)
+            vis = load_or_build(world, samples.points, free, cache_dir, v.cell_xy, v.cell_z,
+                                v.pad, v.eps, v.max_range, v.variant)
         sc = np.asarray(world.segment_classes)[samples.segment]
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 

@@ -194,6 +194,72 @@ def camera_centres(states: np.ndarray, body_from_cam: np.ndarray,
     return states[:, :3] + R @ np.asarray(body_from_cam, dtype=np.float64)[:3, 3]
 
 
+def view_half_width(K: np.ndarray, width: int, height: int, body_from_cam: np.ndarray,
+                    tilt: np.ndarray | None = None, margin_deg: float = 2.0) -> float:
+    """Half-width (radians) of the world azimuths a camera sees about its body's heading.
+
+    Azimuth has no extremum inside the image unless the vertical projects into it, so the
+    largest |azimuth| of rays through the image border (17 per side, body yaw 0, roll and
+    pitch ``tilt``) bounds it; ``margin_deg`` covers the spacing of those rays.
+
+    Returns:
+        radians, at most pi (pi: the image holds the vertical and sees every azimuth).
+    """
+    R = np.asarray(body_from_cam, dtype=np.float64)[:3, :3]
+    if tilt is not None:
+        R = np.asarray(tilt, dtype=np.float64) @ R
+    K = np.asarray(K, dtype=np.float64)
+    lo, hi = np.array([-0.5, -0.5]), np.array([width - 0.5, height - 0.5])
+    for up in (R.T[:, 2], -R.T[:, 2]):  # the vertical in the camera frame
+        if up[2] > 0:
+            uv = (K @ up)[:2] / up[2]
+            if np.all(uv > lo - 1) and np.all(uv < hi + 1):
+                return float(np.pi)
+    t = np.linspace(0.0, 1.0, 17)
+    u, v = lo[0] + t * (hi[0] - lo[0]), lo[1] + t * (hi[1] - lo[1])
+    border = np.concatenate([np.stack([u, np.full(17, lo[1])], 1),
+                             np.stack([u, np.full(17, hi[1])], 1),
+                             np.stack([np.full(17, lo[0]), v], 1),
+                             np.stack([np.full(17, hi[0]), v], 1)])
+    rays = np.linalg.solve(K, np.c_[border, np.ones(len(border))].T)  # (3, 68) camera frame
+    d = R @ rays
+    half = np.abs(np.arctan2(d[1], d[0])).max() + np.deg2rad(margin_deg)
+    return float(min(half, np.pi))
+
+
+def in_view_cone(points: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
+                 half_width: float) -> np.ndarray:
+    """Which points some camera of a group may see, by azimuth alone (conservative).
+
+    A point is kept when, seen from the group's mean centre, its azimuth is within the
+    group's yaws (their circular mean +- spread) widened by ``half_width`` and by how far the
+    centres spread about their mean (``asin(spread / distance)``); points nearer than that
+    spread are kept.
+
+    Args:
+        points: (C, 3) world points, metres.
+        centres: (n, 3) camera centres, metres.
+        yaws: (n,) body headings, radians.
+        half_width: ``view_half_width``, radians.
+
+    Returns:
+        (C,) bool.
+    """
+    yaws = np.asarray(yaws, dtype=np.float64)
+    mean_yaw = np.arctan2(np.sin(yaws).mean(), np.cos(yaws).mean())
+    spread = np.abs(np.angle(np.exp(1j * (yaws - mean_yaw)))).max(initial=0.0)
+    if half_width + spread >= np.pi:
+        return np.ones(len(points), dtype=bool)
+    c = np.asarray(centres, dtype=np.float64)[:, :2]
+    mid = c.mean(axis=0)
+    r = np.linalg.norm(c - mid, axis=1).max(initial=0.0)
+    p = np.asarray(points, dtype=np.float64)[:, :2] - mid
+    dist = np.linalg.norm(p, axis=1)
+    off = np.abs(np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - mean_yaw))))
+    reach = half_width + spread + np.arcsin(np.clip(r / np.maximum(dist, 1e-12), 0.0, 1.0))
+    return (dist <= r + 1e-6) | (off <= reach)
+
+
 @dataclass
 class Projection:
     """Model samples seen from N cameras; all arrays (N, P) float32 unless noted.
@@ -296,6 +362,31 @@ def pixel_index(proj: np.ndarray, points_h: np.ndarray, width: int, height: int,
     """
     N = len(proj)
     xh = (proj.reshape(3 * N, 4) @ points_h).reshape(N, 3, -1)
+    return (*pixels_of(xh, width, height, near), xh)
+
+
+def pixel_index_each(proj: np.ndarray, points_h: np.ndarray, ids: np.ndarray, width: int,
+                     height: int, near: float = 0.1
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``pixel_index`` of each camera's own points: camera n projects ``points_h[:, ids[n]]``.
+
+    Args:
+        proj: (N, 3, 4) float32 projection matrices.
+        points_h: (4, P) float32 homogeneous points.
+        ids: (N, K) int point ids, each >= 0.
+        width, height, near: as ``pixel_index``.
+
+    Returns:
+        idx (N, K), valid (N, K), xh (N, 3, K), as ``pixel_index``.
+    """
+    xh = proj @ points_h.T[ids].transpose(0, 2, 1)
+    return (*pixels_of(xh, width, height, near), xh)
+
+
+def pixels_of(xh: np.ndarray, width: int, height: int,
+              near: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """Flat pixel index (N, P) int32 and valid (N, P) bool of projected homogeneous points
+    ``xh`` (N, 3, P) (see ``pixel_index``)."""
     z = xh[:, 2]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = np.float32(1.0) / z
@@ -306,7 +397,7 @@ def pixel_index(proj: np.ndarray, points_h: np.ndarray, width: int, height: int,
     valid &= vi.view(np.uint32) < np.uint32(height)
     vi *= np.int32(width)
     vi += ui
-    return vi, valid, xh
+    return vi, valid
 
 
 def image_directions(proj: np.ndarray, dirs: np.ndarray,

@@ -315,7 +315,7 @@ def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     cam = ctx.camera
     P = projection_matrices(cam_from_world(state, cam.body_from_cam, tilt), cam.K)
     idx, valid, _ = pixel_index(P, model.samples.points_h, cam.width, cam.height)
-    valid &= model.visibility.lookup(camera_centres(state, cam.body_from_cam, tilt))
+    valid &= model.visibility.mask(camera_centres(state, cam.body_from_cam, tilt))
     v, u = np.divmod(idx[0][valid[0]], cam.width)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4))
     axes[0].imshow(rgb)

@@ -20,7 +20,7 @@ from localize.likelihood import (
     run_all,
 )
 from localize.projection import cam_from_world, sample_segments
-from localize.visibility import build_visibility_grid
+from localize.visibility import build_visibility
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 OFFSETS = np.array([[0.1, 0, 0, 0], [-0.1, 0, 0, 0], [0, 0.2, 0, 0], [0, -0.2, 0, 0],
@@ -33,7 +33,7 @@ def model(small_world):
     s = sample_segments(small_world.segments, 0.05)
     keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
     s, _ = s.select(keep)
-    return s, build_visibility_grid(small_world, s.points, cell_xy=0.2, cell_z=0.3)
+    return s, build_visibility(small_world, s.points, cell_xy=0.2, cell_z=0.3)
 
 
 @pytest.fixture(scope="module")
@@ -232,7 +232,7 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     s = sample_segments(world.segments, 0.1)
     keep = world.segment_classes[:, 0] != world.segment_classes[:, 1]
     s, _ = s.select(keep)
-    vis = build_visibility_grid(world, s.points, cell_xy=0.4, cell_z=0.5)
+    vis = build_visibility(world, s.points, cell_xy=0.4, cell_z=0.5)
     lik = EdgeLikelihood(s, cam, LikelihoodParams(aggregate="evidence"), vis)
     wins = 0
     for t in (5, 15, 25):

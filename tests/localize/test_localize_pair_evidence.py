@@ -9,7 +9,7 @@ from localize.edges import label_edges, pair_code
 from localize.frontend import Frame
 from localize.likelihood import LikelihoodParams
 from localize.projection import cam_from_world, sample_segments
-from localize.visibility import build_visibility_grid
+from localize.visibility import build_visibility
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 
@@ -18,7 +18,7 @@ def test_pairs_prefer_the_truth(small_world, camera, renderer):
     s = sample_segments(small_world.segments, 0.05)
     sc = small_world.segment_classes
     s, _ = s.select(sc[:, 0] != sc[:, 1])
-    vis = build_visibility_grid(small_world, s.points, cell_xy=0.2, cell_z=0.3)
+    vis = build_visibility(small_world, s.points, cell_xy=0.2, cell_z=0.3)
     pairs = pair_code(sc[s.segment, 0], sc[s.segment, 1])
     liks = pair_likelihoods(s, vis, pairs, camera, LikelihoodParams(k=20.0, sigma=0.1))
     assert set(liks) == {"all", *(str(int(c)) for c in np.unique(pairs))}

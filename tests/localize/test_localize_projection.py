@@ -17,7 +17,13 @@ from localize.projection import (
     sample_segments,
     tilt_from_pose,
 )
-from localize.visibility import build_visibility_grid, grid_layout, load_or_build, occluded
+from localize.visibility import (
+    build_visibility,
+    free_bounds,
+    grid_layout,
+    load_or_build,
+    occluded,
+)
 from tests.localize.conftest import BODY_FROM_CAM
 
 #: A pose inside the small corridor looking along +Y past the side opening, slightly tilted.
@@ -126,6 +132,12 @@ class TestProjection:
             np.testing.assert_allclose(other, out[0], rtol=1e-3, atol=1e-3 * np.abs(out[0]).max())
 
 
+def assert_same_rays(got: np.ndarray, want: np.ndarray) -> None:
+    """Equal visibility but for a few rays in 10^4: Mitsuba's ray_test may answer a ray that
+    grazes a surface (samples lie on edges) differently in another batch of rays."""
+    assert (got != want).mean() < 1e-4, f"{(got != want).sum()} of {got.size} rays differ"
+
+
 def _scene(small_world, camera, renderer, class_change_only: bool):
     s = sample_segments(small_world.segments, 0.05)
     if class_change_only:
@@ -187,25 +199,72 @@ class TestAgainstRender:
         assert ok_vis.mean() > 0.95
         assert (near[v[hid], u[hid]] < z[hid] - 0.05).mean() > 0.9
 
-    def test_grid_lookup_agrees_with_direct_rays(self, small_world, scene):
+    def test_lookup_agrees_with_direct_rays(self, small_world, scene):
+        """Each stored cell lists exactly the samples a ray from its centre reaches (the
+        dense grid of before, one row per cell), here with every sample within range."""
         s = scene[0]
-        grid = build_visibility_grid(small_world, s.points, cell_xy=0.3, cell_z=0.4)
-        centres = grid.centres()
+        vis = build_visibility(small_world, s.points, cell_xy=0.3, cell_z=0.4)
+        centres = vis.centres()
         pick = np.random.default_rng(0).choice(len(centres), 20, replace=False)
         direct = ~occluded(small_world, centres[pick], s.points)
-        np.testing.assert_array_equal(grid.lookup(centres[pick]), direct)
-        np.testing.assert_array_equal(grid.cell_index(centres[pick]), pick)
+        got = vis.mask(centres[pick])
+        assert_same_rays(got, direct)
+        np.testing.assert_array_equal(vis.rows(centres[pick]), pick)
+        ids = vis.lookup(centres[pick])
+        assert ids.shape == (20, vis.counts()[pick].max())
+        for row, want in zip(ids, got, strict=True):  # padded with -1, ascending
+            np.testing.assert_array_equal(row[row >= 0], np.flatnonzero(want))
+            assert (row[np.count_nonzero(want):] == -1).all()
+
+    def test_range_culls_far_samples(self, small_world, scene):
+        s = scene[0]
+        full = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6)
+        near = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6, max_range=2.0)
+        c = full.centres()
+        far = np.linalg.norm(c[:, None] - s.points[None], axis=2) > 2.0
+        got = near.mask(c)
+        assert not got[far].any()
+        assert_same_rays(got, full.mask(c) & ~far)
+        assert near.nbytes < full.nbytes
+
+    def test_outside_cells_use_the_nearest_stored_one(self, small_world, scene):
+        s = scene[0]
+        vis = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6)
+        grid = np.stack(np.meshgrid(*[vis.origin[a] + vis.cell[a] * np.arange(vis.shape[a])
+                                      for a in range(3)], indexing="ij"), -1).reshape(-1, 3)
+        outside = np.setdiff1d(np.arange(len(grid)), vis.flat)
+        assert len(outside) > 0, "the L-shaped free space leaves grid cells unstored"
+        rows = vis.rows(grid[outside])
+        d = np.linalg.norm(grid[outside][:, None] - vis.centres()[None], axis=2)
+        np.testing.assert_allclose(d[np.arange(len(rows)), rows], d.min(axis=1))
+        np.testing.assert_array_equal(vis.rows(grid[vis.flat]), np.arange(len(vis.flat)))
+
+    def test_select_keeps_the_subsets_lists(self, small_world, scene):
+        s = scene[0]
+        vis = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6)
+        cols = np.flatnonzero(np.arange(len(s)) % 3 == 1)
+        sub = vis.select(cols)
+        c = vis.centres()
+        np.testing.assert_array_equal(sub.mask(c), vis.mask(c)[:, cols])
+        assert sub.num_samples == len(cols)
+        small = vis.select(cols, chunk=7)  # chunk borders inside and between rows
+        np.testing.assert_array_equal(small.indptr, sub.indptr)
+        np.testing.assert_array_equal(small.ids, sub.ids)
 
     def test_cache_round_trip(self, small_world, scene, tmp_path):
         s = scene[0]
-        a = load_or_build(small_world, s.points, tmp_path, cell_xy=0.5, cell_z=0.5)
+        a = load_or_build(small_world, s.points, None, tmp_path, cell_xy=0.5, cell_z=0.5)
         assert len(list(tmp_path.glob("visibility_*.npz"))) == 1
-        b = load_or_build(small_world, s.points, tmp_path, cell_xy=0.5, cell_z=0.5)
-        np.testing.assert_array_equal(a.visible, b.visible)
-        np.testing.assert_allclose(a.origin, b.origin)
+        b = load_or_build(small_world, s.points, None, tmp_path, cell_xy=0.5, cell_z=0.5)
+        for key in ("origin", "cell", "shape", "row_of", "flat", "indptr", "ids"):
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+        assert (a.num_samples, a.max_range) == (b.num_samples, b.max_range)
+        load_or_build(small_world, s.points, None, tmp_path, cell_xy=0.5, cell_z=0.5,
+                      max_range=3.0)
+        assert len(list(tmp_path.glob("visibility_*.npz"))) == 2  # another range, another key
 
     def test_grid_covers_free_space(self, small_world):
-        origin, cell, shape = grid_layout(small_world, 0.2, 0.25, 0.3)
+        origin, cell, shape = grid_layout(*free_bounds(small_world.free), 0.2, 0.25, 0.3)
         hi = origin + cell * (shape - 1)
         b = small_world.free.free_bounds
         assert (origin[:2] <= b[:2]).all() and (hi[:2] >= b[2:]).all()
