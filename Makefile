@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.installed
 
-.PHONY: setup llvm test test-fast demo best lint bench contact-sheet clean
+.PHONY: setup llvm test test-fast demo best building lint bench contact-sheet clean
 
 setup: $(STAMP)
 
@@ -70,6 +70,18 @@ best: setup
 	set -e; for stage in $(BEST_CHAIN); do $(PY) -m train experiment=$$stage; done
 	$(PY) -m localize name=best onnx_model=outputs/models/hr3c/segnet.onnx
 	@echo "report: outputs/reports/best/report.md"
+
+# Your building: the demo's three stages on a whole floor of a model file (docs/importers.md):
+# `make building BUILDING=path/to/model.world NAME=hospital` (.world/.sdf, .glb/.gltf, .obj,
+# .ply, .dae, .stl, .ifc). Two ~45 m flights along routes planned through its free space
+# (conf/flights/floor.yaml); the SegNet trains for conf/train.yaml's max_minutes.
+NAME ?= building
+building: setup
+	@test -n "$(BUILDING)" || { echo "give BUILDING=path/to/model (.world .sdf .glb .gltf .obj .ply .dae .stl .ifc)"; exit 2; }
+	$(PY) -m datagen name=$(NAME) world=file world.path=$(BUILDING) flights=floor
+	$(PY) -m train name=$(NAME) dataset=outputs/datasets/$(NAME)
+	$(PY) -m localize name=$(NAME) dataset=outputs/datasets/$(NAME) onnx_model=outputs/models/$(NAME)/segnet.onnx
+	@echo "report: outputs/reports/$(NAME)/report.md"
 
 contact-sheet: setup
 	$(PY) -m datagen.contact_sheet outputs/datasets/demo docs/img/contact_sheet.png
