@@ -77,3 +77,19 @@ class TestFile:
             spec["path"] = str(tmp_path / settings["path"])
         with pytest.raises(error, match=match):
             build_site(spec)
+
+    @pytest.mark.parametrize("what", ["no walls", "no floor"])
+    def test_models_without_floor_or_walls(self, tmp_path, what):
+        """A floor alone, or walls alone, is not a building: the error names the file."""
+        if what == "no walls":
+            mesh = trimesh.Trimesh([[0, 0, 0], [6, 0, 0], [6, 4, 0], [0, 4, 0]],
+                                   [[0, 1, 2], [0, 2, 3]])
+            match = "flat.ply: no wall faces found"
+        else:
+            mesh = trimesh.creation.box(extents=[4.0, 0.2, 2.5])
+            mesh.apply_translation([0.0, 0.0, 1.25])
+            match = "flat.ply: no floor"
+        path = tmp_path / "flat.ply"
+        mesh.export(path)
+        with pytest.raises(ValueError, match=match):
+            build_site({"kind": "file", "path": str(path)})
