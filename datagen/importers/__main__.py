@@ -17,7 +17,7 @@ import numpy as np
 
 from core.atomic import atomic_write_json, write_png
 from core.occupancy import OccupancyMap
-from datagen.config import RouteConfig, WorldConfig
+from datagen.config import FileWorldConfig, RouteConfig
 from datagen.importers.building import Building
 from datagen.importers.load import EXTENSIONS, load_building
 from datagen.importers.plan import write_plan
@@ -50,17 +50,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def free_space_and_route(b: Building, min_length: float, seed: int
                          ) -> tuple[OccupancyMap, np.ndarray | None, dict]:
-    """The free space of the corridor world's flyable heights and camera margin above the
-    building's floor (``WorldConfig.z_range``, ``camera_margin``; 0.1 m cells), and a route
-    through it with at least two turns of 60 deg and ``min_length`` metres if one is found.
+    """The free space above the building's floor as ``world=file`` builds it
+    (``FileWorldConfig``: ``z_range``, ``camera_margin``, ``free_cell``), and a route through
+    it with at least two turns of 60 deg and ``min_length`` metres if one is found.
 
     Returns:
         the map, the route ((K, 2) m, or None) and the figures printed and stored in info.
     """
-    spec = WorldConfig()
+    spec = FileWorldConfig()
     band = b.info["floor_z"] + np.asarray(spec.z_range)
     occ = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class, band, spec.camera_margin,
-                                 0.1)
+                                 spec.free_cell)
     figures = {"free_area_m2": round(occ.area, 1)}
     try:
         route = plan_route(occ, np.random.default_rng(seed),
