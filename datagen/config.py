@@ -391,18 +391,20 @@ class TrainingConfig:
     distractors: dict[str, float] = field(default_factory=lambda: {
         "none": 0.2, "paper": 0.4, "cluttered": 0.4})  # preset mix of training images
     max_roll_pitch_deg: float = 5.0
-    yaw_along_corridor: float = 0.75  # share of images looking along the corridor (+/-Y), as
-    # flights do, within +/- yaw_spread_deg; the rest have a uniform yaw
+    yaw_along_corridor: float = 0.75  # share of images looking along the free space's local
+    # axis (the corridor's: +/-Y), as flights do, within +/- yaw_spread_deg; the rest have a
+    # uniform yaw
     yaw_spread_deg: float = 50.0
     flight_views: float = 0.5  # share of images posed as a random frame of a flight (a
-    # `flights` preset, along +Y or -Y): the flights' heights, sway, yaw swings and tilts;
+    # `flights` preset, along its route either way): the flights' heights, sway, yaw swings
+    # and tilts;
     # 0 = none (docs/datagen.md)
     chunk: int = 40  # images sharing one set of distractor meshes (one scene load)
 
 
 @dataclass
 class DatagenConfig:
-    """``python -m datagen``: labeled corridor renders and evaluation flights."""
+    """``python -m datagen``: labeled renders and evaluation flights of a world."""
 
     name: str = "demo"  # dataset name
     out_dir: str = "outputs/datasets/${name}"  # where the dataset is written
