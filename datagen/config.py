@@ -397,8 +397,7 @@ class TrainingConfig:
     yaw_spread_deg: float = 50.0
     flight_views: float = 0.5  # share of images posed as a random frame of a flight (a
     # `flights` preset, along its route either way): the flights' heights, sway, yaw swings
-    # and tilts;
-    # 0 = none (docs/datagen.md)
+    # and tilts; 0 = none (docs/datagen.md)
     chunk: int = 40  # images sharing one set of distractor meshes (one scene load)
 
 
