@@ -101,14 +101,16 @@ class BoundaryProbe:
 
 def covered_faces(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
                   probe: BoundaryProbe | None = None) -> np.ndarray:
-    """(F,) bool: faces whose centre lies on another face turned towards them.
+    """(F,) bool: faces lying wholly on other faces turned towards them.
 
-    A face F is covered when a face with the opposite normal (within about 1 degree) lies in
-    F's plane (within 2 mm) at F's centre: a wall block's bottom on a floor slab's top, the
-    touching sides of two blocks. Neither is seen; their edges are not model edges. Found by
-    plane keys, then one ray per candidate from ``probe.offset`` in front of its centre back
-    through it, cast against the candidates of the other hemisphere of normals only (a
-    coincident face of F's own orientation cannot hide the answer).
+    A face F is covered when faces with the opposite normal (within about 2.5 degrees) lie in
+    F's plane (within 2 mm) at 7 points of F (its centre, near its corners, near its sides'
+    middles): a wall block's bottom on a floor slab's top, the touching sides of two blocks.
+    Neither is seen; their edges are not model edges. A face covered in part (a slab's top
+    under the walls) is not. Found by plane keys, then one ray per point from
+    ``probe.offset`` in front of F back through it, cast against the candidates of the other
+    hemisphere of normals only (a coincident face of F's own orientation cannot hide the
+    answer).
     """
     probe = probe or BoundaryProbe()
     out = np.zeros(len(faces), dtype=bool)
@@ -139,11 +141,20 @@ def covered_faces(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
         if len(mine) == 0 or len(theirs) == 0:
             continue
         caster = RayCaster(vertices, faces[theirs], probe.variant)
-        hit, t = caster.first_hit(centre[mine] + probe.offset * n[mine], -n[mine],
+        points = np.einsum("kj,fjd->fkd", _COVER_WEIGHTS, vertices[faces[mine]])
+        normal = np.repeat(n[mine], len(_COVER_WEIGHTS), axis=0)
+        hit, t = caster.first_hit(points.reshape(-1, 3) + probe.offset * normal, -normal,
                                   probe.offset + 0.005)
-        facing = np.einsum("ij,ij->i", n[mine], n[theirs[np.maximum(hit, 0)]]) < -0.999
-        out[mine] = (hit >= 0) & facing & (np.abs(t - probe.offset) < 0.005)
+        facing = np.einsum("ij,ij->i", normal, n[theirs[np.maximum(hit, 0)]]) < -0.999
+        ok = (hit >= 0) & facing & (np.abs(t - probe.offset) < 0.005)
+        out[mine] = ok.reshape(len(mine), -1).all(axis=1)
     return out
+
+
+#: (7, 3) barycentric weights of the points a covered face must be covered at.
+_COVER_WEIGHTS = np.array([[1 / 3, 1 / 3, 1 / 3], [0.8, 0.1, 0.1], [0.1, 0.8, 0.1],
+                           [0.1, 0.1, 0.8], [0.45, 0.45, 0.1], [0.1, 0.45, 0.45],
+                           [0.45, 0.1, 0.45]])
 
 
 def probe_boundary(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,

@@ -8,7 +8,7 @@ import pytest
 from core import classes as C
 from datagen.edges import extract_edges, merge_collinear
 from datagen.world import build_world
-from tests.buildings import HEIGHT, assemble
+from tests.buildings import HEIGHT, assemble, ring
 
 
 def _sheet(corners, cls) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -55,6 +55,12 @@ class TestSeparateMeshes:
         inner = vertical & (np.abs(seg[:, 0, :2] - [2, 2]) < 2 + 1e-6).all(axis=1)
         assert inner.sum() == 4
         assert (cls[inner] == [C.WALL, C.WALL]).all() and np.allclose(crease[inner], 90)
+
+    def test_a_slab_covered_in_part_stays(self):
+        # the ring's slab top: two triangles whose centres lie under the inner block
+        seg, cls, crease = extract_edges(*ring(10.0, 10.0, 2.0))
+        # the outer walls' inner feet (4 x 10 m) and the inner block's (4 x 6 m), at least
+        assert _length(seg, cls, crease, (C.FLOOR, C.WALL), z=0.0, angle=90) >= 64
 
     @pytest.mark.parametrize("flip", [False, True])
     def test_one_sided_wall_sheet_on_a_floor_sheet(self, flip):
