@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 from core.dataset import Camera, World  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
 from core.poses import pose_from_xyzyaw  # noqa: E402
+from core.rays import RayCaster  # noqa: E402
 from localize.config import Settings  # noqa: E402
 from localize.edges import EdgeImage  # noqa: E402
 from localize.frontend import Frame  # noqa: E402
@@ -51,7 +52,6 @@ from localize.projection import (  # noqa: E402
     projection_matrices,
     sample_segments,
 )
-from localize.visibility import RayCaster  # noqa: E402
 
 HOSPITAL = ROOT.parent / "shared" / "worlds" / "aws_hospital" / "worlds" / "hospital.world"
 TARGET_FILTER_MS, TARGET_GB = 20.0, 2.0
@@ -173,7 +173,7 @@ def main() -> int:
     z = float(np.mean(world.z_range))
     truth = truth_states(occ, args.frames, 0.1, z)
     fine, _ = sample_segments(world.segments, 0.01).select(keep)
-    caster = RayCaster(world)
+    caster = RayCaster(world.vertices, world.faces)
     frames = [model_frame(s, cam, fine.points.astype(np.float64), caster, args.max_range)
               for s in truth]
     loc = Localizer(world, cam, "none", settings, np.random.default_rng(0), model=model)

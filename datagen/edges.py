@@ -8,6 +8,8 @@ touching pieces with the same class pair and angle are merged into one segment.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -19,24 +21,37 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def extract_edges(
-    vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray, crease_deg: float = 20.0
+    vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray, crease_deg: float = 20.0,
+    probe: BoundaryProbe | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Model edges of a mesh.
+
+    Faces lying on a face that faces them (``covered_faces``: the bottom of a wall block
+    standing on a floor, blocks side by side) are dropped first. Boundary edges (one face)
+    are classed by the surface they meet (``probe_boundary``): a wall standing on a floor as
+    a separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
+    degrees. A closed mesh without coincident faces has neither, so nothing is cast.
 
     Args:
         vertices: (V, 3) metres. faces: (F, 3) vertex indices, shared vertices merged.
         face_class: (F,) class id per face.
         crease_deg: minimum angle between face normals for a crease, degrees.
+        probe: settings of the boundary probes (None: the defaults).
 
     Returns:
         segments (M, 2, 3) endpoints in metres; classes (M, 2) uint8, the classes on the two
-        sides (ascending; 0 = void for a boundary edge); crease (M,) angle between the normals
-        in degrees (0 for a class change on a flat surface, 90 at a boundary edge).
+        sides (ascending; 0 = void for a boundary edge meeting nothing); crease (M,) angle
+        between the normals in degrees (0 for a class change on a flat surface, 90 at a
+        boundary edge meeting nothing).
     """
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise ValueError(f"faces must be (F, 3), got {faces.shape}")
     vertices = np.asarray(vertices, dtype=np.float64)
+    face_class = np.asarray(face_class)
     normals = face_normals(vertices, faces)
+    hidden = covered_faces(vertices, faces, normals, probe)
+    if hidden.any():
+        faces, face_class, normals = faces[~hidden], face_class[~hidden], normals[~hidden]
     e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     owner = np.repeat(np.arange(len(faces)), 3)
     uniq, inv, count = np.unique(e, axis=0, return_inverse=True, return_counts=True)
@@ -50,10 +65,174 @@ def extract_edges(
     angle = np.where(count == 1, 90.0, angle)
     c0 = face_class[f0]
     c1 = np.where(count >= 2, face_class[np.maximum(f1, 0)], 0)
-    keep = (count != 2) | (angle > crease_deg) | (c0 != c1)
-    seg = vertices[uniq[keep]]
-    cls = np.sort(np.stack([c0, c1], axis=1)[keep], axis=1).astype(np.uint8)
-    return merge_collinear(seg, cls, np.round(angle[keep], 6))
+    keep = (count > 2) | ((count == 2) & ((angle > crease_deg) | (c0 != c1)))
+    seg = [vertices[uniq[keep]]]
+    cls = [np.stack([c0, c1], axis=1)[keep]]
+    ang = [np.round(angle[keep], 6)]
+    if (count == 1).any():
+        b_seg, b_cls, b_ang = probe_boundary(vertices, faces, face_class, normals,
+                                             uniq[count == 1], f0[count == 1], probe)
+        kept = (b_ang > crease_deg) | (b_cls[:, 0] != b_cls[:, 1])
+        seg.append(b_seg[kept])
+        cls.append(b_cls[kept])
+        ang.append(b_ang[kept])
+    cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
+    return merge_collinear(np.concatenate(seg), cls, np.concatenate(ang))
+
+
+@dataclass(frozen=True)
+class BoundaryProbe:
+    """How a boundary edge finds the surface it meets.
+
+    Attributes:
+        step: metres; an edge is cut into pieces at most this long, each probed at its middle
+            (a wall's bottom edge along a door opening meets the floor only in part).
+        offset: metres the probe starts in front of (then behind) the face, and back from the
+            edge inside the face's plane.
+        reach: metres the probe reaches past the edge.
+        variant: Mitsuba variant of the ray caster (``core.rays.RayCaster``).
+    """
+
+    step: float = 0.25
+    offset: float = 0.01
+    reach: float = 0.05
+    variant: str = "auto"
+
+
+def covered_faces(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
+                  probe: BoundaryProbe | None = None) -> np.ndarray:
+    """(F,) bool: faces lying wholly on other faces turned towards them.
+
+    A face F is covered when faces with the opposite normal (within about 2.5 degrees) lie in
+    F's plane (within 2 mm) at 7 points of F (its centre, near its corners, near its sides'
+    middles): a wall block's bottom on a floor slab's top, the touching sides of two blocks.
+    Neither is seen; their edges are not model edges. A face covered in part (a slab's top
+    under the walls) is not. Found by plane keys, then one ray per point from
+    ``probe.offset`` in front of F back through it, cast against the candidates of the other
+    hemisphere of normals only (a coincident face of F's own orientation cannot hide the
+    answer).
+    """
+    probe = probe or BoundaryProbe()
+    out = np.zeros(len(faces), dtype=bool)
+    centre = vertices[faces].mean(axis=1)
+    good = np.isfinite(normals).all(axis=1)
+    n = np.nan_to_num(normals)
+    nk = np.round(n * 100).astype(np.int64) + 100
+    dk = np.round(np.einsum("ij,ij->i", n, centre) / 0.002).astype(np.int64)
+    span = 1 << 32
+    key = ((nk[:, 0] * 201 + nk[:, 1]) * 201 + nk[:, 2]) * span + dk
+    opposite = (((200 - nk[:, 0]) * 201 + 200 - nk[:, 1]) * 201 + 200 - nk[:, 2]) * span - dk
+    table = np.unique(key[good])
+    cand = np.zeros(len(faces), dtype=bool)
+    for shift in (-1, 0, 1):
+        at = np.clip(np.searchsorted(table, opposite + shift), 0, len(table) - 1)
+        cand |= table[at] == opposite + shift
+    cand &= good
+    if not cand.any():
+        return out
+    from core.rays import RayCaster
+
+    # hemisphere of each normal: sign of its first non-zero rounded component
+    first = np.argmax(nk != 100, axis=1)
+    upper = nk[np.arange(len(nk)), first] > 100
+    for side in (True, False):
+        mine = np.flatnonzero(cand & (upper == side))
+        theirs = np.flatnonzero(cand & (upper != side))
+        if len(mine) == 0 or len(theirs) == 0:
+            continue
+        caster = RayCaster(vertices, faces[theirs], probe.variant)
+        points = np.einsum("kj,fjd->fkd", _COVER_WEIGHTS, vertices[faces[mine]])
+        normal = np.repeat(n[mine], len(_COVER_WEIGHTS), axis=0)
+        hit, t = caster.first_hit(points.reshape(-1, 3) + probe.offset * normal, -normal,
+                                  probe.offset + 0.005)
+        facing = np.einsum("ij,ij->i", normal, n[theirs[np.maximum(hit, 0)]]) < -0.999
+        ok = (hit >= 0) & facing & (np.abs(t - probe.offset) < 0.005)
+        out[mine] = ok.reshape(len(mine), -1).all(axis=1)
+    return out
+
+
+#: (7, 3) barycentric weights of the points a covered face must be covered at.
+_COVER_WEIGHTS = np.array([[1 / 3, 1 / 3, 1 / 3], [0.8, 0.1, 0.1], [0.1, 0.8, 0.1],
+                           [0.1, 0.1, 0.8], [0.45, 0.45, 0.1], [0.1, 0.45, 0.45],
+                           [0.45, 0.1, 0.45]])
+
+
+def probe_boundary(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
+                   normals: np.ndarray, edges: np.ndarray, owner: np.ndarray,
+                   probe: BoundaryProbe | None = None,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Class and crease of boundary edges from the surface each piece of them meets.
+
+    Each edge is cut into pieces (``probe.step``); from ``offset`` in front of the owning
+    face's middle of a piece, ``offset`` back from the edge, a ray runs in the face's plane
+    across the edge, away from the face, ``offset + reach`` metres long. The first face hit
+    gives the other class and the crease (the angle between the two faces' lines,
+    arccos |n0 . n1|, 0..90 degrees, to 0.1 degree: imported faces' winding is arbitrary).
+    No hit in front: the same from behind the face (one-sided sheets), then a probe through
+    the plane just beyond the edge (a coplanar surface: a door flush in a wall, wall panels
+    side by side; ``_first_faces``). No hit: void, 90.
+
+    Args:
+        vertices: (V, 3) metres; faces: (F, 3); face_class: (F,); normals: (F, 3) unit.
+        edges: (B, 2) vertex indices of the boundary edges; owner: (B,) their face.
+        probe: settings (None: defaults).
+
+    Returns:
+        pieces (K, 2, 3) metres; classes (K, 2) (owner's class, other); crease (K,) degrees.
+    """
+    probe = probe or BoundaryProbe()
+    p, q = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    length = np.linalg.norm(q - p, axis=1)
+    n = np.maximum(np.ceil(length / probe.step).astype(np.int64), 1)
+    which = np.repeat(np.arange(len(edges)), n)
+    j = np.arange(len(which)) - np.repeat(np.cumsum(n) - n, n)
+    a, b = (j / n[which])[:, None], ((j + 1) / n[which])[:, None]
+    pieces = np.stack([(1 - a) * p[which] + a * q[which], (1 - b) * p[which] + b * q[which]],
+                      axis=1)
+    # in-plane direction across the edge, away from the owning face's third vertex
+    third = vertices[faces[owner].sum(axis=1) - edges.sum(axis=1)]
+    d = (q - p) / np.maximum(length, 1e-12)[:, None]
+    w = (p + q) / 2 - third
+    u = w - np.einsum("ij,ij->i", w, d)[:, None] * d
+    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
+    nf = normals[owner]
+    ok = np.isfinite(nf).all(axis=1) & (np.linalg.norm(u, axis=1) > 0.5)
+    hit = np.full(len(which), -1, dtype=np.int64)
+    probed = np.flatnonzero(ok[which])
+    if len(probed):
+        hit[probed] = _first_faces(vertices, faces, pieces[probed].mean(axis=1),
+                                   nf[which[probed]], u[which[probed]], probe)
+    other = np.where(hit >= 0, face_class[np.maximum(hit, 0)], 0)
+    cos = np.abs(np.einsum("ij,ij->i", nf[which], normals[np.maximum(hit, 0)]))
+    crease = np.where(hit >= 0, np.round(np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))), 1),
+                      90.0)
+    classes = np.stack([face_class[owner[which]], other], axis=1)
+    return pieces, classes, crease
+
+
+def _first_faces(vertices: np.ndarray, faces: np.ndarray, mid: np.ndarray, normal: np.ndarray,
+                 across: np.ndarray, probe: BoundaryProbe) -> np.ndarray:
+    """(K,) first face hit by the probes at edge points ``mid`` (K, 3); -1 for none.
+
+    In turn, for the edges still without a hit: across the edge in front of the face
+    (+``normal``), across it behind the face, then through the face's plane just beyond
+    the edge (``offset`` out, from ``offset`` in front to ``offset`` behind: a coplanar
+    surface, which the first two run parallel to).
+    """
+    from core.rays import RayCaster
+
+    caster = RayCaster(vertices, faces, probe.variant)
+    off, reach = probe.offset, probe.offset + probe.reach
+    back, beyond = mid - off * across, mid + off * across
+    probes = ((back, normal, across, reach), (back, -normal, across, reach),
+              (beyond, normal, -normal, 2 * off))
+    hit = np.full(len(mid), -1, dtype=np.int64)
+    for start, side, direction, length in probes:
+        miss = np.flatnonzero(hit < 0)
+        if len(miss) == 0:
+            break
+        hit[miss], _ = caster.first_hit(start[miss] + off * side[miss], direction[miss], length)
+    return hit
 
 
 def merge_collinear(
@@ -87,17 +266,14 @@ def merge_collinear(
     _, group = np.unique(key, axis=0, return_inverse=True)
     group = group.ravel()
     order = np.lexsort((lo, group))
-    out_seg, out_cls, out_ang = [], [], []
-    i = 0
-    while i < len(order):
-        k = order[i]
-        g, a, b = group[k], lo[k], hi[k]
-        j = i + 1
-        while j < len(order) and group[order[j]] == g and lo[order[j]] <= b + tol:
-            b = max(b, hi[order[j]])
-            j += 1
-        out_seg.append([foot[k] + a * d[k], foot[k] + b * d[k]])
-        out_cls.append(classes[k])
-        out_ang.append(crease[k])
-        i = j
-    return np.array(out_seg), np.array(out_cls, dtype=np.uint8), np.array(out_ang)
+    g, lo, hi = group[order], lo[order], hi[order]
+    # running max of hi within each group, exact: dense ranks, offset per group
+    uh, rank = np.unique(hi, return_inverse=True)
+    key = np.maximum.accumulate(g.astype(np.int64) * (len(uh) + 1) + rank.ravel())
+    reach = uh[key - g.astype(np.int64) * (len(uh) + 1)]
+    start = np.r_[True, (g[1:] != g[:-1]) | (lo[1:] > reach[:-1] + tol)]
+    first = np.flatnonzero(start)
+    k = order[first]
+    b = np.maximum.reduceat(hi, first)
+    out = np.stack([foot[k] + lo[first, None] * d[k], foot[k] + b[:, None] * d[k]], axis=1)
+    return out, classes[k].astype(np.uint8), crease[k].astype(np.float64)

@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 from core.atomic import atomic_write
 from core.dataset import World
 from core.occupancy import OccupancyMap
+from core.rays import RayCaster
 
 log = logging.getLogger(__name__)
 
@@ -215,59 +216,6 @@ def stored_cells(free: OccupancyMap, origin: np.ndarray, cell: np.ndarray, shape
     return flat, row[nearest].astype(np.int32)
 
 
-class RayCaster:
-    """Occlusion tests against a world's mesh: Mitsuba's ``ray_test`` (llvm), or trimesh's
-    intersector with the scalar fallback variant (slow)."""
-
-    def __init__(self, world: World, variant: str = "auto"):
-        from core.variant import choose_variant
-
-        self.use_mitsuba = choose_variant(variant) != "scalar_rgb"
-        if self.use_mitsuba:
-            self.mi, self.scene = _mitsuba_scene(world)
-        else:
-            import trimesh
-
-            log.warning("visibility: casting rays with trimesh (no llvm Mitsuba variant); slow")
-            self.tm = trimesh.Trimesh(world.vertices, world.faces, process=False)
-
-    def hidden(self, origins: np.ndarray, targets: np.ndarray, eps: float) -> np.ndarray:
-        """(n,) bool: the segment from origins[i] to targets[i] (both (n, 3) float64, metres)
-        hits the mesh before ``eps`` metres short of the target."""
-        o, d = origins, targets - origins
-        dist = np.linalg.norm(d, axis=1)
-        d = d / np.maximum(dist, 1e-12)[:, None]
-        maxt = np.maximum(dist - eps, 0.0)
-        if self.use_mitsuba:
-            mi = self.mi
-            ray = mi.Ray3f(mi.Point3f(*[np.ascontiguousarray(o[:, i], dtype=np.float32)
-                                        for i in range(3)]),
-                           mi.Vector3f(*[np.ascontiguousarray(d[:, i], dtype=np.float32)
-                                         for i in range(3)]))
-            ray.maxt = mi.Float(maxt.astype(np.float32))
-            hit = np.asarray(self.scene.ray_test(ray), dtype=bool)
-        else:
-            loc, idx_ray, _ = self.tm.ray.intersects_location(o, d, multiple_hits=True)
-            hit = np.zeros(len(o), dtype=bool)
-            if len(idx_ray):
-                t = np.einsum("ij,ij->i", loc - o[idx_ray], d[idx_ray])
-                hit[idx_ray[(t > 1e-6) & (t < maxt[idx_ray])]] = True
-        return hit & (dist > eps)
-
-
-def _mitsuba_scene(world: World):
-    import mitsuba as mi
-
-    mesh = mi.Mesh("model", len(world.vertices), len(world.faces), has_vertex_normals=False,
-                   has_vertex_texcoords=False)
-    params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(np.ascontiguousarray(
-        world.vertices, dtype=np.float32).ravel())
-    params["faces"] = mi.UInt32(np.ascontiguousarray(world.faces, dtype=np.uint32).ravel())
-    params.update()
-    return mi, mi.load_dict({"type": "scene", "model": mesh})
-
-
 def occluded(world: World, origins: np.ndarray, targets: np.ndarray, eps: float = 0.02,
              variant: str = "auto", chunk: int = 2_000_000) -> np.ndarray:
     """Whether the straight line from each origin to each target hits the mesh first.
@@ -289,7 +237,7 @@ def occluded(world: World, origins: np.ndarray, targets: np.ndarray, eps: float 
     out = np.zeros((G, P), dtype=bool)
     if G == 0 or P == 0:
         return out
-    caster = RayCaster(world, variant)
+    caster = RayCaster(world.vertices, world.faces, variant)
     rows = max(1, chunk // P)
     for g0 in range(0, G, rows):
         o = np.repeat(origins[g0:g0 + rows], P, axis=0)
@@ -334,7 +282,7 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
     centres = vis.centres()
     tree = cKDTree(points)
     near = tree.query_ball_point(centres, max_range, return_length=True)
-    caster = RayCaster(world, variant) if near.any() else None
+    caster = RayCaster(world.vertices, world.faces, variant) if near.any() else None
     ids, counts = [], np.zeros(len(flat), dtype=np.int64)
     for b in _batches(near, chunk) if near.any() else []:
         pairs = cKDTree(centres[b]).sparse_distance_matrix(tree, max_range,
