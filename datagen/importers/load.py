@@ -84,9 +84,11 @@ def load_building(path: str | Path | None = None,
     t0 = time.perf_counter()
     s = as_config(ImportSettings, settings, "world")
     check_settings(s)
-    path = Path(path if path is not None else s.path)
-    if not str(path):
-        raise ValueError("path: no building model file given (set path / world.path)")
+    raw = str(path if path is not None else s.path)
+    if not raw:
+        raise ValueError("world.path: no building model file given; name one: "
+                         f"world.path=FILE ({', '.join(EXTENSIONS)})")
+    path = Path(raw)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file (path / world.path must name a "
                                 f"building model file: {', '.join(EXTENSIONS)})")

@@ -63,6 +63,7 @@ class TestFile:
     @pytest.mark.parametrize("settings,error,match", [
         ({"path": "building.xyz"}, ValueError, "unknown extension"),
         ({"path": "missing.glb"}, FileNotFoundError, "no such file"),
+        ({"path": ""}, ValueError, "world.path: no building model file given"),
         ({"camera_margin": 1.5}, ValueError, "world.camera_margin"),
         ({"z_range": [2.0, 1.0]}, ValueError, "world.z_range"),
         ({"kind": "cave"}, ValueError, "world.kind: unknown world kind 'cave'"),
@@ -73,7 +74,7 @@ class TestFile:
             (tmp_path / "building.xyz").write_text("solid nothing\n")
         path = write_ring_glb(tmp_path / "ring.glb")
         spec = {"kind": "file", "path": path, **settings}
-        if "path" in settings:
+        if settings.get("path"):
             spec["path"] = str(tmp_path / settings["path"])
         with pytest.raises(error, match=match):
             build_site(spec)
