@@ -44,6 +44,7 @@ from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, sample_segments, tilt_from_pose
 from localize.visibility import SparseVisibility, load_or_build
+from localize.visibility_budget import fit_grid
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
@@ -108,7 +109,8 @@ class EdgeModel:
               occlusion: bool = True, free: OccupancyMap | None = None) -> EdgeModel:
         """The world's structural edges (``scored_segments``), sampled every
         ``settings.model_edges.spacing`` m, with their visibility lists (ray-cast from the
-        cells of ``free``, default ``world.free``; cached under ``cache_dir``
+        cells of ``free``, default ``world.free``, on the grid that fits
+        ``visibility.max_gb``: ``visibility_budget.fit_grid``; cached under ``cache_dir``
         when given; ``occlusion=False`` skips them)."""
         me = settings.model_edges
         keep = scored_segments(world, me.min_length)
@@ -120,8 +122,14 @@ class EdgeModel:
         vis = None
         if occlusion:
             v = settings.visibility
-            vis = load_or_build(world, samples.points, free, cache_dir, v.cell_xy, v.cell_z,
-                                v.pad, v.eps, v.max_range, v.variant)
+            free = world.free if free is None else free
+            cell_xy, cell_z, max_range = v.cell_xy, v.cell_z, v.max_range
+            if v.max_gb is not None:
+                g = fit_grid(world, samples.points, free, cell_xy, cell_z, v.pad, v.eps,
+                             max_range, v.max_gb, v.variant)
+                cell_xy, cell_z, max_range = g.cell_xy, g.cell_z, g.max_range
+            vis = load_or_build(world, samples.points, free, cache_dir, cell_xy, cell_z,
+                                v.pad, v.eps, max_range, v.variant)
         sc = np.asarray(world.segment_classes)[samples.segment]
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 

@@ -234,9 +234,10 @@ class ParticleFilter:
         self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
 
     def init_global(self) -> None:
-        """Start uniform over the free space, with ``global_particles`` particles."""
+        """Start uniform over the free space, with ``global_count(free area)`` particles
+        (``global_particles``, more over a free space larger than ``global_area``)."""
         p = self.params
-        n = max(p.global_particles, p.num_particles)
+        n = p.global_count(self.free.area)
         self.particles = init_global(self.rng, self.free, n)
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._low = 0, None, None, 0
