@@ -90,7 +90,8 @@ def estimate_grid(world: World, points: np.ndarray, free: OccupancyMap, cell_xy:
         return GridChoice(cell_xy, cell_z, max_range, 0, R, upper, False)
     i = np.repeat(np.arange(len(at)), [len(n) for n in near])
     j = np.concatenate([np.asarray(n, np.int64) for n in near])
-    seen = ~RayCaster(world, variant).hidden(centres[i], points[j], eps) if len(j) else j
+    seen = (~RayCaster(world.vertices, world.faces, variant).hidden(centres[i], points[j], eps)
+            if len(j) else j)
     est = fixed + R * ID_BYTES * float(np.count_nonzero(seen)) / len(at)
     return GridChoice(cell_xy, cell_z, max_range, 0, R, est, True)
 
