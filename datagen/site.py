@@ -73,6 +73,25 @@ def corridor_site(spec: WorldConfig) -> Site:
     return Site(w, corridor_scene(model), floor, route, b, model)
 
 
+def camera_free_space(b: Building, spec: FileWorldConfig) -> OccupancyMap:
+    """Where a camera may be in an imported building: ``spec.z_range`` above its floor,
+    ``spec.camera_margin`` from every surface, ``spec.free_cell`` cells.
+
+    Raises:
+        ValueError: a bad z_range, or no free space left, naming the file and the keys.
+    """
+    z = np.asarray(spec.z_range, dtype=np.float64)
+    if z.shape != (2,) or not 0 <= z[0] < z[1]:
+        raise ValueError(f"world.z_range {z.tolist()} must be [lo, hi] m above the floor with "
+                         "0 <= lo < hi")
+    try:
+        return OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
+                                      float(b.info["floor_z"]) + z, spec.camera_margin,
+                                      spec.free_cell)
+    except ValueError as err:
+        raise ValueError(f"{spec.path}: world.camera_margin / world.z_range: {err}") from None
+
+
 def file_site(spec: FileWorldConfig) -> Site:
     """A building model file (``world.path``): import, model edges, free space.
 
@@ -82,25 +101,18 @@ def file_site(spec: FileWorldConfig) -> Site:
     """
     t0 = time.perf_counter()
     b = load_building(settings=spec)
+    free = camera_free_space(b, spec)
     floor_z = float(b.info["floor_z"])
-    z = np.asarray(spec.z_range, dtype=np.float64)
-    if z.shape != (2,) or not 0 <= z[0] < z[1]:
-        raise ValueError(f"world.z_range {z.tolist()} must be [lo, hi] m above the floor with "
-                         "0 <= lo < hi")
-    band = floor_z + z
-    where = f"{spec.path}: world.camera_margin / world.z_range"
     try:
-        free = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class, band,
-                                      spec.camera_margin, spec.free_cell)
         floor = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
                                        floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
     except ValueError as err:
-        raise ValueError(f"{where}: {err}") from None
+        raise ValueError(f"{spec.path}: {err}") from None
     segments, seg_classes, crease = extract_edges(b.vertices, b.faces, b.face_class,
                                                   spec.crease_deg)
     info = {
         "name": spec.name, "kind": "file", **b.info,
-        "free_space": {"z_range": band.tolist(), "cell": spec.free_cell,
+        "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
                        "margin": float(spec.camera_margin), "area_m2": round(free.area, 3)},
         "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
     }

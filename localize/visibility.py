@@ -157,14 +157,12 @@ class SparseVisibility:
 def free_bounds(free: OccupancyMap) -> tuple[np.ndarray, np.ndarray]:
     """(3,) lowest and (3,) highest camera centre of a free-space map: its free cells'
     centres x its band, metres (rounded to 1e-6)."""
-    r, c = np.nonzero(free.free)
-    if len(r) == 0:
+    if not free.free.any():
         raise ValueError("the free-space map has no free cell: no camera position to cast "
                          "visibility from")
-    xy = free.centres(np.stack([r, c]))
+    b = free.free_bounds
     # to the micrometre: cell centres are multiples of the cell size up to float rounding
-    return (np.round(np.r_[xy.min(0), free.band[0]], 6),
-            np.round(np.r_[xy.max(0), free.band[1]], 6))
+    return (np.round(np.r_[b[:2], free.band[0]], 6), np.round(np.r_[b[2:], free.band[1]], 6))
 
 
 def grid_layout(lo: np.ndarray, hi: np.ndarray, cell_xy: float, cell_z: float,

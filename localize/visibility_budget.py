@@ -24,7 +24,8 @@ from scipy.spatial import cKDTree
 
 from core.dataset import World
 from core.occupancy import OccupancyMap
-from localize.visibility import RayCaster, free_bounds, grid_layout, stored_cells
+from core.rays import RayCaster
+from localize.visibility import free_bounds, grid_layout, stored_cells
 
 log = logging.getLogger(__name__)
 

@@ -23,6 +23,7 @@ from datagen.importers.load import EXTENSIONS, load_building
 from datagen.importers.plan import write_plan
 from datagen.importers.settings import ImportSettings
 from datagen.routes import find_turns, plan_route, route_length
+from datagen.site import camera_free_space
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -57,10 +58,7 @@ def free_space_and_route(b: Building, min_length: float, seed: int
     Returns:
         the map, the route ((K, 2) m, or None) and the figures printed and stored in info.
     """
-    spec = FileWorldConfig()
-    band = b.info["floor_z"] + np.asarray(spec.z_range)
-    occ = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class, band, spec.camera_margin,
-                                 spec.free_cell)
+    occ = camera_free_space(b, FileWorldConfig(path=b.info["source"]))
     figures = {"free_area_m2": round(occ.area, 1)}
     try:
         route = plan_route(occ, np.random.default_rng(seed),

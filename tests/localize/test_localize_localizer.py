@@ -204,9 +204,9 @@ class TestBadInput:
 
 # --- the runner's trajectories, against the inline frame step the Localizer replaced ----------
 
-#: Per run: the estimate (T, 4) summed over frames, then weighted by frame number 1..T, as the
-#: runner's frame step gave them before the Localizer (12 frames; paper-faithful: 3 frames of
-#: 8 particles), recorded on the flat-shaded tiny dataset with REFERENCE_OVERRIDES.
+#: Per run: the estimate (T, 4) summed over frames, then weighted by frame number 1..T (12
+#: frames; paper-faithful: 3 frames of 8 particles), recorded by the runner on the flat-shaded
+#: tiny dataset with REFERENCE_OVERRIDES.
 REFERENCE = {
     "cluttered/cnn_global_seed0": [4.762760305444622, 9.48370771502118, 16.413190139291782, 19.96417176250417, 33.41868908194883, 54.558154105086615, 109.88842845855066, 136.3883586968122],  # noqa: E501
     "cluttered/cnn_seed0": [5.792651307382707, 7.858326731338082, 16.43524468950881, 20.129742085051863, 35.858853998883035, 56.02745100729085, 109.68394412369, 136.83665904327023],  # noqa: E501
