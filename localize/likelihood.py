@@ -48,7 +48,7 @@ Scores aggregate in one of two ways:
   of the model (a pose facing a blank wall where two lines happen to match no longer beats the
   true pose that matches forty), and unlike a plain sum of g it punishes model lines that fall
   where the image has no edge (a pose does not win by moving its lines off masked objects onto
-  empty wall). It is what makes global localization work (see docs/localize.md).
+  empty wall).
 
 Finally ``log W = log(alpha) + k * score``. The likelihood stays finite for any input: with no
 edges at all every particle gets the same score.

@@ -5,8 +5,10 @@ samples seen within ``max_range``: their memory grows with the free area / the c
 the samples a cell sees. A corridor's lists at the default 0.2 x 0.25 m cells and 15 m take
 tens of MB; a hospital floor's would take several GB. ``fit_grid`` starts from the configured
 cells and range and, while the lists are estimated above the budget (``visibility.max_gb``),
-goes one level coarser: cells x ``CELL_STEP`` (both axes), range x ``RANGE_STEP``; the
-corridor stays at level 0, the AWS hospital floor lands on level 1 (0.4 x 0.5 m, 10 m).
+goes one level coarser: cells x ``CELL_STEP`` (both axes) at each level, range x ``RANGE_STEP``
+from level 2 on (the range is what fixes a pose along a long corridor: its far door frames
+and ends; coarser cells only blur the occlusion). The corridor stays at level 0, the AWS
+hospital floor lands on level 1 (0.4 x 0.5 m, 15 m).
 
 The estimate probes ``probe`` stored cells spread over the grid (rows are tile-ordered, so
 evenly spaced rows spread over the floor): an upper bound counts every sample in range; only
@@ -29,7 +31,7 @@ from localize.visibility import free_bounds, grid_layout, stored_cells
 
 log = logging.getLogger(__name__)
 
-#: one coarser level: cells x CELL_STEP (xy and z), max_range x RANGE_STEP.
+#: one coarser level: cells x CELL_STEP (xy and z); from level 2 on also max_range x RANGE_STEP.
 CELL_STEP, RANGE_STEP = 2.0, 2.0 / 3.0
 #: levels tried (level 0: the configured grid).
 MAX_LEVELS = 4
@@ -101,8 +103,8 @@ def fit_grid(world: World, points: np.ndarray, free: OccupancyMap, cell_xy: floa
              cell_z: float, pad: float, eps: float, max_range: float, max_gb: float,
              variant: str = "auto") -> GridChoice:
     """The finest grid (level 0: the configured one) whose lists are estimated within
-    ``max_gb`` GB (``estimate_grid``); each level coarsens cells by ``CELL_STEP`` and the
-    range by ``RANGE_STEP``.
+    ``max_gb`` GB (``estimate_grid``); each level coarsens cells by ``CELL_STEP``, and from
+    level 2 on the range by ``RANGE_STEP``.
 
     Raises:
         ValueError: naming ``visibility.max_gb`` when even level ``MAX_LEVELS - 1`` does not
@@ -112,7 +114,7 @@ def fit_grid(world: World, points: np.ndarray, free: OccupancyMap, cell_xy: floa
         raise ValueError(f"visibility.max_gb must be positive, got {max_gb}")
     budget = max_gb * 1e9
     for level in range(MAX_LEVELS):
-        f, r = CELL_STEP ** level, RANGE_STEP ** level
+        f, r = CELL_STEP ** level, RANGE_STEP ** max(level - 1, 0)
         g = estimate_grid(world, points, free, cell_xy * f, cell_z * f, pad, eps,
                           max_range * r, budget, variant=variant)
         choice = GridChoice(g.cell_xy, g.cell_z, g.max_range, level, g.rows, g.est_bytes,

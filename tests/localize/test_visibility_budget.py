@@ -38,7 +38,7 @@ def test_budget_keeps_the_grid_that_fits_and_coarsens_the_one_that_does_not(long
     coarse = fit_grid(world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0, max_gb=small)
     assert coarse.level >= 1 and coarse.est_bytes <= small * 1e9
     assert coarse.cell_xy == pytest.approx(0.2 * CELL_STEP ** coarse.level)
-    assert coarse.max_range == pytest.approx(6.0 * RANGE_STEP ** coarse.level)
+    assert coarse.max_range == pytest.approx(6.0 * RANGE_STEP ** max(coarse.level - 1, 0))
     with pytest.raises(ValueError, match="visibility.max_gb"):
         fit_grid(world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0, max_gb=1e-9)
 
