@@ -324,9 +324,10 @@ class VisibilitySettings:
         max_range: metres; samples farther from a cell are not cast nor scored (memory and
             time grow with the samples within it).
         max_gb: memory budget of the lists, GB: while they are estimated above it, the
-            cells double and the range shrinks by 2/3 (``localize.visibility_budget``; the
-            corridor keeps ``cell_xy``, ``cell_z``, ``max_range``; a hospital floor gets
-            0.4 x 0.5 m and 10 m). None: the configured grid whatever its size.
+            cells double, and from the second coarsening on the range shrinks by 2/3
+            (``localize.visibility_budget``; the corridor keeps ``cell_xy``, ``cell_z``,
+            ``max_range``; a hospital floor gets 0.4 x 0.5 m and 15 m). None: the configured
+            grid whatever its size.
         variant: Mitsuba variant of the ray casts.
     """
 

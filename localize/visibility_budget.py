@@ -19,7 +19,7 @@ mean visible count taken.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -117,8 +117,7 @@ def fit_grid(world: World, points: np.ndarray, free: OccupancyMap, cell_xy: floa
         f, r = CELL_STEP ** level, RANGE_STEP ** max(level - 1, 0)
         g = estimate_grid(world, points, free, cell_xy * f, cell_z * f, pad, eps,
                           max_range * r, budget, variant=variant)
-        choice = GridChoice(g.cell_xy, g.cell_z, g.max_range, level, g.rows, g.est_bytes,
-                            g.exact)
+        choice = replace(g, level=level)
         if g.est_bytes <= budget:
             if level:
                 log.info("visibility: cells %.2f x %.2f m, range %.1f m (level %d): about "
