@@ -279,7 +279,8 @@ class ParticleFilter:
         inject_frac = self._collapse(best)
         self.frame += 1
         N = len(self.particles)
-        large = self._thin_at > 0 and self.frame < self._thin_at  # keep the global set
+        gathered = pos_std < p.global_spread
+        large = self._thin_at > 0 and self.frame < self._thin_at and not gathered
         thin = self._thin_at > 0 and not large
         resampled = thin or ess < p.resample_ess * N or inject_frac > 0
         injected = 0
