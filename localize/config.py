@@ -93,17 +93,13 @@ class FilterParams:
         num_particles: particles while tracking.
         global_particles: particles of the initial uniform draw of a global start over up to
             ``global_area`` m2 of free space; thinned to ``num_particles`` by resampling after
-            ``global_frames`` frames, or earlier once the set has gathered
-            (``global_spread``).
+            ``global_frames`` frames.
         global_area: m2 of free space ``global_particles`` cover (the corridor's ~16); a
             larger free space (a whole floor) gets proportionally more particles, at the same
             density, up to ``global_max_particles`` (``global_count``).
         global_max_particles: most particles of a global start (time: a global update of
             the hospital floor costs about 10 ms per 1,000 particles in mode oracle).
-        global_frames: most frames the global set is kept.
-        global_spread: the global set is thinned as soon as its weighted horizontal spread
-            (``particle_filter.spread``) is below this many metres: gathered into one place,
-            the tracking likelihood (sharper than the global one) takes over from there.
+        global_frames: frames the global set is kept.
         global_temper: log-likelihood scale while the global set is kept.
         global_likelihood: ``likelihood`` keys that differ while the global set is kept.
         mode_likelihood: ``likelihood`` keys that differ per edge mode, ``{mode: {key: value}}``.
@@ -137,7 +133,6 @@ class FilterParams:
     global_area: float = 16.0
     global_max_particles: int = 200000
     global_frames: int = 40
-    global_spread: float = 1.0
     global_temper: float = 1.0
     global_likelihood: dict[str, Any] = field(default_factory=lambda: {
         "k": 20.0, "sigma": 0.3, "class_pairs": True, "min_line_samples": 2})

@@ -279,8 +279,7 @@ class ParticleFilter:
         inject_frac = self._collapse(best)
         self.frame += 1
         N = len(self.particles)
-        gathered = pos_std < p.global_spread
-        large = self._thin_at > 0 and self.frame < self._thin_at and not gathered
+        large = self._thin_at > 0 and self.frame < self._thin_at  # keep the global set
         thin = self._thin_at > 0 and not large
         resampled = thin or ess < p.resample_ess * N or inject_frac > 0
         injected = 0

@@ -154,26 +154,13 @@ class TestParticleFilter:
         assert len(pf.particles) == 300
 
     def test_global_set_is_thinned(self):
-        params = FilterParams(num_particles=100, global_particles=1000, global_frames=2,
-                              global_spread=0.0)
+        params = FilterParams(num_particles=100, global_particles=1000, global_frames=2)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_global()
         assert len(pf.particles) == 1000 and pf.in_global_phase
         pf.update(bowl(np.array([0, 5, 1, 0])))
         assert len(pf.particles) == 1000
         pf.update(bowl(np.array([0, 5, 1, 0])))
-        assert len(pf.particles) == 100 and not pf.in_global_phase
-
-    def test_global_set_is_thinned_once_gathered(self):
-        params = FilterParams(num_particles=100, global_particles=1000, global_frames=40,
-                              global_spread=1.0)
-        pf = ParticleFilter(params, FREE, np.random.default_rng(0))
-        pf.init_global()
-        flat = lambda s: (np.zeros(len(s)), np.full(len(s), 0.5))  # noqa: E731
-        info = pf.update(flat)  # spread over the free space: kept
-        assert info.position_std > 1.0 and len(pf.particles) == 1000 and pf.in_global_phase
-        info = pf.update(bowl(np.array([0, 5, 1, 0])))  # gathered: thinned long before 40
-        assert info.position_std < 1.0
         assert len(pf.particles) == 100 and not pf.in_global_phase
 
     def test_recovery_injects_on_collapse(self):
