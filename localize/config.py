@@ -19,8 +19,6 @@ from core.config import register_schema
 MODES = ("none", "cnn", "oracle")
 #: ``edges.cnn.refine`` choices.
 REFINES = ("none", "union")
-#: ``filter.likelihood.aggregate`` choices.
-AGGREGATES = ("lines", "evidence")
 
 
 @dataclass
@@ -31,11 +29,6 @@ class LikelihoodParams:
         alpha, k: weight ``W = alpha * exp(k * score)``.
         sigma: tolerance of g(d), a fraction of ``search_px`` (0.1: 1 px; the paper's 0.3: 3 px).
         search_px: reach of the edge search, pixels; d is truncated there and divided by it.
-        aggregate: ``lines`` (the paper: mean over lines of the mean over their samples) or
-            ``evidence`` (sum over visible samples of the log-ratio of g to the chance level
-            g0, divided by ``evidence_norm``).
-        evidence_norm: samples per unit of score (``evidence``).
-        outlier: eps of the evidence's log-ratio ``log(g + eps) - log(g0 + eps)``.
         min_quality_samples: known visible samples needed to judge the fit (recovery).
         min_line_samples: visible samples a line needs to count (5: 0.4 m of it at the 0.1 m
             spacing; a detail of an imported model, a 6 cm door handle, must not weigh as
@@ -58,9 +51,6 @@ class LikelihoodParams:
     k: float = 25.0
     sigma: float = 0.1
     search_px: float = 10.0
-    aggregate: str = "lines"
-    evidence_norm: float = 100.0
-    outlier: float = 0.05
     min_quality_samples: int = 30
     min_line_samples: int = 5
     min_lines: int = 5
@@ -72,9 +62,6 @@ class LikelihoodParams:
     workers: int = 2
 
     def __post_init__(self) -> None:
-        if self.aggregate not in AGGREGATES:
-            raise ValueError(f"likelihood.aggregate must be one of {AGGREGATES}, got "
-                             f"{self.aggregate!r}")
         if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
             raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
                              f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")

@@ -5,9 +5,8 @@ camera; samples behind the camera, outside the image or occluded (``visibility``
 With visibility lists (``visibility.SparseVisibility``) the particles are grouped by cell
 (rows run tile by tile) and a block of them projects only the samples its cells see and its
 cameras face (``projection.in_view_cone``); a line's sums still run over all its samples, the
-others 0, so the scores are those of projecting everything. A block spread over the floor
-(global start) projects each particle's own list instead. Work per frame grows with what the
-cameras can see, not with the building.
+others 0, so the scores are those of projecting everything. Work per frame grows with what
+the cameras can see, not with the building.
 Each remaining sample reads ``g(d) = exp(-d^2 / (2 sigma^2))`` from a precomputed score map,
 where d is the distance from the pixel to the nearest image edge:
 
@@ -34,24 +33,16 @@ where d is the distance from the pixel to the nearest image edge:
   g0, the mean score of a known pixel; so do known pixels whose nearest edge is farther than
   the mask (the true edge might be hidden), unless they already score more.
 
-Scores aggregate in one of two ways:
+Scores aggregate as in the paper: line score ``l = mean g`` over a line's visible samples,
+``score = mean l`` over lines with at least ``min_line_samples`` visible samples. A particle
+seeing fewer than ``min_lines`` lines is padded with g0. Finally ``log W = log(alpha) + k *
+score``. The likelihood stays finite for any input: with no edges at all every particle gets
+the same score.
 
-- ``lines`` (the paper): line score ``l = mean g`` over a line's visible samples, ``score =
-  mean l`` over lines with at least ``min_line_samples`` visible samples. A particle seeing
-  fewer than ``min_lines`` lines is padded with g0.
-- ``evidence``: ``score = sum over visible samples of e / evidence_norm`` with the per-sample
-  log-likelihood ratio ``e = log(g + eps) - log(g0 + eps)``: the sample's fit against the
-  image's chance level g0, with an outlier floor ``eps`` (``outlier``). A sample on an edge adds
-  about ``log((1 + eps) / (g0 + eps))``, one far from any edge subtracts ``log((g0 + eps) /
-  eps)``; unseen samples add nothing, and samples on unknown pixels count with the particle's
-  own mean evidence over its known samples. Unlike a mean, this rewards explaining *more*
-  of the model (a pose facing a blank wall where two lines happen to match no longer beats the
-  true pose that matches forty), and unlike a plain sum of g it punishes model lines that fall
-  where the image has no edge (a pose does not win by moving its lines off masked objects onto
-  empty wall).
-
-Finally ``log W = log(alpha) + k * score``. The likelihood stays finite for any input: with no
-edges at all every particle gets the same score.
+**Fit quality** (what recovery watches): apart from the score, each particle's visible samples
+on known pixels are judged by their mean log-ratio ``log(g + eps) - log(g0 + eps)`` against
+the chance level g0 (eps = ``FIT_EPS``), over that of a sample on an edge: 1 when all lie on
+edges, 0 at chance, negative when worse; NaN with fewer than ``min_quality_samples`` of them.
 
 **Few lines in view** (``lines_ref``): a mean over lines weighs a frame that shows four model
 lines (the camera close to an end wall) as much as one that shows forty, so one misplaced
@@ -84,16 +75,14 @@ from localize.projection import (
     image_directions,
     in_view_cone,
     pixel_index,
-    pixel_index_each,
     projection_matrices,
     view_half_width,
 )
 from localize.visibility import SparseVisibility
 
-#: a block of particles projects the union of its cells' visible samples unless that union
-#: is more than this many times one cell's list (particles spread over the floor): then each
-#: particle projects its own list (evidence aggregate only).
-EACH_RATIO = 2.0
+#: eps of the fit quality's log-ratio ``log(g + eps) - log(g0 + eps)``: a sample far from any
+#: edge costs ``log((g0 + eps) / eps)``, not an unbounded amount.
+FIT_EPS = 0.05
 
 
 @dataclass
@@ -104,9 +93,9 @@ class Observation:
         g: (Q * B * H * W + 1,) float32 flattened score maps, one per class pair (Q = 1
             without ``class_pairs``) and orientation bin (B = 1 without), pair-major, and a
             final 0 read by samples that are not visible.
-        e: (Q * B * H * W + 1,) float32 per-sample evidence ``log(g + eps) - log(g0 + eps)``
-            (eps = ``outlier``), exactly 0 on unknown pixels (and nudged off 0 elsewhere, so
-            zeros count unknowns).
+        fit: (Q * B * H * W + 1,) float32 log-ratio ``log(g + eps) - log(g0 + eps)`` of the
+            fit quality (eps = ``FIT_EPS``), laid out as ``g``; exactly 0 on unknown pixels
+            and at the final entry (and nudged off 0 elsewhere, so zeros count unknowns).
         g0: (B,) chance score per bin (mean over known pixels, all edges).
         width, height: image size.
         bins: B (0 for a plain distance transform, stored as 1 map).
@@ -114,7 +103,7 @@ class Observation:
     """
 
     g: np.ndarray
-    e: np.ndarray
+    fit: np.ndarray
     g0: np.ndarray
     width: int
     height: int
@@ -196,11 +185,11 @@ def _bin_masks(edges: np.ndarray, bins: int) -> np.ndarray:
 
 
 class _ScoreMaps:
-    """How one frame's edges become score maps g(d) and evidence maps (see ``observe``).
+    """How one frame's edges become score maps g(d) and fit maps (see ``observe``).
 
     Args:
         known: (H, W) bool, where edges are known.
-        params: sigma, search_px, outlier.
+        params: sigma, search_px.
     """
 
     def __init__(self, known: np.ndarray, params: LikelihoodParams):
@@ -214,7 +203,7 @@ class _ScoreMaps:
         self.reach = np.float32(params.search_px)
         # g = exp(scale * min(d, reach)^2)
         self.scale = np.float32(-1.0 / (s2 * float(self.reach) ** 2))
-        self.eps = np.float32(params.outlier)
+        self.eps = np.float32(FIT_EPS)
 
     def score(self, m: np.ndarray, g0b: np.float32 | None, out: np.ndarray) -> np.float32:
         """g(d) (H, W) of the edges ``m`` into ``out``; returns the chance level: ``g0b``, or
@@ -234,8 +223,8 @@ class _ScoreMaps:
         np.copyto(out, g0b, where=self.unknown)
         return g0b
 
-    def evidence(self, g: np.ndarray, g0b: np.float32, out: np.ndarray) -> None:
-        """e map from a g map into ``out``: ``log(g + eps) - log(g0 + eps)``, exactly 0 on
+    def fit(self, g: np.ndarray, g0b: np.float32, out: np.ndarray) -> None:
+        """Fit map (H, W) from a g map into ``out``: ``log(g + eps) - log(g0 + eps)``, exactly 0 on
         unknown pixels and nudged off 0 elsewhere."""
         np.add(g, self.eps, out=out)
         np.log(out, out=out)
@@ -269,31 +258,31 @@ def observe(edge: EdgeImage, params: LikelihoodParams,
     n = (len(pair_codes) if paired else 1) * len(masks)
     # flat buffers with one trailing 0 that invalid samples read
     g_flat = np.empty(n * H * W + 1, dtype=np.float32)
-    e_flat = np.empty(n * H * W + 1, dtype=np.float32)
-    g_flat[-1] = e_flat[-1] = 0.0
+    f_flat = np.empty(n * H * W + 1, dtype=np.float32)
+    g_flat[-1] = f_flat[-1] = 0.0
     g = g_flat[:-1].reshape(n, H, W)
-    e = e_flat[:-1].reshape(n, H, W)
+    f = f_flat[:-1].reshape(n, H, W)
 
     def plain_bin(b: int) -> np.float32:
         """Map b of all edges; its chance level (with class pairs only that, as scratch:
         pair q = 0's maps overwrite it)."""
         g0b = maps.score(masks[b], None, g[b])
         if not paired:
-            maps.evidence(g[b], g0b, e[b])
+            maps.fit(g[b], g0b, f[b])
         return g0b
 
     def pair_bin(i: int) -> None:
         """Map i = q * B + b: the edges of class pair q in bin b."""
         q, b = divmod(i, len(masks))
         maps.score(masks[b] & pms[q], g0[b], g[i])
-        maps.evidence(g[i], g0[b], e[i])
+        maps.fit(g[i], g0[b], f[i])
 
     # the maps are independent: on params.workers threads
     g0 = np.array(run_all(plain_bin, range(len(masks)), params.workers), np.float32)
     if paired:  # one distance transform per (pair, bin)
         pms = [edge.pairs == c for c in np.asarray(pair_codes, np.uint8)]
         run_all(pair_bin, range(n), params.workers)
-    return Observation(g_flat, e_flat, g0, W, H, B, len(pair_codes) if paired else 0)
+    return Observation(g_flat, f_flat, g0, W, H, B, len(pair_codes) if paired else 0)
 
 
 class EdgeLikelihood:
@@ -349,11 +338,10 @@ class EdgeLikelihood:
             tilt: (3, 3) roll/pitch of the body for this frame (None: level).
 
         Returns:
-            score (N,) float64 (in [0, 1] for ``lines``); quality (N,) float64,
-            how well the visible samples on known pixels fit, their mean evidence over that of
-            a perfect fit (1: all on edges, 0: chance, negative: worse), NaN with fewer than
-            ``min_quality_samples`` of them. Recovery watches the best particle's quality
-            whatever the aggregate.
+            score (N,) float64 in [0, 1]; quality (N,) float64, how well the visible samples
+            on known pixels fit, their mean log-ratio over that of a perfect fit (1: all on
+            edges, 0: chance, negative: worse; module docstring), NaN with fewer than
+            ``min_quality_samples`` of them. Recovery watches the best particle's quality.
         """
         score, quality, _ = self._evaluate(states, obs, tilt)
         return score, quality
@@ -386,21 +374,12 @@ class EdgeLikelihood:
         return score, quality, lines
 
     def _seen(self, rows: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
-              half_width: float) -> np.ndarray | None:
+              half_width: float) -> np.ndarray:
         """The samples a block of particles may see: visible from one of ``rows`` and within
         the azimuths the cameras (``centres`` (n, 3), ``yaws`` (n,)) see
-        (``in_view_cone``), (C,) ascending, at least one; None when they are more than
-        ``EACH_RATIO`` times a particle's list and only the evidence is scored (then each
-        particle projects its own list: ``_project``).
-        """
-        s, p = self.samples, self.params
-        mark = self.visibility.union(rows)
-        cand = np.flatnonzero(mark)
-        cone = in_view_cone(s.points[cand], centres, yaws, half_width)
-        if (p.aggregate == "evidence" and p.lines_ref <= 0 and cone.all()
-                and len(cand) > EACH_RATIO * self.visibility.counts()[rows].mean()):
-            return None
-        live = cand[cone]
+        (``in_view_cone``), (C,) ascending, at least one."""
+        cand = np.flatnonzero(self.visibility.union(rows))
+        live = cand[in_view_cone(self.samples.points[cand], centres, yaws, half_width)]
         return live if len(live) else np.zeros(1, np.int64)  # none: one sample, masked
 
     def _project(self, states: np.ndarray, near: tuple | None, tilt: np.ndarray | None,
@@ -409,9 +388,8 @@ class EdgeLikelihood:
 
         Returns:
             idx (n, C) int32 flat pixel (plus the orientation bin's map offset when ``bins``),
-            valid (n, C) bool, cols (C,) the sample ids (or (n, C), each particle's own, when
-            ``_seen`` says so), starts (L,) each line's first column, lines (L,) the lines
-            (None: all of them, in order; both None for particles' own lists).
+            valid (n, C) bool, cols (C,) the sample ids, starts (L,) each line's first column,
+            lines (L,) the lines (None: all of them, in order).
         """
         p, cam, s = self.params, self.camera, self.samples
         W, H = cam.width, cam.height
@@ -421,8 +399,6 @@ class EdgeLikelihood:
             idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
         else:
             cols = self._seen(near[0], near[1], states[:, 3], near[2])
-            if cols is None:
-                return self._project_each(proj, near[0], bins)
             lines, line_of = np.unique(s.run[cols], return_inverse=True)
             line_of = line_of.ravel()
             starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
@@ -440,31 +416,15 @@ class EdgeLikelihood:
             self._add_bin(idx, du, dv, bins, s.run[cols] if lines is None else line_of)
         return idx, valid, cols, starts, lines
 
-    def _project_each(self, proj: np.ndarray, rows: np.ndarray, bins: int) -> tuple:
-        """``_project`` with each particle's own list (evidence only, no lines): cols (n, K)
-        the ids of the samples its row sees, padded (and masked) with sample 0."""
-        s, cam = self.samples, self.camera
-        ids = self.visibility.ids_of(rows)
-        cols = np.maximum(ids, 0)
-        idx, valid, xh = pixel_index_each(proj, s.points_h, cols, cam.width, cam.height,
-                                          self.params.near)
-        valid &= ids >= 0
-        if bins:  # each sample's own line direction (n, 3, K)
-            d = proj[:, :, :3] @ s.dirs.T[:, cols].transpose(1, 0, 2)
-            self._add_bin(idx, d[:, 0] * xh[:, 2] - xh[:, 0] * d[:, 2],
-                          d[:, 1] * xh[:, 2] - xh[:, 1] * d[:, 2], bins, None)
-        return idx, valid, cols, None, None
-
     def _add_bin(self, idx: np.ndarray, du: np.ndarray, dv: np.ndarray, bins: int,
-                 line: np.ndarray | None) -> None:
-        """Offset ``idx`` by the score map of each sample's orientation bin, from the image
-        direction (du, dv) of its line: per line (n, L) with ``line`` (C,) each column's
-        line, or per column (n, C) with None."""
+                 line: np.ndarray) -> None:
+        """Offset ``idx`` (n, C) by the score map of each sample's orientation bin, from the
+        image direction (du, dv) (n, L) of its line; ``line`` (C,) each column's line."""
         # normal of the projected line (-dv, du): its angle in [0, pi) picks the bin
         theta = np.arctan2(du, -dv)
         b = np.rint(theta * np.float32(bins / np.pi)).astype(np.int32) % bins
         b *= np.int32(self.camera.width * self.camera.height)
-        idx += b if line is None else b[:, line]
+        idx += b[:, line]
 
     def _line_sums(self, g: np.ndarray, cols: np.ndarray, lines: np.ndarray | None,
                    starts: np.ndarray) -> np.ndarray:
@@ -494,22 +454,15 @@ class EdgeLikelihood:
             idx += self._pair_slot[cols] * np.int32(max(obs.bins, 1) * cam.width * cam.height)
         idx = np.where(valid, idx, np.int32(len(obs.g) - 1))  # the last entry reads 0
         chance = obs.chance
-        ev = obs.e[idx]  # exactly 0 where not visible or unknown
-        known = np.count_nonzero(ev, axis=1)
-        n = valid.sum(axis=1)
-        e_mean = ev.sum(axis=1, dtype=np.float64) / np.maximum(known, 1)
+        fit = obs.fit[idx]  # exactly 0 where not visible or unknown
+        known = np.count_nonzero(fit, axis=1)
+        fit_mean = fit.sum(axis=1, dtype=np.float64) / np.maximum(known, 1)
         # how well the known visible samples fit: 1 = all on edges, 0 = chance
-        e_top = np.log((1.0 + p.outlier) / (chance + p.outlier))
-        quality = np.where(known >= p.min_quality_samples, e_mean / e_top, np.nan)
-        ok = None  # (n, L) lines with enough visible samples: the lines aggregate, lines_ref
-        if p.aggregate == "lines" or p.lines_ref > 0:
-            ns = np.add.reduceat(valid.view(np.uint8), starts, axis=1, dtype=np.int16)
-            ok = ns >= p.min_line_samples
-        m = np.zeros(len(states), np.int64) if ok is None else ok.sum(axis=1)
-        if p.aggregate == "evidence":
-            # unknown samples count with the particle's own mean evidence (they may or may not
-            # match; moving lines off a masked object onto empty wall must not pay)
-            return e_mean * n / p.evidence_norm, quality, m
+        fit_top = np.log((1.0 + FIT_EPS) / (chance + FIT_EPS))
+        quality = np.where(known >= p.min_quality_samples, fit_mean / fit_top, np.nan)
+        ns = np.add.reduceat(valid.view(np.uint8), starts, axis=1, dtype=np.int16)
+        ok = ns >= p.min_line_samples  # (n, L) lines with enough visible samples
+        m = ok.sum(axis=1)
         gs = self._line_sums(obs.g[idx], cols, lines, starts)
         line = np.where(ok, gs / np.maximum(ns, 1), np.float32(0.0))
         total = line.sum(axis=1, dtype=np.float64) + np.maximum(p.min_lines - m, 0) * chance

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -65,12 +65,10 @@ def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
 
 
 def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> LikelihoodParams:
-    """The global phase's likelihood settings: ``lp`` updated by ``filter.global_likelihood``,
-    ``evidence_norm`` divided by ``filter.global_thin`` (it scores that many times fewer
-    samples)."""
-    gp = typed(LikelihoodParams, {**asdict(lp), **fparams.global_likelihood},
-               "filter.global_likelihood")
-    return replace(gp, evidence_norm=gp.evidence_norm / max(fparams.global_thin, 1))
+    """The global phase's likelihood settings: ``lp`` updated by ``filter.global_likelihood``
+    (a typo or a bad value raises naming ``filter.global_likelihood``)."""
+    return typed(LikelihoodParams, {**asdict(lp), **fparams.global_likelihood},
+                 "filter.global_likelihood")
 
 
 #: classes that make a segment worth scoring: one of its sides must be one of them (an edge

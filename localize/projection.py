@@ -365,24 +365,6 @@ def pixel_index(proj: np.ndarray, points_h: np.ndarray, width: int, height: int,
     return (*pixels_of(xh, width, height, near), xh)
 
 
-def pixel_index_each(proj: np.ndarray, points_h: np.ndarray, ids: np.ndarray, width: int,
-                     height: int, near: float = 0.1
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``pixel_index`` of each camera's own points: camera n projects ``points_h[:, ids[n]]``.
-
-    Args:
-        proj: (N, 3, 4) float32 projection matrices.
-        points_h: (4, P) float32 homogeneous points.
-        ids: (N, K) int point ids, each >= 0.
-        width, height, near: as ``pixel_index``.
-
-    Returns:
-        idx (N, K), valid (N, K), xh (N, 3, K), as ``pixel_index``.
-    """
-    xh = proj @ points_h.T[ids].transpose(0, 2, 1)
-    return (*pixels_of(xh, width, height, near), xh)
-
-
 def pixels_of(xh: np.ndarray, width: int, height: int,
               near: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """Flat pixel index (N, P) int32 and valid (N, P) bool of projected homogeneous points

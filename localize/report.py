@@ -359,7 +359,7 @@ def _header(m: dict, cfg) -> list[str]:
         f"# Localization report: {cfg.name}",
         "",
         f"Dataset `{m['dataset']}`. Filter: {f.num_particles} particles, likelihood "
-        f"`{f.likelihood.aggregate}` with k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
+        f"k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
         f"of a {f.likelihood.search_px}-pixel search reach"
         + (f", k scaled down in frames of fewer than {f.likelihood.lines_ref} lines"
            if f.likelihood.lines_ref else "")

@@ -1,4 +1,4 @@
-"""The nearest-edge likelihood: score maps, aggregates, the peak at the true pose, bad input."""
+"""The nearest-edge likelihood: score maps, line scores, the peak at the true pose, bad input."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from core import classes as C
 from core.config import typed
 from localize.edges import EdgeImage, label_edges, pair_code
 from localize.likelihood import (
+    FIT_EPS,
     EdgeLikelihood,
     LikelihoodParams,
     distance_to,
@@ -67,10 +68,10 @@ class TestObserve:
         np.testing.assert_allclose(g[:, 10], 1.0)
         np.testing.assert_allclose(g[5, 13], np.exp(-0.3 ** 2 / (2 * 0.3 ** 2)), rtol=1e-5)
         np.testing.assert_allclose(g[:, 35], obs.g0[0])  # unknown: chance
-        assert obs.g[-1] == 0 and obs.e[-1] == 0
+        assert obs.g[-1] == 0 and obs.fit[-1] == 0
         assert 0 < obs.chance < 1
-        e = obs.e[:-1].reshape(20, 40)
-        assert (e[:, 30:] == 0).all() and (e[:, :30] != 0).all()
+        fit = obs.fit[:-1].reshape(20, 40)
+        assert (fit[:, 30:] == 0).all() and (fit[:, :30] != 0).all()
 
     def test_no_edges_is_flat(self):
         obs = observe(EdgeImage(np.zeros((8, 8), bool), np.ones((8, 8), bool)),
@@ -115,16 +116,16 @@ class TestObserve:
 
     def test_all_known_maps(self):
         """Without unknown pixels (the shortcut): g from the distance, the chance level the
-        mean of g, the evidence the log-ratio, nowhere exactly 0."""
+        mean of g, the fit map the log-ratio, nowhere exactly 0."""
         edges = _random_lines(np.random.default_rng(5))
-        p = LikelihoodParams(sigma=0.1, search_px=10, outlier=0.05)
+        p = LikelihoodParams(sigma=0.1, search_px=10)
         obs = observe(EdgeImage(edges, np.ones_like(edges)), p)
         g = np.exp(-(np.minimum(distance_to(edges), 10) / 10) ** 2 / (2 * 0.1 ** 2))
         np.testing.assert_allclose(obs.g[:-1].reshape(edges.shape), g, rtol=1e-5, atol=1e-30)
         assert obs.g0[0] == pytest.approx(g.mean(), rel=1e-5)
-        e = np.log(g + 0.05) - np.log(g.mean() + 0.05)
-        np.testing.assert_allclose(obs.e[:-1].reshape(edges.shape), e, atol=1e-5)
-        assert (obs.e[:-1] != 0).all()
+        fit = np.log(g + FIT_EPS) - np.log(g.mean() + FIT_EPS)
+        np.testing.assert_allclose(obs.fit[:-1].reshape(edges.shape), fit, atol=1e-5)
+        assert (obs.fit[:-1] != 0).all()
 
     def test_class_pairs_split_edges(self):
         """Two vertical boundaries, wall | door at column 10 and wall | window at 20: each pair
@@ -148,20 +149,18 @@ class TestObserve:
         assert observe(EdgeImage(edges, known), p, codes).pairs == 0
 
     def test_bad_params(self):
-        for aggregate in ("max", "samples"):
-            with pytest.raises(ValueError, match="aggregate"):
-                LikelihoodParams(aggregate=aggregate)
+        with pytest.raises(ValueError, match="sigma"):
+            LikelihoodParams(sigma=0.0)
         with pytest.raises(ValueError, match="filter.likelihood.kappa: Key 'kappa' not in"):
             typed(LikelihoodParams, {"kappa": 1}, "filter.likelihood")
 
 
-@pytest.mark.parametrize("aggregate", ["lines", "evidence"])
 @pytest.mark.parametrize("bins", [0, 4])
-def test_peaks_at_true_pose(model, camera, rendered, aggregate, bins):
+def test_peaks_at_true_pose(model, camera, rendered, bins):
     s, vis = model
     paper = {"k": 3.0, "sigma": 0.3, "lines_ref": 0}  # the paper's likelihood
-    lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate=aggregate, orientation_bins=bins,
-                                                     min_lines=1, chunk=3, **paper), vis)
+    lik = EdgeLikelihood(s, camera, LikelihoodParams(orientation_bins=bins, min_lines=1, chunk=3,
+                                                     **paper), vis)
     obs = lik.observe(label_edges(rendered, dilate_px=0))
     states = np.vstack([TRUE, TRUE + OFFSETS])
     score, quality = lik.scores(states, obs)
@@ -181,14 +180,13 @@ def test_frame_k():
         LikelihoodParams(lines_ref=-1)
 
 
-@pytest.mark.parametrize("aggregate", ["lines", "evidence"])
-def test_lines_ref_scales_the_frame_not_the_particles(model, camera, rendered, aggregate):
+def test_lines_ref_scales_the_frame_not_the_particles(model, camera, rendered):
     """With lines_ref above the lines in view every particle's log-weight is the same
     fraction of k times its score (the ranking is kept); with lines_ref 1 it is k itself."""
     s, vis = model
     states = np.vstack([TRUE, TRUE + OFFSETS])
     edge = label_edges(rendered, dilate_px=0)
-    base = LikelihoodParams(aggregate=aggregate, k=25.0, min_lines=1)
+    base = LikelihoodParams(k=25.0, min_lines=1)
     for ref, lo, hi in ((1, 25.0, 25.0), (10_000, 1e-6, 0.5)):
         lik = EdgeLikelihood(s, camera, replace(base, lines_ref=ref), vis)
         obs = lik.observe(edge)
@@ -206,7 +204,7 @@ def test_class_pairs_peak_and_need_sample_pairs(model, camera, rendered, small_w
     s, vis = model
     sc = small_world.segment_classes[s.segment]
     pairs = pair_code(sc[:, 0], sc[:, 1])
-    p = LikelihoodParams(aggregate="evidence", orientation_bins=4, class_pairs=True)
+    p = LikelihoodParams(orientation_bins=4, class_pairs=True)
     lik = EdgeLikelihood(s, camera, p, vis, pairs)
     edge = label_edges(rendered, dilate_px=0)
     states = np.vstack([TRUE, TRUE + OFFSETS])
@@ -214,7 +212,7 @@ def test_class_pairs_peak_and_need_sample_pairs(model, camera, rendered, small_w
     assert np.argmax(score) == 0 and (score[0] > score[1:] + 1e-3).all()
     # the same edges with every pair code swapped for one the model lacks: nothing matches
     wrong = EdgeImage(edge.edges, edge.known, np.where(edge.edges, np.uint8(255), np.uint8(0)))
-    assert lik.scores(TRUE[None], lik.observe(wrong))[0][0] < 0 < score[0]
+    assert lik.scores(TRUE[None], lik.observe(wrong))[0][0] < 1e-3 * score[0]
     with pytest.raises(ValueError, match="class pair of every model sample"):
         EdgeLikelihood(s, camera, p, vis)
 
@@ -233,7 +231,7 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     keep = world.segment_classes[:, 0] != world.segment_classes[:, 1]
     s, _ = s.select(keep)
     vis = build_visibility(world, s.points, cell_xy=0.4, cell_z=0.5)
-    lik = EdgeLikelihood(s, cam, LikelihoodParams(aggregate="evidence"), vis)
+    lik = EdgeLikelihood(s, cam, LikelihoodParams(), vis)
     wins = 0
     for t in (5, 15, 25):
         obs = lik.observe(label_edges(read_png(fl.label[t], rgb=False)))
@@ -247,9 +245,8 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
 class TestDegenerate:
     """Black image, no edges, everything clutter: finite, equal scores."""
 
-    @pytest.mark.parametrize("aggregate", ["lines", "evidence"])
     @pytest.mark.parametrize("case", ["no_edges", "all_unknown", "black_canny"])
-    def test_finite_and_flat(self, model, camera, aggregate, case):
+    def test_finite_and_flat(self, model, camera, case):
         from localize.edges import canny_edges
 
         s, vis = model
@@ -260,7 +257,7 @@ class TestDegenerate:
             edge = label_edges(np.full((H, W), C.CLUTTER, np.uint8))
         else:
             edge = canny_edges(np.zeros((H, W, 3), np.uint8))
-        lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate=aggregate), vis)
+        lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
         obs = lik.observe(edge)
         states = np.vstack([TRUE, TRUE + OFFSETS])
         logw, quality = lik.log_likelihood(states, obs)
@@ -269,7 +266,7 @@ class TestDegenerate:
 
     def test_nothing_in_view(self, model, camera):
         s, vis = model
-        lik = EdgeLikelihood(s, camera, LikelihoodParams(aggregate="lines"), vis)
+        lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
         edges = np.zeros((camera.height, camera.width), bool)
         edges[60] = True
         obs = lik.observe(EdgeImage(edges, np.ones_like(edges)))
@@ -303,11 +300,11 @@ def test_workers_do_not_change_results(model, camera, rendered, small_world, cla
     states = np.vstack([TRUE, TRUE + OFFSETS, TRUE + 0.5 * OFFSETS])
     out = []
     for workers, chunk in ((1, 2), (2, 2), (2, 64)):
-        p = LikelihoodParams(aggregate="evidence", orientation_bins=4, class_pairs=class_pairs,
-                             chunk=chunk, workers=workers)
+        p = LikelihoodParams(orientation_bins=4, class_pairs=class_pairs, chunk=chunk,
+                             workers=workers)
         lik = EdgeLikelihood(s, camera, p, vis, pairs)
         obs = lik.observe(edge)
-        out.append((obs.g, obs.e, obs.g0, *lik.scores(states, obs)))
+        out.append((obs.g, obs.fit, obs.g0, *lik.scores(states, obs)))
     for other in out[1:]:
         for a, b in zip(out[0], other, strict=True):
             np.testing.assert_array_equal(a, b)

@@ -95,8 +95,7 @@ def test_half_width_is_everything_looking_straight_up(camera):
     assert np.deg2rad(35.0) < level < np.deg2rad(40.0)  # 70 deg hfov + 2 deg margin
 
 
-@pytest.mark.parametrize("aggregate", ["lines", "evidence"])
-def test_culled_scores_equal_unculled(model, camera, renderer, aggregate, monkeypatch):
+def test_culled_scores_equal_unculled(model, camera, renderer, monkeypatch):
     """Scoring only the samples the block's cells see and its cameras face gives the scores
     of scoring all samples against the same lists (up to float64 summation order)."""
     import localize.likelihood as L
@@ -107,7 +106,7 @@ def test_culled_scores_equal_unculled(model, camera, renderer, aggregate, monkey
     states = TRUE + rng.normal(0, 1, (300, 4)) * [0.3, 0.3, 0.1, 0.3]
     labels, _ = renderer.render(np.linalg.inv(cam_from_world(TRUE[None],
                                                              camera.body_from_cam)[0]))
-    params = LikelihoodParams(aggregate=aggregate, orientation_bins=8, chunk=64, workers=1)
+    params = LikelihoodParams(orientation_bins=8, chunk=64, workers=1)
     lik = EdgeLikelihood(s, camera, params, vis)
     obs = lik.observe(label_edges(labels))
     culled, q_culled = lik.scores(states, obs)
@@ -129,38 +128,3 @@ def test_clutter_and_short_segments_are_not_sampled(small_world):
     np.testing.assert_array_equal(scored_segments(world, 0.05), [1, 0, 0, 1, 1, 0])
     model = EdgeModel.build(world, Settings(), occlusion=False)  # min_length 0.05 by default
     assert set(np.unique(model.samples.segment)) == {0, 3, 4}
-
-
-def test_own_lists_score_as_the_union(model, camera, renderer, monkeypatch):
-    """Particles spread over the corridor (global start): projecting each particle's own list
-    gives the scores of projecting the block's union (up to a pixel's float rounding)."""
-    import localize.likelihood as L
-    from localize.edges import label_edges
-
-    s, vis = model
-    rng = np.random.default_rng(2)
-    states = np.c_[rng.uniform(-0.6, 0.6, 400), rng.uniform(0.4, 3.6, 400),
-                   rng.uniform(0.6, 2.0, 400), rng.uniform(-np.pi, np.pi, 400)]
-    labels, _ = renderer.render(np.linalg.inv(cam_from_world(TRUE[None],
-                                                             camera.body_from_cam)[0]))
-    each = L.pixel_index_each
-    for bins in (0, 6):
-        params = LikelihoodParams(aggregate="evidence", orientation_bins=bins, lines_ref=0,
-                                  chunk=128, workers=1)
-        lik = EdgeLikelihood(s, camera, params, vis)
-        obs = lik.observe(label_edges(labels))
-        monkeypatch.setattr(L, "EACH_RATIO", np.inf)
-        union, q_union = lik.scores(states, obs)
-        calls = []
-
-        def counted(*a, calls=calls):
-            calls.append(1)
-            return each(*a)
-
-        monkeypatch.setattr(L, "pixel_index_each", counted)
-        monkeypatch.setattr(L, "EACH_RATIO", 0.0)
-        own, q_own = lik.scores(states, obs)
-        assert len(calls) >= 3  # the blocks of 128 (the last 16 may face one way)
-        close = np.isclose(own, union, rtol=0, atol=1e-9)
-        assert close.mean() > 0.99 and np.abs(own - union).max() < 0.05
-        np.testing.assert_allclose(q_own[close], q_union[close], rtol=0, atol=1e-9)
