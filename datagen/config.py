@@ -1,7 +1,7 @@
 """The settings of ``python -m datagen``: the schema of conf/datagen.yaml, and its defaults.
 
 Hydra composes conf/datagen.yaml's groups (``conf/world/``, ``conf/flights/``,
-``conf/distractors/``) and the command line onto ``DatagenConfig`` (registered as
+``conf/distractors/``, ``conf/realism/``) and the command line onto ``DatagenConfig`` (registered as
 ``datagen_schema``), so every default is written here once, and an unknown key or a value of
 the wrong type fails at start-up naming the key. Lengths are in metres, angles in degrees,
 times in seconds. See docs/datagen.md for what the options do.
@@ -371,6 +371,35 @@ def default_flights() -> dict[str, FlightConfig]:
             "cluttered": FlightConfig(distractors="cluttered", trajectory=cluttered)}
 
 
+# --------------------------------------------------------------------------- realism
+
+
+@dataclass
+class AhrsConfig:
+    """The roll and pitch a drone's AHRS (IMU and attitude filter) reports, written into the
+    flights' odometry (``realism.ahrs``, datagen/ahrs.py): per axis the truth plus a constant
+    bias, white noise and a slow drift (a first-order Gauss-Markov process). Every std 0 (the
+    defaults, ``realism=ideal``): the true roll and pitch. ``realism=real``: a small drone's
+    MEMS IMU (docs/datagen.md)."""
+
+    bias_deg: float = 0.0  # std of the constant error, drawn once per flight and axis
+    noise_deg: float = 0.0  # std of the white noise of each frame's roll and pitch
+    drift_deg: float = 0.0  # stationary std of the slow drift
+    drift_time_s: float = 10.0  # s, correlation time of the drift: its autocorrelation at a
+    # lag of t seconds is exp(-t / drift_time_s)
+
+
+@dataclass
+class RealismConfig:
+    """How far the flights are from a perfect simulation (``realism``, the conf/realism/
+    group: ``ideal``, the default, or ``real``), for every flight: the imperfections are the
+    drone's and the world's, not a flight preset's. The preset's name and settings are
+    recorded in dataset.json's ``generator`` and in each flight.json's ``realism``."""
+
+    name: str = "ideal"  # the preset's name, recorded with the flights
+    ahrs: AhrsConfig = field(default_factory=AhrsConfig)
+
+
 # --------------------------------------------------------------------------- the job
 
 
@@ -426,6 +455,8 @@ class DatagenConfig:
     flights: dict[str, FlightConfig] = field(default_factory=default_flights)
     distractor_presets: dict[str, DistractorPreset] = field(default_factory=dict)  # name ->
     # preset, from the conf/distractors/ group (conf/datagen.yaml's defaults list)
+    realism: RealismConfig = field(default_factory=RealismConfig)  # the imperfections of the
+    # flights (conf/realism/{ideal,real}.yaml)
 
     def __post_init__(self) -> None:
         self.world = world_config(self.world)

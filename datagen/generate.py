@@ -31,7 +31,7 @@ from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
-from datagen import appearance, distractors, trajectories
+from datagen import ahrs, appearance, distractors, trajectories
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
@@ -202,6 +202,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     cfg = typed(DatagenConfig, cfg, "datagen")
     _check_counts(cfg)
     _check_presets(cfg)
+    ahrs.check_settings(cfg.realism.ahrs, "realism.ahrs")
     site = build_site(cfg.world)
     camera = make_camera(cfg.camera)
     z_range = site.world.z_range
@@ -221,6 +222,8 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
         gt = trajectories.flight_trajectory(r, n, fps, route, site.world.free, z_range,
                                             preset.trajectory)
         odo = trajectories.noisy_odometry(r, gt, fps, preset.odometry)
+        odo = ahrs.ahrs_odometry(rng_for(cfg.seed, flight_stream(name), 4), odo, gt, fps,
+                                 cfg.realism.ahrs, "realism.ahrs")
         _check_inside(site, camera, gt, f"flights.{name}")
         flights[name] = {"preset": preset, "groundtruth": gt, "odometry": odo,
                          "timestamps": trajectories.timestamps(n, fps)}
@@ -279,7 +282,7 @@ def write_metadata(job: Job, variant: str) -> None:
         atomic_write_json(d / "flight.json", {
             "name": name, "fps": float(preset.fps), "num_frames": int(len(f["timestamps"])),
             "distractors": preset.distractors, "preset": asdict(preset),
-            "seed_stream": flight_stream(name)})
+            "realism": asdict(cfg.realism), "seed_stream": flight_stream(name)})
     atomic_write_json(out / "dataset.json", meta)
 
 
