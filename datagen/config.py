@@ -390,6 +390,61 @@ class AhrsConfig:
 
 
 @dataclass
+class SensorNoiseConfig:
+    """Poisson-Gaussian sensor noise on the flights' images (``realism.noise``,
+    datagen/camera_effects.py), added in linear light: a pixel's signal x (linear, 1 = the
+    white level) collects x * full_well_e electrons, Poisson distributed, plus a normal read
+    noise of read_noise_e electrons, so the variance is x / full_well_e + (read_noise_e /
+    full_well_e)^2. full_well_e 0 (the default, ``realism=ideal``): no noise."""
+
+    full_well_e: float = 0.0  # electrons at the white level: the sensor's full-well capacity
+    # over the analog gain; 0: no sensor noise
+    read_noise_e: float = 0.0  # std of the read noise, electrons (needs full_well_e > 0)
+
+
+@dataclass
+class ExposureConfig:
+    """Auto-exposure and light changes during a flight (``realism.exposure``,
+    datagen/camera_effects.py): the image's brightness is off by an exposure offset e(t) in
+    EV stops (linear gain 2^e), the sum of a slow smooth drift and steps (a light switched on
+    or off, which auto exposure then brings back), clipped to [-max_ev, max_ev]. Every
+    magnitude 0 (the defaults, ``realism=ideal``): the rendered brightness."""
+
+    drift_ev: float = 0.0  # stationary std of the slow drift, EV stops
+    drift_time_s: float = 3.0  # s, time scale of the drift: its autocorrelation at a lag of
+    # t seconds is exp(-t^2 / (2 drift_time_s^2))
+    steps_per_min: float = 0.0  # mean number of steps per minute (a Poisson process)
+    step_ev: float = 1.0  # size of a step, EV stops, its sign drawn (+: a light on)
+    settle_s: float = 0.7  # s, time constant of auto exposure taking a step back out
+    max_ev: float = 1.5  # EV stops; the offset is clipped to [-max_ev, max_ev]
+
+
+@dataclass
+class JpegConfig:
+    """JPEG compression of the flights' images (``realism.jpeg``, OpenCV's encoder, 4:2:0
+    chroma): the images are encoded and decoded again, and written as PNG."""
+
+    quality: int | None = None  # 1-100 (OpenCV's IMWRITE_JPEG_QUALITY); None: no compression
+
+
+@dataclass
+class DropoutConfig:
+    """Stretches of a flight where the camera's image is lost (``realism.dropout``,
+    datagen/camera_effects.py): ``black`` (a dead link: all zeros), ``noise`` (uniform
+    random pixels) or ``covered`` (something over the lens: the view dark and blurred). They
+    come at a rate (``per_min``) or at given times (``at_s``), each lasting a uniform draw
+    from ``duration_s``, its kind drawn from ``kinds``; flight.json's ``dropout`` lists them
+    and their frames. per_min 0 and at_s empty (the defaults, ``realism=ideal``): none."""
+
+    per_min: float = 0.0  # mean number of dropouts per minute (gaps exponential, from t = 0)
+    at_s: list[float] = field(default_factory=list)  # s, start times of dropouts (instead of
+    # per_min)
+    duration_s: list[float] = field(default_factory=lambda: [1.0, 3.0])  # s, [min, max]
+    kinds: list[str] = field(default_factory=lambda: ["black", "noise", "covered"])  # drawn
+    # uniformly
+
+
+@dataclass
 class RealismConfig:
     """How far the flights are from a perfect simulation (``realism``, the conf/realism/
     group: ``ideal``, the default, or ``real``), for every flight: the imperfections are the
@@ -398,6 +453,11 @@ class RealismConfig:
 
     name: str = "ideal"  # the preset's name, recorded with the flights
     ahrs: AhrsConfig = field(default_factory=AhrsConfig)
+    noise: SensorNoiseConfig = field(default_factory=SensorNoiseConfig)  # the flights' images:
+    # sensor noise, exposure changes, JPEG and dropouts (datagen/camera_effects.py)
+    exposure: ExposureConfig = field(default_factory=ExposureConfig)
+    jpeg: JpegConfig = field(default_factory=JpegConfig)
+    dropout: DropoutConfig = field(default_factory=DropoutConfig)
 
 
 # --------------------------------------------------------------------------- the job

@@ -4,11 +4,15 @@ Every frame draws its randomness from its own stream, ``SeedSequence([seed, stre
 so a frame's bytes do not depend on which shard renders it or on what was rendered before:
 a stopped run re-run with the same config skips finished frames and ends byte-identical to an
 uninterrupted run (up to rare one-level pixel differences from the LLVM variant's multithreaded
-kernels; docs/datagen.md).
+kernels; docs/datagen.md). A flight's keys under its stream: 0 trajectory and odometry,
+1 scene, (2, i) frame i's render seed, 3 route, 4 AHRS, (5, i) frame i's camera effects,
+6 exposure series, 7 dropouts (SeedSequence pads a short key with zeros: (k,) is (k, 0), so
+no k is used both alone and with an index).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -16,7 +20,7 @@ import math
 import platform
 import time
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -31,7 +35,7 @@ from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
-from datagen import ahrs, appearance, distractors, trajectories
+from datagen import ahrs, appearance, camera_effects, distractors, trajectories
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
@@ -102,7 +106,8 @@ class Job:
     camera: Camera
     split_poses: dict[str, np.ndarray]  # split -> (N, 4, 4) world_from_body
     flights: dict[str, dict[str, Any]]  # name -> preset (FlightConfig), groundtruth,
-    # odometry, timestamps
+    # odometry, timestamps, exposure_ev ((N,) EV stops) and dropout (camera_effects.Dropout
+    # list): the image effects of realism
 
 
 
@@ -203,6 +208,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     _check_counts(cfg)
     _check_presets(cfg)
     ahrs.check_settings(cfg.realism.ahrs, "realism.ahrs")
+    camera_effects.check_settings(cfg.realism, "realism")
     site = build_site(cfg.world)
     camera = make_camera(cfg.camera)
     z_range = site.world.z_range
@@ -225,8 +231,17 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
         odo = ahrs.ahrs_odometry(rng_for(cfg.seed, flight_stream(name), 4), odo, gt, fps,
                                  cfg.realism.ahrs, "realism.ahrs")
         _check_inside(site, camera, gt, f"flights.{name}")
+        ev = camera_effects.exposure_ev(rng_for(cfg.seed, flight_stream(name), 6), n, fps,
+                                        cfg.realism.exposure, "realism.exposure")
+        try:
+            dropout = camera_effects.dropout_stretches(rng_for(cfg.seed, flight_stream(name), 7),
+                                                       n, fps, cfg.realism.dropout,
+                                                       "realism.dropout")
+        except ValueError as e:
+            raise ValueError(f"flights.{name}: {e}") from None
         flights[name] = {"preset": preset, "groundtruth": gt, "odometry": odo,
-                         "timestamps": trajectories.timestamps(n, fps)}
+                         "timestamps": trajectories.timestamps(n, fps), "exposure_ev": ev,
+                         "dropout": dropout}
     return Job(cfg, Path(cfg.out_dir), site, camera, split_poses, flights)
 
 
@@ -282,7 +297,8 @@ def write_metadata(job: Job, variant: str) -> None:
         atomic_write_json(d / "flight.json", {
             "name": name, "fps": float(preset.fps), "num_frames": int(len(f["timestamps"])),
             "distractors": preset.distractors, "preset": asdict(preset),
-            "realism": asdict(cfg.realism), "seed_stream": flight_stream(name)})
+            "realism": asdict(cfg.realism), "seed_stream": flight_stream(name),
+            "dropout": [d.as_json() for d in f["dropout"]]})
     atomic_write_json(out / "dataset.json", meta)
 
 
@@ -412,21 +428,40 @@ def render_split(job: Job, split: str, progress: bool = True) -> int:
 
 
 def _render_frame(job: Job, renderer, d: Path, i: int, body_pose: np.ndarray, seed: int,
-                  pipe: Pipeline) -> None:
-    """Trace frame i here; develop and write it on the pipeline's worker."""
+                  pipe: Pipeline, effect: Callable[[np.ndarray], np.ndarray] | None = None
+                  ) -> None:
+    """Trace frame i here; develop and write it on the pipeline's worker (``effect``, if
+    given, maps the developed (H, W, 3) uint8 rgb to the one written; the label is kept)."""
     r = job.cfg.render
     renderer.set_camera(body_pose @ job.camera.body_from_cam)
     sigma = r.denoise_sigma_px
     traced = renderer.trace(r.spp, seed, albedo=sigma > 0)
     # The worker gets the renderer's numpy-only developer, never the renderer: the last
     # reference to a Mitsuba scene must not be dropped on the worker (datagen.render.trace).
-    pipe.submit(_finish_frame, renderer.developer, traced, d, i, r.exposure, sigma, r.depth)
+    pipe.submit(_finish_frame, renderer.developer, traced, d, i, r.exposure, sigma, r.depth,
+                effect)
 
 
 def _finish_frame(developer, traced, d: Path, i: int, exposure: float, sigma: float,
-                  depth: bool) -> None:
+                  depth: bool, effect: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
     rgb, label, z = developer.develop(traced, exposure, sigma)
+    if effect is not None:
+        rgb = effect(rgb)
     write_frame(d, i, rgb, label, z if depth else None)
+
+
+def flight_effect(job: Job, name: str, i: int) -> Callable[[np.ndarray], np.ndarray] | None:
+    """What the drone's camera does to frame i of a flight (``camera_effects.apply_effects``
+    with the frame's own generator, ``rng_for(seed, flight stream, 5, i)``, its exposure
+    offset and dropout kind); None when realism has no image effect."""
+    cfg, f = job.cfg, job.flights[name]
+    if not camera_effects.is_active(cfg.realism):
+        return None
+    kinds = camera_effects.dropout_kinds(f["dropout"], len(f["timestamps"]))
+    return functools.partial(camera_effects.apply_effects,
+                             rng=rng_for(cfg.seed, flight_stream(name), 5, i),
+                             settings=cfg.realism, ev=float(f["exposure_ev"][i]),
+                             dropout=kinds[i], where="realism")
 
 
 @dataclass
@@ -495,7 +530,7 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
             renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, i]], axis=0),
                                  scene.colours)
             seed = int(rng_for(cfg.seed, flight_stream(name), 2, i).integers(2**31))
-            _render_frame(job, renderer, d, i, gt[i], seed, pipe)
+            _render_frame(job, renderer, d, i, gt[i], seed, pipe, flight_effect(job, name, i))
     return len(todo)
 
 
