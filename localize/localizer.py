@@ -44,7 +44,7 @@ from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, sample_segments, tilt_from_pose
 from localize.visibility import SparseVisibility, load_or_build
-from localize.visibility_budget import fit_grid
+from localize.visibility_budget import fit_grid_cached
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
@@ -108,7 +108,7 @@ class EdgeModel:
         """The world's structural edges (``scored_segments``), sampled every
         ``settings.model_edges.spacing`` m, with their visibility lists (ray-cast from the
         cells of ``free``, default ``world.free``, on the grid that fits
-        ``visibility.max_gb``: ``visibility_budget.fit_grid``; cached under ``cache_dir``
+        ``visibility.max_gb``: ``visibility_budget.fit_grid_cached``; cached under ``cache_dir``
         when given; ``occlusion=False`` skips them)."""
         me = settings.model_edges
         keep = scored_segments(world, me.min_length)
@@ -123,8 +123,8 @@ class EdgeModel:
             free = world.free if free is None else free
             cell_xy, cell_z, max_range = v.cell_xy, v.cell_z, v.max_range
             if v.max_gb is not None:
-                g = fit_grid(world, samples.points, free, cell_xy, cell_z, v.pad, v.eps,
-                             max_range, v.max_gb, v.variant)
+                g = fit_grid_cached(cache_dir, world, samples.points, free, cell_xy, cell_z,
+                                    v.pad, v.eps, max_range, v.max_gb, v.variant)
                 cell_xy, cell_z, max_range = g.cell_xy, g.cell_z, g.max_range
             vis = load_or_build(world, samples.points, free, cache_dir, cell_xy, cell_z,
                                 v.pad, v.eps, max_range, v.variant)

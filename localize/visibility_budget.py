@@ -18,16 +18,19 @@ mean visible count taken.
 
 from __future__ import annotations
 
+import json
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from core.atomic import atomic_write_json
 from core.dataset import World
 from core.occupancy import OccupancyMap
 from core.rays import RayCaster
-from localize.visibility import free_bounds, grid_layout, stored_cells
+from localize.visibility import cache_key, free_bounds, grid_layout, stored_cells
 
 log = logging.getLogger(__name__)
 
@@ -128,3 +131,27 @@ def fit_grid(world: World, points: np.ndarray, free: OccupancyMap, cell_xy: floa
                      f"{g.cell_xy:.2f} x {g.cell_z:.2f} m cells and {g.max_range:.1f} m range, "
                      f"more than visibility.max_gb={max_gb}; raise visibility.max_gb or give "
                      "coarser visibility.cell_xy / cell_z or a shorter visibility.max_range")
+
+
+def fit_grid_cached(cache_dir: str | Path | None, world: World, points: np.ndarray,
+                    free: OccupancyMap, cell_xy: float, cell_z: float, pad: float, eps: float,
+                    max_range: float, max_gb: float, variant: str = "auto") -> GridChoice:
+    """``fit_grid``, remembered in ``cache_dir/grid_<key>.json`` (key: the mesh, the samples,
+    the free space and these settings), so a start with a built cache casts no probe rays.
+    ``cache_dir`` None: ``fit_grid`` itself."""
+    if cache_dir is None:
+        return fit_grid(world, points, free, cell_xy, cell_z, pad, eps, max_range, max_gb,
+                        variant)
+    settings = {"cell_xy": cell_xy, "cell_z": cell_z, "pad": pad, "eps": eps,
+                "max_range": max_range, "max_gb": max_gb}
+    path = Path(cache_dir) / f"grid_{cache_key(world, points, free, settings)}.json"
+    if path.is_file():
+        choice = GridChoice(**json.loads(path.read_text()))
+        if choice.level:
+            log.info("visibility: cells %.2f x %.2f m, range %.1f m (level %d, %s)",
+                     choice.cell_xy, choice.cell_z, choice.max_range, choice.level, path.name)
+        return choice
+    choice = fit_grid(world, points, free, cell_xy, cell_z, pad, eps, max_range, max_gb,
+                      variant)
+    atomic_write_json(path, asdict(choice))
+    return choice

@@ -6,10 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from localize import visibility_budget
 from localize.config import FilterParams
 from localize.projection import sample_segments
 from localize.visibility import build_visibility
-from localize.visibility_budget import CELL_STEP, RANGE_STEP, estimate_grid, fit_grid
+from localize.visibility_budget import (
+    CELL_STEP,
+    RANGE_STEP,
+    estimate_grid,
+    fit_grid,
+    fit_grid_cached,
+)
 from tests.localize.test_visibility_scale import straight
 
 
@@ -41,6 +48,24 @@ def test_budget_keeps_the_grid_that_fits_and_coarsens_the_one_that_does_not(long
     assert coarse.max_range == pytest.approx(6.0 * RANGE_STEP ** max(coarse.level - 1, 0))
     with pytest.raises(ValueError, match="visibility.max_gb"):
         fit_grid(world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0, max_gb=1e-9)
+
+
+def test_the_grid_choice_is_remembered_in_the_cache(long_corridor, tmp_path, monkeypatch):
+    """A second start with the same cache reads the choice and casts no probe rays; other
+    settings choose again."""
+    world, pts = long_corridor
+    args = (world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0)
+    small = fit_grid(*args, max_gb=2.0).est_bytes / 3 / 1e9
+    first = fit_grid_cached(tmp_path, *args, max_gb=small)
+    assert first.level >= 1 and len(list(tmp_path.glob("grid_*.json"))) == 1
+
+    def no_probe(*a, **k):
+        raise AssertionError("estimate_grid called with the choice in the cache")
+
+    monkeypatch.setattr(visibility_budget, "estimate_grid", no_probe)
+    assert fit_grid_cached(tmp_path, *args, max_gb=small) == first
+    with pytest.raises(AssertionError, match="in the cache"):
+        fit_grid_cached(tmp_path, *args, max_gb=2.0)
 
 
 def test_global_particles_grow_with_the_free_area():
