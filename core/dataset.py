@@ -108,6 +108,12 @@ class Dataset:
         return self.meta["classes"]
 
     @property
+    def realism(self) -> str:
+        """The datagen ``realism`` preset the flights were made with (``ideal``, ``real``, ...;
+        ``ideal`` for a dataset that records none)."""
+        return str(self.meta.get("generator", {}).get("realism", {}).get("name", "ideal"))
+
+    @property
     def camera(self) -> Camera:
         c = self.meta["camera"]
         return Camera(np.array(c["K"]), int(c["width"]), int(c["height"]),

@@ -487,7 +487,7 @@ def write_report(ctx) -> Path:
     records = load_records(out)
     if not records:
         raise RuntimeError(f"no run records under {out / 'runs'}; nothing to report")
-    metrics = summarize(records, ctx.cfg)
+    metrics = {**summarize(records, ctx.cfg), "realism": ctx.dataset.realism}
     atomic_write_json(out / "metrics.json", metrics)
     plots: dict[str, list[str]] = {}
     for flight in sorted({r["flight"] for r in _main(records)}):

@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 import datagen.generate as gen
 from core.config import typed
+from core.dataset import Dataset
 from core.poses import pose_from_xyz_rpy, read_tum
 from datagen import ahrs
 from datagen import trajectories as TR
@@ -193,6 +194,7 @@ class TestRealismPreset:
             assert meta["realism"]["name"] == "real"
         generator = json.loads((out / "dataset.json").read_text())["generator"]
         assert generator["realism"]["name"] == "real"
+        assert Dataset(out).realism == "real"  # what localize's report names
 
     def test_bad_settings_stop_before_anything(self, tmp_path):
         out = tmp_path / "bad"

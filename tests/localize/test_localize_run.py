@@ -100,8 +100,9 @@ class TestEndToEnd:
     def test_metrics_shape(self, report, flat_dataset):
         cfg, path = report
         m = json.loads((path.parent / "metrics.json").read_text())
-        assert set(m) >= {"flights", "timing_ms", "dataset"}
+        assert set(m) >= {"flights", "timing_ms", "dataset", "realism"}
         assert m["dataset"] == str(flat_dataset)
+        assert m["realism"] == "ideal"
         entry = m["flights"]["paper"]["cnn"]
         for key in ("mean_position_error_m", "median_m", "rmse_m", "p95_m",
                     "mean_yaw_error_deg"):
