@@ -302,12 +302,9 @@ def dropout_stretches(rng: np.random.Generator, num_frames: int, fps: float,
     return out
 
 
-def dropout_kinds(stretches: Sequence[Dropout], num_frames: int) -> list[str | None]:
-    """(N,) each frame's dropout kind, None where the frame is not dropped."""
-    kinds: list[str | None] = [None] * int(num_frames)
-    for d in stretches:
-        kinds[d.first:d.stop] = [d.kind] * (d.stop - d.first)
-    return kinds
+def dropout_kind(stretches: Sequence[Dropout], i: int) -> str | None:
+    """Frame i's dropout kind, None where the frame is not dropped."""
+    return next((d.kind for d in stretches if d.first <= i < d.stop), None)
 
 
 # --------------------------------------------------------------------------- one image

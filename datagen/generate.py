@@ -457,11 +457,11 @@ def flight_effect(job: Job, name: str, i: int) -> Callable[[np.ndarray], np.ndar
     cfg, f = job.cfg, job.flights[name]
     if not camera_effects.is_active(cfg.realism):
         return None
-    kinds = camera_effects.dropout_kinds(f["dropout"], len(f["timestamps"]))
     return functools.partial(camera_effects.apply_effects,
                              rng=rng_for(cfg.seed, flight_stream(name), 5, i),
                              settings=cfg.realism, ev=float(f["exposure_ev"][i]),
-                             dropout=kinds[i], where="realism")
+                             dropout=camera_effects.dropout_kind(f["dropout"], i),
+                             where="realism")
 
 
 @dataclass

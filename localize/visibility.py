@@ -95,20 +95,6 @@ class SparseVisibility:
         at = np.arange(len(which)) - np.repeat(np.cumsum(n) - n, n) + start[which]
         return self.ids[at].astype(np.int64), which
 
-    def lookup(self, positions: np.ndarray) -> np.ndarray:
-        """(N, K) int64 ids of the samples visible from each camera centre (N, 3), ascending,
-        padded with -1; K the longest of the N lists."""
-        return self.ids_of(self.rows(positions))
-
-    def ids_of(self, rows: np.ndarray) -> np.ndarray:
-        """(N, K) int64 ids of the samples visible from each of ``rows`` (N,), ascending,
-        padded with -1; K the longest of the N lists."""
-        ids, which = self._gather(rows)
-        n = np.diff(self.indptr)[rows]
-        out = np.full((len(rows), int(n.max(initial=0))), -1, dtype=np.int64)
-        out[which, np.arange(len(ids)) - np.repeat(np.cumsum(n) - n, n)] = ids
-        return out
-
     def union(self, rows: np.ndarray) -> np.ndarray:
         """(P,) bool: the samples visible from any of ``rows``."""
         mark = np.zeros(self.num_samples, dtype=bool)
