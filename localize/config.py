@@ -112,6 +112,15 @@ class FilterParams:
         recovery_log_penalty: injected particles start this much lower in log-weight.
         recovery_local_std: (4,) noise of the half of the injected particles drawn around the
             estimate (x, y, z metres, yaw degrees); the other half is uniform.
+        gate: a frame whose best particle fits below this fraction of the long-run fit does
+            not weigh the particles (the filter coasts on the odometry; 0: every frame
+            weighs).
+        lost_frames: that many such frames in a row declare the track lost: the filter
+            re-localizes over the free space (0: never).
+        tilt_std: (2,) each particle's correction of the IMU's roll and pitch, degrees: its
+            start noise and its random walk per frame (an AHRS is off by a bias and a slow
+            drift, ``particle_filter.move_tilt``); 0, 0: the IMU's roll and pitch as given
+            (an exact attitude source: a simulation's truth, motion capture).
         likelihood: the edge likelihood of tracking.
     """
 
@@ -144,6 +153,9 @@ class FilterParams:
     recovery_max_fraction: float = 0.2
     recovery_log_penalty: float = 5.0
     recovery_local_std: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.2, 20.0])
+    gate: float = 0.3
+    lost_frames: int = 30
+    tilt_std: list[float] = field(default_factory=lambda: [0.5, 0.05])
     likelihood: LikelihoodParams = field(default_factory=LikelihoodParams)
 
     def __post_init__(self) -> None:
@@ -160,11 +172,17 @@ class FilterParams:
                 raise ValueError(f"filter.{key}: unknown edge modes {sorted(bad_modes)}; "
                                  "use none, cnn, oracle")
         sized = [(key, getattr(self, key), n) for key, n in
-                 (("init_std", 4), ("motion_std", 3), ("motion_rel", 2), ("recovery_local_std", 4))]
+                 (("init_std", 4), ("motion_std", 3), ("motion_rel", 2), ("recovery_local_std", 4),
+                  ("tilt_std", 2))]
         sized += [(f"mode_motion_std.{mode}", std, 3) for mode, std in self.mode_motion_std.items()]
         for key, values, n in sized:
             if len(values) != n:
                 raise ValueError(f"filter.{key} needs {n} values, got {list(values)}")
+        if not 0.0 <= self.gate < 1.0 or self.lost_frames < 0:
+            raise ValueError(f"filter.gate must be in [0, 1) and filter.lost_frames >= 0, got "
+                             f"{self.gate}, {self.lost_frames}")
+        if min(self.tilt_std) < 0:
+            raise ValueError(f"filter.tilt_std must be >= 0 degrees, got {list(self.tilt_std)}")
 
     def global_count(self, free_area: float) -> int:
         """Particles of a global start over ``free_area`` m2 of free space:

@@ -335,7 +335,8 @@ class EdgeLikelihood:
         Args:
             states: (N, 4) x, y, z, yaw.
             obs: the frame's observation.
-            tilt: (3, 3) roll/pitch of the body for this frame (None: level).
+            tilt: (3, 3) roll/pitch of the body for this frame, or (N, 3, 3) one per particle
+                (``projection.corrected_tilts``); None: level.
 
         Returns:
             score (N,) float64 in [0, 1]; quality (N,) float64, how well the visible samples
@@ -353,6 +354,9 @@ class EdgeLikelihood:
         if states.ndim != 2 or states.shape[1] != 4:
             raise ValueError(f"states must be (N, 4), got {states.shape}")
         N = len(states)
+        per_particle = tilt is not None and np.ndim(tilt) == 3
+        if per_particle and len(tilt) != N:
+            raise ValueError(f"{len(tilt)} tilts for {N} particles")
         score = np.empty(N)
         quality = np.empty(N)
         lines = np.empty(N, dtype=np.int64)
@@ -367,8 +371,8 @@ class EdgeLikelihood:
             near = (rows, centres, half)
         blocks = [order[i:i + step] for i in range(0, N, step)]  # vectorized within a block
         done = run_all(lambda b: self._block(
-            states[b], None if near is None else (near[0][b], near[1][b], near[2]), obs, tilt),
-            blocks, self.params.workers)
+            states[b], None if near is None else (near[0][b], near[1][b], near[2]), obs,
+            tilt[b] if per_particle else tilt), blocks, self.params.workers)
         for b, (s_b, q_b, l_b) in zip(blocks, done, strict=True):
             score[b], quality[b], lines[b] = s_b, q_b, l_b
         return score, quality, lines

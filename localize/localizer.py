@@ -24,6 +24,7 @@ mode.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
@@ -42,7 +43,7 @@ from localize.edges import EdgeImage, pair_code
 from localize.frontend import Frame, FrontEnd
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
-from localize.projection import ModelSamples, sample_segments, tilt_from_pose
+from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose
 from localize.visibility import SparseVisibility, load_or_build
 from localize.visibility_budget import fit_grid_cached
 
@@ -51,6 +52,13 @@ from localize.visibility_budget import fit_grid_cached
 LikelihoodOverride = Callable[[EdgeImage, np.ndarray | None], LogLikelihood]
 
 _BLAS = ThreadpoolController()
+log = logging.getLogger(__name__)
+
+#: A frame shows nothing to weigh the particles by (a black or covered lens: no edges; sensor
+#: noise: edges near every pixel) when fewer than this fraction of its known pixels are edges...
+MIN_EDGE_FRACTION = 0.001
+#: ...or when the chance score of its edges (``Observation.chance``) is above this.
+MAX_CHANCE = 0.5
 
 
 def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
@@ -173,6 +181,11 @@ class Estimate:
         num_particles: particles after the step.
         best_score: fit quality of the most likely particle (NaN: too little seen to tell).
         injected: particles injected by depletion recovery in this step.
+        status: ``tracking``, ``coasting``, ``lost`` or ``global``
+            (``particle_filter.StepInfo``).
+        confidence: in [0, 1], how much the images back the estimate
+            (``particle_filter.StepInfo``).
+        tilt: (2,) roll, pitch correction of the IMU's attitude, radians.
         timing_ms: ``segmentation`` (the edge source's labels), ``preprocessing`` (edge image
             and score maps) and ``filter`` (motion, likelihood, resampling), ms.
     """
@@ -186,6 +199,9 @@ class Estimate:
     num_particles: int
     best_score: float
     injected: int
+    status: str
+    confidence: float
+    tilt: np.ndarray
     timing_ms: Mapping[str, float]
 
 
@@ -228,6 +244,7 @@ class Localizer:
         self.likelihood_override = likelihood_override
         self.filter = ParticleFilter(self.filter_params, world.free, rng)
         self._last_time = None
+        self._lost_at = None  # timestamp the track was last declared lost
 
     @property
     def global_likelihood(self) -> EdgeLikelihood:
@@ -260,7 +277,7 @@ class Localizer:
                 raise ValueError(f"reset(start): expected (4,) x, y, z, yaw or a (4, 4) "
                                  f"world_from_body, finite, got {s.shape}")
             self.filter.init_tracking(s)
-        self._last_time = None
+        self._last_time = self._lost_at = None
 
     def step(self, image: np.ndarray | Frame | None, odometry_increment: np.ndarray | None,
              attitude: np.ndarray | None, timestamp: float,
@@ -298,14 +315,27 @@ class Localizer:
         with _BLAS.limit(limits=1, user_api="blas"):  # tiny GEMMs: threads only hurt
             if delta is not None:
                 self.filter.predict(delta)
-            info = self.filter.update(loglik)
+            info = self.filter.update(loglik) if loglik is not None else self.filter.coast()
         filter_ms = (time.perf_counter() - t0) * 1e3
+        self._log_events(info.status, timestamp)
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"] + obs_ms, "filter": filter_ms}
         return Estimate(timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0],
                         info.position_std, info.yaw_std, info.ess, info.num_particles,
-                        info.best_score, info.injected, timing)
+                        info.best_score, info.injected, info.status, info.confidence,
+                        info.tilt, timing)
+
+    def _log_events(self, status: str, timestamp: float) -> None:
+        """Log a loss and the re-localization that follows it."""
+        if status == "lost":
+            self._lost_at = timestamp
+            log.warning("t = %.2f s: track lost (%d frames fit no particle); re-localizing "
+                        "over the free space", timestamp, self.filter_params.lost_frames)
+        elif status == "tracking" and self._lost_at is not None:
+            log.warning("t = %.2f s: re-localized, %.1f s after the loss", timestamp,
+                        timestamp - self._lost_at)
+            self._lost_at = None
 
     def _frame(self, image, labels) -> Frame:
         """The frame of ``image``: itself if already a Frame, else made by the front end."""
@@ -324,16 +354,26 @@ class Localizer:
         return frame
 
     def _log_likelihood(self, frame: Frame, tilt: np.ndarray | None
-                        ) -> tuple[LogLikelihood, float]:
+                        ) -> tuple[LogLikelihood | None, float]:
         """The likelihood of this step (override, global phase or tracking) over the frame,
-        and the ms its score maps took."""
+        or None when the frame shows nothing to weigh by (``MIN_EDGE_FRACTION``,
+        ``MAX_CHANCE``); and the ms its score maps took."""
         if self.likelihood_override is not None:
-            return self.likelihood_override(frame.edge, tilt), 0.0
+            override = self.likelihood_override(frame.edge, tilt)
+            return (lambda states, corrections: override(states)), 0.0
         lik = self.global_likelihood if self.filter.in_global_phase else self.likelihood
         obs, ms = frame.observation(lik)
+        edge = frame.edge
+        known = max(int(np.count_nonzero(edge.known)), 1)
+        if (np.count_nonzero(edge.edges & edge.known) < MIN_EDGE_FRACTION * known
+                or obs.chance > MAX_CHANCE):
+            return None, ms
+        corrected = any(self.filter_params.tilt_std)
 
-        def loglik(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return lik.log_likelihood(states, obs, tilt)
+        def loglik(states: np.ndarray, corrections: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+            t = corrected_tilts(tilt, corrections) if corrected else tilt
+            return lik.log_likelihood(states, obs, t)
 
         return loglik, ms
 

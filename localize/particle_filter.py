@@ -1,5 +1,13 @@
 """A particle filter over body poses (x, y, z, yaw), in pure numpy with log-weights.
 
+Each particle also carries a correction of the IMU's roll and pitch (``tilt``, (N, 2)
+radians): an AHRS is off by a bias and a slow drift (0.2-1 deg), which moves the model's edges
+by pixels. The corrections start around zero and walk a little each frame (``move_tilt``);
+the likelihood scores each particle with its own corrected attitude, so resampling keeps the
+corrections the image agrees with (``filter.tilt_std``; both 0: the IMU's roll and pitch as
+given, and no corrections are drawn). A global start's large set keeps the IMU's attitude (two
+more dimensions would thin its search); the corrections are drawn when it is thinned.
+
 Three functions make the filter (as in nchopin's ``particles``): an initial draw (around a
 known start for tracking, or uniform over the free space for global localization), a move
 (odometry increment plus noise) and a log-likelihood (``likelihood.EdgeLikelihood``). Around
@@ -7,6 +15,12 @@ them: effective-sample-size triggered systematic resampling, a free-space prior 
 never inside a wall), recovery from depletion (random particles are injected when the recent
 best edge score falls well below its long-run level, as in augmented MCL), and the estimate,
 the weighted mean with a circular mean for yaw.
+
+Knowing when it is lost: a frame whose best particle fits the image far worse than the
+long-run level (below ``gate`` of it: a dropout, a covered lens, a wrong pose) does not weigh
+the particles; the filter *coasts* on the odometry. ``lost_frames`` such frames in a row
+declare the track lost, and the filter re-localizes over the free space (a global start).
+Each step reports its status and a confidence in [0, 1] (``StepInfo``).
 
 Motion: the odometry increment between two frames is expressed in the gravity-aligned heading
 frame of the earlier pose (forward, left, up, yaw change), the frame a VIO's increments are
@@ -112,6 +126,30 @@ def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
     return out
 
 
+def move_tilt(rng: np.random.Generator, tilt: np.ndarray, step_std: float) -> np.ndarray:
+    """Random walk of the roll and pitch corrections.
+
+    Args:
+        rng: random generator (not drawn from when ``step_std`` is 0).
+        tilt: (N, 2) roll, pitch corrections, radians.
+        step_std: std of a frame's step, radians.
+
+    Returns:
+        (N, 2) moved corrections.
+    """
+    if step_std <= 0:
+        return tilt
+    return tilt + rng.normal(0.0, step_std, tilt.shape)
+
+
+def draw_tilt(rng: np.random.Generator, n: int, std: float) -> np.ndarray:
+    """(n, 2) roll, pitch corrections (radians) drawn around zero with ``std`` (radians); zeros
+    with no draw when ``std`` is 0."""
+    if std <= 0:
+        return np.zeros((n, 2))
+    return rng.normal(0.0, std, (n, 2))
+
+
 def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float,
                          penalty: float) -> np.ndarray:
     """Log prior (N,): 0 inside the free space (grown by ``slack``), negative outside.
@@ -178,8 +216,8 @@ def spread(particles: np.ndarray, logw: np.ndarray) -> tuple[float, float]:
 
 # --- the filter ------------------------------------------------------------------------------
 
-#: log_likelihood(states (N, 4)) -> (log_w (N,), score (N,))
-LogLikelihood = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+#: log_likelihood(states (N, 4), tilt corrections (N, 2) radians) -> (log_w (N,), score (N,))
+LogLikelihood = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 @dataclass
@@ -196,6 +234,14 @@ class StepInfo:
         num_particles: particles after the step.
         position_std: weighted horizontal spread, metres (``spread``).
         yaw_std: circular yaw spread, radians.
+        tilt: (2,) weighted mean roll, pitch correction of the IMU's attitude, radians.
+        status: ``tracking`` (the frame weighed the particles), ``coasting`` (it did not: the
+            image showed nothing usable or fit no particle; odometry only), ``lost`` (this
+            frame declared the track lost and started a re-localization) or ``global`` (the
+            global set of a start or a re-localization is kept).
+        confidence: in [0, 1], how much the estimate is backed by the images: the smoothed fit
+            of the best particle over its long-run level (0 while coasting), times
+            ``1 - position_std / 1 m``.
     """
 
     estimate: np.ndarray
@@ -206,6 +252,19 @@ class StepInfo:
     num_particles: int
     position_std: float = float("nan")
     yaw_std: float = float("nan")
+    tilt: np.ndarray | None = None
+    status: str = "tracking"
+    confidence: float = float("nan")
+
+
+#: The fit gate needs a long-run fit level this far above chance: mode none's raw image edges
+#: hold clutter everywhere and its best fit stays near 0.1-0.2, so there a poor fit does not
+#: tell a lost track.
+MIN_GATED_FIT = 0.25
+#: Smoothing factor of the confidence's fit average.
+CONFIDENCE_RATE = 0.3
+#: Metres of particle spread at which the confidence is 0.
+CONFIDENCE_SPREAD_M = 1.0
 
 
 class ParticleFilter:
@@ -221,17 +280,22 @@ class ParticleFilter:
         self.params, self.rng, self.free = params, rng, free
         self.particles = np.zeros((0, 4))
         self.logw = np.zeros(0)
+        self.tilt = np.zeros((0, 2))
         self.frame = 0
         self._fast = self._slow = None
         self._low = 0
         self._thin_at = 0
+        self._poor = 0  # frames in a row whose fit was below the gate
+        self._fit = 0.0  # smoothed fit ratio of the confidence
 
     def init_tracking(self, start: np.ndarray) -> None:
         """Start around a known pose (4,) x, y, z, yaw."""
         p = self.params
         self.particles = init_tracking(self.rng, start, p.num_particles, p.init_std)
+        self.tilt = draw_tilt(self.rng, p.num_particles, np.deg2rad(p.tilt_std[0]))
         self.logw = np.full(p.num_particles, -np.log(p.num_particles))
         self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
+        self._poor, self._fit = 0, 1.0
 
     def init_global(self) -> None:
         """Start uniform over the free space, with ``global_count(free area)`` particles
@@ -239,9 +303,11 @@ class ParticleFilter:
         p = self.params
         n = p.global_count(self.free.area)
         self.particles = init_global(self.rng, self.free, n)
+        self.tilt = np.zeros((n, 2))
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._low = 0, None, None, 0
         self._thin_at = p.global_frames
+        self._poor, self._fit = 0, 0.0
 
     @property
     def in_global_phase(self) -> bool:
@@ -254,29 +320,41 @@ class ParticleFilter:
         scale = p.global_motion_scale if self.in_global_phase else 1.0
         std = tuple(scale * np.asarray(p.motion_std, dtype=np.float64))
         self.particles = move(self.rng, self.particles, delta, std, p.motion_rel)
+        if not self.in_global_phase:
+            self.tilt = move_tilt(self.rng, self.tilt, np.deg2rad(p.tilt_std[1]))
 
     def update(self, log_likelihood: LogLikelihood) -> StepInfo:
         """Weight by the measurement, resample if needed, inject on collapse.
 
         Args:
-            log_likelihood: maps (N, 4) states to (log_w (N,), quality (N,)); the quality of
-                the most likely particle drives recovery.
+            log_likelihood: maps (N, 4) states and their (N, 2) roll, pitch corrections
+                (radians) to (log_w (N,), quality (N,)); the quality of the most likely
+                particle drives recovery.
 
         Returns:
             Diagnostics, with the estimate computed before resampling.
         """
         p = self.params
-        loglik, score = log_likelihood(self.particles)
-        if self.in_global_phase:
+        loglik, score = log_likelihood(self.particles, self.tilt)
+        global_phase = self.in_global_phase
+        if global_phase:
             loglik = loglik * p.global_temper
         prior = free_space_log_prior(self.particles, self.free, p.free_space_slack,
                                      p.outside_log_penalty)
+        best = float(score[np.argmax(loglik + prior)]) if len(score) else float("nan")
+        if not global_phase and self._below_gate(best):
+            self._poor += 1
+            if self._poor >= p.lost_frames > 0:
+                return self._relocalize(best)
+            return self.coast(best)
+        self._poor = 0
         self.logw = normalize_log_weights(self.logw + loglik + prior)
         est = estimate(self.particles, self.logw)
         pos_std, yaw_std = spread(self.particles, self.logw)
+        tilt = np.exp(self.logw) @ self.tilt
         ess = effective_sample_size(self.logw)
-        best = float(score[np.argmax(loglik + prior)]) if len(score) else float("nan")
         inject_frac = self._collapse(best)
+        self._smooth_fit(best)
         self.frame += 1
         N = len(self.particles)
         large = self._thin_at > 0 and self.frame < self._thin_at  # keep the global set
@@ -286,7 +364,7 @@ class ParticleFilter:
         if resampled:
             n = N if large else p.num_particles
             idx = systematic_resample(self.rng, self.logw, n)
-            self.particles = self.particles[idx]
+            self.particles, self.tilt = self.particles[idx], self.tilt[idx]
             injected = int(round(inject_frac * n))
             self.logw = np.zeros(n)
             if injected:
@@ -295,8 +373,61 @@ class ParticleFilter:
             self.logw = normalize_log_weights(self.logw)
             if thin:
                 self._thin_at = 0
+                self.tilt = draw_tilt(self.rng, n, np.deg2rad(p.tilt_std[0]))
+        status = "global" if global_phase else "tracking"
         return StepInfo(est, ess, best, resampled, injected, len(self.particles), pos_std,
-                        yaw_std)
+                        yaw_std, tilt, status, self._confidence(pos_std, global_phase))
+
+    def coast(self, best: float = float("nan")) -> StepInfo:
+        """A frame that does not weigh the particles (nothing usable in the image, or no
+        particle fits it): odometry only; the confidence's fit average decays towards 0.
+
+        Args:
+            best: the best particle's fit of the frame, if scored (reported only).
+        """
+        est = estimate(self.particles, self.logw)
+        pos_std, yaw_std = spread(self.particles, self.logw)
+        self._fit *= 1.0 - CONFIDENCE_RATE
+        global_phase = self.in_global_phase
+        self.frame += 1
+        return StepInfo(est, effective_sample_size(self.logw), best, False, 0,
+                        len(self.particles), pos_std, yaw_std,
+                        np.exp(self.logw) @ self.tilt, "global" if global_phase else "coasting",
+                        self._confidence(pos_std, global_phase))
+
+    def _below_gate(self, best: float) -> bool:
+        """The best fit is below ``gate`` of its long-run level (once that level is known and
+        at least ``MIN_GATED_FIT``; a NaN fit, too little seen to judge, is not)."""
+        p = self.params
+        if p.gate <= 0 or self._slow is None or self._slow < MIN_GATED_FIT:
+            return False
+        return bool(np.isfinite(best) and best < p.gate * self._slow)
+
+    def _relocalize(self, best: float) -> StepInfo:
+        """Declare the track lost: the estimate of the poor frames is reported, and a global
+        start over the free space begins, its uniform set joined by the tracked particles (so
+        that a track that was right after all wins back at once)."""
+        info = self.coast(best)
+        kept, tilt = self.particles, self.tilt
+        self.init_global()
+        self.particles = np.concatenate([self.particles, kept])
+        self.tilt = np.concatenate([self.tilt, tilt])
+        self.logw = np.full(len(self.particles), -np.log(len(self.particles)))
+        info.status, info.confidence = "lost", 0.0
+        return info
+
+    def _smooth_fit(self, best: float) -> None:
+        """The confidence's fit average: the best fit over its long-run level, in [0, 1]."""
+        if self._slow is None or not np.isfinite(best):
+            return
+        ratio = float(np.clip(best / self._slow, 0.0, 1.0)) if self._slow > 0.05 else 1.0
+        self._fit += CONFIDENCE_RATE * (ratio - self._fit)
+
+    def _confidence(self, pos_std: float, global_phase: bool) -> float:
+        """``StepInfo.confidence``: 0 in the global phase."""
+        if global_phase:
+            return 0.0
+        return float(self._fit * max(0.0, 1.0 - pos_std / CONFIDENCE_SPREAD_M))
 
     def _collapse(self, best: float) -> float:
         """Fraction of particles to inject: 1 - fast / slow average of the best score, when that
@@ -330,6 +461,7 @@ class ParticleFilter:
         local = init_tracking(self.rng, around, n_local, p.recovery_local_std)
         uniform = init_global(self.rng, self.free, n - n_local)
         self.particles[slots] = np.concatenate([local, uniform])
+        self.tilt[slots] = draw_tilt(self.rng, n, np.deg2rad(p.tilt_std[0]))
         return slots
 
     def estimate(self) -> np.ndarray:

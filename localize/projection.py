@@ -7,8 +7,9 @@ and the image direction of the model line at each sample.
 
 A particle's camera: ``world_from_cam = world_from_body @ body_from_cam`` with
 ``world_from_body = [Rz(yaw) @ R_tilt | (x, y, z)]``. The filter estimates x, y, z and yaw;
-``R_tilt`` (roll and pitch, the same for all particles of a frame) comes from the IMU, here the
-attitude of the frame's odometry pose (see ``tilt_from_pose``).
+``R_tilt`` (roll and pitch) comes from the IMU, here the attitude of the frame's odometry pose
+(see ``tilt_from_pose``): one (3, 3) for all particles of a frame, or (N, 3, 3), each particle's
+own correction of it (``corrected_tilts``).
 """
 
 from __future__ import annotations
@@ -154,6 +155,32 @@ def tilt_from_pose(world_from_body: np.ndarray) -> np.ndarray:
     return yaw_rotation(yaw)[0].T @ R
 
 
+def corrected_tilts(tilt: np.ndarray | None, corrections: np.ndarray) -> np.ndarray:
+    """The IMU's roll and pitch corrected per particle: ``Ry(pitch + dp) @ Rx(roll + dr)``
+    (the extrinsic x-y-z Euler angles of ``core.poses``).
+
+    Args:
+        tilt: (3, 3) roll/pitch rotation (``tilt_from_pose``), None: level.
+        corrections: (N, 2) roll, pitch corrections, radians.
+
+    Returns:
+        (N, 3, 3) float64.
+    """
+    if tilt is None:
+        roll = pitch = 0.0
+    else:
+        T = np.asarray(tilt, dtype=np.float64)
+        roll, pitch = np.arctan2(T[2, 1], T[2, 2]), np.arcsin(np.clip(-T[2, 0], -1.0, 1.0))
+    c = np.asarray(corrections, dtype=np.float64)
+    r, p = roll + c[:, 0], pitch + c[:, 1]
+    cr, sr, cp, sp = np.cos(r), np.sin(r), np.cos(p), np.sin(p)
+    R = np.empty((len(c), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = cp, sp * sr, sp * cr
+    R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = 0.0, cr, -sr
+    R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = -sp, cp * sr, cp * cr
+    return R
+
+
 def cam_from_world(states: np.ndarray, body_from_cam: np.ndarray,
                    tilt: np.ndarray | None = None) -> np.ndarray:
     """Camera poses of particles.
@@ -161,7 +188,8 @@ def cam_from_world(states: np.ndarray, body_from_cam: np.ndarray,
     Args:
         states: (N, 4) x, y, z (metres), yaw (radians) of the body.
         body_from_cam: (4, 4) camera mount.
-        tilt: (3, 3) roll/pitch rotation shared by all particles (identity if None).
+        tilt: (3, 3) roll/pitch rotation shared by all particles, or (N, 3, 3) one per
+            particle (identity if None).
 
     Returns:
         (N, 4, 4) float64 cam_from_world.
@@ -200,14 +228,20 @@ def view_half_width(K: np.ndarray, width: int, height: int, body_from_cam: np.nd
 
     Azimuth has no extremum inside the image unless the vertical projects into it, so the
     largest |azimuth| of rays through the image border (17 per side, body yaw 0, roll and
-    pitch ``tilt``) bounds it; ``margin_deg`` covers the spacing of those rays.
+    pitch ``tilt``) bounds it; ``margin_deg`` covers the spacing of those rays. With (N, 3, 3)
+    tilts, the first one's, widened by twice the largest angle between it and the others.
 
     Returns:
         radians, at most pi (pi: the image holds the vertical and sees every azimuth).
     """
     R = np.asarray(body_from_cam, dtype=np.float64)[:3, :3]
     if tilt is not None:
-        R = np.asarray(tilt, dtype=np.float64) @ R
+        tilt = np.asarray(tilt, dtype=np.float64)
+        if tilt.ndim == 3:
+            cos = (np.einsum("ij,nij->n", tilt[0], tilt) - 1.0) / 2.0
+            margin_deg += 2.0 * np.rad2deg(np.arccos(np.clip(cos.min(), -1.0, 1.0)))
+            tilt = tilt[0]
+        R = tilt @ R
     K = np.asarray(K, dtype=np.float64)
     lo, hi = np.array([-0.5, -0.5]), np.array([width - 0.5, height - 0.5])
     for up in (R.T[:, 2], -R.T[:, 2]):  # the vertical in the camera frame

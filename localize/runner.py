@@ -51,7 +51,7 @@ log = logging.getLogger(__name__)
 
 INITS = ("tracking", "global")
 STAGES = ("acquisition", "segmentation", "preprocessing", "filter", "total")
-DIAGNOSTICS = ("ess", "best_score", "num_particles", "injected", "position_std")
+DIAGNOSTICS = ("ess", "best_score", "num_particles", "injected", "position_std", "confidence")
 
 #: Per edge mode, a function of the mode's own edge source giving the source to use instead
 #: (benchmarks/class_swap.py: the SegNet's labels with some classes from the truth).
@@ -199,12 +199,14 @@ class PassRecord:
         self.estimate = np.zeros((n_runs, T, 4))
         self.diag = {k: np.zeros((n_runs, T)) for k in DIAGNOSTICS}
         self.timing = {k: np.zeros((n_runs, T)) for k in STAGES}
+        self.status = [[""] * T for _ in range(n_runs)]
 
     def add(self, i: int, t: int, est: Estimate, acquisition_ms: float) -> None:
         """Run i's estimate of frame t (``acquisition_ms``: reading the frame)."""
         self.estimate[i, t] = est.state
         for k in DIAGNOSTICS:
             self.diag[k][i, t] = getattr(est, k)
+        self.status[i][t] = est.status
         stages = {"acquisition": acquisition_ms, **est.timing_ms}
         for k, v in stages.items():
             self.timing[k][i, t] = v
@@ -227,6 +229,7 @@ class PassRecord:
             "yaw_error_deg": yaw_errors_deg(self.estimate[i], truth).tolist(),
             "timing_ms": {k: v[i].tolist() for k, v in self.timing.items()},
             **{k: v[i].tolist() for k, v in self.diag.items()},
+            "status": self.status[i],
         })
 
 

@@ -131,7 +131,7 @@ class TestWeights:
 
 def bowl(target: np.ndarray, k: float = 50.0):
     """A log-likelihood peaked at target (x, y, z, yaw)."""
-    def f(states):
+    def f(states, tilt=None):
         d2 = ((states[:, :3] - target[:3]) ** 2).sum(1) + wrap_angle(states[:, 3] - target[3]) ** 2
         return -k * d2, np.exp(-d2)
     return f
@@ -167,20 +167,67 @@ class TestParticleFilter:
         params = FilterParams(num_particles=200, recovery_patience=2, recovery_threshold=0.5)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
-        good = lambda s: (np.zeros(len(s)), np.full(len(s), 0.9))  # noqa: E731
-        bad = lambda s: (np.zeros(len(s)), np.full(len(s), 0.05))  # noqa: E731
+        good = lambda s, t: (np.zeros(len(s)), np.full(len(s), 0.9))  # noqa: E731
+        bad = lambda s, t: (np.zeros(len(s)), np.full(len(s), 0.35))  # noqa: E731
         for _ in range(10):
             assert pf.update(good).injected == 0
-        injected = [pf.update(bad).injected for _ in range(6)]
-        assert sum(injected) > 0
+        infos = [pf.update(bad) for _ in range(12)]  # below the threshold, above the gate
+        assert sum(i.injected for i in infos) > 0 and {i.status for i in infos} == {"tracking"}
         assert np.isfinite(pf.logw).all() and len(pf.particles) == 200
+
+    def test_poor_fit_coasts_then_relocalizes(self):
+        params = FilterParams(num_particles=200, global_particles=1000, lost_frames=4)
+        pf = ParticleFilter(params, FREE, np.random.default_rng(0))
+        pf.init_tracking(np.array([0, 2, 1, 0]))
+        truth = np.array([0.0, 2.0, 1.0, 0.0])
+        for _ in range(10):
+            good = pf.update(bowl(truth))
+        assert good.status == "tracking" and good.confidence > 0.5
+
+        def poor(states, tilt):  # sharply peaked elsewhere, but fits badly everywhere
+            return bowl(np.array([0.0, 5.0, 1.0, 0.0]))(states)[0], np.full(len(states), 0.01)
+
+        logw = pf.logw.copy()
+        coast = [pf.update(poor) for _ in range(3)]
+        assert [i.status for i in coast] == ["coasting"] * 3
+        np.testing.assert_array_equal(pf.logw, logw)  # the poor frames weighed nothing
+        assert coast[-1].confidence < good.confidence
+        assert np.linalg.norm(coast[-1].estimate[:3] - truth[:3]) < 0.05
+        lost = pf.update(poor)
+        assert lost.status == "lost" and lost.confidence == 0.0
+        assert pf.in_global_phase and len(pf.particles) == 1000 + 200
+        assert pf.update(bowl(truth)).status == "global"
+
+    def test_tilt_corrections_find_the_imu_error(self):
+        # a likelihood peaked at the true pose and at an IMU roll / pitch error: the particles'
+        # corrections gather there; with tilt_std 0 they stay zero and no draw is made
+        error = np.deg2rad([0.6, -0.9])
+        truth = np.array([0.0, 1.0, 1.0, 1.5])
+
+        def lik(states, tilt):
+            d2 = ((states[:, :3] - truth[:3]) ** 2).sum(1)
+            e2 = ((tilt - error) ** 2).sum(1) / np.deg2rad(0.2) ** 2
+            return -50.0 * d2 - 0.5 * e2, np.ones(len(states))
+
+        pf = ParticleFilter(FilterParams(num_particles=300, tilt_std=[1.0, 0.1]), FREE,
+                            np.random.default_rng(0))
+        pf.init_tracking(truth)
+        for _ in range(15):
+            pf.predict(np.zeros(4))
+            info = pf.update(lik)
+        assert np.rad2deg(np.abs(info.tilt - error)).max() < 0.15
+        off = ParticleFilter(FilterParams(num_particles=300, tilt_std=[0.0, 0.0]), FREE,
+                             np.random.default_rng(0))
+        off.init_tracking(truth)
+        off.predict(np.zeros(4))
+        assert off.tilt.shape == (300, 2) and not off.tilt.any()
 
     @pytest.mark.parametrize("case", ["nan_quality", "flat", "huge"])
     def test_degenerate_likelihood_keeps_the_filter_alive(self, case):
         pf = ParticleFilter(FilterParams(num_particles=100), FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
         for _ in range(5):
-            def f(s):
+            def f(s, t):
                 n = len(s)
                 if case == "nan_quality":
                     return np.zeros(n), np.full(n, np.nan)

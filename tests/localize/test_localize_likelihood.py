@@ -242,6 +242,33 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     assert wins >= 2
 
 
+def test_per_particle_tilts_correct_an_imu_error(model, camera, renderer):
+    """A frame rendered at roll 1.5, pitch -2 deg while the IMU says 0.5, -1: the particle
+    whose correction undoes the error scores best; zero corrections equal the shared tilt."""
+    from core.poses import pose_from_xyz_rpy
+    from localize.projection import corrected_tilts, tilt_from_pose
+
+    s, vis = model
+
+    def tilt(roll, pitch):
+        return tilt_from_pose(pose_from_xyz_rpy(np.zeros((1, 3)),
+                                                np.deg2rad([[roll, pitch, 0.0]]))[0])
+
+    T = cam_from_world(TRUE[None], camera.body_from_cam, tilt(1.5, -2.0))[0]
+    labels, _ = renderer.render(np.linalg.inv(T))
+    lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
+    obs = lik.observe(label_edges(labels))
+    imu = tilt(0.5, -1.0)
+    corr = np.deg2rad([[0.0, 0.0], [1.0, -1.0], [-1.0, 1.0], [1.0, 0.0], [0.0, -1.0]])
+    states = np.repeat(TRUE[None], len(corr), axis=0)
+    score, _ = lik.scores(states, obs, corrected_tilts(imu, corr))
+    assert np.argmax(score) == 1 and score[1] > score[0] + 0.05
+    shared, _ = lik.scores(states[:1], obs, imu)
+    assert score[0] == pytest.approx(shared[0], abs=1e-6)
+    with pytest.raises(ValueError, match="tilts for"):
+        lik.scores(states, obs, corrected_tilts(imu, corr[:2]))
+
+
 class TestDegenerate:
     """Black image, no edges, everything clutter: finite, equal scores."""
 

@@ -10,6 +10,7 @@ from localize.projection import (
     ModelSamples,
     cam_from_world,
     camera_centres,
+    corrected_tilts,
     image_directions,
     pixel_index,
     project_samples,
@@ -35,6 +36,20 @@ def tilt(roll_deg: float = 2.0, pitch_deg: float = -3.0) -> np.ndarray:
 
     return tilt_from_pose(pose_from_xyz_rpy(np.zeros((1, 3)),
                                             np.deg2rad([[roll_deg, pitch_deg, 40.0]]))[0])
+
+
+def test_corrected_tilts_add_to_roll_and_pitch():
+    corr = np.deg2rad([[0.0, 0.0], [0.7, -1.2], [-2.0, 0.5]])
+    got = corrected_tilts(tilt(2.0, -3.0), corr)
+    for c, R in zip(np.rad2deg(corr), got, strict=True):
+        np.testing.assert_allclose(R, tilt(2.0 + c[0], -3.0 + c[1]), atol=1e-12)
+    np.testing.assert_allclose(corrected_tilts(None, corr[1:2])[0], tilt(0.7, -1.2), atol=1e-12)
+    # one tilt per particle gives each particle's camera the shared tilt's pose
+    states = np.repeat(STATE, 3, axis=0)
+    per = cam_from_world(states, BODY_FROM_CAM, got)
+    for i in range(3):
+        np.testing.assert_allclose(per[i], cam_from_world(STATE, BODY_FROM_CAM, got[i])[0],
+                                   atol=1e-12)
 
 
 class TestSampleSegments:
