@@ -445,6 +445,54 @@ class DropoutConfig:
 
 
 @dataclass
+class LensConfig:
+    """Lens distortion of the flights' camera (``realism.lens``, core/lens.py,
+    datagen/optics.py): OpenCV's plumb_bob model, a normalized image point (x, y), r^2 = x^2 +
+    y^2, goes to x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2) (y likewise,
+    p1 and p2 swapped), with the camera's K. The frames are rendered through it; flight.json's
+    ``camera`` holds the calibration and the localizer undistorts each frame back to K. Every
+    coefficient 0 (the defaults, ``realism=ideal``): a pinhole. ``realism=real``: a wide MAV
+    lens (docs/datagen.md)."""
+
+    k1: float = 0.0
+    k2: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    k3: float = 0.0
+
+
+@dataclass
+class MotionBlurConfig:
+    """Motion blur of the flights' frames (``realism.motion_blur``, datagen/optics.py): the
+    frame at time t is the mean, in linear light, of sub-frames rendered at poses along the
+    flight's true trajectory over its exposure [t - exposure_s, t] (with a rolling shutter,
+    each row's own window). 0 (the default, ``realism=ideal``): no blur."""
+
+    exposure_s: float = 0.0  # s, the exposure time; < the frame interval 1 / fps
+
+
+@dataclass
+class RollingShutterConfig:
+    """A rolling shutter (``realism.rolling_shutter``, datagen/optics.py): row r of an H-row
+    frame at time t ends its exposure at t + (r / H - 0.5) * readout_s, so the top row is
+    read readout_s / 2 before t and the bottom row about readout_s / 2 after. 0 (the default,
+    ``realism=ideal``): a global shutter."""
+
+    readout_s: float = 0.0  # s, top to bottom row; exposure + readout < the frame interval
+
+
+@dataclass
+class SubframeConfig:
+    """How many sub-frames a blurred or rolling-shutter frame is rendered from
+    (``realism.subframes``, datagen/optics.py): enough that the image moves at most
+    ``step_px`` between two (estimated from the motion over the frame's span), at most
+    ``max_count``."""
+
+    step_px: float = 1.0  # px of image motion between sub-frames (> 0)
+    max_count: int = 16  # the most sub-frames of one frame (each costs a render)
+
+
+@dataclass
 class RealismConfig:
     """How far the flights are from a perfect simulation (``realism``, the conf/realism/
     group: ``ideal``, the default, or ``real``), for every flight: the imperfections are the
@@ -458,6 +506,11 @@ class RealismConfig:
     exposure: ExposureConfig = field(default_factory=ExposureConfig)
     jpeg: JpegConfig = field(default_factory=JpegConfig)
     dropout: DropoutConfig = field(default_factory=DropoutConfig)
+    lens: LensConfig = field(default_factory=LensConfig)  # the flights' optics: lens
+    # distortion, motion blur and a rolling shutter (datagen/optics.py)
+    motion_blur: MotionBlurConfig = field(default_factory=MotionBlurConfig)
+    rolling_shutter: RollingShutterConfig = field(default_factory=RollingShutterConfig)
+    subframes: SubframeConfig = field(default_factory=SubframeConfig)
 
 
 # --------------------------------------------------------------------------- the job

@@ -5,9 +5,10 @@ so a frame's bytes do not depend on which shard renders it or on what was render
 a stopped run re-run with the same config skips finished frames and ends byte-identical to an
 uninterrupted run (up to rare one-level pixel differences from the LLVM variant's multithreaded
 kernels; docs/datagen.md). A flight's keys under its stream: 0 trajectory and odometry,
-1 scene, (2, i) frame i's render seed, 3 route, 4 AHRS, (5, i) frame i's camera effects,
-6 exposure series, 7 dropouts (SeedSequence pads a short key with zeros: (k,) is (k, 0), so
-no k is used both alone and with an index).
+1 scene, (2, i) frame i's render seed (its sub-frames' seeds in turn, datagen/optics.py),
+3 route, 4 AHRS, (5, i) frame i's camera effects, 6 exposure series, 7 dropouts
+(SeedSequence pads a short key with zeros: (k,) is (k, 0), so no k is used both alone and
+with an index).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
-from datagen import ahrs, appearance, camera_effects, distractors, trajectories
+from datagen import ahrs, appearance, camera_effects, distractors, optics, trajectories
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
@@ -209,8 +210,10 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     _check_presets(cfg)
     ahrs.check_settings(cfg.realism.ahrs, "realism.ahrs")
     camera_effects.check_settings(cfg.realism, "realism")
-    site = build_site(cfg.world)
     camera = make_camera(cfg.camera)
+    optics.check_settings(cfg.realism, camera,
+                          {n: cfg.flights[n].fps for n in cfg.render_flights}, "realism")
+    site = build_site(cfg.world)
     z_range = site.world.z_range
     split_poses = {}
     for split in SPLITS:
@@ -298,8 +301,19 @@ def write_metadata(job: Job, variant: str) -> None:
             "name": name, "fps": float(preset.fps), "num_frames": int(len(f["timestamps"])),
             "distractors": preset.distractors, "preset": asdict(preset),
             "realism": asdict(cfg.realism), "seed_stream": flight_stream(name),
-            "dropout": [d.as_json() for d in f["dropout"]]})
+            "dropout": [d.as_json() for d in f["dropout"]], **flight_camera(job)})
     atomic_write_json(out / "dataset.json", meta)
+
+
+def flight_camera(job: Job) -> dict:
+    """flight.json's ``camera`` when the flights' lens distorts: the calibration of the
+    frames (K, size, plumb_bob coefficients; ``core.dataset.Flight.camera``); else {}."""
+    d = optics.lens_coefficients(job.cfg.realism)
+    if not np.any(d):
+        return {}
+    cam = job.camera
+    return {"camera": {"K": cam.K.tolist(), "width": cam.width, "height": cam.height,
+                       "distortion_model": "plumb_bob", "distortion": d.tolist()}}
 
 
 def split_counts(cfg: DatagenConfig) -> dict[str, int]:
@@ -362,13 +376,14 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
     return clutter, people
 
 
-def _new_renderer(job: Job, textures, clutter, people):
-    """The renderer of the site's scene; with more than ``NEAR_LIGHTS_FROM`` lights (a floor,
-    most lights out of view) it samples lights by radiance / distance^2 (``near_lights``)."""
+def _new_renderer(job: Job, textures, clutter, people, camera: Camera | None = None):
+    """The renderer of the site's scene, with ``camera`` (None: the job's); with more than
+    ``NEAR_LIGHTS_FROM`` lights (a floor, most lights out of view) it samples lights by
+    radiance / distance^2 (``near_lights``)."""
     from datagen.render import Renderer
 
     scene = job.site.scene
-    return Renderer(scene, job.camera, textures, clutter, people,
+    return Renderer(scene, job.camera if camera is None else camera, textures, clutter, people,
                     max_depth=job.cfg.render.max_depth,
                     near_lights=scene.num_lights > NEAR_LIGHTS_FROM)
 
@@ -450,6 +465,32 @@ def _finish_frame(developer, traced, d: Path, i: int, exposure: float, sigma: fl
     write_frame(d, i, rgb, label, z if depth else None)
 
 
+def _render_optics_frame(job: Job, renderer, d: Path, i: int, fo: optics.FlightOptics,
+                         seeds: np.random.Generator, pipe: Pipeline,
+                         effect: Callable[[np.ndarray], np.ndarray] | None) -> None:
+    """Trace frame i's sub-frames here (``optics.FlightOptics``; render seeds drawn one by
+    one from ``seeds``, the frame's generator); assemble, develop and write them on the
+    pipeline's worker."""
+    r = job.cfg.render
+    sigma = r.denoise_sigma_px
+    plan, poses = fo.subframes(i)
+    traced = []
+    for pose in poses:
+        renderer.set_camera(pose @ job.camera.body_from_cam)
+        traced.append(renderer.trace(r.spp, int(seeds.integers(2**31)), albedo=sigma > 0))
+    pipe.submit(_finish_optics_frame, fo, renderer.developer, traced, plan, d, i, r.exposure,
+                sigma, r.depth, effect)
+
+
+def _finish_optics_frame(fo: optics.FlightOptics, developer, traced, plan, d: Path, i: int,
+                         exposure: float, sigma: float, depth: bool,
+                         effect: Callable[[np.ndarray], np.ndarray] | None) -> None:
+    rgb, label, z = fo.finish(developer, traced, plan, exposure, sigma)
+    if effect is not None:
+        rgb = effect(rgb)
+    write_frame(d, i, rgb, label, z if depth else None)
+
+
 def flight_effect(job: Job, name: str, i: int) -> Callable[[np.ndarray], np.ndarray] | None:
     """What the drone's camera does to frame i of a flight (``camera_effects.apply_effects``
     with the frame's own generator, ``rng_for(seed, flight stream, 5, i)``, its exposure
@@ -523,14 +564,22 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
     if not todo:
         return 0
     scene = flight_scene(job, name)
-    renderer = _new_renderer(job, scene.textures, scene.clutter, scene.people)
+    fo = (optics.FlightOptics.build(cfg.realism, job.camera, gt, cfg.flights[name].fps)
+          if optics.is_active(cfg.realism) else None)
+    renderer = _new_renderer(job, scene.textures, scene.clutter, scene.people,
+                             None if fo is None else fo.render_camera)
     renderer.set_lights(scene.lights)
     with Pipeline() as pipe:
         for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
             renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, i]], axis=0),
                                  scene.colours)
-            seed = int(rng_for(cfg.seed, flight_stream(name), 2, i).integers(2**31))
-            _render_frame(job, renderer, d, i, gt[i], seed, pipe, flight_effect(job, name, i))
+            seeds = rng_for(cfg.seed, flight_stream(name), 2, i)
+            if fo is None:
+                _render_frame(job, renderer, d, i, gt[i], int(seeds.integers(2**31)), pipe,
+                              flight_effect(job, name, i))
+            else:
+                _render_optics_frame(job, renderer, d, i, fo, seeds, pipe,
+                                     flight_effect(job, name, i))
     return len(todo)
 
 
