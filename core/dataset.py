@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from core.atomic import png_complete
+from core.atomic import png_complete, read_png
+from core.lens import Undistorter, coefficients
 from core.occupancy import OccupancyMap
 from core.poses import read_tum
 
@@ -76,7 +78,13 @@ class World:
 
 @dataclass(frozen=True)
 class Flight:
-    """One evaluation flight: frame paths, ground truth and odometry (world_from_body)."""
+    """One evaluation flight: frame paths, ground truth and odometry (world_from_body).
+
+    The frames on disk are those of the flight's camera: with lens distortion (flight.json's
+    ``camera``: K, size, plumb_bob ``distortion``) they are distorted; ``image`` and
+    ``labels`` give them undistorted to the pinhole K, the dataset's camera the localizer
+    projects with.
+    """
 
     name: str
     rgb: list[Path]
@@ -85,6 +93,32 @@ class Flight:
     groundtruth: np.ndarray  # (N, 4, 4)
     odometry: np.ndarray  # (N, 4, 4)
     info: dict
+
+    @property
+    def distortion(self) -> np.ndarray:
+        """(5,) plumb_bob coefficients (k1, k2, p1, p2, k3) of the frames' lens; zeros: a
+        pinhole (flight.json without ``camera``)."""
+        return coefficients((self.info.get("camera") or {}).get("distortion"))
+
+    @cached_property
+    def undistorter(self) -> Undistorter | None:
+        """The frames' undistortion to their pinhole K (maps made once), None for a pinhole."""
+        cam = self.info.get("camera")
+        if not cam or not np.any(self.distortion):
+            return None
+        return Undistorter(np.array(cam["K"], dtype=np.float64), self.distortion,
+                           int(cam["width"]), int(cam["height"]))
+
+    def image(self, t: int) -> np.ndarray:
+        """Frame t's (H, W, 3) uint8 RGB, undistorted to the pinhole K (bilinear)."""
+        rgb = read_png(self.rgb[t])
+        return rgb if self.undistorter is None else self.undistorter.image(rgb)
+
+    def labels(self, t: int) -> np.ndarray:
+        """Frame t's (H, W) uint8 true class ids, undistorted to the pinhole K (nearest;
+        ignore where the lens sees nothing)."""
+        label = read_png(self.label[t], rgb=False)
+        return label if self.undistorter is None else self.undistorter.labels(label)
 
 
 class Dataset:

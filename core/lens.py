@@ -69,8 +69,8 @@ def check_plumb_bob(distortion, K: np.ndarray, width: int, height: int,
     """
     d = coefficients(distortion)
     if not np.all(np.isfinite(d)):
-        raise ValueError(f"{where}: the coefficients {dict(zip(PLUMB_BOB, d.tolist()))} must be "
-                         "finite numbers")
+        named = dict(zip(PLUMB_BOB, d.tolist(), strict=True))
+        raise ValueError(f"{where}: the coefficients {named} must be finite numbers")
     k1, k2, _, _, k3 = d
     rd_max = corner_radius(K, width, height)
     r = np.linspace(0.0, MAX_RADIUS, 40001)[1:]

@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from core.atomic import atomic_write, atomic_write_json, atomic_write_text, read_png  # noqa: E402
+from core.atomic import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
 from core.classes import colorize  # noqa: E402
 from localize.metrics import convergence_frame, error_stats, timing_stats  # noqa: E402
 
@@ -297,8 +297,8 @@ def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     r = runs[mode]
     flight = ctx.dataset.flight(flight_name)
     t = int(round(float(ctx.cfg.report.figure_frame) * (r["num_frames"] - 1)))
-    rgb = read_png(flight.rgb[t])
-    truth = read_png(flight.label[t], rgb=False)
+    rgb = flight.image(t)
+    truth = flight.labels(t)
     segnet = mode == "cnn" and ctx.segmenter is not None
     if mode == "cnn" and not segnet:  # no SegNet loaded: the cnn edges of the true labels
         front = FrontEnd(LabelFunction(lambda rgb, labels: labels, needs_truth=True),

@@ -29,7 +29,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
-from core.atomic import atomic_write_json, read_png
+from core.atomic import atomic_write_json
 from core.config import typed
 from core.dataset import Camera, Dataset, Flight, World
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
@@ -265,8 +265,8 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
                                       if runs[0].likelihood != "vectorized" else "")
     for t in tqdm(range(T), desc=desc, disable=not cfg.progress, leave=False, mininterval=2.0):
         t0 = time.perf_counter()
-        rgb = read_png(flight.rgb[t]) if front.source.needs_image else None
-        labels = read_png(flight.label[t], rgb=False) if front.source.needs_truth else None
+        rgb = flight.image(t) if front.source.needs_image else None
+        labels = flight.labels(t) if front.source.needs_truth else None
         acquisition_ms = (time.perf_counter() - t0) * 1e3
         frame = front.frame(rgb, labels)
         delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
