@@ -204,23 +204,27 @@ def frame_plan(t: float, height: int, exposure_s: float, readout_s: float,
     """The ``count`` sub-frames of a frame at time t (s) with H = ``height`` rows (module
     docstring): equal intervals over the rows' span, each row's weights the share of its
     exposure window each interval covers (with no exposure, the interval holding its time),
-    its nearest sub-frame the one whose time is nearest its mid-exposure."""
+    its nearest sub-frame the one whose interval holds its mid-exposure time (the interval's
+    middle is the nearest sub-frame time; the later one at a boundary)."""
     H, S = int(height), int(count)
     ends = row_times(t, H, readout_s)
     a, b = frame_span(t, H, exposure_s, readout_s)
     edges = a + (b - a) * np.arange(S + 1) / S
     times = 0.5 * (edges[:-1] + edges[1:])
+    width = (b - a) / S if b > a else 1.0
+
+    def interval(x: np.ndarray) -> np.ndarray:  # the interval holding each time
+        return np.clip(np.floor((x - a) / width + 1e-9).astype(np.int64), 0, S - 1)
+
     if exposure_s > 0:
         lo = np.maximum(ends[:, None] - exposure_s, edges[None, :-1])
         hi = np.minimum(ends[:, None], edges[None, 1:])
         weights = np.clip(hi - lo, 0.0, None) / exposure_s
         weights /= weights.sum(axis=1, keepdims=True)
     else:
-        width = (b - a) / S if b > a else 1.0
-        inside = np.clip(np.floor((ends - a) / width).astype(np.int64), 0, S - 1)
         weights = np.zeros((H, S))
-        weights[np.arange(H), inside] = 1.0
-    nearest = np.argmin(np.abs(times[None, :] - (ends - 0.5 * exposure_s)[:, None]), axis=1)
+        weights[np.arange(H), interval(ends)] = 1.0
+    nearest = interval(ends - 0.5 * exposure_s)  # the interval's middle is the nearest time
     return FramePlan(times, weights.astype(np.float32), nearest)
 
 

@@ -1,0 +1,246 @@
+"""The flights' optics (datagen/optics.py, core/lens.py): lens distortion rendered and undone
+by the localizer's reader, motion blur and a rolling shutter from sub-frames, their checks."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from core import classes as C
+from core import lens
+from core.atomic import read_png
+from core.camera import intrinsics
+from core.dataset import Camera, Dataset
+from datagen import generate as gen
+from datagen import optics
+from datagen.config import RealismConfig
+from tests.helpers import compose_config
+
+#: EuRoC MAV cam0's plumb_bob coefficients (the realism=real lens).
+EUROC = [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05, 0.0]
+LENS = [f"realism.lens.{k}={v}" for k, v in zip(lens.PLUMB_BOB, EUROC, strict=True)]
+SMALL = ["camera.width=128", "camera.height=96", "splits.train=0", "splits.val=0",
+         "splits.test=0", "render.spp=1", "render_flights=[paper]", "flights.paper.num_frames=3"]
+
+
+def camera(width: int = 128, height: int = 96) -> Camera:
+    return Camera(intrinsics(width, height, 70.0), width, height, np.eye(4))
+
+
+def boundaries(label: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose right or lower neighbour has another class (both known)."""
+    b = np.zeros(label.shape, bool)
+    known = label != C.IGNORE
+    dx = (label[:, 1:] != label[:, :-1]) & known[:, 1:] & known[:, :-1]
+    dy = (label[1:] != label[:-1]) & known[1:] & known[:-1]
+    b[:, :-1] |= dx
+    b[:-1] |= dy
+    return b
+
+
+class TestLens:
+    def test_fold_check(self):
+        K = camera().K
+        np.testing.assert_array_equal(lens.check_plumb_bob(EUROC, K, 128, 96, "realism.lens"),
+                                      EUROC)
+        for bad in ([-0.5, 0, 0, 0, 0], [-0.35, 0.05, 0, 0, 0], [0, 0, 0, 0, -0.6]):
+            with pytest.raises(ValueError, match=r"realism.lens: .* fold the image"):
+                lens.check_plumb_bob(bad, K, 128, 96, "realism.lens")
+        with pytest.raises(ValueError, match="realism.lens: .* must be finite"):
+            lens.check_plumb_bob([float("nan"), 0, 0, 0, 0], K, 128, 96, "realism.lens")
+        # The same k1 folds a wider image only: the check follows the image's corner radius.
+        lens.check_plumb_bob([-0.5, 0, 0, 0, 0], intrinsics(128, 96, 40.0), 128, 96, "x")
+
+    def test_maps_invert_each_other(self):
+        """A pixel of the distorted image, through distort_maps into the covering pinhole and
+        back through the localizer's undistortion maps, lands where it started."""
+        cam = camera(320, 240)
+        Kc, wc, hc = lens.cover_camera(cam.K, EUROC, 320, 240)
+        assert wc > 320 and hc > 240 and Kc[0, 0] == pytest.approx(cam.K[0, 0])
+        mx, my = lens.distort_maps(cam.K, EUROC, 320, 240, Kc)
+        assert 0 <= mx.min() and mx.max() <= wc - 1 and 0 <= my.min() and my.max() <= hc - 1
+        xy = np.stack([(mx.ravel() - Kc[0, 2]) / Kc[0, 0], (my.ravel() - Kc[1, 2]) / Kc[1, 1]], 1)
+        uv = lens.distort_points(xy, cam.K, np.array(EUROC))
+        u, v = np.meshgrid(np.arange(320), np.arange(240))
+        assert np.abs(uv - np.stack([u.ravel(), v.ravel()], 1)).max() < 1e-3
+        # Barrel: the pinhole K's image lies inside the distorted one, all of it seen.
+        und = lens.Undistorter(cam.K, np.array(EUROC), 320, 240)
+        labels = und.labels(np.full((240, 320), 3, np.uint8))
+        assert (labels == 3).all()
+
+    def test_round_trip_on_a_rendered_flight(self, tmp_path):
+        """Rendered through the lens and undistorted by the reader (Flight.labels/image), a
+        frame's class boundaries lie within ~1 px of the pinhole render's (border excluded),
+        its image matches the pinhole's, and flight.json holds the calibration."""
+        ideal, bent = tmp_path / "ideal", tmp_path / "lens"
+        gen.run(compose_config("datagen", [*SMALL, f"out_dir={ideal}"]), progress=False)
+        gen.run(compose_config("datagen", [*SMALL, *LENS, f"out_dir={bent}"]), progress=False)
+        a, b = Dataset(ideal).flight("paper"), Dataset(bent).flight("paper")
+        assert "camera" not in a.info and not np.any(a.distortion)
+        np.testing.assert_allclose(b.distortion, EUROC)
+        assert b.info["camera"]["distortion_model"] == "plumb_bob"
+        np.testing.assert_allclose(b.info["camera"]["K"], Dataset(bent).camera.K)
+        m = 6  # px of border left out
+        for t in range(3):
+            raw = read_png(b.label[t], rgb=False)
+            assert raw.shape == (96, 128)
+            truth, back = a.labels(t), b.labels(t)
+            assert (raw != truth).mean() > 0.05  # the lens moved the image
+            bt, bb = boundaries(truth), boundaries(back)
+            dist = cv2.distanceTransform((~bt).astype(np.uint8), cv2.DIST_L2, 5)
+            inner = np.zeros_like(bb)
+            inner[m:-m, m:-m] = True
+            d = dist[bb & inner]
+            assert np.median(d) <= 1.0 and np.mean(d <= 1.5) > 0.9, (t, np.median(d))
+            assert (back[inner] == truth[inner]).mean() > 0.97
+            # The image's edges (Canny; the shading's path-tracing noise differs between the
+            # two renders): >= 85 % within 1.5 px of the pinhole's (a 3 px shift: ~67 %).
+            ea, eb = (cv2.Canny(cv2.cvtColor(f.image(t), cv2.COLOR_RGB2GRAY), 80, 160) > 0
+                      for f in (a, b))
+            dist = cv2.distanceTransform((~ea).astype(np.uint8), cv2.DIST_L2, 5)
+            assert np.mean(dist[eb & inner] <= 1.5) > 0.85
+
+
+class TestTime:
+    def test_interpolate_poses(self):
+        rot = Rotation.from_euler("z", [[0.0], [20.0], [50.0]], degrees=True).as_matrix()
+        poses = np.tile(np.eye(4), (3, 1, 1))
+        poses[:, :3, :3] = rot
+        poses[:, :3, 3] = [[0, 0, 0], [1, 0, 0], [1, 2, 0]]
+        out = optics.interpolate_poses(poses, 10.0, np.array([0.0, 0.05, 0.1, 0.15, -0.05,
+                                                              0.25]))
+        np.testing.assert_allclose(out[[0, 2]], poses[:2], atol=1e-12)
+        yaw = Rotation.from_matrix(out[:, :3, :3]).as_euler("zyx", degrees=True)[:, 0]
+        np.testing.assert_allclose(yaw, [0, 10, 20, 35, -10, 65], atol=1e-9)
+        np.testing.assert_allclose(out[:, :3, 3], [[0, 0, 0], [0.5, 0, 0], [1, 0, 0], [1, 1, 0],
+                                                   [-0.5, 0, 0], [1, 3, 0]], atol=1e-12)
+
+    def test_frame_plan(self):
+        """Global shutter: every row the same weights, over [t - exposure, t]; rolling: row r
+        ends at t + (r / H - 0.5) readout; labels from the sub-frame nearest mid-exposure."""
+        p = optics.frame_plan(1.0, 8, 0.01, 0.0, 4)
+        np.testing.assert_allclose(p.times, [0.99125, 0.99375, 0.99625, 0.99875])
+        np.testing.assert_allclose(p.weights, 0.25)
+        assert set(p.nearest) <= {1, 2}
+        np.testing.assert_allclose(optics.row_times(1.0, 4, 0.02), [0.99, 0.995, 1.0, 1.005])
+        p = optics.frame_plan(1.0, 4, 0.0, 0.02, 3)
+        assert optics.frame_span(1.0, 4, 0.0, 0.02) == pytest.approx((0.99, 1.005))
+        np.testing.assert_array_equal(p.weights.argmax(1), [0, 1, 2, 2])
+        np.testing.assert_array_equal(p.nearest, [0, 1, 2, 2])
+        p = optics.frame_plan(1.0, 96, 0.01, 0.02, 7)
+        np.testing.assert_allclose(p.weights.sum(1), 1.0, rtol=1e-6)
+        first, last = (np.flatnonzero(p.weights[r] > 0) for r in (0, 95))
+        assert first[0] == 0 and last[-1] == 6 and first[-1] < last[0]  # bottom rows later
+
+    def test_subframe_count(self):
+        a = np.eye(4)
+        b = np.eye(4)
+        b[:3, :3] = Rotation.from_euler("y", 1.0, degrees=True).as_matrix()
+        f = 229.0  # px: 1 degree is 4 px
+        assert optics.subframe_count(np.stack([a, b]), f, 1.0, 16) == 4
+        assert optics.subframe_count(np.stack([a, b]), f, 0.5, 16) == 8
+        assert optics.subframe_count(np.stack([a, b]), f, 0.5, 5) == 5
+        assert optics.subframe_count(np.stack([a, a]), f, 1.0, 16) == 1
+        b = np.eye(4)
+        b[0, 3] = 0.01  # 1 cm at NEAR_M = 1 m: 2.3 px
+        assert optics.subframe_count(np.stack([a, b]), f, 1.0, 16) == 3
+
+    def test_rolling_shutter_slants_a_vertical_edge(self):
+        """Sub-frames of a camera yawing right (a vertical edge moving left in the image at
+        400 px/s): the rolling-shutter frame's edge is further left in lower rows (read
+        later), by the motion over each row's time; the motion-blurred global-shutter frame is
+        the same in every row, a ramp as wide as the motion over the exposure (16 px)."""
+        H, W, S = 40, 80, 9
+        cols = np.arange(W)[None, :]
+
+        def sub_frames(times):  # (S, H, W, 1): dark left of the edge, bright right
+            img = np.clip(cols - (50.0 - 400.0 * times)[:, None] + 0.5, 0, 1)
+            return np.repeat(img.astype(np.float32)[:, None, :, None], H, axis=1)
+
+        plan = optics.frame_plan(0.02, H, 0.0, 0.04, S)
+        rs = optics.assemble(sub_frames(plan.times), plan.weights)
+        x = (1.0 - rs[..., 0]).sum(axis=1)  # per row: the edge's column
+        assert x[0] > x[-1] + 10 and np.all(np.diff(x) <= 1e-6)  # slanted: bottom further left
+        row = optics.row_times(0.02, H, 0.04)
+        np.testing.assert_allclose(x, 50.0 - 400.0 * row, atol=400.0 * 0.04 / S)
+        labels = optics.pick_rows(np.arange(S)[:, None, None] * np.ones((S, H, W)), plan.nearest)
+        np.testing.assert_array_equal(labels[:, 0], plan.nearest)
+
+        plan = optics.frame_plan(0.04, H, 0.04, 0.0, S)
+        gs = optics.assemble(sub_frames(plan.times), plan.weights)
+        np.testing.assert_allclose(gs, gs[:1].repeat(H, 0))
+        ramp = np.flatnonzero((gs[0, :, 0] > 0.02) & (gs[0, :, 0] < 0.98))
+        assert 13 <= len(ramp) <= 18
+
+
+class TestChecks:
+    @pytest.mark.parametrize(("settings", "match"), [
+        ({"lens": {"k1": -0.5}}, r"realism.lens: k1 = -0.5, k2 = 0, k3 = 0 fold the image"),
+        ({"lens": {"k1": -0.35, "k2": 0.05}}, "realism.lens: .* stops increasing at r = 1.208"),
+        ({"motion_blur": {"exposure_s": 0.1}},
+         r"realism.motion_blur.exposure_s = 0.1 s is not shorter than flights.paper's frame "
+         r"interval 1 / fps = 0.1 s"),
+        ({"motion_blur": {"exposure_s": -0.01}}, "realism.motion_blur.exposure_s = -0.01"),
+        ({"rolling_shutter": {"readout_s": 0.2}}, "realism.rolling_shutter.readout_s = 0.2"),
+        ({"subframes": {"step_px": 0.0}}, "realism.subframes.step_px"),
+        ({"subframes": {"max_count": 0}}, "realism.subframes.max_count"),
+    ])
+    def test_bad_settings(self, settings, match):
+        with pytest.raises(ValueError, match=match):
+            optics.check_settings(settings, camera(), {"paper": 10.0})
+
+    def test_defaults_off(self):
+        assert not optics.is_active(RealismConfig())
+        real = gen.prepare(compose_config("datagen", [*SMALL, "realism=real",
+                                                      "realism.dropout.per_min=0"])).cfg.realism
+        assert optics.is_active(real)
+        np.testing.assert_allclose(optics.lens_coefficients(real), EUROC)
+        assert real.motion_blur.exposure_s == 0.01 and real.rolling_shutter.readout_s == 0.02
+
+    def test_bad_settings_stop_before_anything(self, tmp_path):
+        out = tmp_path / "bad"
+        for override, match in (("realism.lens.k1=-0.6", "realism.lens"),
+                                ("realism.motion_blur.exposure_s=0.25",
+                                 "realism.motion_blur.exposure_s")):
+            cfg = compose_config("datagen", [*SMALL, override, f"out_dir={out}"])
+            with pytest.raises(ValueError, match=match):
+                gen.run(cfg, progress=False)
+            assert not out.exists()
+
+
+class TestRender:
+    def test_blur_and_rolling_shutter_frames_are_their_own(self, tmp_path):
+        """Lens, blur and rolling shutter on: a frame re-rendered alone after it was lost is
+        the same (its sub-frames and seeds are its own); the blurred frame differs from the
+        sharp one but keeps its labels close (rows from the nearest sub-frame)."""
+        fx = [*LENS, "realism.motion_blur.exposure_s=0.02", "realism.rolling_shutter.readout_s=0.03",
+              "realism.subframes.max_count=4"]
+        sharp, out = tmp_path / "sharp", tmp_path / "fx"
+        gen.run(compose_config("datagen", [*SMALL, *LENS, f"out_dir={sharp}"]), progress=False)
+        cfg = compose_config("datagen", [*SMALL, *fx, f"out_dir={out}"])
+        gen.run(cfg, progress=False)
+        job = gen.prepare(cfg)
+        fo = optics.FlightOptics.build(job.cfg.realism, job.camera,
+                                       job.flights["paper"]["groundtruth"], 10.0)
+        assert [len(fo.subframes(i)[0].times) for i in range(3)] != [1, 1, 1]
+        d = out / "flights" / "paper"
+        written = {s: read_png(d / s / "000002.png", rgb=s == "rgb") for s in ("rgb", "label")}
+        for s in ("rgb", "label"):
+            (d / s / "000002.png").unlink()
+        gen.run(cfg, progress=False)
+        assert (read_png(d / "rgb" / "000002.png") == written["rgb"]).mean() > 0.99  # LLVM
+        np.testing.assert_array_equal(read_png(d / "label" / "000002.png", rgb=False),
+                                      written["label"])
+        flight = json.loads((d / "flight.json").read_text())
+        assert flight["realism"]["motion_blur"]["exposure_s"] == 0.02
+        s = sharp / "flights" / "paper"
+        for i in (1, 2):
+            name = f"{i:06d}.png"
+            assert not np.array_equal(read_png(d / "rgb" / name), read_png(s / "rgb" / name))
+            same = read_png(d / "label" / name, rgb=False) == read_png(s / "label" / name,
+                                                                        rgb=False)
+            assert same.mean() > 0.9
