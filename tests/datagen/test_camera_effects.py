@@ -242,6 +242,12 @@ class TestSettings:
         assert real.realism.jpeg == JpegConfig(quality=85)
 
 
+#: realism=real's optics off (datagen/optics.py; tests/datagen/test_optics.py): the rendered
+#: frames are the ideal's, the image effects alone change them.
+NO_OPTICS = ["realism.lens.k1=0", "realism.lens.k2=0", "realism.lens.p1=0", "realism.lens.p2=0",
+             "realism.motion_blur.exposure_s=0", "realism.rolling_shutter.readout_s=0"]
+
+
 class TestDatagen:
     FLIGHT = ["splits.train=0", "splits.val=0", "splits.test=0", "render_flights=[paper]",
               "flights.paper.num_frames=20"]
@@ -271,7 +277,8 @@ class TestDatagen:
                  "splits.test=0", "render.spp=1", "render_flights=[cluttered]",
                  "flights.cluttered.num_frames=3"]
         effects = ["realism=real", "realism.dropout.per_min=0", "realism.dropout.at_s=[0.1]",
-                   "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]"]
+                   "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]",
+                   *NO_OPTICS]
         ideal, real = tmp_path / "ideal", tmp_path / "real"
         gen.run(compose_config("datagen", [*small, f"out_dir={ideal}"]), progress=False)
         cfg = compose_config("datagen", [*small, *effects, f"out_dir={real}"])

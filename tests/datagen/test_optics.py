@@ -217,8 +217,8 @@ class TestRender:
         """Lens, blur and rolling shutter on: a frame re-rendered alone after it was lost is
         the same (its sub-frames and seeds are its own); the blurred frame differs from the
         sharp one but keeps its labels close (rows from the nearest sub-frame)."""
-        fx = [*LENS, "realism.motion_blur.exposure_s=0.02", "realism.rolling_shutter.readout_s=0.03",
-              "realism.subframes.max_count=4"]
+        fx = [*LENS, "realism.motion_blur.exposure_s=0.02",
+              "realism.rolling_shutter.readout_s=0.03", "realism.subframes.max_count=4"]
         sharp, out = tmp_path / "sharp", tmp_path / "fx"
         gen.run(compose_config("datagen", [*SMALL, *LENS, f"out_dir={sharp}"]), progress=False)
         cfg = compose_config("datagen", [*SMALL, *fx, f"out_dir={out}"])
