@@ -244,3 +244,44 @@ class TestRender:
             same = read_png(d / "label" / name, rgb=False) == read_png(s / "label" / name,
                                                                         rgb=False)
             assert same.mean() > 0.9
+
+    def test_rolling_shutter_of_a_yawing_camera(self):
+        """Rendered: a camera yawing left at 90 deg/s (the scene moves right in the image) with
+        a 60 ms readout. Against the global-shutter frame at t, each row's labels are shifted
+        right by about f * yaw rate * (t_r - t): top rows (read early) to the left, bottom rows
+        to the right, so vertical edges slant."""
+        from core.variant import choose_variant
+
+        choose_variant("auto")
+        cfg = compose_config("datagen", [*SMALL, "realism.rolling_shutter.readout_s=0.06",
+                                         "realism.subframes.step_px=0.5"])
+        job = gen.prepare(cfg)
+        scene = gen.flight_scene(job, "paper")
+        rate = np.radians(90.0)  # rad/s, positive: to the left (z up)
+        mid = job.flights["paper"]["groundtruth"][1]
+        gt = np.stack([mid.copy() for _ in range(3)])
+        for k in range(3):
+            gt[k, :3, :3] = Rotation.from_rotvec([0, 0, rate * (k - 1) / 10.0]).as_matrix() \
+                @ mid[:3, :3]
+        fo = optics.FlightOptics.build(job.cfg.realism, job.camera, gt, 10.0)
+        renderer = gen._new_renderer(job, scene.textures, scene.clutter, scene.people)
+        renderer.set_lights(scene.lights)
+        renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, 1]], axis=0),
+                             scene.colours)
+        plan, poses = fo.subframes(1)
+        traced = []
+        for pose in poses:
+            renderer.set_camera(pose @ job.camera.body_from_cam)
+            traced.append(renderer.trace(1, 0, albedo=True))
+        _, rolled, _ = fo.finish(renderer.developer, traced, plan, 1.6, 4.0)
+        renderer.set_camera(mid @ job.camera.body_from_cam)
+        _, still, _ = renderer.render(1, 0)
+        H = still.shape[0]
+        f = job.camera.K[0, 0]
+        shifts = np.arange(-12, 13)
+        agree = np.stack([(rolled == np.roll(still, s, axis=1))[:, 12:-12].mean(axis=1)
+                          for s in shifts])  # (shifts, H)
+        best = shifts[agree.argmax(axis=0)]
+        expect = f * rate * (optics.row_times(0.1, H, 0.06) - 0.1)  # px, +: right
+        assert best[:10].mean() < -2.5 and best[-10:].mean() > 2.5  # expected: -4.2, +4.1
+        assert np.median(np.abs(best - expect)) <= 1.5
