@@ -17,7 +17,7 @@ from localize.frontend import LabelFunction
 from localize.recording import read_recording
 from localize.recording_export import export_folder
 from localize.runner import run
-from tests.datagen.test_optics import EUROC, LENS
+from tests.core.test_lens import EUROC, LENS
 from tests.helpers import compose_config
 from tests.localize.conftest import QUICK, localize_cfg
 
