@@ -307,7 +307,8 @@ def write_metadata(job: Job, variant: str) -> None:
 
 def flight_camera(job: Job) -> dict:
     """flight.json's ``camera`` when the flights' lens distorts: the calibration of the
-    frames (K, size, plumb_bob coefficients; ``core.dataset.Flight.camera``); else {}."""
+    frames (K, size, plumb_bob coefficients; read by ``core.dataset.Flight.undistorter``);
+    else {}."""
     d = optics.lens_coefficients(job.cfg.realism)
     if not np.any(d):
         return {}
