@@ -445,6 +445,48 @@ class DropoutConfig:
 
 
 @dataclass
+class TimingConfig:
+    """The clocks of the camera and the odometry (``realism.timing``, datagen/timing.py): frames
+    the link drops, jitter on the images' timestamps, and odometry at its own rate with
+    occasional jumps, so a flight's reader (``core.dataset.Dataset.flight``) interpolates the
+    odometry at each delivered image's timestamp, as for a user's recording. Every setting off
+    (the defaults, ``realism=ideal``): every frame delivered at i / fps, the odometry at the
+    frame times. ``realism=real``: docs/datagen.md."""
+
+    drop_rate: float = 0.0  # share of frames dropped (never delivered, not rendered), each
+    # frame independently, in [0, 0.5]
+    jitter_ms: float = 0.0  # ms, std of the error of an image's timestamp (normal, clipped to
+    # +/- 3 std); its capture (the rendered pose) stays at i / fps
+    odometry_hz: float | None = None  # Hz, the odometry's own rate (samples at k / odometry_hz
+    # over the flight); None: at the camera's frame times
+    jump_per_min: float = 0.0  # mean number of odometry jumps per minute (a Poisson process):
+    # the odometry's pose jumps and stays off (a VIO re-initialization or a map correction)
+    jump_m: float = 0.05  # m, size of a jump's translation (horizontal, its direction drawn;
+    # each jump's size uniform in [0.5, 1] x this)
+    jump_deg: float = 2.0  # deg, size of a jump's yaw change (its sign drawn; uniform in
+    # [0.5, 1] x this)
+
+
+@dataclass
+class HarderFlightConfig:
+    """Harder flights for every preset (``realism.flight``, datagen/trajectories.py
+    ``flight_trajectory``): faster, with quicker yaw swings, flown either way along the route
+    from anywhere on it. Every key off (the defaults, ``realism=ideal``): each preset's own
+    ``trajectory``. The draws come from the flight's own generator (stream key 8), so the
+    preset's draws are unchanged."""
+
+    speed: list[float] | None = None  # m/s, [min, max] mean forward speed replacing the
+    # preset's trajectory.speed (capped so the flight ends inside its route, as there)
+    yaw_rate_deg_s: list[float] | None = None  # deg/s, [min, max] peak rate of the yaw swings
+    # about the direction of travel: the preset's swing is rescaled to a rate drawn here
+    max_yaw_swing_deg: float = 90.0  # deg, largest yaw swing a rescaled swing may reach
+    either_direction: bool = False  # true: each flight flies its route forwards or backwards
+    # with equal chance (the preset's trajectory.reverse is ignored)
+    start_anywhere: bool = False  # true: the flight starts anywhere along its route where
+    # the rest of the route still holds speed x duration (uniform), not near its start
+
+
+@dataclass
 class RealismConfig:
     """How far the flights are from a perfect simulation (``realism``, the conf/realism/
     group: ``ideal``, the default, or ``real``), for every flight: the imperfections are the
@@ -458,6 +500,10 @@ class RealismConfig:
     exposure: ExposureConfig = field(default_factory=ExposureConfig)
     jpeg: JpegConfig = field(default_factory=JpegConfig)
     dropout: DropoutConfig = field(default_factory=DropoutConfig)
+    timing: TimingConfig = field(default_factory=TimingConfig)  # dropped frames, timestamp
+    # jitter, the odometry's own rate and jumps (datagen/timing.py)
+    flight: HarderFlightConfig = field(default_factory=HarderFlightConfig)  # faster flights,
+    # quicker yaw, either direction, any start
 
 
 # --------------------------------------------------------------------------- the job
@@ -500,7 +546,11 @@ class DatagenConfig:
     splits: Splits = field(default_factory=Splits)
     training: TrainingConfig = field(default_factory=TrainingConfig)
     render_flights: list[str] = field(default_factory=lambda: ["paper", "cluttered"])  # keys
-    # of `flights` to render
+    # of `flights` to render: the test flights, flights/<name>/
+    val_flights: list[str] = field(default_factory=lambda: ["paper", "cluttered"])  # keys of
+    # `flights` also rendered as validation flights, flights/<name>_val/: the same preset
+    # drawn from another generator (another trajectory, start, scene and, for a planned
+    # route, route); settings are tuned on them, figures reported on the test flights
     shard: int = 0  # this process renders shard `shard` of `num_shards` frame ranges
     num_shards: int = 1
     overwrite: bool = False  # true: empty an existing dataset made with another config (one
