@@ -470,20 +470,25 @@ class TimingConfig:
 @dataclass
 class HarderFlightConfig:
     """Harder flights for every preset (``realism.flight``, datagen/trajectories.py
-    ``flight_trajectory``): faster, with quicker yaw swings, flown either way along the route
-    from anywhere on it. Every key off (the defaults, ``realism=ideal``): each preset's own
-    ``trajectory``. The draws come from the flight's own generator (stream key 8), so the
-    preset's draws are unchanged."""
+    ``flight_trajectory``): faster and with quicker yaw swings, flown back and forth along the
+    route (turning around at its ends), from anywhere on it, either way. ``enabled`` false (the
+    default, ``realism=ideal``): each preset's own ``trajectory``. Its draws come from the
+    flight's own generator (stream key 8), so the preset's draws are unchanged."""
 
-    speed: list[float] | None = None  # m/s, [min, max] mean forward speed replacing the
-    # preset's trajectory.speed (capped so the flight ends inside its route, as there)
-    yaw_rate_deg_s: list[float] | None = None  # deg/s, [min, max] peak rate of the yaw swings
-    # about the direction of travel: the preset's swing is rescaled to a rate drawn here
-    max_yaw_swing_deg: float = 90.0  # deg, largest yaw swing a rescaled swing may reach
-    either_direction: bool = False  # true: each flight flies its route forwards or backwards
-    # with equal chance (the preset's trajectory.reverse is ignored)
-    start_anywhere: bool = False  # true: the flight starts anywhere along its route where
-    # the rest of the route still holds speed x duration (uniform), not near its start
+    enabled: bool = False
+    speed: list[float] = field(default_factory=lambda: [0.6, 1.0])  # m/s, [min, max] mean
+    # speed along the route (replacing the preset's trajectory.speed); the speed profile's
+    # variation takes its peaks to about 1.5x the mean
+    turn_m: float = 1.0  # m of route at each end over which the copter slows down to turn
+    # around
+    turn_s: float = 6.0  # s it hovers at an end while it turns its heading by 180 deg (left
+    # or right; its peak rate 1.5 x 180 / turn_s deg/s: 45 at 6 s)
+    yaw_rate_deg_s: list[float] = field(default_factory=lambda: [30.0, 60.0])  # deg/s, [min,
+    # max] peak rate of the yaw swings about the direction of travel, drawn per flight
+    yaw_freq_hz: list[float] = field(default_factory=lambda: [0.1, 0.3])  # frequencies of the
+    # yaw swings (the preset's yaw_freq_hz is replaced)
+    max_yaw_swing_deg: float = 60.0  # deg, the largest swing (a slower peak rate than drawn
+    # where it would need more)
 
 
 @dataclass
@@ -503,7 +508,7 @@ class RealismConfig:
     timing: TimingConfig = field(default_factory=TimingConfig)  # dropped frames, timestamp
     # jitter, the odometry's own rate and jumps (datagen/timing.py)
     flight: HarderFlightConfig = field(default_factory=HarderFlightConfig)  # faster flights,
-    # quicker yaw, either direction, any start
+    # quicker yaw, back and forth from anywhere on the route
 
 
 # --------------------------------------------------------------------------- the job
