@@ -552,10 +552,10 @@ class DatagenConfig:
     training: TrainingConfig = field(default_factory=TrainingConfig)
     render_flights: list[str] = field(default_factory=lambda: ["paper", "cluttered"])  # keys
     # of `flights` to render: the test flights, flights/<name>/
-    val_flights: list[str] = field(default_factory=lambda: ["paper", "cluttered"])  # keys of
-    # `flights` also rendered as validation flights, flights/<name>_val/: the same preset
-    # drawn from another generator (another trajectory, start, scene and, for a planned
-    # route, route); settings are tuned on them, figures reported on the test flights
+    val_flights: list[str] | None = None  # keys of `flights` also rendered as validation
+    # flights, flights/<name>_val/: the same preset drawn from another generator (another
+    # trajectory, start, scene and, for a planned route, route); settings are tuned on them,
+    # figures reported on the test flights. None: the render_flights; []: none
     shard: int = 0  # this process renders shard `shard` of `num_shards` frame ranges
     num_shards: int = 1
     overwrite: bool = False  # true: empty an existing dataset made with another config (one

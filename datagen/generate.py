@@ -125,6 +125,11 @@ class Job:
 
 
 
+def val_flights(cfg: DatagenConfig) -> list[str]:
+    """The presets rendered as validation flights (``val_flights``; None: ``render_flights``)."""
+    return list(cfg.render_flights if cfg.val_flights is None else cfg.val_flights)
+
+
 def _check_counts(cfg: DatagenConfig) -> None:
     """Counts, sizes and shards: positive where they must be."""
     for split in SPLITS:
@@ -159,11 +164,11 @@ def _check_presets(cfg: DatagenConfig) -> None:
             raise ValueError(f"flights.{name}: num_frames ({flight.num_frames}) and fps "
                              f"({flight.fps}) must be positive")
     for key in ("render_flights", "val_flights"):
-        for name in getattr(cfg, key):
+        for name in getattr(cfg, key) or []:
             if name not in cfg.flights:
                 raise ValueError(f"{key}: unknown flight preset {name!r}; "
                                  f"known: {sorted(cfg.flights)}")
-    clash = sorted(set(cfg.render_flights) & {f"{n}_val" for n in cfg.val_flights})
+    clash = sorted(set(cfg.render_flights) & {f"{n}_val" for n in val_flights(cfg)})
     if clash:
         raise ValueError(f"render_flights {clash} has the name of a validation flight "
                          "(<name>_val of val_flights); rename the preset")
@@ -231,7 +236,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     camera_effects.check_settings(cfg.realism, "realism")
     timing.check_settings(cfg.realism.timing, "realism.timing")
     trajectories.check_harder(cfg.realism.flight, "realism.flight")
-    for name in {*cfg.render_flights, *cfg.val_flights}:
+    for name in {*cfg.render_flights, *val_flights(cfg)}:
         try:
             timing.check_flight(cfg.realism.timing, cfg.flights[name].fps, "realism.timing")
         except ValueError as e:
@@ -245,7 +250,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
         split_poses[split] = poses
     flights = {}
     sets = [(n, n, "test") for n in cfg.render_flights] + [
-        (f"{n}_val", n, "val") for n in cfg.val_flights]
+        (f"{n}_val", n, "val") for n in val_flights(cfg)]
     for name, preset_name, flight_set in sets:
         flights[name] = prepare_flight(cfg, site, camera, name, preset_name)
         flights[name]["set"] = flight_set
@@ -342,7 +347,7 @@ def write_metadata(job: Job, variant: str) -> None:
         write_tum(d / "groundtruth.txt", f["timestamps"], f["groundtruth"])
         write_tum(d / "odometry.txt", f["odometry_times"], f["odometry"])
         preset = f["preset"]
-        meta = {
+        info = {
             "name": name, "fps": float(preset.fps), "num_frames": int(len(f["timestamps"])),
             "distractors": preset.distractors, "preset": asdict(preset),
             "realism": asdict(cfg.realism), "seed_stream": flight_stream(name),
@@ -350,13 +355,13 @@ def write_metadata(job: Job, variant: str) -> None:
             "set": f["set"], "preset_name": f["preset_name"]}
         if timing.is_active(cfg.realism.timing):
             write_images_list(d / "images.txt", f["stamps"], f["delivered"])
-            meta["timing"] = {
+            info["timing"] = {
                 "images": "images.txt",
                 "dropped": np.flatnonzero(~f["delivered"]).tolist(),
                 "odometry_hz": cfg.realism.timing.odometry_hz,
                 "odometry_samples": int(len(f["odometry_times"])),
                 "jumps": f["jumps"]}
-        atomic_write_json(d / "flight.json", meta)
+        atomic_write_json(d / "flight.json", info)
     atomic_write_json(out / "dataset.json", meta)
 
 
