@@ -559,8 +559,8 @@ class DatagenConfig:
     shard: int = 0  # this process renders shard `shard` of `num_shards` frame ranges
     num_shards: int = 1
     overwrite: bool = False  # true: empty an existing dataset made with another config (one
-    # that differs only by larger `splits` counts or more `render_flights` is grown, not
-    # emptied; docs/outputs.md)
+    # that differs only by larger `splits` counts or more `render_flights` / `val_flights` is
+    # grown, not emptied; docs/outputs.md)
     progress: bool = True  # tqdm progress bars (not part of the dataset's config hash)
     world: Any = None  # WorldConfig (conf/world/corridor_paper, also None) or FileWorldConfig
     # (conf/world/file); ``world_config`` types a mapping
