@@ -241,7 +241,8 @@ class Dataset:
         if (d / "images.txt").is_file():
             frames, t = _images_list(d / "images.txt", len(gt))
             gt = gt[frames]
-            odo = interpolate_poses(t, odo_t, odo)
+            odo = (interpolate_poses(t, odo_t, odo) if len(odo_t) > 1
+                   else np.repeat(odo[:1], len(t), axis=0))
         rgb = [d / "rgb" / frame_name(i) for i in frames]
         label = [d / "label" / frame_name(i) for i in frames]
         self.check_frames(f"flight {name!r}", rgb, label)

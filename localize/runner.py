@@ -131,6 +131,9 @@ def select_flights(dataset: Dataset, wanted, flight_set: str = "test") -> list[s
         raise ValueError(f"flight_set={flight_set!r}: use one of {FLIGHT_SETS} (test: the "
                          "flights figures are reported on; val: those settings are tuned on)")
     every = dataset.flight_names()
+    if not every:
+        raise ValueError(f"dataset {dataset.root} has no flights (no {dataset.root / 'flights'}/"
+                         "<name>/); render some with `python -m datagen` (render_flights)")
     names = dataset.flight_names(flight_set)
     if not names:
         key = "render_flights" if flight_set == "test" else "val_flights"
