@@ -124,7 +124,6 @@ class Job:
     # effects of realism
 
 
-
 def val_flights(cfg: DatagenConfig) -> list[str]:
     """The presets rendered as validation flights (``val_flights``; None: ``render_flights``)."""
     return list(cfg.render_flights if cfg.val_flights is None else cfg.val_flights)
@@ -172,7 +171,7 @@ def _check_presets(cfg: DatagenConfig) -> None:
     if clash:
         raise ValueError(f"render_flights {clash} has the name of a validation flight "
                          "(<name>_val of val_flights); rename the preset")
-    for name in cfg.render_flights:
+    for name in {*cfg.render_flights, *val_flights(cfg)}:
         dp = cfg.flights[name].distractors
         if dp not in presets:
             raise ValueError(f"flights.{name}.distractors: unknown preset {dp!r}; "
