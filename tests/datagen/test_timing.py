@@ -177,3 +177,22 @@ def test_flight_files_and_reader(tmp_path):
     angle = (Rotation.from_matrix(flight.odometry[:, :3, :3]).inv()
              * Rotation.from_matrix(truth_at_stamp[:, :3, :3])).magnitude()
     assert np.rad2deg(angle).max() < 0.2
+
+
+def test_ideal_clocks_are_todays(tmp_path):
+    """realism=ideal: every frame delivered at i / fps, the odometry at the frame times, no
+    images.txt and no flight.json timing; the reader gives the files' poses as they are."""
+    out = tmp_path / "ds"
+    job = gen.prepare(compose_config("datagen", [*FLIGHT, "flights.paper.num_frames=20",
+                                                 f"out_dir={out}"]))
+    f = job.flights["paper"]
+    assert f["delivered"].all() and f["jumps"] == []
+    np.testing.assert_array_equal(f["stamps"], TR.timestamps(20, FPS))
+    np.testing.assert_array_equal(f["odometry_times"], TR.timestamps(20, FPS))
+    gen.write_metadata(job, "scalar_rgb")
+    d = out / "flights" / "paper"
+    assert not (d / "images.txt").exists()
+    assert "timing" not in json.loads((d / "flight.json").read_text())
+    t, odo = read_tum(d / "odometry.txt")
+    np.testing.assert_array_equal(t, TR.timestamps(20, FPS))
+    np.testing.assert_allclose(odo, f["odometry"], atol=1e-6)
