@@ -28,6 +28,12 @@ from tests.helpers import CONF, compose_config
 FPS = 10.0
 
 
+#: realism=real without its timing and harder flights: ideal's poses and frames
+IMAGES_ONLY = ["realism.timing.drop_rate=0", "realism.timing.jitter_ms=0",
+               "realism.timing.odometry_hz=null", "realism.timing.jump_per_min=0",
+               "realism.flight.enabled=false"]
+
+
 def real_settings() -> RealismConfig:
     return typed(RealismConfig, yaml.safe_load((CONF / "realism" / "real.yaml").read_text()),
                  "realism")
@@ -276,9 +282,9 @@ class TestDatagen:
         small = ["camera.width=64", "camera.height=48", "splits.train=0", "splits.val=0",
                  "splits.test=0", "render.spp=1", "render_flights=[cluttered]",
                  "flights.cluttered.num_frames=3"]
-        effects = ["realism=real", "realism.dropout.per_min=0", "realism.dropout.at_s=[0.1]",
-                   "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]",
-                   *NO_OPTICS]
+        effects = ["realism=real", *IMAGES_ONLY, *NO_OPTICS, "realism.dropout.per_min=0",
+                   "realism.dropout.at_s=[0.1]",
+                   "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]"]
         ideal, real = tmp_path / "ideal", tmp_path / "real"
         gen.run(compose_config("datagen", [*small, f"out_dir={ideal}"]), progress=False)
         cfg = compose_config("datagen", [*small, *effects, f"out_dir={real}"])
