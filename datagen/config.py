@@ -490,6 +490,9 @@ class SubframeConfig:
 
     step_px: float = 1.0  # px of image motion between sub-frames (> 0)
     max_count: int = 16  # the most sub-frames of one frame (each costs a render)
+
+
+@dataclass
 class TimingConfig:
     """The clocks of the camera and the odometry (``realism.timing``, datagen/timing.py): frames
     the link drops, jitter on the images' timestamps, and odometry at its own rate with
