@@ -50,6 +50,7 @@ def flights_config(dataset: Path, n: int, out: Path) -> dict:
     gen["flights"].update({f"{p}_{k}": copy.deepcopy(gen["flights"][p])
                            for p in presets for k in range(1, n + 1)})
     gen["render_flights"] = [f"{p}_{k}" for p in presets for k in range(1, n + 1)]
+    gen["val_flights"] = []  # the new flights are test flights of their own
     gen.update(name=out.name, out_dir=str(out), shard=0, num_shards=1, overwrite=False)
     return gen
 

@@ -10,21 +10,31 @@
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
   train|val|test/rgb/NNNNNN.png, label/NNNNNN.png, depth/NNNNNN.npy (optional), poses.txt
-  flights/<name>/rgb/, label/, groundtruth.txt, odometry.txt, flight.json
+  flights/<name>/rgb/, label/, groundtruth.txt, odometry.txt, flight.json, images.txt
 ```
+
+A flight's groundtruth.txt holds every frame's true pose at its capture time i / fps. Without
+images.txt (``realism.timing`` off) every frame is delivered at its capture time and
+odometry.txt has a pose per frame. With it (``realism.timing``), images.txt lists the
+delivered frames (``timestamp rgb/NNNNNN.png``; dropped frames are missing, and were never
+rendered) with their timestamps, and odometry.txt is sampled at its own rate: ``Dataset.flight``
+interpolates it at each delivered frame's timestamp, as a folder recording's reader does
+(localize/recording_folder.py).
 """
 
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from core.atomic import png_complete
+from core.atomic import png_complete, read_png
+from core.lens import Undistorter, coefficients
 from core.occupancy import OccupancyMap
-from core.poses import read_tum
+from core.poses import interpolate_poses, read_tum
 
 SCHEMA_VERSION = 1
 SPLITS = ("train", "val", "test")
@@ -74,17 +84,64 @@ class World:
         return np.array(self.free.band, dtype=np.float64)
 
 
+#: The flight sets: ``test`` (``render_flights``) and ``val`` (``val_flights``, ``<name>_val``).
+FLIGHT_SETS = ("test", "val")
+
+
 @dataclass(frozen=True)
 class Flight:
-    """One evaluation flight: frame paths, ground truth and odometry (world_from_body)."""
+    """One evaluation flight as the localizer gets it: its delivered frames (T of them).
+
+    rgb, label: (T,) frame paths; timestamps: (T,) s, the images' timestamps; groundtruth:
+    (T, 4, 4) world_from_body at each frame's capture; odometry: (T, 4, 4) world_from_body
+    at each timestamp (interpolated where the odometry has its own rate); info: flight.json;
+    frames: (T,) the delivered frames' indices (0..N-1 of the flight's frames).
+
+    The frames on disk are those of the flight's camera: with lens distortion (flight.json's
+    ``camera``: K, size, plumb_bob ``distortion``) they are distorted; ``image`` and
+    ``labels`` give them undistorted to the pinhole K, the dataset's camera the localizer
+    projects with.
+    """
 
     name: str
     rgb: list[Path]
     label: list[Path]
     timestamps: np.ndarray
-    groundtruth: np.ndarray  # (N, 4, 4)
-    odometry: np.ndarray  # (N, 4, 4)
+    groundtruth: np.ndarray  # (T, 4, 4)
+    odometry: np.ndarray  # (T, 4, 4)
     info: dict
+    frames: np.ndarray | None = None  # (T,) int; None: 0..T-1
+
+    @property
+    def flight_set(self) -> str:
+        """``test`` or ``val`` (flight.json's ``set``; ``test`` for a flight that has none)."""
+        return str(self.info.get("set", "test"))
+
+    @property
+    def distortion(self) -> np.ndarray:
+        """(5,) plumb_bob coefficients (k1, k2, p1, p2, k3) of the frames' lens; zeros: a
+        pinhole (flight.json without ``camera``)."""
+        return coefficients((self.info.get("camera") or {}).get("distortion"))
+
+    @cached_property
+    def undistorter(self) -> Undistorter | None:
+        """The frames' undistortion to their pinhole K (maps made once), None for a pinhole."""
+        cam = self.info.get("camera")
+        if not cam or not np.any(self.distortion):
+            return None
+        return Undistorter(np.array(cam["K"], dtype=np.float64), self.distortion,
+                           int(cam["width"]), int(cam["height"]))
+
+    def image(self, t: int) -> np.ndarray:
+        """Frame t's (H, W, 3) uint8 RGB, undistorted to the pinhole K (bilinear)."""
+        rgb = read_png(self.rgb[t])
+        return rgb if self.undistorter is None else self.undistorter.image(rgb)
+
+    def labels(self, t: int) -> np.ndarray:
+        """Frame t's (H, W) uint8 true class ids, undistorted to the pinhole K (nearest;
+        ignore where the lens sees nothing)."""
+        label = read_png(self.label[t], rgb=False)
+        return label if self.undistorter is None else self.undistorter.labels(label)
 
 
 class Dataset:
@@ -188,21 +245,41 @@ class Dataset:
         """(N, 4, 4) world_from_body of a split's frames."""
         return read_tum(self.root / name / "poses.txt")[1]
 
-    def flight_names(self) -> list[str]:
+    def flight_names(self, flight_set: str | None = None) -> list[str]:
+        """The flights' names; of one set (``FLIGHT_SETS``; flight.json's ``set``, ``test``
+        where it has none) or all (None)."""
+        if flight_set is not None and flight_set not in FLIGHT_SETS:
+            raise ValueError(f"unknown flight set {flight_set!r}; use one of {FLIGHT_SETS}")
         d = self.root / "flights"
-        return sorted(p.name for p in d.iterdir() if p.is_dir()) if d.is_dir() else []
+        names = sorted(p.name for p in d.iterdir() if p.is_dir()) if d.is_dir() else []
+        if flight_set is None:
+            return names
+        return [n for n in names if self.flight_set(n) == flight_set]
+
+    def flight_set(self, name: str) -> str:
+        """``test`` or ``val``: the set flight ``name`` belongs to."""
+        path = self.root / "flights" / name / "flight.json"
+        return str(read_json(path).get("set", "test")) if path.is_file() else "test"
 
     def flight(self, name: str) -> Flight:
+        """The flight's delivered frames with their timestamps, true poses and odometry
+        (interpolated at the timestamps where images.txt lists them; module docstring)."""
         d = self.root / "flights" / name
         if not d.is_dir():
             raise FileNotFoundError(f"flight {name!r} not in {self.root / 'flights'}; "
                                     f"available: {self.flight_names()}")
         t, gt = read_tum(d / "groundtruth.txt")
-        _, odo = read_tum(d / "odometry.txt")
-        rgb = [d / "rgb" / frame_name(i) for i in range(len(t))]
-        label = [d / "label" / frame_name(i) for i in range(len(t))]
+        odo_t, odo = read_tum(d / "odometry.txt")
+        frames = np.arange(len(t))
+        if (d / "images.txt").is_file():
+            frames, t = _images_list(d / "images.txt", len(gt))
+            gt = gt[frames]
+            odo = (interpolate_poses(t, odo_t, odo) if len(odo_t) > 1
+                   else np.repeat(odo[:1], len(t), axis=0))
+        rgb = [d / "rgb" / frame_name(i) for i in frames]
+        label = [d / "label" / frame_name(i) for i in frames]
         self.check_frames(f"flight {name!r}", rgb, label)
-        return Flight(name, rgb, label, t, gt, odo, read_json(d / "flight.json"))
+        return Flight(name, rgb, label, t, gt, odo, read_json(d / "flight.json"), frames)
 
     def world(self) -> World:
         return load_world(self.root / "world")
@@ -222,6 +299,30 @@ def load_world(world_dir: str | Path) -> World:
         segments=e["segments"], segment_classes=e["classes"], crease_deg=e["crease_deg"],
         free=OccupancyMap.load(d / "free.npz"), info=info,
     )
+
+
+def _images_list(path: Path, num_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) frame indices and (T,) s timestamps of a flight's images.txt
+    (``timestamp rgb/NNNNNN.png`` lines, ``#`` comments), checked: known frames, in order,
+    timestamps strictly increasing."""
+    frames, stamps = [], []
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        parts = line.split("#", 1)[0].split()
+        if not parts:
+            continue
+        try:
+            stamp, name = float(parts[0]), Path(parts[1])
+            frames.append(int(name.stem))
+            stamps.append(stamp)
+        except (ValueError, IndexError) as err:
+            raise ValueError(f"{path} line {n}: expected `timestamp rgb/NNNNNN.png` ({err}); "
+                             "re-run datagen") from None
+    frames_a, stamps_a = np.asarray(frames, dtype=np.int64), np.asarray(stamps)
+    if (not len(frames_a) or frames_a.min() < 0 or frames_a.max() >= num_frames
+            or np.any(np.diff(frames_a) <= 0) or np.any(np.diff(stamps_a) <= 0)):
+        raise ValueError(f"{path}: needs increasing frames in [0, {num_frames}) with strictly "
+                         "increasing timestamps; re-run datagen")
+    return frames_a, stamps_a
 
 
 def _ranges(idx: np.ndarray, limit: int = 4) -> str:

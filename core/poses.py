@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 from core.atomic import atomic_write_text
 
@@ -66,6 +66,30 @@ def xyzyaw_from_pose(T: np.ndarray) -> np.ndarray:
 def wrap_angle(a: np.ndarray) -> np.ndarray:
     """Wrap angles (radians) to [-pi, pi)."""
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def interpolate_poses(times: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Poses at given times: linear in translation, slerp in rotation.
+
+    Args:
+        times: (N,) query times, seconds, within ``[stamps[0], stamps[-1]]`` (clamped).
+        stamps: (M,) strictly increasing sample times, seconds, M >= 2.
+        poses: (M, 4, 4) sampled poses.
+
+    Returns:
+        (N, 4, 4) float64 poses.
+    """
+    stamps = np.asarray(stamps, dtype=np.float64)
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.shape != (len(stamps), 4, 4) or len(stamps) < 2:
+        raise ValueError(f"need (M, 4, 4) poses with M >= 2 matching (M,) stamps, got "
+                         f"{poses.shape} and {stamps.shape}")
+    t = np.clip(np.asarray(times, dtype=np.float64), stamps[0], stamps[-1])
+    out = np.tile(np.eye(4), (len(t), 1, 1))
+    out[:, :3, :3] = Slerp(stamps, Rotation.from_matrix(poses[:, :3, :3]))(t).as_matrix()
+    for k in range(3):
+        out[:, k, 3] = np.interp(t, stamps, poses[:, k, 3])
+    return out
 
 
 def write_tum(path: str | Path, timestamps: np.ndarray, poses: np.ndarray) -> None:

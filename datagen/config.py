@@ -445,6 +445,101 @@ class DropoutConfig:
 
 
 @dataclass
+class LensConfig:
+    """Lens distortion of the flights' camera (``realism.lens``, core/lens.py,
+    datagen/optics.py): OpenCV's plumb_bob model, a normalized image point (x, y), r^2 = x^2 +
+    y^2, goes to x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2) (y likewise,
+    p1 and p2 swapped), with the camera's K. The frames are rendered through it; flight.json's
+    ``camera`` holds the calibration and the localizer undistorts each frame back to K. Every
+    coefficient 0 (the defaults, ``realism=ideal``): a pinhole. ``realism=real``: a wide MAV
+    lens (docs/datagen.md)."""
+
+    k1: float = 0.0
+    k2: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    k3: float = 0.0
+
+
+@dataclass
+class MotionBlurConfig:
+    """Motion blur of the flights' frames (``realism.motion_blur``, datagen/optics.py): the
+    frame at time t is the mean, in linear light, of sub-frames rendered at poses along the
+    flight's true trajectory over its exposure [t - exposure_s, t] (with a rolling shutter,
+    each row's own window). 0 (the default, ``realism=ideal``): no blur."""
+
+    exposure_s: float = 0.0  # s, the exposure time; < the frame interval 1 / fps
+
+
+@dataclass
+class RollingShutterConfig:
+    """A rolling shutter (``realism.rolling_shutter``, datagen/optics.py): row r of an H-row
+    frame at time t ends its exposure at t + (r / H - 0.5) * readout_s, so the top row is
+    read readout_s / 2 before t and the bottom row about readout_s / 2 after. 0 (the default,
+    ``realism=ideal``): a global shutter."""
+
+    readout_s: float = 0.0  # s, top to bottom row; exposure + readout < the frame interval
+
+
+@dataclass
+class SubframeConfig:
+    """How many sub-frames a blurred or rolling-shutter frame is rendered from
+    (``realism.subframes``, datagen/optics.py): enough that the image moves at most
+    ``step_px`` between two (estimated from the motion over the frame's span), at most
+    ``max_count``."""
+
+    step_px: float = 1.0  # px of image motion between sub-frames (> 0)
+    max_count: int = 16  # the most sub-frames of one frame (each costs a render)
+
+
+@dataclass
+class TimingConfig:
+    """The clocks of the camera and the odometry (``realism.timing``, datagen/timing.py): frames
+    the link drops, jitter on the images' timestamps, and odometry at its own rate with
+    occasional jumps, so a flight's reader (``core.dataset.Dataset.flight``) interpolates the
+    odometry at each delivered image's timestamp, as for a user's recording. Every setting off
+    (the defaults, ``realism=ideal``): every frame delivered at i / fps, the odometry at the
+    frame times. ``realism=real``: docs/datagen.md."""
+
+    drop_rate: float = 0.0  # share of frames dropped (never delivered, not rendered), each
+    # frame independently, in [0, 0.5]
+    jitter_ms: float = 0.0  # ms, std of the error of an image's timestamp (normal, clipped to
+    # +/- 3 std); its capture (the rendered pose) stays at i / fps
+    odometry_hz: float | None = None  # Hz, the odometry's own rate (samples at k / odometry_hz
+    # over the flight); None: at the camera's frame times
+    jump_per_min: float = 0.0  # mean number of odometry jumps per minute (a Poisson process):
+    # the odometry's pose jumps and stays off (a VIO re-initialization or a map correction)
+    jump_m: float = 0.05  # m, size of a jump's translation (horizontal, its direction drawn;
+    # each jump's size uniform in [0.5, 1] x this)
+    jump_deg: float = 2.0  # deg, size of a jump's yaw change (its sign drawn; uniform in
+    # [0.5, 1] x this)
+
+
+@dataclass
+class HarderFlightConfig:
+    """Harder flights for every preset (``realism.flight``, datagen/trajectories.py
+    ``flight_trajectory``): faster and with quicker yaw swings, flown back and forth along the
+    route (turning around at its ends), from anywhere on it, either way. ``enabled`` false (the
+    default, ``realism=ideal``): each preset's own ``trajectory``. Its draws come from the
+    flight's own generator (stream key 8), so the preset's draws are unchanged."""
+
+    enabled: bool = False
+    speed: list[float] = field(default_factory=lambda: [0.6, 1.0])  # m/s, [min, max] mean
+    # speed along the route (replacing the preset's trajectory.speed); the speed profile's
+    # variation takes its peaks to about 1.5x the mean
+    turn_m: float = 1.0  # m of route at each end over which the copter slows down to turn
+    # around
+    turn_s: float = 6.0  # s it hovers at an end while it turns its heading by 180 deg (left
+    # or right; its peak rate 1.5 x 180 / turn_s deg/s: 45 at 6 s)
+    yaw_rate_deg_s: list[float] = field(default_factory=lambda: [30.0, 60.0])  # deg/s, [min,
+    # max] peak rate of the yaw swings about the direction of travel, drawn per flight
+    yaw_freq_hz: list[float] = field(default_factory=lambda: [0.1, 0.3])  # frequencies of the
+    # yaw swings (the preset's yaw_freq_hz is replaced)
+    max_yaw_swing_deg: float = 60.0  # deg, the largest swing (a slower peak rate than drawn
+    # where it would need more)
+
+
+@dataclass
 class RealismConfig:
     """How far the flights are from a perfect simulation (``realism``, the conf/realism/
     group: ``ideal``, the default, or ``real``), for every flight: the imperfections are the
@@ -458,6 +553,15 @@ class RealismConfig:
     exposure: ExposureConfig = field(default_factory=ExposureConfig)
     jpeg: JpegConfig = field(default_factory=JpegConfig)
     dropout: DropoutConfig = field(default_factory=DropoutConfig)
+    lens: LensConfig = field(default_factory=LensConfig)  # the flights' optics: lens
+    # distortion, motion blur and a rolling shutter (datagen/optics.py)
+    motion_blur: MotionBlurConfig = field(default_factory=MotionBlurConfig)
+    rolling_shutter: RollingShutterConfig = field(default_factory=RollingShutterConfig)
+    subframes: SubframeConfig = field(default_factory=SubframeConfig)
+    timing: TimingConfig = field(default_factory=TimingConfig)  # dropped frames, timestamp
+    # jitter, the odometry's own rate and jumps (datagen/timing.py)
+    flight: HarderFlightConfig = field(default_factory=HarderFlightConfig)  # faster flights,
+    # quicker yaw, back and forth from anywhere on the route
 
 
 # --------------------------------------------------------------------------- the job
@@ -500,12 +604,16 @@ class DatagenConfig:
     splits: Splits = field(default_factory=Splits)
     training: TrainingConfig = field(default_factory=TrainingConfig)
     render_flights: list[str] = field(default_factory=lambda: ["paper", "cluttered"])  # keys
-    # of `flights` to render
+    # of `flights` to render: the test flights, flights/<name>/
+    val_flights: list[str] | None = None  # keys of `flights` also rendered as validation
+    # flights, flights/<name>_val/: the same preset drawn from another generator (another
+    # trajectory, start, scene and, for a planned route, route); settings are tuned on them,
+    # figures reported on the test flights. None: the render_flights; []: none
     shard: int = 0  # this process renders shard `shard` of `num_shards` frame ranges
     num_shards: int = 1
     overwrite: bool = False  # true: empty an existing dataset made with another config (one
-    # that differs only by larger `splits` counts or more `render_flights` is grown, not
-    # emptied; docs/outputs.md)
+    # that differs only by larger `splits` counts or more `render_flights` / `val_flights` is
+    # grown, not emptied; docs/outputs.md)
     progress: bool = True  # tqdm progress bars (not part of the dataset's config hash)
     world: Any = None  # WorldConfig (conf/world/corridor_paper, also None) or FileWorldConfig
     # (conf/world/file); ``world_config`` types a mapping

@@ -5,9 +5,15 @@ so a frame's bytes do not depend on which shard renders it or on what was render
 a stopped run re-run with the same config skips finished frames and ends byte-identical to an
 uninterrupted run (up to rare one-level pixel differences from the LLVM variant's multithreaded
 kernels; docs/datagen.md). A flight's keys under its stream: 0 trajectory and odometry,
-1 scene, (2, i) frame i's render seed, 3 route, 4 AHRS, (5, i) frame i's camera effects,
-6 exposure series, 7 dropouts (SeedSequence pads a short key with zeros: (k,) is (k, 0), so
-no k is used both alone and with an index).
+1 scene, (2, i) frame i's render seed (its sub-frames' seeds in turn, datagen/optics.py),
+3 route, 4 AHRS, (5, i) frame i's camera effects, 6 exposure series, 7 dropouts, 8 harder
+flight (``realism.flight``), 9 odometry jumps, (10, i) frame i's drop and timestamp jitter
+(``realism.timing``) (SeedSequence pads a short key with zeros: (k,) is (k, 0), so no k is used
+both alone and with an index).
+
+Flights: ``render_flights`` are the test flights, ``flights/<name>/``; ``val_flights`` the
+validation flights, ``flights/<name>_val/``, the same presets drawn from the stream of the name
+``<name>_val`` (another trajectory, scene and planned route). flight.json's ``set`` says which.
 """
 
 from __future__ import annotations
@@ -29,13 +35,27 @@ import numpy as np
 from tqdm import tqdm
 
 from core import classes as C
-from core.atomic import atomic_write_json, png_complete, remove_temp_files, write_png
+from core.atomic import (
+    atomic_write_json,
+    atomic_write_text,
+    png_complete,
+    remove_temp_files,
+    write_png,
+)
 from core.camera import intrinsics
 from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
-from datagen import ahrs, appearance, camera_effects, distractors, trajectories
+from datagen import (
+    ahrs,
+    appearance,
+    camera_effects,
+    distractors,
+    optics,
+    timing,
+    trajectories,
+)
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
@@ -53,7 +73,7 @@ NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "progress")
 #: ``num_frames`` may not: its trajectory spans the flight's whole duration. Shards of one
 #: config render side by side.
 DATASET_POLICY = FolderPolicy(record="dataset.json", section="generator",
-                              grow=("splits", "render_flights"),
+                              grow=("splits", "render_flights", "val_flights"),
                               results=("*/rgb", "flights/*/rgb"), concurrent=True)
 
 
@@ -105,10 +125,17 @@ class Job:
     site: Site
     camera: Camera
     split_poses: dict[str, np.ndarray]  # split -> (N, 4, 4) world_from_body
-    flights: dict[str, dict[str, Any]]  # name -> preset (FlightConfig), groundtruth,
-    # odometry, timestamps, exposure_ev ((N,) EV stops) and dropout (camera_effects.Dropout
-    # list): the image effects of realism
+    flights: dict[str, dict[str, Any]]  # name -> preset (FlightConfig), preset_name, set
+    # (test | val), groundtruth ((N, 4, 4) at the capture times), timestamps ((N,) s, the
+    # capture times i / fps), odometry ((M, 4, 4)) at odometry_times ((M,) s), delivered
+    # ((N,) bool) and stamps ((N,) s, the images' timestamps) and jumps (realism.timing),
+    # exposure_ev ((N,) EV stops) and dropout (camera_effects.Dropout list): the image
+    # effects of realism
 
+
+def val_flights(cfg: DatagenConfig) -> list[str]:
+    """The presets rendered as validation flights (``val_flights``; None: ``render_flights``)."""
+    return list(cfg.render_flights if cfg.val_flights is None else cfg.val_flights)
 
 
 def _check_counts(cfg: DatagenConfig) -> None:
@@ -144,10 +171,16 @@ def _check_presets(cfg: DatagenConfig) -> None:
         if flight.num_frames <= 0 or flight.fps <= 0:
             raise ValueError(f"flights.{name}: num_frames ({flight.num_frames}) and fps "
                              f"({flight.fps}) must be positive")
-    for name in cfg.render_flights:
-        if name not in cfg.flights:
-            raise ValueError(f"render_flights: unknown flight preset {name!r}; "
-                             f"known: {sorted(cfg.flights)}")
+    for key in ("render_flights", "val_flights"):
+        for name in getattr(cfg, key) or []:
+            if name not in cfg.flights:
+                raise ValueError(f"{key}: unknown flight preset {name!r}; "
+                                 f"known: {sorted(cfg.flights)}")
+    clash = sorted(set(cfg.render_flights) & {f"{n}_val" for n in val_flights(cfg)})
+    if clash:
+        raise ValueError(f"render_flights {clash} has the name of a validation flight "
+                         "(<name>_val of val_flights); rename the preset")
+    for name in {*cfg.render_flights, *val_flights(cfg)}:
         dp = cfg.flights[name].distractors
         if dp not in presets:
             raise ValueError(f"flights.{name}.distractors: unknown preset {dp!r}; "
@@ -209,40 +242,71 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     _check_presets(cfg)
     ahrs.check_settings(cfg.realism.ahrs, "realism.ahrs")
     camera_effects.check_settings(cfg.realism, "realism")
-    site = build_site(cfg.world)
     camera = make_camera(cfg.camera)
-    z_range = site.world.z_range
+    timing.check_settings(cfg.realism.timing, "realism.timing")
+    trajectories.check_harder(cfg.realism.flight, "realism.flight")
+    for name in {*cfg.render_flights, *val_flights(cfg)}:
+        try:
+            timing.check_flight(cfg.realism.timing, cfg.flights[name].fps, "realism.timing")
+        except ValueError as e:
+            raise ValueError(f"flights.{name}: {e}") from None
+    optics.check_settings(cfg.realism, camera, {n: cfg.flights[n].fps for n in
+                                                {*cfg.render_flights, *val_flights(cfg)}},
+                          "realism")
+    site = build_site(cfg.world)
     split_poses = {}
     for split in SPLITS:
         poses = poses_of_split(cfg, site, split)
         _check_inside(site, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}
-    for name in cfg.render_flights:
-        preset = cfg.flights[name]
-        r = rng_for(cfg.seed, flight_stream(name), 0)
-        n, fps = preset.num_frames, preset.fps
-        route = trajectories.flight_route(preset, site.world.free, site.route,
-                                          rng_for(cfg.seed, flight_stream(name), 3),
-                                          f"flights.{name}")
-        gt = trajectories.flight_trajectory(r, n, fps, route, site.world.free, z_range,
-                                            preset.trajectory)
-        odo = trajectories.noisy_odometry(r, gt, fps, preset.odometry)
-        odo = ahrs.ahrs_odometry(rng_for(cfg.seed, flight_stream(name), 4), odo, gt, fps,
-                                 cfg.realism.ahrs, "realism.ahrs")
-        _check_inside(site, camera, gt, f"flights.{name}")
-        ev = camera_effects.exposure_ev(rng_for(cfg.seed, flight_stream(name), 6), n, fps,
-                                        cfg.realism.exposure, "realism.exposure")
-        try:
-            dropout = camera_effects.dropout_stretches(rng_for(cfg.seed, flight_stream(name), 7),
-                                                       n, fps, cfg.realism.dropout,
-                                                       "realism.dropout")
-        except ValueError as e:
-            raise ValueError(f"flights.{name}: {e}") from None
-        flights[name] = {"preset": preset, "groundtruth": gt, "odometry": odo,
-                         "timestamps": trajectories.timestamps(n, fps), "exposure_ev": ev,
-                         "dropout": dropout}
+    sets = [(n, n, "test") for n in cfg.render_flights] + [
+        (f"{n}_val", n, "val") for n in val_flights(cfg)]
+    for name, preset_name, flight_set in sets:
+        flights[name] = prepare_flight(cfg, site, camera, name, preset_name)
+        flights[name]["set"] = flight_set
     return Job(cfg, Path(cfg.out_dir), site, camera, split_poses, flights)
+
+
+def prepare_flight(cfg: DatagenConfig, site: Site, camera: Camera, name: str,
+                   preset_name: str) -> dict[str, Any]:
+    """One flight's poses, odometry, clocks and image-effect series (``Job.flights``), drawn
+    from the flight's own stream (``flight_stream(name)``)."""
+    preset = cfg.flights[preset_name]
+    stream, z_range = flight_stream(name), site.world.z_range
+    r = rng_for(cfg.seed, stream, 0)
+    n, fps = preset.num_frames, preset.fps
+    route = trajectories.flight_route(preset, site.world.free, site.route,
+                                      rng_for(cfg.seed, stream, 3), f"flights.{preset_name}")
+    gt = trajectories.flight_trajectory(r, n, fps, route, site.world.free, z_range,
+                                        preset.trajectory, cfg.realism.flight,
+                                        rng_for(cfg.seed, stream, 8))
+    tc = cfg.realism.timing
+    capture = trajectories.timestamps(n, fps)
+    odo_times, odo_truth, odo_fps, odo_cfg = capture, gt, fps, preset.odometry
+    if tc.odometry_hz is not None and n > 1:
+        odo_times = timing.odometry_times(n, fps, tc)
+        odo_truth = timing.resample_poses(gt, fps, odo_times)
+        odo_fps = float(tc.odometry_hz)
+        odo_cfg = timing.odometry_at_rate(preset.odometry, fps, odo_fps)
+    odo = trajectories.noisy_odometry(r, odo_truth, odo_fps, odo_cfg)
+    odo = ahrs.ahrs_odometry(rng_for(cfg.seed, stream, 4), odo, odo_truth, odo_fps,
+                             cfg.realism.ahrs, "realism.ahrs")
+    odo, jumps = timing.odometry_jumps(rng_for(cfg.seed, stream, 9), odo_times, odo, tc)
+    delivered, stamps = timing.frame_delivery(lambda i: rng_for(cfg.seed, stream, 10, i), n,
+                                              fps, tc)
+    _check_inside(site, camera, gt, f"flights.{name}")
+    ev = camera_effects.exposure_ev(rng_for(cfg.seed, stream, 6), n, fps,
+                                    cfg.realism.exposure, "realism.exposure")
+    try:
+        dropout = camera_effects.dropout_stretches(rng_for(cfg.seed, stream, 7), n, fps,
+                                                   cfg.realism.dropout, "realism.dropout")
+    except ValueError as e:
+        raise ValueError(f"flights.{name}: {e}") from None
+    return {"preset": preset, "preset_name": preset_name, "groundtruth": gt,
+            "odometry": odo, "odometry_times": odo_times, "timestamps": capture,
+            "delivered": delivered, "stamps": stamps, "jumps": jumps, "exposure_ev": ev,
+            "dropout": dropout}
 
 
 def shard_range(n: int, shard: int, num_shards: int) -> range:
@@ -292,14 +356,44 @@ def write_metadata(job: Job, variant: str) -> None:
     for name, f in job.flights.items():
         d = out / "flights" / name
         write_tum(d / "groundtruth.txt", f["timestamps"], f["groundtruth"])
-        write_tum(d / "odometry.txt", f["timestamps"], f["odometry"])
+        write_tum(d / "odometry.txt", f["odometry_times"], f["odometry"])
         preset = f["preset"]
-        atomic_write_json(d / "flight.json", {
+        info = {
             "name": name, "fps": float(preset.fps), "num_frames": int(len(f["timestamps"])),
             "distractors": preset.distractors, "preset": asdict(preset),
             "realism": asdict(cfg.realism), "seed_stream": flight_stream(name),
-            "dropout": [d.as_json() for d in f["dropout"]]})
+            "dropout": [d.as_json() for d in f["dropout"]],
+            "set": f["set"], "preset_name": f["preset_name"], **flight_camera(job)}
+        if timing.is_active(cfg.realism.timing):
+            write_images_list(d / "images.txt", f["stamps"], f["delivered"])
+            info["timing"] = {
+                "images": "images.txt",
+                "dropped": np.flatnonzero(~f["delivered"]).tolist(),
+                "odometry_hz": cfg.realism.timing.odometry_hz,
+                "odometry_samples": int(len(f["odometry_times"])),
+                "jumps": f["jumps"]}
+        atomic_write_json(d / "flight.json", info)
     atomic_write_json(out / "dataset.json", meta)
+
+
+def flight_camera(job: Job) -> dict:
+    """flight.json's ``camera`` when the flights' lens distorts: the calibration of the
+    frames (K, size, plumb_bob coefficients; read by ``core.dataset.Flight.undistorter``);
+    else {}."""
+    d = optics.lens_coefficients(job.cfg.realism)
+    if not np.any(d):
+        return {}
+    cam = job.camera
+    return {"camera": {"K": cam.K.tolist(), "width": cam.width, "height": cam.height,
+                       "distortion_model": "plumb_bob", "distortion": d.tolist()}}
+
+
+def write_images_list(path: Path, stamps: np.ndarray, delivered: np.ndarray) -> None:
+    """A flight's images.txt: one ``timestamp rgb/NNNNNN.png`` line per delivered frame (the
+    layout of a folder recording's images.txt, docs/recording.md), timestamps in seconds."""
+    lines = ["# timestamp (s) image: the frames delivered (realism.timing)"]
+    lines += [f"{stamps[i]:.9f} rgb/{frame_name(int(i))}" for i in np.flatnonzero(delivered)]
+    atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def split_counts(cfg: DatagenConfig) -> dict[str, int]:
@@ -362,13 +456,14 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
     return clutter, people
 
 
-def _new_renderer(job: Job, textures, clutter, people):
-    """The renderer of the site's scene; with more than ``NEAR_LIGHTS_FROM`` lights (a floor,
-    most lights out of view) it samples lights by radiance / distance^2 (``near_lights``)."""
+def _new_renderer(job: Job, textures, clutter, people, camera: Camera | None = None):
+    """The renderer of the site's scene, with ``camera`` (None: the job's); with more than
+    ``NEAR_LIGHTS_FROM`` lights (a floor, most lights out of view) it samples lights by
+    radiance / distance^2 (``near_lights``)."""
     from datagen.render import Renderer
 
     scene = job.site.scene
-    return Renderer(scene, job.camera, textures, clutter, people,
+    return Renderer(scene, job.camera if camera is None else camera, textures, clutter, people,
                     max_depth=job.cfg.render.max_depth,
                     near_lights=scene.num_lights > NEAR_LIGHTS_FROM)
 
@@ -450,6 +545,32 @@ def _finish_frame(developer, traced, d: Path, i: int, exposure: float, sigma: fl
     write_frame(d, i, rgb, label, z if depth else None)
 
 
+def _render_optics_frame(job: Job, renderer, d: Path, i: int, fo: optics.FlightOptics,
+                         seeds: np.random.Generator, pipe: Pipeline,
+                         effect: Callable[[np.ndarray], np.ndarray] | None) -> None:
+    """Trace frame i's sub-frames here (``optics.FlightOptics``; render seeds drawn one by
+    one from ``seeds``, the frame's generator); assemble, develop and write them on the
+    pipeline's worker."""
+    r = job.cfg.render
+    sigma = r.denoise_sigma_px
+    plan, poses = fo.subframes(i)
+    traced = []
+    for pose in poses:
+        renderer.set_camera(pose @ job.camera.body_from_cam)
+        traced.append(renderer.trace(r.spp, int(seeds.integers(2**31)), albedo=sigma > 0))
+    pipe.submit(_finish_optics_frame, fo, renderer.developer, traced, plan, d, i, r.exposure,
+                sigma, r.depth, effect)
+
+
+def _finish_optics_frame(fo: optics.FlightOptics, developer, traced, plan, d: Path, i: int,
+                         exposure: float, sigma: float, depth: bool,
+                         effect: Callable[[np.ndarray], np.ndarray] | None) -> None:
+    rgb, label, z = fo.finish(developer, traced, plan, exposure, sigma)
+    if effect is not None:
+        rgb = effect(rgb)
+    write_frame(d, i, rgb, label, z if depth else None)
+
+
 def flight_effect(job: Job, name: str, i: int) -> Callable[[np.ndarray], np.ndarray] | None:
     """What the drone's camera does to frame i of a flight (``camera_effects.apply_effects``
     with the frame's own generator, ``rng_for(seed, flight stream, 5, i)``, its exposure
@@ -517,20 +638,29 @@ def flight_scene(job: Job, name: str) -> FlightScene:
 def render_flight(job: Job, name: str, progress: bool = True) -> int:
     """Render this shard's frames of a flight (``flight_scene``); returns their number."""
     cfg, gt = job.cfg, job.flights[name]["groundtruth"]
+    delivered = job.flights[name]["delivered"]
     frames = shard_range(len(gt), cfg.shard, cfg.num_shards)
     d = job.out / "flights" / name
-    todo = [i for i in frames if not frame_done(d, i, cfg.render.depth)]
+    todo = [i for i in frames if delivered[i] and not frame_done(d, i, cfg.render.depth)]
     if not todo:
         return 0
     scene = flight_scene(job, name)
-    renderer = _new_renderer(job, scene.textures, scene.clutter, scene.people)
+    fo = (optics.FlightOptics.build(cfg.realism, job.camera, gt, job.flights[name]["preset"].fps)
+          if optics.is_active(cfg.realism) else None)
+    renderer = _new_renderer(job, scene.textures, scene.clutter, scene.people,
+                             None if fo is None else fo.render_camera)
     renderer.set_lights(scene.lights)
     with Pipeline() as pipe:
         for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
             renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, i]], axis=0),
                                  scene.colours)
-            seed = int(rng_for(cfg.seed, flight_stream(name), 2, i).integers(2**31))
-            _render_frame(job, renderer, d, i, gt[i], seed, pipe, flight_effect(job, name, i))
+            seeds = rng_for(cfg.seed, flight_stream(name), 2, i)
+            if fo is None:
+                _render_frame(job, renderer, d, i, gt[i], int(seeds.integers(2**31)), pipe,
+                              flight_effect(job, name, i))
+            else:
+                _render_optics_frame(job, renderer, d, i, fo, seeds, pipe,
+                                     flight_effect(job, name, i))
     return len(todo)
 
 

@@ -390,6 +390,14 @@ class Developer:
         Returns:
             As ``Renderer.render``.
         """
+        rgb, label, depth = self.develop_linear(traced, exposure, denoise_sigma_px)
+        return linear_to_srgb8(rgb), label, depth
+
+    def develop_linear(self, traced: Traced, exposure: float = RenderConfig.exposure,
+                       denoise_sigma_px: float = RenderConfig.denoise_sigma_px
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As ``develop``, with the image in linear light before its sRGB encoding: (H, W, 3)
+        float32 (denoised, times ``exposure``; 1 = the white level, not clipped)."""
         aux = traced.aux
         index = np.rint(aux[..., 0]).astype(np.int64)
         index = np.where((index >= 0) & (index < len(self.lut)), index, 0)
@@ -403,7 +411,7 @@ class Developer:
             keep = self.raw[index]
             rgb = denoise(rgb, traced.albedo, segment_ids(index, aux[..., 2:5]), keep,
                           denoise_sigma_px)
-        return linear_to_srgb8(rgb * exposure), label, (t / self.ray_norm).astype(np.float32)
+        return rgb * exposure, label, (t / self.ray_norm).astype(np.float32)
 
 
 def linear_to_srgb8(img: np.ndarray) -> np.ndarray:

@@ -20,7 +20,13 @@ from scipy.spatial.transform import Rotation
 from core.config import as_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy, wrap_angle
-from datagen.config import FlightConfig, OdometryConfig, TrainingConfig, TrajectoryConfig
+from datagen.config import (
+    FlightConfig,
+    HarderFlightConfig,
+    OdometryConfig,
+    TrainingConfig,
+    TrajectoryConfig,
+)
 from datagen.free_axes import axis_at
 from datagen.routes import (
     find_turns,
@@ -270,9 +276,78 @@ def _sway_room(route: np.ndarray, s: np.ndarray, free: OccupancyMap,
     return np.interp(s, grid, room)
 
 
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def _back_and_forth(rng: np.random.Generator, t: np.ndarray, cum: np.ndarray, L: float,
+                    h: HarderFlightConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Arc lengths of a flight flown back and forth along a route of length L (m), and its
+    heading offset from the route's forward tangent (rad).
+
+    The flight starts at a uniform place along the route, either way, and flies at a mean
+    speed drawn from ``h.speed``, its progress shaped by ``cum`` (N,) (the preset's smooth
+    speed profile, cumulated). At each end it slows down over ``h.turn_m`` metres, hovers
+    ``h.turn_s`` seconds while it turns its heading by 180 deg (left or right, drawn per turn),
+    and flies back.
+
+    Returns:
+        (N,) m arc lengths, (N,) rad heading offsets.
+    """
+    margin = min(0.05 * L, END_MARGIN)
+    a, W = margin, max(L - 2 * margin, 1e-6)
+    speed = rng.uniform(*_pair(h, "speed", "realism.flight"))
+    X = speed * max(t[-1], 1e-9)  # m of flight, a turn counting as speed x turn_s
+    rho = min(max(h.turn_m, 0.0) / W, 0.45)
+    eps = min(0.1 / W, rho / 2) if rho > 0 else 0.1 / W  # v-span of a turn (m / W)
+    # one period of v in [0, 2): along the route on [0, 1), back on [1, 2); the speed along
+    # the route eases to 0 within rho of each end
+    g = np.linspace(0.0, 2.0, 4001)
+    ease = _smoothstep(np.abs(g - np.round(g)) / max(rho, 1e-9))
+    vel = ease * np.where(g < 1.0, 1.0, -1.0)
+    fold = np.concatenate([[0.0], np.cumsum((vel[1:] + vel[:-1]) / 2)])
+    fold = np.clip(fold / fold[len(g) // 2], 0.0, 1.0)  # 1 at the far end (g = 1)
+    # effort e(v) = W v + a hover of speed x turn_s m at each integer v: inverted on a grid
+    v0 = rng.uniform(0.0, 2.0)
+    v_grid = np.linspace(v0, v0 + X / W + 1e-9, max(int(X / W * 4000), 2000))
+    turns = np.arange(1, int(np.ceil(v_grid[-1])) + 1)
+    step = _smoothstep((v_grid[:, None] - turns[None] + eps) / (2 * eps))
+    e_grid = W * (v_grid - v0) + speed * max(h.turn_s, 0.0) * step.sum(1)
+    v = np.interp(X * (cum / cum[-1] if cum[-1] > 0 else np.zeros(len(cum))), e_grid, v_grid)
+    s = a + W * np.interp(np.mod(v, 2.0), g, fold)
+    sign = rng.choice([-1.0, 1.0], len(turns))
+    offset = np.pi * (_smoothstep((v[:, None] - turns[None] + eps) / (2 * eps)) @ sign)
+    return s, offset
+
+
+def check_harder(settings: HarderFlightConfig | Mapping | None,
+                 where: str = "realism.flight") -> HarderFlightConfig:
+    """``realism.flight`` typed and checked (None: the defaults, off).
+
+    Raises:
+        ValueError: a bad setting, naming ``where.<key>`` and the fix.
+    """
+    h = as_config(HarderFlightConfig, settings, where)
+    for key in ("speed", "yaw_rate_deg_s", "yaw_freq_hz"):
+        lo, _ = _pair(h, key, where)
+        if not lo > 0:
+            raise ValueError(f"{where}.{key} = {getattr(h, key)} must be positive")
+    for key in ("turn_m", "turn_s", "max_yaw_swing_deg"):
+        value = float(getattr(h, key))
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{where}.{key} = {value} must be >= 0")
+    if _pair(h, "speed", where)[1] > 5.0:
+        raise ValueError(f"{where}.speed = {h.speed}: above 5 m/s is no indoor flight; give "
+                         "m/s")
+    return h
+
+
 def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
                       route: np.ndarray, free: OccupancyMap, z_range: np.ndarray,
-                      trajectory: TrajectoryConfig | Mapping | None = None) -> np.ndarray:
+                      trajectory: TrajectoryConfig | Mapping | None = None,
+                      harder: HarderFlightConfig | Mapping | None = None,
+                      harder_rng: np.random.Generator | None = None) -> np.ndarray:
     """A smooth hand-flown copter flight along a route.
 
     The copter starts near the route's start (its end when ``reverse``) and flies along it
@@ -292,6 +367,12 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
         z_range: (2,) allowed heights (m).
         trajectory: a flight preset's ``trajectory`` (``TrajectoryConfig``, or a mapping of
             the keys that differ from its defaults; None: the defaults).
+        harder: ``realism.flight`` (``HarderFlightConfig`` or a mapping; None or not
+            ``enabled``: the preset's flight): flown back and forth along the route at
+            ``harder.speed`` from a uniform start, either way, its yaw swings at a peak rate
+            drawn from ``harder.yaw_rate_deg_s`` (``_back_and_forth``).
+        harder_rng: the generator of ``harder``'s draws (the preset's come from ``rng`` as
+            without it).
 
     Returns:
         (N, 4, 4) world_from_body.
@@ -322,6 +403,14 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     cum = np.concatenate([[0.0], np.cumsum((u[1:] + u[:-1]) / 2)])
     progress = cum / cum[-1] if cum[-1] > 0 else np.zeros(N)
     s = start + D * progress if not c.reverse else L - start - D * progress
+    h = None if harder is None else as_config(HarderFlightConfig, harder, "realism.flight")
+    if h is not None and h.enabled:
+        if harder_rng is None:
+            raise ValueError("flight_trajectory: realism.flight needs its own generator "
+                             "(harder_rng)")
+        s, turn = _back_and_forth(harder_rng, t, cum, L, h)
+    else:
+        h = None
     centre, tangent = route_at(route, s)
     if not free.contains(centre).all():
         raise ValueError("flight: the route leaves the free space; plan it on this map "
@@ -354,7 +443,14 @@ def flight_trajectory(rng: np.random.Generator, num_frames: int, fps: float,
     # yaw about the direction of travel
     heading = np.arctan2(tangent[:, 1], tangent[:, 0]) + (np.pi if c.reverse else 0.0)
     yaw_amp = np.deg2rad(rng.uniform(*_pair(c, "yaw_amplitude_deg", where)))
-    yaw = wrap_angle(heading + yaw_amp * smooth_noise(rng, t, _pair(c, "yaw_freq_hz", where)))
+    swing = yaw_amp * smooth_noise(rng, t, _pair(c, "yaw_freq_hz", where))
+    if h is not None:
+        heading = np.arctan2(tangent[:, 1], tangent[:, 0]) + turn
+        unit = smooth_noise(harder_rng, t, _pair(h, "yaw_freq_hz", "realism.flight"))
+        peak = float(np.abs(np.gradient(unit, dt)).max()) if N > 1 else 0.0
+        rate = np.deg2rad(harder_rng.uniform(*_pair(h, "yaw_rate_deg_s", "realism.flight")))
+        swing = min(rate / max(peak, 1e-9), np.deg2rad(h.max_yaw_swing_deg)) * unit
+    yaw = wrap_angle(heading + swing)
     rpy = _tilts(rng, t, xy, yaw, c)
     return pose_from_xyz_rpy(np.column_stack([xy, height]), rpy)
 

@@ -457,7 +457,10 @@ class LocalizeConfig(Settings):
         onnx_model: the SegNet made by ``python -m train`` (cnn mode only); the localize
             settings it carries apply under the command line's.
         out_root: where report folders go.
-        flight_names: flights to run; None: every flight of the dataset.
+        flight_set: the dataset's flights to run: ``test`` (the default: ``render_flights``,
+            the flights figures are reported on) or ``val`` (``val_flights``, ``<name>_val``:
+            the flights settings are tuned on). The report names the set.
+        flight_names: flights of that set to run; None: every flight of the set.
         modes: edge modes: none (Canny + Hough), cnn (the SegNet), oracle (true labels).
         inits: tracking (start around the first true pose) and/or global (uniform start).
         seeds: one filter run per seed.
@@ -480,6 +483,7 @@ class LocalizeConfig(Settings):
     dataset: str = "outputs/datasets/demo"
     onnx_model: str = "outputs/models/demo/segnet.onnx"
     out_root: str = "outputs/reports"
+    flight_set: str = "test"
     flight_names: list[str] | None = None
     modes: list[str] = field(default_factory=lambda: list(MODES))
     inits: list[str] = field(default_factory=lambda: ["tracking", "global"])

@@ -29,7 +29,6 @@ from typing import NamedTuple, Protocol
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from core.dataset import Camera
 from core.poses import read_tum
@@ -195,30 +194,6 @@ class Recording:
 
 
 # --- poses -----------------------------------------------------------------------------------
-
-
-def interpolate_poses(times: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """Poses at given times: linear in translation, slerp in rotation.
-
-    Args:
-        times: (N,) query times, seconds, within ``[stamps[0], stamps[-1]]`` (clamped).
-        stamps: (M,) strictly increasing sample times, seconds, M >= 2.
-        poses: (M, 4, 4) sampled poses.
-
-    Returns:
-        (N, 4, 4) float64 poses.
-    """
-    stamps = np.asarray(stamps, dtype=np.float64)
-    poses = np.asarray(poses, dtype=np.float64)
-    if poses.shape != (len(stamps), 4, 4) or len(stamps) < 2:
-        raise ValueError(f"need (M, 4, 4) poses with M >= 2 matching (M,) stamps, got "
-                         f"{poses.shape} and {stamps.shape}")
-    t = np.clip(np.asarray(times, dtype=np.float64), stamps[0], stamps[-1])
-    out = np.tile(np.eye(4), (len(t), 1, 1))
-    out[:, :3, :3] = Slerp(stamps, Rotation.from_matrix(poses[:, :3, :3]))(t).as_matrix()
-    for k in range(3):
-        out[:, k, 3] = np.interp(t, stamps, poses[:, k, 3])
-    return out
 
 
 def data_lines(path: Path) -> list[int]:

@@ -23,6 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from core.config import as_config
 from core.dataset import Camera
+from core.poses import interpolate_poses
 from localize.config import BagTopics
 from localize.recording import (
     Recording,
@@ -30,7 +31,6 @@ from localize.recording import (
     check_distortion,
     check_increasing,
     delivered_camera,
-    interpolate_poses,
     select_frames,
 )
 

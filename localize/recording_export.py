@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 
 from core.atomic import atomic_write_bytes, atomic_write_text, read_png
 from core.dataset import Camera, Dataset, Flight
+from core.lens import coefficients
 from core.poses import pose_from_xyzyaw, write_tum
 from localize.recording_bag import BagTopics
 
@@ -97,16 +98,22 @@ def camera_yaml(camera: Camera, distortion: Sequence[float] = (0.0,) * 5) -> str
 
 
 class FlightFrames:
-    """The frames of a flight as a recorded camera would deliver them."""
+    """The frames of a flight as a recorded camera would deliver them: the flight's own frames
+    and lens (``distortion`` None, scale 1), or its frames undistorted to the pinhole K
+    (``Flight.image``) and rendered through another camera."""
 
     def __init__(self, flight: Flight, camera: Camera, scale: float = 1.0,
                  distortion: Sequence[float] | None = None):
         self.flight, self.ideal = flight, camera
         self.camera = scaled_camera(camera, scale) if scale != 1.0 else camera
-        self.distortion = np.zeros(5) if distortion is None else np.asarray(distortion, float)
+        own = flight.distortion
+        self.distortion = own if distortion is None else coefficients(distortion)
+        self.raw = scale == 1.0 and np.array_equal(self.distortion, own)
 
     def __call__(self, index: int) -> np.ndarray:
-        rgb = read_png(self.flight.rgb[index])
+        if self.raw:
+            return read_png(self.flight.rgb[index])
+        rgb = self.flight.image(index)
         c = self.camera
         if np.any(self.distortion) or c.width != self.ideal.width:
             rgb = distort_image(rgb, self.ideal.K, c.K, self.distortion, c.width, c.height)

@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from core.dataset import Camera
+from core.poses import interpolate_poses
 from localize.recording import (
     IMAGE_SUFFIXES,
     Recording,
@@ -28,7 +29,6 @@ from localize.recording import (
     check_increasing,
     check_rigid,
     delivered_camera,
-    interpolate_poses,
     read_trajectory,
     select_frames,
 )

@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from core.atomic import atomic_write, atomic_write_json, atomic_write_text, read_png  # noqa: E402
+from core.atomic import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
 from core.classes import colorize  # noqa: E402
 from localize.metrics import convergence_frame, error_stats, timing_stats  # noqa: E402
 
@@ -297,8 +297,8 @@ def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     r = runs[mode]
     flight = ctx.dataset.flight(flight_name)
     t = int(round(float(ctx.cfg.report.figure_frame) * (r["num_frames"] - 1)))
-    rgb = read_png(flight.rgb[t])
-    truth = read_png(flight.label[t], rgb=False)
+    rgb = flight.image(t)
+    truth = flight.labels(t)
     segnet = mode == "cnn" and ctx.segmenter is not None
     if mode == "cnn" and not segnet:  # no SegNet loaded: the cnn edges of the true labels
         front = FrontEnd(LabelFunction(lambda rgb, labels: labels, needs_truth=True),
@@ -352,11 +352,25 @@ def _fmt(v, digits: int = 3) -> str:
     return str(v)
 
 
+#: What each flight set is for, as the report says it.
+FLIGHT_SET_NOTE = {
+    "test": "test flights (datagen's render_flights): no setting was chosen on them; settings "
+            "are tuned on the validation flights (flight_set=val)",
+    "val": "validation flights (datagen's val_flights, <name>_val): the flights settings are "
+           "tuned on; report figures from the test flights (flight_set=test)",
+}
+
+
 def _header(m: dict, cfg) -> list[str]:
-    """Title, the filter's settings and the paper's figures."""
+    """Title, the flights used, the filter's settings and the paper's figures."""
     f = cfg.filter
+    flight_set = m.get("flight_set", "test")
     return [
         f"# Localization report: {cfg.name}",
+        "",
+        f"Flights: {', '.join(m.get('flights_used', []))}, the "
+        f"{FLIGHT_SET_NOTE.get(flight_set, flight_set)}. Flights made with "
+        f"realism={m.get('realism', 'ideal')}.",
         "",
         f"Dataset `{m['dataset']}`. Filter: {f.num_particles} particles, likelihood "
         f"k = {f.likelihood.k}, sigma = {f.likelihood.sigma} "
@@ -484,10 +498,15 @@ def write_report(ctx) -> Path:
         Path of report.md.
     """
     out = ctx.out_dir
-    records = load_records(out)
+    flight_set = str(ctx.cfg.flight_set)
+    in_set = set(ctx.dataset.flight_names(flight_set))
+    records = [r for r in load_records(out) if r["flight"] in in_set]
     if not records:
-        raise RuntimeError(f"no run records under {out / 'runs'}; nothing to report")
-    metrics = {**summarize(records, ctx.cfg), "realism": ctx.dataset.realism}
+        raise RuntimeError(f"no run records of {flight_set} flights under {out / 'runs'}; "
+                           "nothing to report")
+    metrics = {**summarize(records, ctx.cfg), "realism": ctx.dataset.realism,
+               "flight_set": flight_set, "flight_set_note": FLIGHT_SET_NOTE[flight_set],
+               "flights_used": sorted({r["flight"] for r in records})}
     atomic_write_json(out / "metrics.json", metrics)
     plots: dict[str, list[str]] = {}
     for flight in sorted({r["flight"] for r in _main(records)}):

@@ -29,9 +29,9 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
-from core.atomic import atomic_write_json, read_png
+from core.atomic import atomic_write_json
 from core.config import typed
-from core.dataset import Camera, Dataset, Flight, World
+from core.dataset import FLIGHT_SETS, Camera, Dataset, Flight, World
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES, LocalizeConfig
@@ -124,15 +124,30 @@ class Context:
         return FrontEnd(self.edge_source(mode), self.settings.edges)
 
 
-def select_flights(dataset: Dataset, wanted) -> list[str]:
-    """Flight names to run; errors name the dataset and what exists."""
-    names = dataset.flight_names()
-    if not names:
+def select_flights(dataset: Dataset, wanted, flight_set: str = "test") -> list[str]:
+    """Flight names of ``flight_set`` (test | val) to run; errors name the key, the dataset
+    and what exists."""
+    if flight_set not in FLIGHT_SETS:
+        raise ValueError(f"flight_set={flight_set!r}: use one of {FLIGHT_SETS} (test: the "
+                         "flights figures are reported on; val: those settings are tuned on)")
+    every = dataset.flight_names()
+    if not every:
         raise ValueError(f"dataset {dataset.root} has no flights (no {dataset.root / 'flights'}/"
                          "<name>/); render some with `python -m datagen` (render_flights)")
+    names = dataset.flight_names(flight_set)
+    if not names:
+        key = "render_flights" if flight_set == "test" else "val_flights"
+        raise ValueError(f"dataset {dataset.root} has no {flight_set} flights (flight_set="
+                         f"{flight_set}; flights there: {every}); render some with `python -m "
+                         f"datagen` ({key})")
     if wanted is None:
         return names
     wanted = [str(w) for w in wanted]
+    other = [w for w in wanted if w in every and w not in names]
+    if other:
+        raise ValueError(f"flight_names: {other} are not {flight_set} flights (flight_set="
+                         f"{flight_set}); pick the set they belong to or flights of "
+                         f"{names}")
     missing = [w for w in wanted if w not in names]
     if missing:
         raise ValueError(f"flights {missing} not in {dataset.root / 'flights'}; available: "
@@ -174,7 +189,7 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> C
     segmenter (cnn mode)."""
     check_run_lists(cfg)
     dataset = Dataset(cfg.dataset)
-    select_flights(dataset, cfg.flight_names)
+    select_flights(dataset, cfg.flight_names, cfg.flight_set)
     world = dataset.world()
     out_dir = Path(cfg.out_root) / str(cfg.name)
     settings = settings_of(cfg)
@@ -268,8 +283,8 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
                                       if runs[0].likelihood != "vectorized" else "")
     for t in tqdm(range(T), desc=desc, disable=not cfg.progress, leave=False, mininterval=2.0):
         t0 = time.perf_counter()
-        rgb = read_png(flight.rgb[t]) if front.source.needs_image else None
-        labels = read_png(flight.label[t], rgb=False) if front.source.needs_truth else None
+        rgb = flight.image(t) if front.source.needs_image else None
+        labels = flight.labels(t) if front.source.needs_truth else None
         acquisition_ms = (time.perf_counter() - t0) * 1e3
         frame = front.frame(rgb, labels)
         delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
@@ -285,9 +300,11 @@ def paper_faithful_runs(ctx: Context) -> None:
     pcfg = ctx.settings.paper_faithful
     if not pcfg.enabled:
         return
-    names = ctx.dataset.flight_names()
-    if pcfg.flight not in names:
-        log.warning("paper_faithful: flight %r not in the dataset; skipped", pcfg.flight)
+    names = ctx.dataset.flight_names(ctx.cfg.flight_set)
+    name = pcfg.flight if ctx.cfg.flight_set == "test" else f"{pcfg.flight}_val"
+    if name not in names:
+        log.warning("paper_faithful: flight %r not in the dataset's %s flights; skipped", name,
+                    ctx.cfg.flight_set)
         return
     mode = pcfg.mode
     if mode == "cnn" and ctx.segmenter is None:
@@ -295,7 +312,7 @@ def paper_faithful_runs(ctx: Context) -> None:
         return
     from localize.paper_faithful import PaperFaithfulLikelihood
 
-    flight = ctx.dataset.flight(pcfg.flight)
+    flight = ctx.dataset.flight(name)
     sub = OmegaConf.merge(ctx.cfg, {"max_frames": pcfg.frames})
     sub_ctx = Context(**{**ctx.__dict__, "cfg": sub})
     n = pcfg.num_particles
@@ -333,7 +350,7 @@ def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
     ctx = prepare(cfg, source_wrappers)
     out = ctx.out_dir
     check_resume(out, cfg)
-    for name in select_flights(ctx.dataset, cfg.flight_names):
+    for name in select_flights(ctx.dataset, cfg.flight_names, cfg.flight_set):
         flight = ctx.dataset.flight(name)
         for mode in cfg.modes:
             runs = [RunSpec(name, mode, init, int(seed)) for init in cfg.inits

@@ -15,7 +15,7 @@ TINY_DATAGEN = [
     "splits.train=12", "splits.val=4", "splits.test=4",
     "render.spp=2", "training.chunk=6",
     "flights.paper.num_frames=30", "flights.cluttered.num_frames=30",
-    "render_flights=[paper,cluttered]",
+    "render_flights=[paper,cluttered]", "val_flights=[paper]",
 ]
 
 

@@ -28,6 +28,12 @@ from tests.helpers import CONF, compose_config
 FPS = 10.0
 
 
+#: realism=real without its timing and harder flights: ideal's poses and frames
+IMAGES_ONLY = ["realism.timing.drop_rate=0", "realism.timing.jitter_ms=0",
+               "realism.timing.odometry_hz=null", "realism.timing.jump_per_min=0",
+               "realism.flight.enabled=false"]
+
+
 def real_settings() -> RealismConfig:
     return typed(RealismConfig, yaml.safe_load((CONF / "realism" / "real.yaml").read_text()),
                  "realism")
@@ -242,6 +248,12 @@ class TestSettings:
         assert real.realism.jpeg == JpegConfig(quality=85)
 
 
+#: realism=real's optics off (datagen/optics.py; tests/datagen/test_optics.py): the rendered
+#: frames are the ideal's, the image effects alone change them.
+NO_OPTICS = ["realism.lens.k1=0", "realism.lens.k2=0", "realism.lens.p1=0", "realism.lens.p2=0",
+             "realism.motion_blur.exposure_s=0", "realism.rolling_shutter.readout_s=0"]
+
+
 class TestDatagen:
     FLIGHT = ["splits.train=0", "splits.val=0", "splits.test=0", "render_flights=[paper]",
               "flights.paper.num_frames=20"]
@@ -270,7 +282,8 @@ class TestDatagen:
         small = ["camera.width=64", "camera.height=48", "splits.train=0", "splits.val=0",
                  "splits.test=0", "render.spp=1", "render_flights=[cluttered]",
                  "flights.cluttered.num_frames=3"]
-        effects = ["realism=real", "realism.dropout.per_min=0", "realism.dropout.at_s=[0.1]",
+        effects = ["realism=real", *IMAGES_ONLY, *NO_OPTICS, "realism.dropout.per_min=0",
+                   "realism.dropout.at_s=[0.1]",
                    "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]"]
         ideal, real = tmp_path / "ideal", tmp_path / "real"
         gen.run(compose_config("datagen", [*small, f"out_dir={ideal}"]), progress=False)

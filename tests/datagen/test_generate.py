@@ -21,7 +21,7 @@ from tests.helpers import compose_config
 
 SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",
          "splits.test=0", "render.spp=1", "training.chunk=2", "render_flights=[cluttered]",
-         "flights.cluttered.num_frames=3"]
+         "flights.cluttered.num_frames=3", "val_flights=[]"]
 
 
 def small_cfg(out: Path, *extra: str) -> dict:
@@ -48,11 +48,21 @@ class TestLayout:
         assert {C.FLOOR, C.WALL, C.CEILING, C.DOOR} <= set(np.unique(labels))
         assert read_png(rgb[0]).shape == (96, 128, 3)
         assert ds.split_poses("train").shape == (12, 4, 4)
-        assert ds.flight_names() == ["cluttered", "paper"]
+        assert ds.flight_names() == ["cluttered", "paper", "paper_val"]
+        assert ds.flight_names("test") == ["cluttered", "paper"]
+        assert ds.flight_names("val") == ["paper_val"]
+        val = ds.flight("paper_val")
+        assert val.flight_set == "val" and val.info["preset_name"] == "paper"
+        assert len(val.rgb) == 30 and all(p.is_file() for p in val.rgb)
         f = ds.flight("paper")
         assert len(f.rgb) == 30 and all(p.is_file() for p in f.rgb + f.label)
         assert f.groundtruth.shape == f.odometry.shape == (30, 4, 4)
         np.testing.assert_allclose(f.groundtruth[0], f.odometry[0], atol=1e-6)
+        assert f.flight_set == "test"
+        # the validation flight is another draw of the preset: another path, other images
+        assert np.abs(val.groundtruth[:, :3, 3] - f.groundtruth[:, :3, 3]).max() > 0.2
+        assert not np.array_equal(read_png(val.rgb[5]), read_png(f.rgb[5]))
+        assert not (tiny_dataset / "flights" / "paper" / "images.txt").exists()  # ideal
         w = ds.world()
         assert w.segments.shape[1:] == (2, 3) and len(w.segments) == len(w.segment_classes)
         stats = json.loads((tiny_dataset / "stats.json").read_text())

@@ -243,3 +243,29 @@ class TestBadInput:
         cfg = localize_cfg([*QUICK, f"dataset={ds}", f"out_root={tmp_path}", "modes=[oracle]"])
         with pytest.raises(FileNotFoundError, match="edges.npz"):
             run(cfg)
+
+
+class TestFlightSets:
+    def test_validation_run_and_report_name_the_set(self, tiny_dataset, tmp_path):
+        """flight_set=val runs only the validation flights; metrics.json and report.md say
+        which flights were used and what the set is for."""
+        cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",
+                            "name=v", "modes=[oracle]", "inits=[tracking]", "max_frames=3",
+                            "flight_set=val"])
+        path = run(cfg)
+        m = json.loads((path.parent / "metrics.json").read_text())
+        assert m["flight_set"] == "val" and m["flights_used"] == ["paper_val"]
+        assert set(m["flights"]) == {"paper_val"}
+        assert "tuned" in m["flight_set_note"]
+        text = path.read_text()
+        assert "Flights: paper_val, the validation flights" in text
+
+    def test_default_is_the_test_set(self):
+        assert localize_cfg([]).flight_set == "test"
+
+    def test_bad_flight_set(self, tiny_dataset, tmp_path):
+        base = [*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}", "modes=[oracle]"]
+        with pytest.raises(ValueError, match="flight_set='train'"):
+            run(localize_cfg([*base, "flight_set=train"]))
+        with pytest.raises(ValueError, match=r"flight_names: \['paper'\] are not val flights"):
+            run(localize_cfg([*base, "flight_set=val", "flight_names=[paper]"]))

@@ -13,12 +13,11 @@ import yaml
 
 from core.atomic import read_png, write_png
 from core.dataset import Camera, Dataset
-from core.poses import pose_from_xyzyaw, write_tum
+from core.poses import interpolate_poses, pose_from_xyzyaw, write_tum
 from localize.particle_filter import odometry_increment
 from localize.recording import (
     Rectifier,
     SourceCamera,
-    interpolate_poses,
     read_recording,
 )
 from localize.recording_export import export_bag, export_folder, main
