@@ -439,8 +439,9 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
 
 
 def _new_renderer(job: Job, textures, clutter, people, scene: Scene | None = None):
-    """The renderer of the site's scene (or ``scene``); with more than ``NEAR_LIGHTS_FROM`` lights (a floor,
-    most lights out of view) it samples lights by radiance / distance^2 (``near_lights``)."""
+    """The renderer of the site's scene (or ``scene``); with more than ``NEAR_LIGHTS_FROM``
+    lights (a floor, most lights out of view) it samples lights by radiance / distance^2
+    (``near_lights``)."""
     from datagen.render import Renderer
 
     scene = job.site.scene if scene is None else scene

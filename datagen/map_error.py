@@ -44,6 +44,8 @@ from datagen.scene import TEXTURE_EXTENT, Surface, box_uv, ceiling_above
 WHERE = "realism.map"
 OPENING_KINDS = {"door": C.DOOR, "window": C.WINDOW}
 BUILTIN_KINDS = ("cabinet", "pillar")
+#: m an opening made as its own mesh may stand off the wall it is in (its host).
+HOST_REACH = 0.3
 #: m the drawn opening stands in front of its wall.
 EXTRA_OFFSET = 0.002
 #: tries at placing one extra opening or built-in object before giving up (a warning in the
@@ -156,9 +158,12 @@ class Pieces:
     ceilings: np.ndarray
 
 
-def find_pieces(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray) -> Pieces:
+def find_pieces(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
+                ceiling_above: float = -np.inf) -> Pieces:
     """Walls (vertical faces of class wall, by connected plane), doors and windows (connected
-    faces of one class) and their host walls, ceilings (downward faces of class ceiling)."""
+    faces of one class) and their host walls (sharing vertices; else the nearest parallel wall
+    within ``HOST_REACH``), ceilings (downward faces of class ceiling above ``ceiling_above``
+    m: the ones over the flyable heights, not a slab's underside)."""
     normals, area = _normals_areas(vertices, faces)
     centre = vertices[faces].mean(axis=1)
     key = _plane_keys(normals, centre)
@@ -186,17 +191,39 @@ def find_pieces(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray)
         fo = np.flatnonzero(openings == o)
         verts = np.unique(faces[fo])
         touching = pairs[np.isin(pairs[:, 0], verts), 1]
-        if not len(touching):
-            continue
         cand, count = np.unique(touching, return_counts=True)
         facing = np.array([area[fo] @ (normals[fo] @ wall_normal[w] > 0.999) for w in cand])
-        if facing.max() <= 0:
-            continue
-        w = int(cand[np.argmax(facing * 1e6 + count)])
+        if len(cand) and facing.max() > 0:
+            w = int(cand[np.argmax(facing * 1e6 + count)])
+        else:  # a separate door or window mesh: the nearest parallel wall
+            w = _nearest_wall(vertices, faces, walls, wall_normal, wall_point,
+                              normals[fo], area[fo], vertices[verts])
+            if w < 0:
+                continue
         host[o] = w
         back[fo] = normals[fo] @ wall_normal[w] > 0.999
-    ceilings = components(faces, good & (face_class == C.CEILING) & (normals[:, 2] < -0.9), key)
+    ceilings = components(faces, good & (face_class == C.CEILING) & (normals[:, 2] < -0.9)
+                          & (centre[:, 2] > ceiling_above), key)
     return Pieces(walls, wall_normal, wall_point, openings, opening_class, host, back, ceilings)
+
+
+def _nearest_wall(vertices: np.ndarray, faces: np.ndarray, walls: np.ndarray,
+                  wall_normal: np.ndarray, wall_point: np.ndarray, normals: np.ndarray,
+                  area: np.ndarray, points: np.ndarray) -> int:
+    """The wall an opening's faces ((K, 3) normals, (K,) areas, its (P, 3) vertices) stand
+    in: parallel to its largest face, its plane within ``HOST_REACH`` of every vertex, its
+    faces' bounds (grown by ``HOST_REACH``) holding the opening's centre; -1 for none."""
+    n = normals[np.argmax(area)]
+    centre = points.mean(axis=0)
+    best, dist = -1, HOST_REACH
+    for w in np.flatnonzero(np.abs(wall_normal @ n) > 0.999):
+        d = np.abs((points - wall_point[w]) @ wall_normal[w]).max()
+        if d > dist:
+            continue
+        tri = vertices[faces[walls == w]].reshape(-1, 3)
+        if np.all(centre >= tri.min(0) - HOST_REACH) and np.all(centre <= tri.max(0) + HOST_REACH):
+            best, dist = int(w), d
+    return best
 
 
 def merge_vertices(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
@@ -250,25 +277,26 @@ def remove_openings(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndar
 
 
 def shift_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
-                 wall_std: float, ceiling_std: float, rng: np.random.Generator
-                 ) -> tuple[np.ndarray, list[dict], list[dict]]:
+                 wall_std: float, ceiling_std: float, rng: np.random.Generator,
+                 ceiling_above: float = -np.inf) -> tuple[np.ndarray, list[dict], list[dict]]:
     """Every wall shifted along its normal by ``N(0, wall_std)`` m (its openings' backs with
-    it), every ceiling raised by ``N(0, ceiling_std)`` m; each vertex moves by the
-    least-squares displacement meeting the shifts of the planes it lies on (a corner of two
-    walls meets both; a vertex on one wall slides along the floor).
+    it), every ceiling (above ``ceiling_above`` m) raised by ``N(0, ceiling_std)`` m; each
+    vertex moves by the least-squares displacement meeting the shifts of the planes it lies
+    on (a corner of two walls meets both; a vertex on one wall slides along the floor).
 
     Returns:
         (V, 3) moved vertices; per wall {normal, point, shift_m, area_m2}; per ceiling
         {point, dz_m, area_m2}.
     """
-    p = find_pieces(vertices, faces, face_class)
+    p = find_pieces(vertices, faces, face_class, ceiling_above)
     _, area = _normals_areas(vertices, faces)
     W, Cn = p.wall_normal.shape[0], p.ceilings.max() + 1
     wall_shift = wall_std * rng.standard_normal(W)
     ceil_dz = ceiling_std * rng.standard_normal(Cn)
     rows_v, rows_n, rows_s = [], [], []
     # (vertex, wall) of wall faces and of the openings' backs (moving with their host)
-    host_of_face = np.where(p.back, p.host[np.maximum(p.openings, 0)], -1)
+    host = np.append(p.host, -1)  # -1: a face of no opening
+    host_of_face = np.where(p.back, host[np.where(p.openings >= 0, p.openings, -1)], -1)
     owner = np.where(p.walls >= 0, p.walls, host_of_face)
     wf = np.flatnonzero(owner >= 0)
     if len(wf):
@@ -276,13 +304,16 @@ def shift_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray
         rows_v.append(pairs[:, 0])
         rows_n.append(p.wall_normal[pairs[:, 1]])
         rows_s.append(wall_shift[pairs[:, 1]])
-    cf = np.flatnonzero(p.ceilings >= 0)
-    if len(cf):
-        pairs = np.unique(np.stack([faces[cf].ravel(), np.repeat(p.ceilings[cf], 3)], axis=1),
-                          axis=0)
-        rows_v.append(pairs[:, 0])
-        rows_n.append(np.tile([0.0, 0.0, 1.0], (len(pairs), 1)))
-        rows_s.append(ceil_dz[pairs[:, 1]])
+    for c in range(Cn):  # a ceiling's vertices, and every vertex at its height under it (the
+        # tops of walls modelled as their own blocks)
+        cv = vertices[np.unique(faces[p.ceilings == c])]
+        lo, hi = cv.min(0), cv.max(0)
+        at = np.flatnonzero((np.abs(vertices[:, 2] - cv[:, 2].mean()) < 1e-3)
+                            & np.all((vertices[:, :2] >= lo[:2] - 1e-6)
+                                     & (vertices[:, :2] <= hi[:2] + 1e-6), axis=1))
+        rows_v.append(at)
+        rows_n.append(np.tile([0.0, 0.0, 1.0], (len(at), 1)))
+        rows_s.append(np.full(len(at), ceil_dz[c]))
     moved = vertices.copy()
     if rows_v:
         rv, rn, rs = np.concatenate(rows_v), np.concatenate(rows_n), np.concatenate(rows_s)
@@ -321,12 +352,15 @@ def _covered(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 
 def add_openings(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray, count: int,
-                 kinds: list[str], rng: np.random.Generator
+                 kinds: list[str], rng: np.random.Generator, floor_z: float = 0.0,
+                 free: OccupancyMap | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
     """``count`` doors or windows drawn on walls: each a rectangle (a door: ``DoorSize``'s
-    width x height from the wall's foot; a window: ``WindowSize``'s at its sill) of the
+    width x height from the floor, ``floor_z`` m; a window: ``WindowSize``'s at its sill) of the
     opening's class, ``EXTRA_OFFSET`` in front of a wall that is whole behind it (wall faces
-    at every point of a 9 x 9 lattice over it), appended as its own two triangles.
+    at every point of a 9 x 9 lattice over it) and, given ``free``, facing the free space
+    (its centre's footprint, the margin and a cell in front, within a cell of a free cell),
+    appended as its own two triangles.
 
     Returns:
         vertices, faces, face_class with the rectangles; the record of each (kind, centre (3,)
@@ -355,7 +389,7 @@ def add_openings(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray
             tri = vertices[faces[p.walls == w]]
             uz = np.stack([tri @ u_axis, tri[..., 2]], axis=-1)  # (T, 3, 2)
             lo, hi = uz.reshape(-1, 2).min(0), uz.reshape(-1, 2).max(0)
-            z0 = lo[1] + (0.0 if kind == "door" else window.sill)
+            z0 = floor_z + (0.0 if kind == "door" else window.sill)
             if hi[0] - lo[0] < width:
                 continue
             u0 = rng.uniform(lo[0], hi[0] - width)
@@ -365,6 +399,11 @@ def add_openings(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray
                 continue
             if any(pw == w and u0 < b1 and u0 + width > b0 for pw, b0, b1, _, _ in placed):
                 continue
+            if free is not None:
+                ahead = (u0 + width / 2) * u_axis + float(p.wall_point[w] @ n) * n
+                ahead = ahead[:2] + (free.margin + free.cell) * n[:2]
+                if free.outside_distance(ahead[None])[0] > free.cell:
+                    continue
             plane = float(p.wall_point[w] @ n) + EXTRA_OFFSET
             corners_uz = np.array([[u0, z0], [u0 + width, z0], [u0 + width, z0 + height],
                                    [u0, z0 + height]])
@@ -580,8 +619,10 @@ def make_map(truth: World, c: MapErrorConfig, crease_deg: float,
     """
     v, f, cls = truth.vertices, truth.faces, truth.face_class
     v, f, cls, missing = remove_openings(v, f, cls, c.missing_openings, rng)
-    v, walls, ceilings = shift_planes(v, f, cls, c.wall_std_m, c.ceiling_std_m, rng)
-    v, f, cls, extra = add_openings(v, f, cls, c.extra_openings, list(c.extra_kinds), rng)
+    v, walls, ceilings = shift_planes(v, f, cls, c.wall_std_m, c.ceiling_std_m, rng,
+                                      truth.free.band[1])
+    v, f, cls, extra = add_openings(v, f, cls, c.extra_openings, list(c.extra_kinds), rng,
+                                    float(truth.info.get("floor_z", 0.0)), truth.free)
     segments, seg_classes, crease = extract_edges(v, f, cls, crease_deg)
     tf = truth.free
     free = OccupancyMap.from_mesh(v, f, cls, tf.band, tf.margin, tf.cell)
