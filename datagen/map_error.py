@@ -166,14 +166,22 @@ def find_pieces(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
     m: the ones over the flyable heights, not a slab's underside)."""
     normals, area = _normals_areas(vertices, faces)
     centre = vertices[faces].mean(axis=1)
-    key = _plane_keys(normals, centre)
+    # a plane's key whichever way its faces turn (an imported wall may hold faces of both)
+    first = np.take_along_axis(normals, np.argmax(np.abs(normals) > 1e-6, axis=1)[:, None], 1)
+    canonical = normals * np.where(first < 0, -1.0, 1.0)
+    key = _plane_keys(canonical, centre)
     good = area > 1e-12
     vertical = good & (np.abs(normals[:, 2]) < 0.1)
     walls = components(faces, vertical & (face_class == C.WALL), key)
     W = walls.max() + 1
+    on = walls >= 0
     wall_normal = np.zeros((W, 3))
-    np.add.at(wall_normal, walls[walls >= 0], normals[walls >= 0] * area[walls >= 0, None])
+    np.add.at(wall_normal, walls[on], canonical[on] * area[on, None])
     wall_normal /= np.maximum(np.linalg.norm(wall_normal, axis=1), 1e-300)[:, None]
+    facing = np.zeros(W)  # turned the way most of the wall's area faces
+    np.add.at(facing, walls[on], area[on] * np.einsum("ij,ij->i", normals[on],
+                                                      wall_normal[walls[on]]))
+    wall_normal *= np.where(facing < 0, -1.0, 1.0)[:, None]
     first = np.full(W, len(faces))
     np.minimum.at(first, walls[walls >= 0], np.flatnonzero(walls >= 0))
     wall_point = vertices[faces[np.minimum(first, len(faces) - 1), 0]] if W else np.zeros((0, 3))
@@ -192,16 +200,17 @@ def find_pieces(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
         verts = np.unique(faces[fo])
         touching = pairs[np.isin(pairs[:, 0], verts), 1]
         cand, count = np.unique(touching, return_counts=True)
-        facing = np.array([area[fo] @ (normals[fo] @ wall_normal[w] > 0.999) for w in cand])
-        if len(cand) and facing.max() > 0:
-            w = int(cand[np.argmax(facing * 1e6 + count)])
+        along = np.array([area[fo] @ (np.abs(normals[fo] @ wall_normal[w]) > 0.999)
+                          for w in cand])
+        if len(cand) and along.max() > 0:
+            w = int(cand[np.argmax(along * 1e6 + count)])
         else:  # a separate door or window mesh: the nearest parallel wall
             w = _nearest_wall(vertices, faces, walls, wall_normal, wall_point,
                               normals[fo], area[fo], vertices[verts])
             if w < 0:
                 continue
         host[o] = w
-        back[fo] = normals[fo] @ wall_normal[w] > 0.999
+        back[fo] = np.abs(normals[fo] @ wall_normal[w]) > 0.999
     ceilings = components(faces, good & (face_class == C.CEILING) & (normals[:, 2] < -0.9)
                           & (centre[:, 2] > ceiling_above), key)
     return Pieces(walls, wall_normal, wall_point, openings, opening_class, host, back, ceilings)
@@ -326,15 +335,15 @@ def shift_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray
     walls = []
     for w in range(W):
         fw = p.walls == w
-        walls.append({"normal": np.round(p.wall_normal[w], 4).tolist(),
+        walls.append({"normal": (np.round(p.wall_normal[w], 4) + 0.0).tolist(),
                       "point": np.round(p.wall_point[w], 4).tolist(),
-                      "shift_m": round(float(wall_shift[w]), 5),
+                      "shift_m": round(float(wall_shift[w]), 6),
                       "area_m2": round(float(area[fw].sum()), 3)})
     ceilings = []
     for c in range(Cn):
         fc = np.flatnonzero(p.ceilings == c)
         ceilings.append({"point": np.round(vertices[faces[fc[0], 0]], 4).tolist(),
-                         "dz_m": round(float(ceil_dz[c]), 5),
+                         "dz_m": round(float(ceil_dz[c]), 6),
                          "area_m2": round(float(area[fc].sum()), 3)})
     return moved, walls, ceilings
 
@@ -418,7 +427,7 @@ def add_openings(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray
             nv += 4
             placed.append((w, u0, u0 + width, z0, z0 + height))
             record.append({"kind": kind, "centre": np.round(corners.mean(0), 4).tolist(),
-                           "normal": np.round(n, 4).tolist(), "width": width,
+                           "normal": (np.round(n, 4) + 0.0).tolist(), "width": width,
                            "height": height})
             break
     return (np.concatenate(new_v), np.concatenate(new_f), np.concatenate(new_c), record)
