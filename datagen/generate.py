@@ -46,7 +46,7 @@ from datagen import (
     map_error,
     trajectories,
 )
-from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
+from datagen.config import CameraConfig, DatagenConfig, DistractorPreset, MapErrorConfig
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
 from datagen.scene import Scene
@@ -283,7 +283,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     return job
 
 
-def _make_map(job: Job, c) -> None:
+def _make_map(job: Job, c: MapErrorConfig) -> None:
     """The map the localizer reads and the built-in objects the flights show
     (``realism.map``, datagen/map_error.py), onto ``job``."""
     t0 = time.perf_counter()
