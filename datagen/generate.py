@@ -291,8 +291,9 @@ def _make_map(job: Job, c: MapErrorConfig) -> None:
     paths = [(f["groundtruth"] @ job.camera.body_from_cam)[:, :2, 3]
              for f in job.flights.values()]
     floor_z = float(site.building.info.get("floor_z", 0.0))
-    job.builtins = map_error.place_builtins(c, site.floor, paths, site.world.vertices,
-                                            site.world.faces, floor_z,
+    w = site.world
+    job.builtins = map_error.place_builtins(c, site.floor, paths, w.vertices, w.faces,
+                                            w.face_class, floor_z,
                                             rng_for(cfg.seed, MAP_STREAM, 1))
     if len(job.builtins) < c.builtins:
         log.warning("realism.map.builtins: %d of %d built-in objects fit against a wall off "

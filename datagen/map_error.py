@@ -450,11 +450,12 @@ class Builtin:
     size: tuple[float, float, float]
     base: float
 
-    def corners(self) -> np.ndarray:
-        """(4, 2) m footprint corners, counter-clockwise seen from above."""
-        hx, hy = self.size[0] / 2, self.size[1] / 2
+    def corners(self, behind: float = 0.0, inset: float = 0.0) -> np.ndarray:
+        """(4, 2) m footprint corners, counter-clockwise seen from above (its back moved
+        ``behind`` m further back, its sides ``inset`` m in)."""
+        hx, hy = self.size[0] / 2, self.size[1] / 2 - inset
         c, s = math.cos(self.yaw), math.sin(self.yaw)
-        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        local = np.array([[-hx - behind, -hy], [hx, -hy], [hx, hy], [-hx - behind, hy]])
         return local @ np.array([[c, s], [-s, c]]) + np.asarray(self.centre)
 
     def mesh(self) -> tuple[np.ndarray, np.ndarray]:
@@ -489,28 +490,36 @@ def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
 
 
 def place_builtins(c: MapErrorConfig, floor: OccupancyMap, paths: list[np.ndarray],
-                   vertices: np.ndarray, faces: np.ndarray, floor_z: float,
-                   rng: np.random.Generator) -> list[Builtin]:
+                   vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
+                   floor_z: float, rng: np.random.Generator) -> list[Builtin]:
     """``c.builtins`` boxes against walls: a floor cell next to a wall drawn, the box's back
-    put on the wall (along ``floor``'s clearance gradient), kept where its footprint is on
-    the floor, clear of the boxes placed and ``c.builtin_clearance_m`` from every camera path.
+    put on the wall (along ``floor``'s clearance gradient), kept where its front is on the
+    floor and a wall is behind the whole of its back (5 cm behind it is off the floor: not
+    across a corner or an opening), no door or window within 0.15 m behind it or over it
+    (below its top), clear of the boxes placed and ``c.builtin_clearance_m`` from every camera
+    path.
 
     Args:
         floor: where things may stand (no margin; Site.floor).
         paths: (N, 2) m camera xy of each flight.
-        vertices, faces: the true mesh (a pillar reaches its ceiling).
+        vertices, faces, face_class: the true mesh (a pillar reaches its ceiling).
         floor_z: m, the floor's height.
 
     Returns:
         The placed objects (fewer than asked where none fit in ``TRIES``).
     """
+    paths = [np.asarray(p, np.float64).reshape(-1, 2) for p in paths]
     path = np.concatenate(paths) if paths else np.zeros((0, 2))
-    seg_a, seg_b = (path[:-1], path[1:]) if len(path) > 1 else (path, path)
+    seg_a = np.concatenate([p[:-1] if len(p) > 1 else p for p in paths]) if paths else path
+    seg_b = np.concatenate([p[1:] if len(p) > 1 else p for p in paths]) if paths else path
     rows, cols = np.nonzero(floor.free)
     xy_cells = floor.centres(np.stack([rows, cols]))
     near_wall = floor.clearance[rows, cols] <= 1.5 * floor.cell
     cells = xy_cells[near_wall]
     grad_r, grad_c = np.gradient(floor.clearance.astype(np.float64))
+    opening = np.isin(face_class, list(OPENING_KINDS.values()))
+    tri = vertices[faces[opening]]
+    openings = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])  # corners and centres
     out: list[Builtin] = []
     for _ in range(c.builtins):
         kind = str(c.builtin_kinds[rng.integers(len(c.builtin_kinds))])
@@ -540,8 +549,12 @@ def place_builtins(c: MapErrorConfig, floor: OccupancyMap, paths: list[np.ndarra
                         floor_z)
             xy = b.corners()
             front = np.array([xy[1], xy[2], (xy[1] + xy[2]) / 2])
-            if not floor.contains(front).all():
-                continue
+            behind = np.array([xy[0], xy[3], (xy[0] + xy[3]) / 2]) - 0.05 * away
+            if not floor.contains(front).all() or floor.contains(behind).any():
+                continue  # its front on the floor, a wall behind the whole of its back
+            low = openings[openings[:, 2] < b.base + b.size[2], :2]
+            if len(low) and _inside(low, b.corners(behind=0.15, inset=0.01)).any():
+                continue  # not in front of a door or window
             edge = np.concatenate([xy, (xy + np.roll(xy, -1, 0)) / 2])
             if len(path) and _segment_distance(edge, seg_a, seg_b).min() < c.builtin_clearance_m:
                 continue

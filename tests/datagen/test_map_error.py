@@ -134,8 +134,8 @@ class TestMap:
             offsets, _ = face_planes(m, w["normal"])
             assert np.min(np.abs(offsets - np.dot(w["normal"], w["point"]) - w["shift_m"])) < 1e-4
         path = np.array([[1.0, 1.0], [1.0, 9.0], [9.0, 9.0]])
-        (b,) = M.place_builtins(c, site.floor, [path], truth.vertices, truth.faces, 0.0,
-                                rng_for(0, 10, 1))
+        (b,) = M.place_builtins(c, site.floor, [path], truth.vertices, truth.faces,
+                                truth.face_class, 0.0, rng_for(0, 10, 1))
         self.check_builtin(b, site.floor, path, c.builtin_clearance_m)
 
     @staticmethod
@@ -151,11 +151,17 @@ class TestMap:
     def test_builtins_in_the_corridor(self, corridor):
         c = MapErrorConfig(builtins=3, builtin_kinds=["pillar", "cabinet"])
         path = np.array([[0.0, 0.3], [0.0, 9.7]])
-        bs = M.place_builtins(c, corridor.floor, [path], corridor.world.vertices,
-                              corridor.world.faces, 0.0, rng_for(0, 10, 1))
+        w = corridor.world
+        bs = M.place_builtins(c, corridor.floor, [path], w.vertices, w.faces, w.face_class,
+                              0.0, rng_for(0, 10, 1))
         assert len(bs) == 3
+        opening = np.isin(w.face_class, [C.DOOR, C.WINDOW])
+        at_openings = w.vertices[w.faces[opening]].mean(axis=1)
         for b in bs:
             self.check_builtin(b, corridor.floor, path, c.builtin_clearance_m)
+            # not in front of a door or window
+            low = at_openings[at_openings[:, 2] < b.size[2], :2]
+            assert not M._inside(low, b.corners(behind=0.15)).any()
             if b.kind == "pillar":
                 assert b.size[2] == pytest.approx(2.8)  # floor to ceiling
         for i, a in enumerate(bs):
