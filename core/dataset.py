@@ -9,6 +9,8 @@
   world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
+  world_truth/                 with realism.map only: the rendered world (world/ is then the
+                               map, the truth edited as dataset.json's map_error lists)
   train|val|test/rgb/NNNNNN.png, label/NNNNNN.png, depth/NNNNNN.npy (optional), poses.txt
   flights/<name>/rgb/, label/, groundtruth.txt, odometry.txt, flight.json, images.txt
 ```
@@ -176,6 +178,16 @@ class Dataset:
         return Camera(np.array(c["K"]), int(c["width"]), int(c["height"]),
                       np.array(c["body_from_cam"]))
 
+    @property
+    def camera_truth(self) -> Camera:
+        """The camera the images were rendered with (``camera_truth``, written with
+        realism.calibration); ``camera`` where the dataset records none."""
+        if "camera_truth" not in self.meta:
+            return self.camera
+        c = self.meta["camera_truth"]
+        return Camera(np.array(c["K"]), int(c["width"]), int(c["height"]),
+                      np.array(c["body_from_cam"]))
+
     def split(self, name: str) -> tuple[list[Path], list[Path]]:
         """Paired (rgb, label) image paths of a split, by frame index.
 
@@ -282,7 +294,14 @@ class Dataset:
         return Flight(name, rgb, label, t, gt, odo, read_json(d / "flight.json"), frames)
 
     def world(self) -> World:
+        """The map the localizer reads (``world/``)."""
         return load_world(self.root / "world")
+
+    def world_truth(self) -> World:
+        """The rendered world (``world_truth/``, written with realism.map, with its
+        built-in objects); ``world()`` where the dataset has none."""
+        d = self.root / "world_truth"
+        return load_world(d) if d.is_dir() else self.world()
 
 
 def load_world(world_dir: str | Path) -> World:

@@ -540,6 +540,54 @@ class HarderFlightConfig:
 
 
 @dataclass
+class MapErrorConfig:
+    """The map the localizer reads differs from the rendered world (``realism.map``,
+    datagen/map_error.py): the dataset's ``world/`` is the true world edited as below (its
+    edges and free space made from the edited mesh), the truth kept in ``world_truth/``; the
+    edits are drawn from their own seeded stream and listed in dataset.json's ``map_error``.
+    Rendering and the ground truth use the truth. Every setting 0 (the defaults,
+    ``realism=ideal``): the map is the truth. ``realism=real``: a survey-grade floor plan's
+    errors (docs/datagen.md)."""
+
+    wall_std_m: float = 0.0  # std of each wall's shift along its normal (a wall: a connected
+    # flat piece of class wall; its doors' and windows' recesses move with it)
+    ceiling_std_m: float = 0.0  # std of each ceiling's height error (up positive)
+    missing_openings: int = 0  # doors or windows of the world left out of the map (their
+    # recess flattened into the wall)
+    extra_openings: int = 0  # doors or windows drawn in the map on plain walls where the
+    # world has none
+    extra_kinds: list[str] = field(default_factory=lambda: ["door", "window"])  # drawn
+    # uniformly for each extra opening
+    builtins: int = 0  # unmodelled built-in objects (boxes of class wall standing against a
+    # wall) in the flights' rendered world, absent from the map
+    builtin_kinds: list[str] = field(default_factory=lambda: ["cabinet", "pillar"])  # drawn
+    # uniformly: a cabinet is builtin_cabinet_m, a pillar builtin_pillar_m to the ceiling
+    builtin_cabinet_m: list[float] = field(default_factory=lambda: [1.0, 0.45, 2.0])  # m,
+    # [along the wall, out of it, height]
+    builtin_pillar_m: list[float] = field(default_factory=lambda: [0.4, 0.3])  # m, [along the
+    # wall, out of it]; up to the ceiling
+    builtin_clearance_m: float = 0.3  # m kept between a built-in object and every flight's
+    # camera path
+
+
+@dataclass
+class CalibrationConfig:
+    """The camera the localizer is told differs from the rendering's (``realism.calibration``,
+    datagen/calibration.py): dataset.json's ``camera`` (K, body_from_cam) is the rendering's
+    camera with a calibration error drawn once per dataset from its own seeded stream; the
+    truth is kept as ``camera_truth`` and the error in ``calibration_error``. Every std 0 (the
+    defaults, ``realism=ideal``): the told camera is the truth. ``realism=real``: a checkerboard
+    calibration's errors (docs/datagen.md)."""
+
+    focal_std: float = 0.0  # relative std of the focal length (fx and fy scaled by one
+    # factor 1 + N(0, focal_std))
+    principal_std_px: float = 0.0  # std of the principal point's error, px, per axis
+    rotation_std_deg: float = 0.0  # std of body_from_cam's rotation error, degrees (an angle
+    # N(0, std) about a uniformly random axis)
+    translation_std_m: float = 0.0  # std of body_from_cam's translation error, m, per axis
+
+
+@dataclass
 class RealismConfig:
     """How far the flights are from a perfect simulation (``realism``, the conf/realism/
     group: ``ideal``, the default, or ``real``), for every flight: the imperfections are the
@@ -562,6 +610,9 @@ class RealismConfig:
     # jitter, the odometry's own rate and jumps (datagen/timing.py)
     flight: HarderFlightConfig = field(default_factory=HarderFlightConfig)  # faster flights,
     # quicker yaw, back and forth from anywhere on the route
+    map: MapErrorConfig = field(default_factory=MapErrorConfig)  # what the localizer reads:
+    # the map (datagen/map_error.py) and the camera's calibration (datagen/calibration.py)
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
 
 
 # --------------------------------------------------------------------------- the job

@@ -9,7 +9,9 @@ kernels; docs/datagen.md). A flight's keys under its stream: 0 trajectory and od
 3 route, 4 AHRS, (5, i) frame i's camera effects, 6 exposure series, 7 dropouts, 8 harder
 flight (``realism.flight``), 9 odometry jumps, (10, i) frame i's drop and timestamp jitter
 (``realism.timing``) (SeedSequence pads a short key with zeros: (k,) is (k, 0), so no k is used
-both alone and with an index).
+both alone and with an index). The dataset's map error draws from stream ``MAP_STREAM`` (key 0
+the map's edits, 1 the built-in objects' placement), its calibration error from
+``CALIBRATION_STREAM``.
 
 Flights: ``render_flights`` are the test flights, ``flights/<name>/``; ``val_flights`` the
 validation flights, ``flights/<name>_val/``, the same presets drawn from the stream of the name
@@ -27,7 +29,7 @@ import platform
 import time
 import zlib
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -44,26 +46,31 @@ from core.atomic import (
 )
 from core.camera import intrinsics
 from core.config import as_config, typed
-from core.dataset import SCHEMA_VERSION, SPLITS, Camera, frame_name
+from core.dataset import SCHEMA_VERSION, SPLITS, Camera, World, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from datagen import (
     ahrs,
     appearance,
+    calibration,
     camera_effects,
     distractors,
+    map_error,
     optics,
     timing,
     trajectories,
 )
-from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
+from datagen.config import CameraConfig, DatagenConfig, DistractorPreset, MapErrorConfig
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
+from datagen.scene import Scene
 from datagen.site import Site, build_site
 
 log = logging.getLogger(__name__)
 
 SPLIT_STREAM = {"train": 0, "val": 1, "test": 2}
+MAP_STREAM = 10  # realism.map: (10, 0) the map's edits, (10, 1) the built-ins' placement
+CALIBRATION_STREAM = 11  # realism.calibration
 NEAR_LIGHTS_FROM = 16  # lights
 # Keys that do not change the dataset's content (left out of the config hash).
 NON_CONTENT_KEYS = ("shard", "num_shards", "overwrite", "out_dir", "progress")
@@ -131,6 +138,23 @@ class Job:
     # ((N,) bool) and stamps ((N,) s, the images' timestamps) and jumps (realism.timing),
     # exposure_ev ((N,) EV stops) and dropout (camera_effects.Dropout list): the image
     # effects of realism
+    told_camera: Camera | None = None  # the camera the localizer is told (realism.calibration;
+    # None: the rendering's, ``camera``)
+    calibration_error: dict | None = None  # the drawn error (calibration.told_camera)
+    map_world: World | None = None  # the map the localizer reads (realism.map; None: the
+    # truth, ``site.world``)
+    map_error: dict | None = None  # the map's edits (map_error.make_map) and built-ins
+    builtins: list[map_error.Builtin] = field(default_factory=list)  # unmodelled objects in
+    # the flights' renders (realism.map.builtins)
+
+    @property
+    def flight_render_scene(self) -> Scene:
+        """What the flights' renders draw: the site's scene and the built-in objects."""
+        scene = self.site.scene
+        if not self.builtins:
+            return scene
+        return Scene(scene.surfaces + map_error.builtin_surfaces(self.builtins), scene.lights,
+                     scene.images)
 
 
 def val_flights(cfg: DatagenConfig) -> list[str]:
@@ -242,6 +266,8 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     _check_presets(cfg)
     ahrs.check_settings(cfg.realism.ahrs, "realism.ahrs")
     camera_effects.check_settings(cfg.realism, "realism")
+    map_cfg = map_error.check_settings(cfg.realism.map, "realism.map")
+    cal_cfg = calibration.check_settings(cfg.realism.calibration, "realism.calibration")
     camera = make_camera(cfg.camera)
     timing.check_settings(cfg.realism.timing, "realism.timing")
     trajectories.check_harder(cfg.realism.flight, "realism.flight")
@@ -265,7 +291,44 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     for name, preset_name, flight_set in sets:
         flights[name] = prepare_flight(cfg, site, camera, name, preset_name)
         flights[name]["set"] = flight_set
-    return Job(cfg, Path(cfg.out_dir), site, camera, split_poses, flights)
+    job = Job(cfg, Path(cfg.out_dir), site, camera, split_poses, flights)
+    if calibration.is_active(cal_cfg):
+        job.told_camera, job.calibration_error = calibration.told_camera(
+            camera, cal_cfg, rng_for(cfg.seed, CALIBRATION_STREAM))
+    if map_error.is_active(map_cfg):
+        _make_map(job, map_cfg)
+    return job
+
+
+def _make_map(job: Job, c: MapErrorConfig) -> None:
+    """The map the localizer reads and the built-in objects the flights show
+    (``realism.map``, datagen/map_error.py), onto ``job``."""
+    t0 = time.perf_counter()
+    site, cfg = job.site, job.cfg
+    paths = [(f["groundtruth"] @ job.camera.body_from_cam)[:, :2, 3]
+             for f in job.flights.values()]
+    floor_z = float(site.building.info.get("floor_z", 0.0))
+    w = site.world
+    job.builtins = map_error.place_builtins(c, site.floor, paths, w.vertices, w.faces,
+                                            w.face_class, floor_z,
+                                            rng_for(cfg.seed, MAP_STREAM, 1))
+    if len(job.builtins) < c.builtins:
+        log.warning("realism.map.builtins: %d of %d built-in objects fit against a wall off "
+                    "the flights' paths", len(job.builtins), c.builtins)
+    job.map_world, record = map_error.make_map(site.world, c, float(cfg.world.crease_deg),
+                                               rng_for(cfg.seed, MAP_STREAM, 0))
+    for key, asked in (("missing_openings", c.missing_openings),
+                       ("extra_openings", c.extra_openings)):
+        if len(record[key]) < asked:
+            log.warning("realism.map.%s: %d of %d made (no more %s)", key, len(record[key]),
+                        asked, "doors or windows in the world" if key[0] == "m"
+                        else "room on plain walls")
+    record["builtins"] = [b.as_json() for b in job.builtins]
+    job.map_error = record
+    log.info("realism.map: the map made in %.2f s (%d walls, %d missing and %d extra "
+             "openings, %d built-ins)", time.perf_counter() - t0, len(record["walls"]),
+             len(record["missing_openings"]), len(record["extra_openings"]),
+             len(job.builtins))
 
 
 def prepare_flight(cfg: DatagenConfig, site: Site, camera: Camera, name: str,
@@ -335,9 +398,7 @@ def write_metadata(job: Job, variant: str) -> None:
         "classes": C.as_json(),
         "structural_classes": list(C.STRUCTURAL),
         "ignore_index": C.IGNORE,
-        "camera": {"K": cam.K.tolist(), "width": cam.width, "height": cam.height,
-                   "hfov_deg": float(cfg.camera.hfov_deg),
-                   "body_from_cam": cam.body_from_cam.tolist()},
+        "camera": calibration.camera_json(cam, float(cfg.camera.hfov_deg)),
         "seed": cfg.seed,
         "config_hash": config_hash(cfg),
         "counts": {**split_counts(cfg),
@@ -346,7 +407,17 @@ def write_metadata(job: Job, variant: str) -> None:
         "command": datagen_command(),
         "software": software_versions(variant),
     }
-    save_world(out / "world", job.site.world)
+    if job.told_camera is not None:  # the localizer reads "camera"; the truth kept beside it
+        told = job.told_camera
+        meta["camera"] = calibration.camera_json(
+            told, 2.0 * math.degrees(math.atan(told.width / (2.0 * told.K[0, 0]))))
+        meta["camera_truth"] = calibration.camera_json(cam, float(cfg.camera.hfov_deg))
+        meta["calibration_error"] = job.calibration_error
+    save_world(out / "world", job.site.world if job.map_world is None else job.map_world)
+    if job.map_world is not None:  # world/ is the map; the truth, with its built-ins, beside
+        save_world(out / "world_truth", map_error.with_builtins(
+            job.site.world, job.builtins, float(cfg.world.crease_deg)))
+        meta["map_error"] = job.map_error
     write_plan(job.site.building, out / "world" / "plan.png", free=job.site.world.free,
                paths=[(f["groundtruth"] @ cam.body_from_cam)[:, :2, 3]
                       for f in job.flights.values()])
@@ -456,13 +527,14 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
     return clutter, people
 
 
-def _new_renderer(job: Job, textures, clutter, people, camera: Camera | None = None):
-    """The renderer of the site's scene, with ``camera`` (None: the job's); with more than
-    ``NEAR_LIGHTS_FROM`` lights (a floor, most lights out of view) it samples lights by
-    radiance / distance^2 (``near_lights``)."""
+def _new_renderer(job: Job, textures, clutter, people, camera: Camera | None = None,
+                  scene: Scene | None = None):
+    """The renderer of the site's scene (or ``scene``), with ``camera`` (None: the job's);
+    with more than ``NEAR_LIGHTS_FROM`` lights (a floor, most lights out of view) it samples
+    lights by radiance / distance^2 (``near_lights``)."""
     from datagen.render import Renderer
 
-    scene = job.site.scene
+    scene = job.site.scene if scene is None else scene
     return Renderer(scene, job.camera if camera is None else camera, textures, clutter, people,
                     max_depth=job.cfg.render.max_depth,
                     near_lights=scene.num_lights > NEAR_LIGHTS_FROM)
@@ -620,12 +692,17 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     step = max(dp.camera_keepout_m / 2, 0.05)  # keep-out circles along the path, overlapping
     path = cam_xy[np.unique(np.floor(flown / step), return_index=True)[1]]
     keep = np.concatenate([path, np.full((len(path), 1), dp.camera_keepout_m)], axis=1)
+    builtins = np.array([b.footprint_circle() for b in job.builtins]).reshape(-1, 3)
+    if len(builtins):
+        keep = np.concatenate([keep, builtins])
     radii = np.array([distractors.footprint_radius(m) for m in clutter])
     floor = job.site.floor
     placed = distractors.place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
                                        wall_margin=dp.wall_margin)[0]
     ok = ~np.isnan(placed[:, 0])
     obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
+    if len(builtins):
+        obstacles = np.concatenate([obstacles, builtins])
     tracks = distractors.person_tracks(
         rng, n_people, len(gt), preset.fps, floor, speed=tuple(dp.person_speed),
         radius=dp.person_radius, obstacles=obstacles, avoid=cam_xy,
@@ -648,7 +725,7 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
     fo = (optics.FlightOptics.build(cfg.realism, job.camera, gt, job.flights[name]["preset"].fps)
           if optics.is_active(cfg.realism) else None)
     renderer = _new_renderer(job, scene.textures, scene.clutter, scene.people,
-                             None if fo is None else fo.render_camera)
+                             None if fo is None else fo.render_camera, job.flight_render_scene)
     renderer.set_lights(scene.lights)
     with Pipeline() as pipe:
         for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):

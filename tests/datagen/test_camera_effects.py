@@ -284,7 +284,8 @@ class TestDatagen:
                  "flights.cluttered.num_frames=3"]
         effects = ["realism=real", *IMAGES_ONLY, *NO_OPTICS, "realism.dropout.per_min=0",
                    "realism.dropout.at_s=[0.1]",
-                   "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]"]
+                   "realism.dropout.duration_s=[0.1,0.1]", "realism.dropout.kinds=[black]",
+                   "realism.map.builtins=0"]  # real's built-in cabinet changes what is rendered
         ideal, real = tmp_path / "ideal", tmp_path / "real"
         gen.run(compose_config("datagen", [*small, f"out_dir={ideal}"]), progress=False)
         cfg = compose_config("datagen", [*small, *effects, f"out_dir={real}"])
