@@ -393,11 +393,14 @@ class MetricsSettings:
         converge_threshold_m: a global start has converged when its error stays below this.
         converge_within_frames: the target: converged within this many frames.
         failure_threshold_m: a frame with a larger error counts as a failure.
+        lost_after_s: a run lost track when its error stayed above ``failure_threshold_m``
+            for longer than this (``metrics.lost_track``).
     """
 
     converge_threshold_m: float = 0.3
     converge_within_frames: int = 30
     failure_threshold_m: float = 1.0
+    lost_after_s: float = 1.0
 
 
 @dataclass

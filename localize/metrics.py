@@ -64,6 +64,24 @@ def convergence_frame(pos_err: np.ndarray, threshold: float) -> int | None:
     return int(above[-1] + 1) if len(above) else 0
 
 
+def lost_track(pos_err: np.ndarray, timestamps: np.ndarray, threshold_m: float,
+               longer_than_s: float) -> bool:
+    """Whether a run lost track: its error stayed above ``threshold_m`` for longer than
+    ``longer_than_s`` (from the first frame above to the last of the stretch).
+
+    Args:
+        pos_err: (T,) metres.
+        timestamps: (T,) seconds.
+    """
+    above = np.asarray(pos_err) > threshold_m
+    t = np.asarray(timestamps, dtype=np.float64)
+    if len(above) != len(t):
+        raise ValueError(f"{len(above)} errors for {len(t)} timestamps")
+    edges = np.flatnonzero(np.diff(np.r_[0, above.astype(np.int8), 0]))
+    starts, ends = edges[::2], edges[1::2] - 1  # each stretch's first and last frame
+    return bool(np.any(t[ends] - t[starts] > longer_than_s))
+
+
 def timing_stats(samples_ms: Sequence[float] | np.ndarray) -> dict:
     """min / avg / max of per-frame times in milliseconds."""
     a = np.asarray(samples_ms, dtype=np.float64).ravel()

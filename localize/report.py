@@ -19,7 +19,12 @@ import numpy as np  # noqa: E402
 
 from core.atomic import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
 from core.classes import colorize  # noqa: E402
-from localize.metrics import convergence_frame, error_stats, timing_stats  # noqa: E402
+from localize.metrics import (  # noqa: E402
+    convergence_frame,
+    error_stats,
+    lost_track,
+    timing_stats,
+)
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +64,15 @@ def summarize(records: list[dict], cfg) -> dict:
         if init == "tracking":
             entry.update(error_stats(pos, yaw))
             entry["failure_rate"] = fail
+            entry["lost_rate"] = float(np.mean([
+                lost_track(r["position_error_m"], r["timestamps"], mc.failure_threshold_m,
+                           mc.lost_after_s) for r in runs]))
+            status = [s for r in runs for s in r.get("status", [])]
+            if status:
+                entry["coasting_rate"] = status.count("coasting") / len(status)
+                entry["losses_declared"] = status.count("lost")
+                entry["mean_confidence"] = float(np.mean(np.concatenate(
+                    [r["confidence"] for r in runs])))
             entry["seeds"] = [int(r["seed"]) for r in runs]
             entry["per_seed_mean_m"] = [float(np.mean(r["position_error_m"])) for r in runs]
             entry["num_frames"] = int(runs[0]["num_frames"])
@@ -396,7 +410,8 @@ def _accuracy(m: dict, cfg) -> list[str]:
     paper_err = cfg.report.paper_error_m
     lines = ["## Accuracy, tracking init", "",
              "| flight | mode | mean (m) | median (m) | RMSE (m) | p95 (m) | yaw (deg) | failures "
-             f"| vs paper {paper_err} m |", "|---|---|---|---|---|---|---|---|---|"]
+             f"| lost | coasting | confidence | vs paper {paper_err} m |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for flight, modes in m["flights"].items():
         for mode, s in modes.items():
             if "mean_position_error_m" not in s:
@@ -405,9 +420,16 @@ def _accuracy(m: dict, cfg) -> list[str]:
                 f"| {flight} | {mode} | {_fmt(s['mean_position_error_m'])} | "
                 f"{_fmt(s['median_m'])} | {_fmt(s['rmse_m'])} | {_fmt(s['p95_m'])} | "
                 f"{_fmt(s['mean_yaw_error_deg'], 2)} | {_fmt(100 * s['failure_rate'], 1)}% | "
+                f"{_fmt(100 * s['lost_rate'], 0)}% | "
+                f"{_fmt(100 * s['coasting_rate'], 1) + '%' if 'coasting_rate' in s else '-'} | "
+                f"{_fmt(s['mean_confidence'], 2) if 'mean_confidence' in s else '-'} | "
                 f"{versus_paper(s['mean_position_error_m'], paper_err)} |")
-    return lines + ["", f"Failures: frames with an error above {cfg.metrics.failure_threshold_m}"
-                    " m.", ""]
+    mc = cfg.metrics
+    return lines + ["", f"Failures: frames with an error above {mc.failure_threshold_m} m. "
+                    f"Lost: runs whose error stayed above {mc.failure_threshold_m} m for more "
+                    f"than {mc.lost_after_s:g} s. Coasting: frames that did not weigh the "
+                    "particles (nothing usable in the image, or no particle fit it). "
+                    "Confidence: the filter's own, per frame, averaged (0 to 1).", ""]
 
 
 def _global(m: dict, cfg) -> list[str]:

@@ -260,3 +260,20 @@ class TestMetrics:
         tru = np.array([[0, 0, 0, -np.pi + 0.01]])
         np.testing.assert_allclose(yaw_errors_deg(est, tru), np.degrees(0.02))
         assert timing_stats([1.0, 2.0, 6.0]) == {"min": 1.0, "avg": 3.0, "max": 6.0}
+
+
+def test_lost_track_needs_a_long_stretch():
+    from localize.metrics import lost_track
+
+    t = np.arange(30) * 0.1
+    e = np.zeros(30)
+    e[5:15] = 2.0  # 0.9 s above 1 m
+    assert not lost_track(e, t, 1.0, 1.0)
+    e[15] = 2.0  # 1.0 s: not longer than
+    assert not lost_track(e, t, 1.0, 1.0)
+    e[16] = 2.0
+    assert lost_track(e, t, 1.0, 1.0)
+    e = np.full(30, 2.0)
+    assert lost_track(e, t, 1.0, 1.0) and not lost_track(np.zeros(30), t, 1.0, 1.0)
+    with pytest.raises(ValueError, match="timestamps"):
+        lost_track(e, t[:-1], 1.0, 1.0)
