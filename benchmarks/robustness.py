@@ -104,9 +104,15 @@ def factor_overrides(factor: str, s: float, real: dict) -> list[str]:
     return out
 
 
-def run(cmd: list[str]) -> None:
+def run(cmd: list[str]) -> bool:
+    """Run a stage; False when it refused (a setting out of range: a lens scaled until it
+    folds the image), with its message printed."""
     print("+", " ".join(cmd), flush=True)
-    subprocess.run(cmd, check=True, cwd=ROOT)
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    if done.returncode:
+        msg = [ln for ln in done.stderr.splitlines() if "Error" in ln][-1:]
+        print(f"refused: {msg[0] if msg else done.stderr[-500:]}", flush=True)
+    return done.returncode == 0
 
 
 def pooled(report: Path, threshold_m: float = 1.0, lost_s: float = 1.0) -> dict:
@@ -151,6 +157,8 @@ def plot(by_strength: dict, path: Path) -> None:
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
     for ax, factor in zip(axes.ravel(), factors, strict=False):
         pts = sorted((float(s), r) for s, r in by_strength[factor].items())
+        if "ideal" in by_strength:  # strength 0: no flaw
+            pts = [(0.0, by_strength["ideal"]["1"]), *pts]
         for mode in modes:
             xs = [s for s, r in pts if mode in r]
             ys = [r[mode]["mean_position_error_m"] for s, r in pts if mode in r]
@@ -196,13 +204,16 @@ def main() -> None:
         for s in ([1.0] if factor == "ideal" else args.strengths):
             tag = f"rob_{factor}_s{s:g}"
             ds = args.datasets / tag
-            run([sys.executable, "-m", "datagen", f"name={tag}", f"out_dir={ds}",
-                 "splits.train=0", "splits.val=0", "splits.test=0", "val_flights=[]",
-                 "progress=false", *factor_overrides(factor, s, real), *args.datagen])
-            run([sys.executable, "-m", "localize", f"name={tag}", f"dataset={ds}",
-                 f"out_root={args.out_root / 'robustness' / 'runs'}", f"modes={lst(args.modes)}",
-                 "inits=[tracking]", f"seeds={lst(args.seeds)}", f"onnx_model={args.onnx}",
-                 "paper_faithful.enabled=false", "progress=false", *args.localize])
+            if not run([sys.executable, "-m", "datagen", f"name={tag}", f"out_dir={ds}",
+                        "splits.train=0", "splits.val=0", "splits.test=0", "val_flights=[]",
+                        "progress=false", *factor_overrides(factor, s, real), *args.datagen]):
+                continue
+            if not run([sys.executable, "-m", "localize", f"name={tag}", f"dataset={ds}",
+                        f"out_root={args.out_root / 'robustness' / 'runs'}",
+                        f"modes={lst(args.modes)}", "inits=[tracking]",
+                        f"seeds={lst(args.seeds)}", f"onnx_model={args.onnx}",
+                        "paper_faithful.enabled=false", "progress=false", *args.localize]):
+                sys.exit(f"localize failed on {ds}")
             by_strength.setdefault(factor, {})[f"{s:g}"] = pooled(
                 args.out_root / "robustness" / "runs" / tag)
     robust = {f: {m: {k: r[m][k] for k in SUMMARY_KEYS} for m in r}
