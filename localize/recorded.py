@@ -4,7 +4,10 @@ ROS bag, ``localize.recording``) against DATASET's world, with the camera the re
 Output folder ``<out_root>/<name>/recordings/<recording name>/``::
 
     trajectory.txt              the first mode's estimates (cnn when it runs), TUM, world_from_body
-    trajectories/<mode>.txt     each mode's estimates (TUM)
+    trajectory.json             its companion: per frame the timestamp, the filter's status
+                                (tracking, coasting, lost, global), confidence (0-1) and
+                                particle spread (m)
+    trajectories/<mode>.txt     each mode's estimates (TUM), and <mode>.json their companions
     report.md, metrics.json     per mode: errors against groundtruth (when the recording has it),
                                 frame timings, the settings used
     overlay.png                 model edges at the estimates (green) and the truth (magenta) on
@@ -54,11 +57,13 @@ def start_state(cfg: DictConfig, rec: Recording) -> np.ndarray | None:
 
 
 def track(ctx: Context, rec: Recording, mode: str, start: np.ndarray | None, seed: int,
-          max_frames: int | None, progress: bool) -> tuple[np.ndarray, dict[str, list]]:
+          max_frames: int | None, progress: bool
+          ) -> tuple[np.ndarray, dict[str, list], dict[str, list]]:
     """Step one Localizer through the recording.
 
     Returns:
-        (T, 4) estimated states and per-stage frame times, ms.
+        (T, 4) estimated states, per-stage frame times (ms), and the per-frame companion
+        (``timestamp``, ``status``, ``confidence``, ``position_std_m``).
     """
     init = "global" if start is None else "tracking"
     rng = RunSpec(rec.name, mode, init, seed).rng()  # a flight's run of the same name and seed
@@ -67,19 +72,29 @@ def track(ctx: Context, rec: Recording, mode: str, start: np.ndarray | None, see
     loc.reset(start)
     T = len(rec) if max_frames is None else min(int(max_frames), len(rec))
     states, timing = np.zeros((T, 4)), {"segmentation": [], "preprocessing": [], "filter": []}
+    health: dict[str, list] = {"timestamp": [], "status": [], "confidence": [],
+                               "position_std_m": []}
     for f in tqdm(islice(rec.steps(), T), total=T, desc=f"{rec.name}/{mode}",
                   disable=not progress, leave=False, mininterval=2.0):
         est = loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp)
         states[f.index] = est.state
         for k in timing:
             timing[k].append(est.timing_ms[k])
-    return states, timing
+        for k, v in (("timestamp", est.timestamp), ("status", est.status),
+                     ("confidence", est.confidence), ("position_std_m", est.position_std)):
+            health[k].append(v)
+    return states, timing, health
 
 
-def summary(states: np.ndarray, timing: dict, rec: Recording) -> dict:
-    """Errors (with ground truth) and frame times of one mode's run."""
+def summary(states: np.ndarray, timing: dict, rec: Recording, health: dict) -> dict:
+    """Errors (with ground truth), frame times and the filter's own health of one mode's run:
+    the share of coasting frames, the losses it declared, its mean confidence."""
+    status = health["status"]
     out = {"num_frames": len(states),
-           "timing_ms": {k: timing_stats(v) for k, v in timing.items()}}
+           "timing_ms": {k: timing_stats(v) for k, v in timing.items()},
+           "coasting_rate": status.count("coasting") / max(len(status), 1),
+           "losses_declared": status.count("lost"),
+           "mean_confidence": float(np.mean(health["confidence"])) if status else None}
     total = np.sum([timing[k] for k in timing], axis=0)
     out["timing_ms"]["total"] = timing_stats(total)
     if rec.groundtruth is not None:
@@ -151,14 +166,16 @@ def run_recording(cfg: DictConfig) -> Path:
            f"yaw {np.degrees(start[3]):.1f} deg")
     results, first = {}, None
     for mode in sorted(modes, key=lambda m: m != "cnn"):  # cnn first: it gives trajectory.txt
-        states, timing = track(ctx, rec, mode, start, int(cfg.seeds[0]), cfg.max_frames,
-                               bool(cfg.progress))
+        states, timing, health = track(ctx, rec, mode, start, int(cfg.seeds[0]),
+                                       cfg.max_frames, bool(cfg.progress))
         ts = rec.timestamps[:len(states)]
         write_tum(out / "trajectories" / f"{mode}.txt", ts, pose_from_xyzyaw(states))
+        atomic_write_json(out / "trajectories" / f"{mode}.json", health)
         if first is None:
             first = states
             write_tum(out / "trajectory.txt", ts, pose_from_xyzyaw(states))
-        results[mode] = summary(states, timing, rec)
+            atomic_write_json(out / "trajectory.json", health)
+        results[mode] = summary(states, timing, rec, health)
     write_overlay(out / "overlay.png", rec, ctx, first)
     atomic_write_json(out / "metrics.json", {"recording": str(rec.source), "start": how,
                                              "modes": results})

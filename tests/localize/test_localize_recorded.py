@@ -52,9 +52,21 @@ class TestRecordedFlight:
 
     def test_outputs(self, runs):
         folder = runs["bag_report"].parent
-        for name in ("trajectory.txt", "trajectories/cnn.txt", "metrics.json", "overlay.png"):
+        for name in ("trajectory.txt", "trajectory.json", "trajectories/cnn.txt",
+                     "trajectories/cnn.json", "metrics.json", "overlay.png"):
             assert (folder / name).is_file(), name
         assert "mean error" in runs["bag_report"].read_text()
+        # the companion: one entry per trajectory line, the filter's own status and confidence
+        import json
+
+        health = json.loads((folder / "trajectory.json").read_text())
+        t, _ = read_tum(folder / "trajectory.txt")
+        np.testing.assert_allclose(health["timestamp"], t, atol=1e-6)
+        assert set(health["status"]) <= {"tracking", "coasting", "lost", "global"}
+        c = np.array(health["confidence"])
+        assert len(c) == len(t) and ((c >= 0) & (c <= 1)).all() and c[-1] > 0
+        m = json.loads((folder / "metrics.json").read_text())["modes"]["cnn"]
+        assert m["mean_confidence"] == pytest.approx(c.mean())
 
 
 def test_oracle_alone_is_refused(flat_dataset, tmp_path):
