@@ -16,6 +16,15 @@ from core.camera import mitsuba_to_world
 from core.dataset import Camera, World
 
 
+def centred(camera: Camera) -> bool:
+    """Square pixels and the principal point at the image's centre (what ``ModelRenderer``
+    renders)."""
+    K = camera.K
+    return (abs(K[0, 0] - K[1, 1]) <= 1e-6 * K[0, 0]
+            and abs(K[0, 2] - (camera.width - 1) / 2) <= 1e-6
+            and abs(K[1, 2] - (camera.height - 1) / 2) <= 1e-6)
+
+
 class ModelRenderer:
     """Renders (labels, depth) of a World from OpenCV-convention camera poses.
 
@@ -35,8 +44,7 @@ class ModelRenderer:
 
         self.mi, self.camera = mi, camera
         K = camera.K
-        if abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0] or abs(K[0, 2] - (camera.width - 1) / 2) > 1e-6 \
-                or abs(K[1, 2] - (camera.height - 1) / 2) > 1e-6:
+        if not centred(camera):
             raise ValueError("ModelRenderer needs square pixels and a centred principal point")
         hfov = math.degrees(2 * math.atan(camera.width / 2 / K[0, 0]))
         scene: dict = {"type": "scene"}

@@ -311,6 +311,13 @@ def paper_faithful_runs(ctx: Context) -> None:
         log.warning("paper_faithful: mode cnn needs the model; skipped")
         return
     from localize.paper_faithful import PaperFaithfulLikelihood
+    from localize.render import centred
+
+    if not centred(ctx.camera):
+        log.warning("paper_faithful: the camera's principal point is off its image's centre "
+                    "(a calibrated K); the paper-faithful renderer needs a centred one, so "
+                    "the comparison is skipped")
+        return
 
     flight = ctx.dataset.flight(name)
     sub = OmegaConf.merge(ctx.cfg, {"max_frames": pcfg.frames})
