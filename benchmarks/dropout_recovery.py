@@ -29,6 +29,7 @@ sys.path.insert(0, str(ROOT))
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from core import classes as C  # noqa: E402
+from core.poses import xyzyaw_from_pose  # noqa: E402
 from datagen.camera_effects import apply_effects  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
 from localize.particle_filter import odometry_increment  # noqa: E402
@@ -53,7 +54,7 @@ def run_flight(ctx, flight, mode: str, kind: str, seed: int, starts, duration: f
                within: float) -> dict:
     """One run with dropouts of ``kind`` at ``starts``: errors and recovery times."""
     front = ctx.front_end(mode)
-    truth = np.array([np.r_[g[:3, 3], np.arctan2(g[1, 0], g[0, 0])] for g in flight.groundtruth])
+    truth = xyzyaw_from_pose(flight.groundtruth)
     t = np.asarray(flight.timestamps, dtype=np.float64)
     drop = np.zeros(len(t), bool)
     for s in starts:

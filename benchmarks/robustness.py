@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
 from datagen.config import RealismConfig  # noqa: E402
-from localize.metrics import lost_track  # noqa: E402
+from localize.metrics import error_stats, lost_track  # noqa: E402
 
 #: Per factor, how a strength s scales the real preset's magnitudes: "mul" x s, "inv" / s
 #: (a sensor's full well: less is noisier), "quality" 100 - (100 - q) x s.
@@ -123,9 +123,8 @@ def pooled(report: Path, threshold_m: float = 1.0, lost_s: float = 1.0) -> dict:
     for mode in sorted({r["mode"] for r in runs}):
         rs = [r for r in runs if r["mode"] == mode and r["init"] == "tracking"
               and r["likelihood"] == "vectorized"]
-        e = np.concatenate([r["position_error_m"] for r in rs])
-        out[mode] = {"mean_position_error_m": float(e.mean()),
-                     "p95_m": float(np.percentile(e, 95)),
+        e = error_stats(np.concatenate([r["position_error_m"] for r in rs]))
+        out[mode] = {"mean_position_error_m": e["mean_position_error_m"], "p95_m": e["p95_m"],
                      "lost_rate": float(np.mean([lost_track(r["position_error_m"],
                                                             r["timestamps"], threshold_m,
                                                             lost_s) for r in rs])),

@@ -82,6 +82,15 @@ def lost_track(pos_err: np.ndarray, timestamps: np.ndarray, threshold_m: float,
     return bool(np.any(t[ends] - t[starts] > longer_than_s))
 
 
+def health_stats(status: Sequence[str], confidence: Sequence[float]) -> dict:
+    """The filter's own view of a run (``Estimate.status``, ``.confidence`` per frame): the
+    share of coasting frames, the losses it declared and its mean confidence."""
+    n = len(status)
+    return {"coasting_rate": list(status).count("coasting") / max(n, 1),
+            "losses_declared": list(status).count("lost"),
+            "mean_confidence": float(np.mean(confidence)) if n else None}
+
+
 def timing_stats(samples_ms: Sequence[float] | np.ndarray) -> dict:
     """min / avg / max of per-frame times in milliseconds."""
     a = np.asarray(samples_ms, dtype=np.float64).ravel()

@@ -33,7 +33,13 @@ from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.localizer import EdgeModel, Localizer
-from localize.metrics import error_stats, position_errors, timing_stats, yaw_errors_deg
+from localize.metrics import (
+    error_stats,
+    health_stats,
+    position_errors,
+    timing_stats,
+    yaw_errors_deg,
+)
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
 from localize.runner import Context, RunSpec, check_run_lists, settings_of
@@ -89,12 +95,9 @@ def track(ctx: Context, rec: Recording, mode: str, start: np.ndarray | None, see
 def summary(states: np.ndarray, timing: dict, rec: Recording, health: dict) -> dict:
     """Errors (with ground truth), frame times and the filter's own health of one mode's run:
     the share of coasting frames, the losses it declared, its mean confidence."""
-    status = health["status"]
     out = {"num_frames": len(states),
            "timing_ms": {k: timing_stats(v) for k, v in timing.items()},
-           "coasting_rate": status.count("coasting") / max(len(status), 1),
-           "losses_declared": status.count("lost"),
-           "mean_confidence": float(np.mean(health["confidence"])) if status else None}
+           **health_stats(health["status"], health["confidence"])}
     total = np.sum([timing[k] for k in timing], axis=0)
     out["timing_ms"]["total"] = timing_stats(total)
     if rec.groundtruth is not None:

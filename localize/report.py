@@ -22,6 +22,7 @@ from core.classes import colorize  # noqa: E402
 from localize.metrics import (  # noqa: E402
     convergence_frame,
     error_stats,
+    health_stats,
     lost_track,
     timing_stats,
 )
@@ -69,10 +70,8 @@ def summarize(records: list[dict], cfg) -> dict:
                            mc.lost_after_s) for r in runs]))
             status = [s for r in runs for s in r.get("status", [])]
             if status:
-                entry["coasting_rate"] = status.count("coasting") / len(status)
-                entry["losses_declared"] = status.count("lost")
-                entry["mean_confidence"] = float(np.mean(np.concatenate(
-                    [r["confidence"] for r in runs])))
+                entry.update(health_stats(status, np.concatenate([r["confidence"]
+                                                                  for r in runs])))
             entry["seeds"] = [int(r["seed"]) for r in runs]
             entry["per_seed_mean_m"] = [float(np.mean(r["position_error_m"])) for r in runs]
             entry["num_frames"] = int(runs[0]["num_frames"])
