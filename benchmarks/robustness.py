@@ -15,8 +15,9 @@ runs ``python -m localize`` on them (tracking start, the given modes and seeds) 
 ``<out-root>/robustness/``: metrics.json (``"robustness": {factor: {mode:
 {mean_position_error_m, p95_m, lost_rate}}}`` at strength 1, ``"by_strength"``, ``"realism"``),
 report.md (the table) and robustness.png (error against each factor's strength). Finished
-datasets and runs are kept, so a second call only collects. The errors pool every frame of
-every flight and seed; lost: a run whose error stayed above 1 m for more than 1 s.
+datasets and runs are kept, so a second call only collects; the rows of factors and strengths
+an earlier call measured stay in metrics.json, the table and the plot. The errors pool every
+frame of every flight and seed; lost: a run whose error stayed above 1 m for more than 1 s.
 """
 
 from __future__ import annotations
@@ -198,7 +199,10 @@ def main() -> None:
         sys.exit(f"--onnx {args.onnx} not found: train one (make demo) or leave cnn out of "
                  "--modes")
     lst = lambda xs: "[" + ",".join(str(x) for x in xs) + "]"  # noqa: E731
-    by_strength: dict = {}
+    out = args.out_root / "robustness"
+    earlier = out / "metrics.json"  # rows of earlier calls are kept, this call's replaced
+    by_strength: dict = (json.loads(earlier.read_text())["by_strength"] if earlier.is_file()
+                         else {})
     for factor in args.factors:
         for s in ([1.0] if factor == "ideal" else args.strengths):
             tag = f"rob_{factor}_s{s:g}"
@@ -217,7 +221,6 @@ def main() -> None:
                 args.out_root / "robustness" / "runs" / tag)
     robust = {f: {m: {k: r[m][k] for k in SUMMARY_KEYS} for m in r}
               for f, by_s in by_strength.items() if (r := by_s.get("1"))}
-    out = args.out_root / "robustness"
     atomic_write_json(out / "metrics.json", {
         "realism": "per factor: realism=ideal with one factor of realism=real (all: every one)",
         "robustness": robust, "by_strength": by_strength,

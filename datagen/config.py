@@ -10,6 +10,7 @@ times in seconds. See docs/datagen.md for what the options do.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from omegaconf import MISSING
@@ -643,6 +644,45 @@ class TrainingConfig:
     # `flights` preset, along its route either way): the flights' heights, sway, yaw swings
     # and tilts; 0 = none (docs/datagen.md)
     chunk: int = 40  # images sharing one set of distractor meshes (one scene load)
+
+
+REALISM_DIR = Path(__file__).resolve().parents[1] / "conf" / "realism"
+
+
+def load_realism(name: str, where: str = "realism") -> RealismConfig:
+    """A realism preset by name: conf/realism/<name>.yaml over ``RealismConfig``'s defaults.
+
+    Raises:
+        ValueError: no such preset (names the ones there are), or a key the schema lacks.
+    """
+    from omegaconf import OmegaConf
+
+    path = REALISM_DIR / f"{name}.yaml"
+    if not path.is_file():
+        known = sorted(p.stem for p in REALISM_DIR.glob("*.yaml"))
+        raise ValueError(f"{where} = {name!r}: no preset {path}; use one of {known}")
+    merged = OmegaConf.merge(OmegaConf.structured(RealismConfig), OmegaConf.load(path))
+    return OmegaConf.to_object(merged)
+
+
+def realism_label(settings: RealismConfig) -> str:
+    """The name a dataset records for its realism: the preset's name where the settings are
+    that preset's (or the name names no preset), else the name and the keys changed, e.g.
+    ``ideal + map.wall_std_m, map.builtins``."""
+    from dataclasses import asdict
+
+    if not (REALISM_DIR / f"{settings.name}.yaml").is_file():
+        return settings.name
+
+    def flat(d: dict, prefix: str = "") -> dict:
+        out = {}
+        for k, v in d.items():
+            out.update(flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {prefix + k: v})
+        return out
+
+    have, preset = flat(asdict(settings)), flat(asdict(load_realism(settings.name)))
+    changed = [k for k in have if k != "name" and have[k] != preset.get(k)]
+    return settings.name if not changed else f"{settings.name} + {', '.join(changed)}"
 
 
 @dataclass

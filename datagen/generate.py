@@ -60,7 +60,13 @@ from datagen import (
     timing,
     trajectories,
 )
-from datagen.config import CameraConfig, DatagenConfig, DistractorPreset, MapErrorConfig
+from datagen.config import (
+    CameraConfig,
+    DatagenConfig,
+    DistractorPreset,
+    MapErrorConfig,
+    realism_label,
+)
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
 from datagen.scene import Scene
@@ -262,6 +268,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     composed conf/datagen.yaml, merged onto the defaults); build the world and every pose.
     No rendering."""
     cfg = typed(DatagenConfig, cfg, "datagen")
+    cfg.realism.name = realism_label(cfg.realism)
     _check_counts(cfg)
     _check_presets(cfg)
     ahrs.check_settings(cfg.realism.ahrs, "realism.ahrs")

@@ -372,7 +372,8 @@ class Localizer:
 
         def loglik(states: np.ndarray, corrections: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-            t = corrected_tilts(tilt, corrections) if corrected else tilt
+            # the global phase's set carries no corrections yet: one shared tilt serves it
+            t = corrected_tilts(tilt, corrections) if corrected and corrections.any() else tilt
             return lik.log_likelihood(states, obs, t)
 
         return loglik, ms

@@ -154,10 +154,14 @@ class DataConfig:
 
     Attributes:
         limit: use only the first N frames of each split (None: all; for tests).
+        realism: the camera the training and validation images pass through once, at load
+            (``train.data.through_camera``): a conf/realism preset, ``ideal`` (the renders
+            as they are) or ``real`` (its sensor noise, exposure changes and JPEG).
         augment: the training split's augmentation.
     """
 
     limit: int | None = None
+    realism: str = "ideal"
     augment: AugmentConfig = field(default_factory=AugmentConfig)
 
 

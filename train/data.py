@@ -22,6 +22,8 @@ from tqdm import tqdm
 
 from core.atomic import read_png
 from core.dataset import Dataset
+from datagen.camera_effects import apply_effects
+from datagen.config import RealismConfig
 from train.config import AugmentConfig
 
 IGNORE = 255
@@ -127,6 +129,36 @@ def load_split(
         labels=torch.from_numpy(labels),
         paths=list(rgb_paths),
     )
+
+
+def through_camera(data: SplitData, settings: RealismConfig, seed: int, stream: int) -> SplitData:
+    """Each image once through a drone camera (``data.realism``): an exposure offset, sensor
+    noise and JPEG as ``datagen.camera_effects.apply_effects`` gives a flight's frames.
+
+    A training image is a still, not a flight, so its exposure offset is drawn on its own:
+    uniform in +/-``exposure.step_ev`` (a light switched on or off, before auto exposure
+    settles) plus Normal(0, ``exposure.drift_ev``), clipped to +/-``exposure.max_ev``. Lens
+    distortion, motion blur and rolling shutter are left out: the localizer undistorts its
+    frames, and the Gaussian blur of ``data.augment`` covers the softness of both.
+
+    Args:
+        data: the split, (N, 3, H, W) uint8 images at the dataset's resolution.
+        settings: the camera's realism preset (``datagen.config.load_realism``).
+        seed: the training's seed; image i draws from SeedSequence([seed, stream, i]).
+        stream: the split's stream (one per split, so train and val draw apart).
+
+    Returns:
+        the split with new images (labels and paths shared).
+    """
+    c = settings.exposure
+    images = data.images.permute(0, 2, 3, 1).numpy()
+    out = np.empty_like(images)
+    for i, rgb in enumerate(images):
+        rng = np.random.default_rng([seed, stream, i])
+        ev = rng.uniform(-c.step_ev, c.step_ev) + c.drift_ev * rng.standard_normal()
+        out[i] = apply_effects(rgb, rng, settings, float(np.clip(ev, -c.max_ev, c.max_ev)))
+    return SplitData(images=torch.from_numpy(out).permute(0, 3, 1, 2).contiguous(),
+                     labels=data.labels, paths=data.paths)
 
 
 def downsample_split(data: SplitData, factor: int, keep_labels: bool = False) -> SplitData:

@@ -42,6 +42,8 @@ from core.atomic import atomic_write_json, atomic_write_text
 from core.config import as_config
 from core.dataset import Dataset
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
+from datagen import camera_effects
+from datagen.config import load_realism
 from train.budget import fit_epochs, training_budget
 from train.checkpoint import (
     disk_space_guard,
@@ -61,6 +63,7 @@ from train.data import (
     downsample_split,
     load_split,
     num_batches,
+    through_camera,
     to_float,
 )
 from train.evaluate import evaluate, evaluate_onnx
@@ -426,8 +429,12 @@ def prepare(cfg: TrainConfig) -> Job:
     write_localize_settings(out_dir, cfg.localize)
 
     full_labels = cfg.loss.resolution == "input"
+    camera = load_realism(cfg.data.realism, "data.realism")
     train_data = load_split(dataset, "train", num_classes, cfg.data.limit, cfg.progress)
     val_data = load_split(dataset, "val", num_classes, cfg.data.limit, cfg.progress)
+    if camera_effects.is_active(camera):
+        train_data = through_camera(train_data, camera, cfg.seed, stream=0)
+        val_data = through_camera(val_data, camera, cfg.seed, stream=1)
     weights = class_weight_tensor(cfg.loss, train_data, num_classes)
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).

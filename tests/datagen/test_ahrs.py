@@ -195,10 +195,12 @@ class TestRealismPreset:
             np.testing.assert_allclose(written, odo, atol=1e-6)
             meta = json.loads((out / "flights" / name / "flight.json").read_text())
             assert meta["realism"] == asdict(job.cfg.realism)
-            assert meta["realism"]["name"] == "real"
+            assert meta["realism"]["name"] == job.cfg.realism.name
         generator = json.loads((out / "dataset.json").read_text())["generator"]
-        assert generator["realism"]["name"] == "real"
-        assert Dataset(out).realism == "real"  # what localize's report names
+        assert generator["realism"]["name"] == job.cfg.realism.name
+        # what localize's report names: the preset and what was changed in it
+        assert Dataset(out).realism == ("real + timing.drop_rate, timing.jitter_ms, "
+                                        "timing.odometry_hz, timing.jump_per_min, flight.enabled")
 
     def test_bad_settings_stop_before_anything(self, tmp_path):
         out = tmp_path / "bad"

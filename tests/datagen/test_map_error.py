@@ -229,6 +229,15 @@ class TestDatagen:
         assert M.is_active(M.check_settings(real["map"]))
         assert CAL.is_active(CAL.check_settings(real["calibration"]))
 
+    def test_realism_name_says_what_was_changed(self):
+        """A preset edited on the command line is recorded as such, not as the preset."""
+        assert gen.prepare(compose_config("datagen", SMALL)).cfg.realism.name == "ideal"
+        edited = gen.prepare(compose_config("datagen", [*SMALL, *MAP]))
+        assert edited.cfg.realism.name == ("ideal + map.wall_std_m, map.ceiling_std_m, "
+                                           "map.missing_openings, map.extra_openings")
+        named = gen.prepare(compose_config("datagen", [*SMALL, *MAP, "realism.name=my_map"]))
+        assert named.cfg.realism.name == "my_map"
+
     def test_bad_settings_stop_before_anything(self, tmp_path):
         out = tmp_path / "bad"
         for override, match in (("realism.map.wall_std_m=-0.1", "realism.map.wall_std_m"),

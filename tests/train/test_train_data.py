@@ -12,6 +12,8 @@ from core import classes as C
 from core.atomic import write_png
 from core.config import typed
 from core.dataset import Dataset
+from datagen.camera_effects import to_linear
+from datagen.config import load_realism
 from train.data import (
     AugmentConfig,
     SplitData,
@@ -21,6 +23,7 @@ from train.data import (
     check_classes,
     downsample_split,
     load_split,
+    through_camera,
 )
 
 GEOMETRY_ONLY = dict(
@@ -210,3 +213,41 @@ class TestLoad:
         assert check_classes(C.as_json(), 8, "x/dataset.json") == 8
         with pytest.raises(ValueError, match="class-count mismatch: model.num_classes=5"):
             check_classes(C.as_json(), 5, "x/dataset.json")
+
+
+class TestThroughCamera:
+    def test_real_camera_changes_images_not_labels_and_repeats(self) -> None:
+        images, labels = _palette_batch(6)
+        data = SplitData(images, labels, [])
+        real = load_realism("real")
+        out = through_camera(data, real, seed=0, stream=0)
+        assert out.images.shape == images.shape and out.images.dtype == torch.uint8
+        assert out.labels is labels
+        assert not torch.equal(out.images, images)
+        torch.testing.assert_close(through_camera(data, real, 0, 0).images, out.images)
+        assert not torch.equal(through_camera(data, real, 0, 1).images, out.images)
+        # noise and JPEG keep the scene: the mean brightness of each image moves by at most
+        # the exposure offset's gain (+/- max_ev stops in linear light)
+        lin_in = to_linear(images.permute(0, 2, 3, 1).numpy()).mean(axis=(1, 2, 3))
+        lin_out = to_linear(out.images.permute(0, 2, 3, 1).numpy()).mean(axis=(1, 2, 3))
+        gain = lin_out / lin_in
+        assert np.all(gain < 2.0 ** real.exposure.max_ev + 0.05)
+        assert np.all(gain > 2.0 ** -real.exposure.max_ev - 0.05)
+        assert gain.std() > 0.01  # each image its own exposure
+
+    def test_noise_alone_is_unbiased(self) -> None:
+        images = torch.full((4, 3, 48, 64), 128, dtype=torch.uint8)
+        real = load_realism("real")
+        real.exposure.step_ev = real.exposure.drift_ev = 0.0
+        real.jpeg.quality = None
+        out = through_camera(SplitData(images, torch.zeros(4, 48, 64, dtype=torch.uint8), []),
+                             real, 0, 0).images.float()
+        assert abs(out.mean().item() - 128.0) < 1.0
+        assert 1.0 < out.std().item() < 10.0
+
+
+def test_load_realism_names_the_presets() -> None:
+    assert load_realism("ideal").noise.full_well_e == 0
+    assert load_realism("real").jpeg.quality is not None
+    with pytest.raises(ValueError, match=r"data.realism = 'nope'.*\['ideal', 'real'\]"):
+        load_realism("nope", "data.realism")
