@@ -410,6 +410,7 @@ def prepare(cfg: TrainConfig) -> Job:
     Nothing is written before every check that needs no data has passed.
     """
     bf16 = check_config(cfg)
+    camera = load_realism(cfg.data.realism, "data.realism")
     torch.set_num_threads(cfg.threads)
     dataset = Dataset(cfg.dataset)
     ds_json = (dataset.root / "dataset.json").read_bytes()
@@ -429,7 +430,6 @@ def prepare(cfg: TrainConfig) -> Job:
     write_localize_settings(out_dir, cfg.localize)
 
     full_labels = cfg.loss.resolution == "input"
-    camera = load_realism(cfg.data.realism, "data.realism")
     train_data = load_split(dataset, "train", num_classes, cfg.data.limit, cfg.progress)
     val_data = load_split(dataset, "val", num_classes, cfg.data.limit, cfg.progress)
     if camera_effects.is_active(camera):

@@ -296,6 +296,21 @@ class TestRun:
         for k, v in reference["model"].items():
             torch.testing.assert_close(resumed["model"][k], v, rtol=1e-5, atol=1e-6)
 
+    def test_real_camera_reaches_the_validation(
+        self, trained, synthetic_dataset, compose_train, tmp_path
+    ) -> None:
+        """data.realism=real: the same weights (fine-tuned at a vanishing learning rate) score
+        otherwise on validation images passed through the camera."""
+        val = {}
+        for realism in ("ideal", "real"):
+            metrics = tt.run(compose_train(synthetic_dataset, tmp_path, f"name={realism}",
+                                           "epochs=1", "optim.lr=1e-12",
+                                           f"init_from={trained[0]}", f"data.realism={realism}"))
+            val[realism] = metrics["val_best"]["val_mean_iou"]
+            config = json.loads((tmp_path / realism / "config.json").read_text())
+            assert config["config"]["data"]["realism"] == realism
+        assert val["ideal"] != val["real"]
+
     def test_init_from_starts_from_the_weights(
         self, trained, synthetic_dataset, compose_train, tmp_path
     ) -> None:
@@ -416,6 +431,11 @@ class TestBadInput:
         with pytest.raises(ValueError, match="model.head=sharpen .* loss.resolution=input"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "model.head=sharpen",
                                  "model.stem=unshuffle"))
+        assert not (tmp_path / "demo").exists()  # failed before writing anything
+
+    def test_unknown_camera(self, synthetic_dataset, compose_train, tmp_path) -> None:
+        with pytest.raises(ValueError, match=r"data.realism = 'phone'.*'ideal', 'real'"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "data.realism=phone"))
         assert not (tmp_path / "demo").exists()  # failed before writing anything
 
     def test_bad_precision(self, synthetic_dataset, compose_train, tmp_path) -> None:
