@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from core.atomic import atomic_write_text
 
@@ -68,27 +68,40 @@ def wrap_angle(a: np.ndarray) -> np.ndarray:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
-def interpolate_poses(times: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """Poses at given times: linear in translation, slerp in rotation.
+def interpolate_poses(times: np.ndarray, stamps: np.ndarray, poses: np.ndarray,
+                      extrapolate: bool = False) -> np.ndarray:
+    """Poses at given times: linear in translation, slerp in rotation, between the two samples
+    around each time.
 
     Args:
-        times: (N,) query times, seconds, within ``[stamps[0], stamps[-1]]`` (clamped).
-        stamps: (M,) strictly increasing sample times, seconds, M >= 2.
-        poses: (M, 4, 4) sampled poses.
+        times: (N,) query times, seconds.
+        stamps: (M,) strictly increasing sample times, seconds, M >= 1.
+        poses: (M, 4, 4) rigid poses sampled at ``stamps``.
+        extrapolate: before the first or after the last sample, continue the first or last
+            interval's motion (a camera's exposure reaching past a trajectory's ends); False
+            clamps the times to ``[stamps[0], stamps[-1]]`` (odometry read at image times).
 
     Returns:
-        (N, 4, 4) float64 poses.
+        (N, 4, 4) float64 poses; with M = 1, that pose at every time.
     """
-    stamps = np.asarray(stamps, dtype=np.float64)
+    stamps = np.asarray(stamps, dtype=np.float64).reshape(-1)
     poses = np.asarray(poses, dtype=np.float64)
-    if poses.shape != (len(stamps), 4, 4) or len(stamps) < 2:
-        raise ValueError(f"need (M, 4, 4) poses with M >= 2 matching (M,) stamps, got "
+    if poses.shape != (len(stamps), 4, 4) or len(stamps) < 1:
+        raise ValueError(f"need (M, 4, 4) poses with M >= 1 matching (M,) stamps, got "
                          f"{poses.shape} and {stamps.shape}")
-    t = np.clip(np.asarray(times, dtype=np.float64), stamps[0], stamps[-1])
+    t = np.asarray(times, dtype=np.float64).reshape(-1)
+    if len(stamps) == 1:
+        return np.repeat(poses, len(t), axis=0)
+    if not extrapolate:
+        t = np.clip(t, stamps[0], stamps[-1])
+    k = np.clip(np.searchsorted(stamps, t, side="right") - 1, 0, len(stamps) - 2)
+    u = (t - stamps[k]) / (stamps[k + 1] - stamps[k])
+    a, b = poses[k], poses[k + 1]
     out = np.tile(np.eye(4), (len(t), 1, 1))
-    out[:, :3, :3] = Slerp(stamps, Rotation.from_matrix(poses[:, :3, :3]))(t).as_matrix()
-    for k in range(3):
-        out[:, k, 3] = np.interp(t, stamps, poses[:, k, 3])
+    out[:, :3, 3] = a[:, :3, 3] + u[:, None] * (b[:, :3, 3] - a[:, :3, 3])
+    ra = Rotation.from_matrix(a[:, :3, :3])
+    rel = (ra.inv() * Rotation.from_matrix(b[:, :3, :3])).as_rotvec()
+    out[:, :3, :3] = (ra * Rotation.from_rotvec(u[:, None] * rel)).as_matrix()
     return out
 
 

@@ -8,9 +8,9 @@ A flight frame at time t (frame i at t = i / fps) is made of S sub-frames:
   exposed over [t_r - exposure_s, t_r] (``row_times``); a global shutter has readout_s 0;
 - sub-frames: the span [a, b] the rows' windows cover is cut into S equal intervals, and a
   sub-frame rendered at each interval's middle, at the pose interpolated along the flight's
-  true trajectory (``interpolate_poses``: position linear, rotation slerp, between the
-  frames' poses; extrapolated from the first or last interval beyond them). S is the number
-  that keeps the image's motion between sub-frames at most ``subframes.step_px``
+  true trajectory (``core.poses.interpolate_poses``: position linear, rotation slerp,
+  between the frames' poses; extrapolated from the first or last interval beyond them). S is
+  the number that keeps the image's motion between sub-frames at most ``subframes.step_px``
   (``subframe_count``), at most ``subframes.max_count``;
 - lens: each sub-frame is rendered by a pinhole camera of K's focal length large enough to
   hold every ray of the distorted image (``core.lens.cover_camera``) and resampled through the
@@ -36,12 +36,12 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from core import classes as C
 from core import lens
 from core.config import as_config
 from core.dataset import Camera
+from core.poses import interpolate_poses
 from datagen.config import RealismConfig
 from datagen.render import Traced, linear_to_srgb8
 
@@ -122,36 +122,6 @@ def is_active(settings: RealismConfig) -> bool:
 
 
 # --------------------------------------------------------------------------- time and poses
-
-
-def interpolate_poses(poses: np.ndarray, fps: float, times: np.ndarray) -> np.ndarray:
-    """Poses of a trajectory sampled at i / fps, at other times: linear in position, slerp in
-    rotation between the two frames around each time; before the first or after the last
-    frame, extrapolated with the first or last interval's motion.
-
-    Args:
-        poses: (N, 4, 4) rigid poses at times i / fps (N >= 1).
-        fps: frame rate, Hz.
-        times: (M,) s.
-
-    Returns:
-        (M, 4, 4) float64.
-    """
-    poses = np.asarray(poses, dtype=np.float64)
-    times = np.asarray(times, dtype=np.float64).reshape(-1)
-    out = np.tile(np.eye(4), (len(times), 1, 1))
-    if len(poses) == 1:
-        out[:] = poses[0]
-        return out
-    x = times * float(fps)
-    k = np.clip(np.floor(x).astype(np.int64), 0, len(poses) - 2)
-    u = x - k
-    a, b = poses[k], poses[k + 1]
-    out[:, :3, 3] = a[:, :3, 3] + u[:, None] * (b[:, :3, 3] - a[:, :3, 3])
-    Ra = Rotation.from_matrix(a[:, :3, :3])
-    rel = (Ra.inv() * Rotation.from_matrix(b[:, :3, :3])).as_rotvec()
-    out[:, :3, :3] = (Ra * Rotation.from_rotvec(u[:, None] * rel)).as_matrix()
-    return out
 
 
 def row_times(t: float, height: int, readout_s: float) -> np.ndarray:
@@ -286,6 +256,11 @@ class FlightOptics:
                                      f"{where}.lens")
         return cls(settings, camera, render_camera, maps, np.asarray(groundtruth), float(fps))
 
+    @property
+    def stamps(self) -> np.ndarray:
+        """(N,) s, the frames' times i / fps."""
+        return np.arange(len(self.groundtruth)) / self.fps
+
     def subframes(self, i: int) -> tuple[FramePlan, np.ndarray]:
         """Frame i's plan and its sub-frames' (S, 4, 4) world_from_body poses."""
         c = self.settings
@@ -295,12 +270,13 @@ class FlightOptics:
         a, b = frame_span(t, H, exposure, readout)
         count = 1
         if b > a:
-            ends = interpolate_poses(self.groundtruth, self.fps, np.array([a, b]))
+            ends = interpolate_poses(np.array([a, b]), self.stamps, self.groundtruth,
+                                     extrapolate=True)
             count = subframe_count(ends @ self.camera.body_from_cam,
                                    float(self.render_camera.K[0, 0]), c.subframes.step_px,
                                    c.subframes.max_count)
         plan = frame_plan(t, H, exposure, readout, count)
-        return plan, interpolate_poses(self.groundtruth, self.fps, plan.times)
+        return plan, interpolate_poses(plan.times, self.stamps, self.groundtruth, extrapolate=True)
 
     def finish(self, developer, traced: list[Traced], plan: FramePlan, exposure: float,
                sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -19,19 +19,6 @@ from tests.helpers import compose_config
 
 
 class TestTime:
-    def test_interpolate_poses(self):
-        rot = Rotation.from_euler("z", [[0.0], [20.0], [50.0]], degrees=True).as_matrix()
-        poses = np.tile(np.eye(4), (3, 1, 1))
-        poses[:, :3, :3] = rot
-        poses[:, :3, 3] = [[0, 0, 0], [1, 0, 0], [1, 2, 0]]
-        out = optics.interpolate_poses(poses, 10.0, np.array([0.0, 0.05, 0.1, 0.15, -0.05,
-                                                              0.25]))
-        np.testing.assert_allclose(out[[0, 2]], poses[:2], atol=1e-12)
-        yaw = Rotation.from_matrix(out[:, :3, :3]).as_euler("zyx", degrees=True)[:, 0]
-        np.testing.assert_allclose(yaw, [0, 10, 20, 35, -10, 65], atol=1e-9)
-        np.testing.assert_allclose(out[:, :3, 3], [[0, 0, 0], [0.5, 0, 0], [1, 0, 0], [1, 1, 0],
-                                                   [-0.5, 0, 0], [1, 3, 0]], atol=1e-12)
-
     def test_frame_plan(self):
         """Global shutter: every row the same weights, over [t - exposure, t]; rolling: row r
         ends at t + (r / H - 0.5) readout; labels from the sub-frame nearest mid-exposure."""
