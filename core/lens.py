@@ -182,7 +182,8 @@ class Undistorter:
     K and size (``cv2.initUndistortRectifyMap``, computed once; ``cv2.remap`` per frame, about
     1 ms for 320 x 240).
 
-    K: (3, 3); distortion: (5,) plumb_bob; width, height: pixels.
+    K: (3, 3); distortion: (5,) plumb_bob (fewer: padded with zeros), or OpenCV's rational
+    model's (8,), (12,) or (14,); width, height: pixels.
     """
 
     K: np.ndarray
@@ -193,7 +194,9 @@ class Undistorter:
     @cached_property
     def _maps(self) -> tuple[np.ndarray, np.ndarray]:
         K = np.asarray(self.K, dtype=np.float64)
-        return cv2.initUndistortRectifyMap(K, coefficients(self.distortion), None, K,
+        d = np.asarray(self.distortion, dtype=np.float64).reshape(-1)
+        d = d if len(d) > 5 else coefficients(d)
+        return cv2.initUndistortRectifyMap(K, d, None, K,
                                            (int(self.width), int(self.height)), cv2.CV_32FC1)
 
     def _check(self, image: np.ndarray) -> None:

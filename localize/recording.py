@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 
 from core.dataset import Camera
+from core.lens import Undistorter
 from core.poses import read_tum
 from localize.particle_filter import odometry_increment
 
@@ -68,8 +69,9 @@ class SourceCamera:
 class Rectifier:
     """Maps recorded frames (source size) to delivered frames (width x height).
 
-    Undistorts at the source size with the source K, resizes by ``(sx, sy)`` (about the same
-    factor on both axes: the smallest that covers the target) and crops the centre.
+    Undistorts at the source size with the source K (``core.lens.Undistorter``: pixels the
+    lens did not see repeat the border, so they add no edge), resizes by ``(sx, sy)`` (about
+    the same factor on both axes: the smallest that covers the target) and crops the centre.
     """
 
     source: SourceCamera
@@ -105,18 +107,17 @@ class Rectifier:
         return K
 
     @cached_property
-    def _maps(self) -> tuple[np.ndarray, np.ndarray]:
+    def _undistorter(self) -> Undistorter:
         src = self.source
-        K = np.asarray(src.K, dtype=np.float64)
-        return cv2.initUndistortRectifyMap(K, np.asarray(src.distortion, dtype=np.float64), None,
-                                           K, (src.width, src.height), cv2.CV_32FC1)
+        return Undistorter(np.asarray(src.K, dtype=np.float64), src.distortion, src.width,
+                           src.height)
 
     def __call__(self, image: np.ndarray) -> np.ndarray:
         """(h, w, 3) uint8 recorded frame -> (height, width, 3) uint8 delivered frame."""
         if self.identity:
             return image
         if self.distorted:
-            image = cv2.remap(image, *self._maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+            image = self._undistorter.image(image)
         rw, rh, x0, y0 = self._plan
         if (rw, rh) != (self.source.width, self.source.height):
             shrink = rw < self.source.width
