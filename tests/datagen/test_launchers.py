@@ -20,10 +20,10 @@ from core.outputs import LOCK_NAME, SETUP_LOCK_NAME
 from tests.helpers import CONF, TINY_DATAGEN
 
 ROOT = Path(__file__).resolve().parents[2]
-#: No usage reports from Ray (no network in tests); a quiet, small local cluster.
+#: No usage reports from Ray (no network in tests).
 RAY_ENV = {"RAY_USAGE_STATS_ENABLED": "0"}
 RAY_LOCAL = ["+hydra.launcher.ray.init.num_cpus=2",
-             "+hydra.launcher.ray.init.include_dashboard=false"]
+             "+hydra.launcher.ray.init.include_dashboard=false"]  # a 2-CPU local cluster
 
 
 def dataset_files(root: Path) -> dict[str, bytes]:
@@ -59,7 +59,7 @@ def assert_same_dataset(sharded: Path, single: Path) -> None:
     variant = json.loads((single / "stats.json").read_text())["render"]["variant"]
     if variant == "llvm_ad_rgb":
         assert all("/rgb/" in k for k in differ), differ
-        assert len(differ) <= max(2, len(a) // 50), differ
+        assert len(differ) <= sum("/rgb/" in k for k in a) // 10, differ  # seen: 0-3 of 110
         for k in differ:
             d = np.abs(read_png(sharded / k).astype(int) - read_png(single / k).astype(int))
             assert d.max() <= 1 and np.count_nonzero(d) <= 10, (k, d.max(), np.count_nonzero(d))
