@@ -95,6 +95,27 @@ def odometry_increment(prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
     return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2], wrap_angle(b[3] - a[3])])
 
 
+def apply_increment(poses: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Poses moved by odometry increments in their own frames.
+
+    Args:
+        poses: (N, 4) x, y, z, yaw.
+        delta: (4,) or (N, 4) forward, left, up (m) and yaw change (rad).
+
+    Returns:
+        (N, 4) moved poses, yaw wrapped.
+    """
+    d = np.broadcast_to(np.asarray(delta, dtype=np.float64), poses.shape)
+    yaw = poses[:, 3]
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty_like(poses)
+    out[:, 0] = poses[:, 0] + c * d[:, 0] - s * d[:, 1]
+    out[:, 1] = poses[:, 1] + s * d[:, 0] + c * d[:, 1]
+    out[:, 2] = poses[:, 2] + d[:, 2]
+    out[:, 3] = wrap_angle(yaw + d[:, 3])
+    return out
+
+
 def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
          std: Sequence[float], rel: Sequence[float]) -> np.ndarray:
     """Apply an odometry increment with noise to every particle.
@@ -115,15 +136,7 @@ def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
     s_z = std[1] + rel[0] * abs(delta[2])
     s_yaw = np.deg2rad(std[2]) + rel[1] * abs(delta[3])
     noise = rng.normal(0.0, 1.0, (N, 4)) * np.array([s_xy, s_xy, s_z, s_yaw])
-    dx, dy = delta[0] + noise[:, 0], delta[1] + noise[:, 1]
-    yaw = particles[:, 3]
-    c, s = np.cos(yaw), np.sin(yaw)
-    out = np.empty_like(particles)
-    out[:, 0] = particles[:, 0] + c * dx - s * dy
-    out[:, 1] = particles[:, 1] + s * dx + c * dy
-    out[:, 2] = particles[:, 2] + delta[2] + noise[:, 2]
-    out[:, 3] = wrap_angle(yaw + delta[3] + noise[:, 3])
-    return out
+    return apply_increment(particles, np.asarray(delta, dtype=np.float64) + noise)
 
 
 def move_tilt(rng: np.random.Generator, tilt: np.ndarray, step_std: float) -> np.ndarray:
@@ -226,7 +239,8 @@ class StepInfo:
     ``num_particles``).
 
     Attributes:
-        estimate: (4,) weighted mean pose.
+        estimate: (4,) weighted mean pose; while a re-localization keeps its global set, the
+            lost track's pose moved by the odometry.
         ess: effective sample size.
         best_score: quality of the most likely particle.
         resampled: the set was resampled.
@@ -287,6 +301,8 @@ class ParticleFilter:
         self._thin_at = 0
         self._poor = 0  # frames in a row whose fit was below the gate
         self._fit = 0.0  # smoothed fit ratio of the confidence
+        self._reckoned = None  # (4,) the lost track's pose moved by the odometry, reported
+        # while a re-localization's global set is kept
 
     def init_tracking(self, start: np.ndarray) -> None:
         """Start around a known pose (4,) x, y, z, yaw."""
@@ -295,7 +311,7 @@ class ParticleFilter:
         self.tilt = draw_tilt(self.rng, p.num_particles, np.deg2rad(p.tilt_std[0]))
         self.logw = np.full(p.num_particles, -np.log(p.num_particles))
         self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
-        self._poor, self._fit = 0, 1.0
+        self._poor, self._fit, self._reckoned = 0, 1.0, None
 
     def init_global(self) -> None:
         """Start uniform over the free space, with ``global_count(free area)`` particles
@@ -307,7 +323,7 @@ class ParticleFilter:
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._low = 0, None, None, 0
         self._thin_at = p.global_frames
-        self._poor, self._fit = 0, 0.0
+        self._poor, self._fit, self._reckoned = 0, 0.0, None
 
     @property
     def in_global_phase(self) -> bool:
@@ -320,6 +336,8 @@ class ParticleFilter:
         scale = p.global_motion_scale if self.in_global_phase else 1.0
         std = tuple(scale * np.asarray(p.motion_std, dtype=np.float64))
         self.particles = move(self.rng, self.particles, delta, std, p.motion_rel)
+        if self._reckoned is not None:
+            self._reckoned = apply_increment(self._reckoned[None], delta)[0]
         if not self.in_global_phase:
             self.tilt = move_tilt(self.rng, self.tilt, np.deg2rad(p.tilt_std[1]))
 
@@ -349,7 +367,8 @@ class ParticleFilter:
             return self.coast(best)
         self._poor = 0
         self.logw = normalize_log_weights(self.logw + loglik + prior)
-        est = estimate(self.particles, self.logw)
+        mean = estimate(self.particles, self.logw)
+        est = self._reported(mean, global_phase)
         pos_std, yaw_std = spread(self.particles, self.logw)
         tilt = np.exp(self.logw) @ self.tilt
         ess = effective_sample_size(self.logw)
@@ -368,11 +387,11 @@ class ParticleFilter:
             injected = int(round(inject_frac * n))
             self.logw = np.zeros(n)
             if injected:
-                slots = self._inject(injected, est)
+                slots = self._inject(injected, mean)
                 self.logw[slots] = -p.recovery_log_penalty
             self.logw = normalize_log_weights(self.logw)
             if thin:
-                self._thin_at = 0
+                self._thin_at, self._reckoned = 0, None
                 self.tilt = draw_tilt(self.rng, n, np.deg2rad(p.tilt_std[0]))
         status = "global" if global_phase else "tracking"
         return StepInfo(est, ess, best, resampled, injected, len(self.particles), pos_std,
@@ -385,10 +404,10 @@ class ParticleFilter:
         Args:
             best: the best particle's fit of the frame, if scored (reported only).
         """
-        est = estimate(self.particles, self.logw)
+        global_phase = self.in_global_phase
+        est = self._reported(estimate(self.particles, self.logw), global_phase)
         pos_std, yaw_std = spread(self.particles, self.logw)
         self._fit *= 1.0 - CONFIDENCE_RATE
-        global_phase = self.in_global_phase
         self.frame += 1
         return StepInfo(est, effective_sample_size(self.logw), best, False, 0,
                         len(self.particles), pos_std, yaw_std,
@@ -410,11 +429,20 @@ class ParticleFilter:
         info = self.coast(best)
         kept, tilt = self.particles, self.tilt
         self.init_global()
+        self._reckoned = info.estimate.copy()
         self.particles = np.concatenate([self.particles, kept])
         self.tilt = np.concatenate([self.tilt, tilt])
         self.logw = np.full(len(self.particles), -np.log(len(self.particles)))
         info.status, info.confidence = "lost", 0.0
         return info
+
+    def _reported(self, est: np.ndarray, global_phase: bool) -> np.ndarray:
+        """The pose a step reports: while a re-localization keeps its global set, the lost
+        track's pose moved by the odometry (the global set's mean is the middle of the free
+        space until it gathers), else ``est``."""
+        if global_phase and self._reckoned is not None:
+            return self._reckoned.copy()
+        return est
 
     def _smooth_fit(self, best: float) -> None:
         """The confidence's fit average: the best fit over its long-run level, in [0, 1]."""

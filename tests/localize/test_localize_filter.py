@@ -12,6 +12,7 @@ from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_e
 from localize.particle_filter import (
     FilterParams,
     ParticleFilter,
+    apply_increment,
     effective_sample_size,
     estimate,
     free_space_log_prior,
@@ -196,7 +197,26 @@ class TestParticleFilter:
         lost = pf.update(poor)
         assert lost.status == "lost" and lost.confidence == 0.0
         assert pf.in_global_phase and len(pf.particles) == 1000 + 200
-        assert pf.update(bowl(truth)).status == "global"
+        # while the global set is kept, the lost track's pose moved by the odometry is
+        # reported, not the middle of the free space
+        delta = np.array([0.1, 0.0, 0.0, 0.05])
+        pf.predict(delta)
+        reckoned = apply_increment(lost.estimate[None], delta)[0]
+        flat = lambda s, t: (np.zeros(len(s)), np.full(len(s), 0.5))  # noqa: E731
+        again = pf.update(flat)  # a frame that tells nothing
+        assert again.status == "global"
+        np.testing.assert_allclose(again.estimate, reckoned, atol=1e-12)
+        assert np.linalg.norm(pf.estimate()[:3] - reckoned[:3]) > 1.0  # the set's own mean
+        while pf.in_global_phase:
+            last = pf.update(bowl(truth))
+        assert pf.update(bowl(truth)).status == "tracking"
+        assert np.linalg.norm(last.estimate[:3] - truth[:3]) < 0.3  # the gathered set's
+
+    def test_apply_increment(self):
+        poses = np.array([[1.0, 2.0, 1.0, np.pi / 2], [0.0, 0.0, 0.5, np.pi - 0.05]])
+        out = apply_increment(poses, np.array([1.0, 0.5, 0.1, 0.1]))
+        np.testing.assert_allclose(out[0], [0.5, 3.0, 1.1, np.pi / 2 + 0.1], atol=1e-12)
+        assert -np.pi <= out[1, 3] < np.pi and out[1, 3] < 0  # wrapped
 
     def test_tilt_corrections_find_the_imu_error(self):
         # a likelihood peaked at the true pose and at an IMU roll / pitch error: the particles'
