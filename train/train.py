@@ -16,7 +16,8 @@ Re-running with the same config resumes from ``checkpoint_last.pt``; a folder ma
 another config is refused unless ``overwrite=true`` (core.outputs; docs/outputs.md). The run
 reads its settings as a ``train.config.TrainConfig`` and is ``prepare`` (config checks, data,
 network, optimizer), ``fit`` (the epochs, each ``train_one_epoch`` then validation and
-checkpoints) and ``finish`` (export, test, metrics).
+checkpoints) and ``finish`` (export, test, metrics). Under ``torchrun`` several processes
+train together (train/distributed.py) and rank 0 alone writes the folder.
 """
 
 from __future__ import annotations

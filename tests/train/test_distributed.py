@@ -35,7 +35,7 @@ NO_AUGMENT = AugmentConfig(scale=(1.0, 1.0), hflip=0.0, brightness=0.0, contrast
                            saturation=0.0, hue=0.0, blur_prob=0.0, noise_std=0.0)
 #: Gradients of the 2-process step against one process: relative to the largest gradient
 #: component. The two differ only by float32 rounding: half-batch sums added by gloo instead
-#: of one sum over the batch (~1e-7 relative measured); a missing average (factor 2) or
+#: of one sum over the batch (1.1e-6 measured); a missing average (factor 2) or
 #: BatchNorm statistics of another batch (percent) lie far above.
 GRAD_TOLERANCE = 1e-4
 
