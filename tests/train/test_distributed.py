@@ -211,3 +211,11 @@ def test_torchrun_trains_and_rank0_writes(synthetic_dataset: Path, tmp_path: Pat
     assert len(records) == 1, records
     assert not list(tmp_path.glob("*.log"))
     print(f"torchrun, 2 processes: {time.monotonic() - t0:.1f} s")
+    # the same command again: every rank resumes from rank 0's checkpoint, nothing to train
+    best = (out / "checkpoint_best.pt").read_bytes()
+    again = torchrun_train(synthetic_dataset, tmp_path / "models", tmp_path)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "resuming" in again.stdout + again.stderr
+    assert (out / "checkpoint_best.pt").read_bytes() == best
+    with open(out / "train_log.csv") as f:
+        assert len(list(csv.DictReader(f))) == 2
