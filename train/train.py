@@ -635,10 +635,11 @@ def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -
                       epoch_seconds, state["epochs"])
     if span == state["epochs"]:
         return
-    log.warning(
-        "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): the one-cycle "
-        "schedule now ends after epoch %d", epoch_seconds, span, job.requested, budget / 60,
-        span)
+    if job.world.is_main:
+        log.warning(
+            "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): the "
+            "one-cycle schedule now ends after epoch %d", epoch_seconds, span, job.requested,
+            budget / 60, span)
     state["epochs"] = span
     job.scheduler = make_scheduler(job.optimizer, job.cfg.optim, span * job.steps_per_epoch,
                                    job.scheduler.last_epoch)
