@@ -1,11 +1,23 @@
-"""``python -m train``: train a SegNet on a datagen dataset and export it (conf/train.yaml)."""
+"""``python -m train``: train a SegNet on a datagen dataset and export it (conf/train.yaml).
+
+Under ``torchrun`` (docs/train.md) every process runs this; the processes of rank > 0 keep
+Hydra's run folder and log file to rank 0 (their log goes to the console only).
+"""
 
 from __future__ import annotations
+
+import os
+import sys
 
 import hydra
 from omegaconf import DictConfig
 
 from train.train import run
+
+#: Hydra overrides for the torchrun processes of rank > 0: no .hydra/ record, no log file,
+#: warnings and errors only.
+SILENT_HYDRA = ("hydra.output_subdir=null", "hydra/job_logging=stdout",
+                "hydra.job_logging.root.level=WARNING", "hydra.run.dir=.")
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="train")
@@ -14,4 +26,6 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
+    if int(os.environ.get("RANK", "0")) > 0:
+        sys.argv += SILENT_HYDRA
     main()

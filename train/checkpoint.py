@@ -92,6 +92,13 @@ def new_state(epochs: int) -> dict:
     }
 
 
+def read_last(path: Path) -> dict | None:
+    """The contents of ``checkpoint_last.pt`` (``save_last``), or None when there is none."""
+    if not path.is_file():
+        return None
+    return torch.load(path, map_location="cpu", weights_only=False)
+
+
 def resume(
     path: Path,
     model: SegNet,
@@ -99,6 +106,7 @@ def resume(
     scheduler: torch.optim.lr_scheduler.LRScheduler,
     ema: AveragedModel | None,
     state: dict,
+    ckpt: dict | None = None,
 ) -> bool:
     """Load ``checkpoint_last.pt`` into the run's objects, if there is one.
 
@@ -106,13 +114,16 @@ def resume(
         path: the folder's ``checkpoint_last.pt``.
         model, optimizer, scheduler, ema: restored in place.
         state: ``new_state``'s dict, updated in place with the saved values.
+        ckpt: the file's contents already read (``read_last``; under torchrun rank 0 reads it
+            and sends it to the others), or None to read ``path``.
 
     Returns:
         Whether a checkpoint was found and loaded.
     """
-    if not path.is_file():
+    if ckpt is None:
+        ckpt = read_last(path)
+    if ckpt is None:
         return False
-    ckpt = torch.load(path, map_location="cpu", weights_only=False)
     model.load_state_dict(ckpt["model"])
     optimizer.load_state_dict(ckpt["optimizer"])
     scheduler.load_state_dict(ckpt["scheduler"])

@@ -235,10 +235,12 @@ class TrainConfig:
         seed: seeds the initial weights, the shuffling and the augmentation.
         precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AMX tiles):
             bfloat16 autocast for the training forward pass.
-        threads: torch intra-op threads (and onnxruntime's for the export's check).
+        threads: torch intra-op threads (and onnxruntime's for the export's check); under
+            torchrun per process (cores / processes).
         epochs: the one-cycle schedule's span, sized to end within ``max_minutes`` on 2
             cores.
-        batch_size: training images per step.
+        batch_size: training images per step; under torchrun the global batch, split
+            evenly between the processes (a multiple of their number; docs/train.md).
         ema_decay: exponential moving average of the weights (and BatchNorm statistics),
             spanning ~1 / (1 - decay) steps: what is validated, kept and exported (0 = off,
             the raw weights).

@@ -102,6 +102,22 @@ def segmentation_loss(
     return (ce * pw).sum() / (w_pix * pw).sum().clamp(min=1e-12)
 
 
+def pixel_loss_weights(target: torch.Tensor, weight: torch.Tensor | None = None,
+                       boundary_weight: float = 1.0) -> torch.Tensor:
+    """(B, H, W) float32 weight of each pixel in ``segmentation_loss``: its class weight times
+    the boundary factor, 0 where ignored (255).
+
+    Args:
+        target, weight, boundary_weight: as for ``segmentation_loss``.
+    """
+    valid = target != IGNORE
+    w_pix = (torch.ones(target.shape) if weight is None
+             else weight[target.clamp(max=len(weight) - 1)]) * valid
+    if boundary_weight != 1.0:
+        w_pix = torch.where(boundary_mask(target), float(boundary_weight), 1.0) * w_pix
+    return w_pix
+
+
 def boundary_mask(target: torch.Tensor) -> torch.Tensor:
     """(B, H, W) bool: pixels whose 3x3 neighbourhood holds another class (ignored pixels
     count as a class)."""

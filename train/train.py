@@ -16,7 +16,8 @@ Re-running with the same config resumes from ``checkpoint_last.pt``; a folder ma
 another config is refused unless ``overwrite=true`` (core.outputs; docs/outputs.md). The run
 reads its settings as a ``train.config.TrainConfig`` and is ``prepare`` (config checks, data,
 network, optimizer), ``fit`` (the epochs, each ``train_one_epoch`` then validation and
-checkpoints) and ``finish`` (export, test, metrics).
+checkpoints) and ``finish`` (export, test, metrics). Under ``torchrun`` several processes
+train together (train/distributed.py) and rank 0 alone writes the folder.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ from train.checkpoint import (
     disk_space_guard,
     load_init_weights,
     new_state,
+    read_last,
     resume,
     save_best,
     save_last,
@@ -66,9 +68,15 @@ from train.data import (
     through_camera,
     to_float,
 )
+from train.distributed import SINGLE, World, check_batch_size, process_group
 from train.evaluate import evaluate, evaluate_onnx
 from train.export import ParityError, export_checked, onnx_metadata, update_metadata
-from train.losses import median_frequency_weights, segmentation_loss
+from train.losses import (
+    IGNORE,
+    median_frequency_weights,
+    pixel_loss_weights,
+    segmentation_loss,
+)
 from train.metrics import metrics_json, plot_confusion, scores
 from train.optim import make_ema, make_optimizer, make_scheduler
 from train.quantize import INT8_NAME, int8_summary, quantize_model_dir
@@ -165,8 +173,57 @@ class EpochResult:
     stopped: bool
 
 
+def network_logits(model: SegNet, x: torch.Tensor, head: bool, bf16: bool) -> torch.Tensor:
+    """The part of a training step's forward pass that holds the weights.
+
+    Args:
+        model: the network (train mode).
+        x: (B, 3, h, w) float32 augmented images at the training resolution.
+        head: also run ``model.to_input_resolution`` (the sharpen head).
+        bf16: in bfloat16 autocast.
+
+    Returns:
+        (B, C, h', w') logits, bfloat16 or float32.
+    """
+    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+        logits = model.forward_network_resolution(x)
+        if head:
+            logits = model.to_input_resolution(logits, x)
+    return logits
+
+
+class TrainingForward(torch.nn.Module):
+    """``network_logits`` as a module's ``forward``: what DistributedDataParallel wraps (it
+    syncs the gradients of the parameters used by its module's forward)."""
+
+    def __init__(self, model: SegNet, head: bool, bf16: bool) -> None:
+        super().__init__()
+        self.model, self.head, self.bf16 = model, head, bf16
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return network_logits(self.model, x, self.head, self.bf16)
+
+
+def uses_head(model: SegNet, full_labels: bool) -> bool:
+    """Whether training runs the sharpen head (full-resolution x, unshuffle stem)."""
+    return full_labels and model.sharpen_head is not None
+
+
+def data_parallel(model: SegNet, full_labels: bool, bf16: bool, world: World
+                  ) -> torch.nn.parallel.DistributedDataParallel | None:
+    """The training forward pass (``TrainingForward``) in DistributedDataParallel, which
+    averages the gradients over the ranks (rank 0's weights and buffers copied to all at
+    construction); None for one process."""
+    if not world.active:
+        return None
+    return torch.nn.parallel.DistributedDataParallel(
+        TrainingForward(model, uses_head(model, full_labels), bf16))
+
+
 def training_logits(model: SegNet, x: torch.Tensor, label_size: tuple[int, int],
-                    full_labels: bool, bf16: bool) -> torch.Tensor:
+                    full_labels: bool, bf16: bool,
+                    ddp: torch.nn.parallel.DistributedDataParallel | None = None
+                    ) -> torch.Tensor:
     """The logits a training step's loss is taken on, float32.
 
     Args:
@@ -177,15 +234,13 @@ def training_logits(model: SegNet, x: torch.Tensor, label_size: tuple[int, int],
             resolution as at inference (bilinear, then the sharpen head where there is one;
             the head costs 1.5x a step's time); else at the network's resolution.
         bf16: the forward pass in bfloat16 autocast.
+        ddp: ``data_parallel(model, ...)`` under torchrun (it runs the forward pass), or None.
 
     Returns:
         (B, C, H, W) logits at the labels' resolution.
     """
-    head = full_labels and model.sharpen_head is not None  # full-resolution x (unshuffle stem)
-    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-        logits = model.forward_network_resolution(x)
-        if head:
-            logits = model.to_input_resolution(logits, x)
+    head = uses_head(model, full_labels)
+    logits = network_logits(model, x, head, bf16) if ddp is None else ddp(x)
     logits = logits.float()
     if full_labels and not head:  # as at inference: bilinear to the input's resolution
         logits = F.interpolate(logits, size=label_size, mode="bilinear", align_corners=False)
@@ -208,6 +263,8 @@ def train_one_epoch(
     ema: AveragedModel | None = None,
     boundary_weight: float = 1.0,
     full_labels: bool = False,
+    world: World = SINGLE,
+    ddp: torch.nn.parallel.DistributedDataParallel | None = None,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution (the
     loss at the input's with ``full_labels``).
@@ -230,10 +287,20 @@ def train_one_epoch(
         full_labels: ``data`` holds the input-resolution labels; the loss is taken on the
             logits upsampled to them as at inference (``loss.resolution: input``) instead of
             on block-majority labels at the network's resolution.
+        world: the torchrun processes: every rank draws the same global batch of
+            ``batch_size`` images and trains on its ``world.shard``, the loss scaled so that
+            DDP's gradient average is the whole batch's gradient; the deadline is checked
+            by all together.
+        ddp: ``data_parallel(model, ...)`` when ``world.active``.
 
     Returns:
-        Mean loss, number of steps done, and whether the deadline stopped the epoch.
+        Mean loss (of the global batches), number of steps done, and whether the deadline
+        stopped the epoch.
     """
+    if world.active:
+        return _train_one_epoch_ddp(model, data, class_weights, optimizer, scheduler, augment,
+                                    generator, batch_size, deadline, progress, desc, bf16, ema,
+                                    boundary_weight, full_labels, world, ddp)
     model.train()
     total, steps, stopped = 0.0, 0, False
     n_steps = num_batches(len(data), batch_size, drop_last=True)
@@ -265,6 +332,78 @@ def train_one_epoch(
         bar.set_postfix(loss=f"{total / steps:.3f}")
     bar.close()
     return EpochResult(total / max(steps, 1), steps, stopped)
+
+
+def _train_one_epoch_ddp(
+    model: SegNet,
+    data: SplitData,
+    class_weights: torch.Tensor | None,
+    optimizer: torch.optim.Optimizer,
+    scheduler: torch.optim.lr_scheduler.LRScheduler,
+    augment: AugmentConfig,
+    generator: torch.Generator,
+    batch_size: int,
+    deadline: float,
+    progress: bool,
+    desc: str,
+    bf16: bool,
+    ema: AveragedModel | None,
+    boundary_weight: float,
+    full_labels: bool,
+    world: World,
+    ddp: torch.nn.parallel.DistributedDataParallel | None,
+) -> EpochResult:
+    """``train_one_epoch`` on this rank's share of every global batch (its arguments).
+
+    The loss of a global batch is sum(numerators) / sum(denominators) over its pixels
+    (``segmentation_loss_terms``); rank r backpropagates N * numerator_r / denominator (the
+    denominator summed over the ranks), so DDP's average of the N gradients is the gradient of
+    the global batch's loss, as one process computes it (up to float rounding and BatchNorm's
+    per-rank statistics; train/distributed.py).
+    """
+    if ddp is None:
+        raise ValueError("train_one_epoch: world.active needs ddp=data_parallel(model, ...)")
+    model.train()
+    total, steps, stopped = torch.zeros(1, dtype=torch.float64), 0, False
+    n_steps = num_batches(len(data), batch_size, drop_last=True)
+    bar = tqdm(
+        batches(len(data), batch_size, generator, drop_last=True),
+        total=n_steps,
+        desc=desc,
+        disable=not (progress and world.is_main),
+        leave=False,
+    )
+    for idx in bar:
+        x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
+        x, y = world.shard(x), world.shard(y)
+        if not full_labels and model.training_factor != model.downsample:
+            y = block_majority(y, model.downsample).long()
+        pixel_weights = pixel_loss_weights(y, class_weights, boundary_weight)
+        # one collective before the forward pass: the global batch's loss denominator, and
+        # whether any rank is past the deadline (all stop together)
+        shared = world.sum(torch.stack([
+            pixel_weights.sum(dtype=torch.float64),
+            torch.tensor(float(time.monotonic() > deadline), dtype=torch.float64)]))
+        if shared[1] > 0:
+            stopped = True
+            break
+        denominator = float(shared[0].clamp(min=1e-12))
+        x = x.contiguous(memory_format=torch.channels_last)
+        logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16, ddp)
+        numerator = (F.cross_entropy(logits, y, ignore_index=IGNORE, reduction="none")
+                     * pixel_weights).sum()
+        loss = numerator * (world.size / denominator)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        scheduler.step()
+        if ema is not None:
+            ema.update_parameters(model)
+        total += float(numerator.detach()) / denominator
+        steps += 1
+    bar.close()
+    mean = float(world.sum(total)) / max(steps, 1)
+    return EpochResult(mean, steps, stopped)
 
 
 def _write_log(path: Path, history: list[dict]) -> None:
@@ -337,13 +476,15 @@ class Job:
     optimizer: torch.optim.Optimizer
     scheduler: torch.optim.lr_scheduler.LRScheduler
     train_data: SplitData | None
-    val_data: SplitData
+    val_data: SplitData | None  # rank 0's only under torchrun
     augment: AugmentConfig
     weights: torch.Tensor | None  # (C,) cross-entropy class weights
     batch_size: int
     steps_per_epoch: int
     requested: int  # the configured epochs (the longest schedule)
     bf16: bool
+    world: World = SINGLE  # the torchrun processes (train/distributed.py)
+    ddp: torch.nn.parallel.DistributedDataParallel | None = None  # under torchrun
 
     @property
     def full_labels(self) -> bool:
@@ -404,12 +545,15 @@ def build_network(cfg: TrainConfig, num_classes: int) -> SegNet:
     return model
 
 
-def prepare(cfg: TrainConfig) -> Job:
+def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
     """Check the config, claim the output folder, load the data, build network and optimizer.
 
-    Nothing is written before every check that needs no data has passed.
+    Nothing is written before every check that needs no data has passed. Under torchrun
+    (``world.active``) rank 0 alone claims and writes the folder and loads the validation
+    split; every rank loads the training split and wraps the network in DDP (``job.ddp``).
     """
     bf16 = check_config(cfg)
+    check_batch_size(cfg.batch_size, world)
     camera = load_realism(cfg.data.realism, "data.realism")
     torch.set_num_threads(cfg.threads)
     dataset = Dataset(cfg.dataset)
@@ -426,28 +570,36 @@ def prepare(cfg: TrainConfig) -> Job:
     }
     model = build_network(cfg, num_classes)
     out_dir = Path(cfg.out_root) / cfg.name
-    prepare_output(out_dir, info, cfg.overwrite)
-    write_localize_settings(out_dir, cfg.localize)
+    if world.is_main:
+        prepare_output(out_dir, info, cfg.overwrite)
+        write_localize_settings(out_dir, cfg.localize)
 
     full_labels = cfg.loss.resolution == "input"
-    train_data = load_split(dataset, "train", num_classes, cfg.data.limit, cfg.progress)
-    val_data = load_split(dataset, "val", num_classes, cfg.data.limit, cfg.progress)
+    progress = cfg.progress and world.is_main
+    train_data = load_split(dataset, "train", num_classes, cfg.data.limit, progress)
+    val_data = (load_split(dataset, "val", num_classes, cfg.data.limit, progress)
+                if world.is_main else None)
     if camera_effects.is_active(camera):
         train_data = through_camera(train_data, camera, cfg.seed, stream=0)
-        val_data = through_camera(val_data, camera, cfg.seed, stream=1)
+        if val_data is not None:
+            val_data = through_camera(val_data, camera, cfg.seed, stream=1)
     weights = class_weight_tensor(cfg.loss, train_data, num_classes)
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
     model = model.to(memory_format=torch.channels_last)
     train_data = downsample_split(train_data, model.training_factor, keep_labels=full_labels)
     batch_size = min(cfg.batch_size, len(train_data))
+    check_batch_size(batch_size, world)  # fewer training images than batch_size
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
     # the longest schedule: refit_schedule may span fewer epochs
     optimizer, scheduler = make_optimizer(model, cfg.optim, cfg.epochs * steps_per_epoch)
     job = Job(cfg, out_dir, dataset, num_classes, info, model, make_ema(model, cfg.ema_decay),
               optimizer, scheduler, train_data, val_data,
               cfg.data.augment.at_resolution(model.training_factor), weights, batch_size,
-              steps_per_epoch, cfg.epochs, bf16)
+              steps_per_epoch, cfg.epochs, bf16, world,
+              data_parallel(model, full_labels, bf16, world))
+    if not world.is_main:
+        return job
     if job.class_weights is not None:
         log.info("class weights: %s", job.class_weights)
     log.info(
@@ -455,6 +607,9 @@ def prepare(cfg: TrainConfig) -> Job:
         cfg.model.name, count_parameters(model), model.channels, len(train_data),
         len(val_data), steps_per_epoch, "bfloat16 autocast" if bf16 else "float32",
     )
+    if world.active:
+        log.info("data-parallel: %d processes (torch.distributed %s), %d images each per step",
+                 world.size, torch.distributed.get_backend(), batch_size // world.size)
     return job
 
 
@@ -480,10 +635,11 @@ def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -
                       epoch_seconds, state["epochs"])
     if span == state["epochs"]:
         return
-    log.warning(
-        "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): the one-cycle "
-        "schedule now ends after epoch %d", epoch_seconds, span, job.requested, budget / 60,
-        span)
+    if job.world.is_main:
+        log.warning(
+            "at %.0f s per epoch, %d of the %d epochs fit the time budget (%.1f min): the "
+            "one-cycle schedule now ends after epoch %d", epoch_seconds, span, job.requested,
+            budget / 60, span)
     state["epochs"] = span
     job.scheduler = make_scheduler(job.optimizer, job.cfg.optim, span * job.steps_per_epoch,
                                    job.scheduler.last_epoch)
@@ -491,6 +647,8 @@ def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -
 
 def run_epoch(job: Job, state: dict, budget: float) -> bool:
     """Train one epoch, validate, keep the best weights, save the checkpoint and the log.
+
+    Under torchrun rank 0 alone validates and writes; the others take its epoch time.
 
     Args:
         job: the prepared run.
@@ -510,11 +668,18 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
         torch.Generator().manual_seed(cfg.seed * 100_003 + epoch), job.batch_size,
         deadline, cfg.progress, desc=f"epoch {epoch + 1}/{state['epochs']}",
         bf16=job.bf16, ema=job.ema, boundary_weight=cfg.loss.boundary_weight,
-        full_labels=job.full_labels,
+        full_labels=job.full_labels, world=job.world, ddp=job.ddp,
     )
+    if not job.world.is_main:  # rank 0's epoch time, so that all re-span the schedule alike
+        dt = job.world.from_main(lambda: 0.0)
+        state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
+                     stopped_by_budget=res.stopped)
+        if state["epoch"] < state["epochs"] and not res.stopped:
+            refit_schedule(job, state, budget, dt)
+        return True
     val = scores(evaluate(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
                           cfg.progress, "val"))
-    dt = time.monotonic() - t0
+    dt = job.world.from_main(lambda: time.monotonic() - t0)
     state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
                  stopped_by_budget=res.stopped)
     row = epoch_row(epoch + 1, res, job.scheduler.get_last_lr()[0], val, dt)
@@ -541,13 +706,17 @@ def fit(job: Job) -> dict:
     """Train (resuming from ``checkpoint_last.pt`` if there is one) until the schedule ends or
     the time budget is used up.
 
+    Under torchrun every rank resumes from rank 0's checkpoint.
+
     Returns:
         The run's state (``checkpoint.new_state``'s keys).
     """
     state = new_state(job.requested)
-    resume(job.out_dir / "checkpoint_last.pt", job.model, job.optimizer, job.scheduler, job.ema,
-           state)
-    budget = training_budget(job.cfg, state["train_seconds"])
+    last = job.out_dir / "checkpoint_last.pt"
+    # under torchrun rank 0 reads the checkpoint and the clock, and sends both to the others
+    resume(last, job.model, job.optimizer, job.scheduler, job.ema, state,
+           job.world.from_main(lambda: read_last(last)))
+    budget = job.world.from_main(lambda: training_budget(job.cfg, state["train_seconds"]))
     while state["epoch"] < state["epochs"] and not state["stopped_by_budget"]:
         if not run_epoch(job, state, budget):
             state["stopped_by_budget"] = True
@@ -699,6 +868,10 @@ def finish(job: Job, state: dict, t_start: float) -> dict:
 def run(cfg: DictConfig | Mapping | TrainConfig) -> dict:
     """Train (or resume), export the best checkpoint to ONNX, score it on the test split.
 
+    Under ``torchrun`` (``WORLD_SIZE`` > 1 in the environment) the processes train together
+    (train/distributed.py); rank 0 alone writes the model folder, exports and tests, the
+    others return an empty dict once training is done.
+
     Args:
         cfg: the composed ``conf/train.yaml`` (``train_settings``).
 
@@ -706,6 +879,11 @@ def run(cfg: DictConfig | Mapping | TrainConfig) -> dict:
         The metrics.json contents.
     """
     t_start = time.monotonic()
-    job = prepare(train_settings(cfg))
-    state = fit(job)
+    settings = train_settings(cfg)
+    with process_group() as world:
+        job = prepare(settings, world)
+        state = fit(job)
+        job.ddp = None
+    if not world.is_main:
+        return {}
     return finish(job, state, t_start)

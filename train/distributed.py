@@ -1,0 +1,139 @@
+"""Data-parallel training under ``torchrun``: the process group, its rank, and the collectives
+``train.train`` needs (torch.distributed; docs/train.md, "Several processes: torchrun").
+
+``torchrun`` starts N copies of ``python -m train`` and gives each the environment variables
+``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK``, ``MASTER_ADDR``, ``MASTER_PORT``; with
+``WORLD_SIZE`` > 1 ``process_group`` joins them (``init_method="env://"``), backend gloo on CPU
+(nccl for CUDA tensors). Every rank draws the same global batch (same indices and augmentation
+from the same seeded generator) and trains on its slice of ``batch_size / N`` images
+(``World.shard``); ``torch.nn.parallel.DistributedDataParallel`` averages the gradients, and
+the loss is scaled so that the average is the gradient of the whole batch's loss
+(``train.train.train_one_epoch``). Rank 0 alone validates and writes the model folder.
+
+BatchNorm normalizes with each rank's own statistics (its ``batch_size / N`` images):
+``torch.nn.SyncBatchNorm`` refuses CPU tensors in this torch ("SyncBatchNorm expected input
+tensor to be on GPU"), and the trainer runs on CPU. Between steps DDP copies rank 0's
+BatchNorm running statistics to the other ranks (``broadcast_buffers``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import timedelta
+from typing import Any, TypeVar
+
+import torch
+import torch.distributed as dist
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class World:
+    """This process's place among the training processes.
+
+    Attributes:
+        rank: 0 .. size - 1; rank 0 validates and writes.
+        size: the number of processes (1: a plain ``python -m train``, no process group).
+    """
+
+    rank: int = 0
+    size: int = 1
+
+    @property
+    def active(self) -> bool:
+        """Several processes train together (a process group is up)."""
+        return self.size > 1
+
+    @property
+    def is_main(self) -> bool:
+        """This process validates, logs and writes the model folder."""
+        return self.rank == 0
+
+    def shard(self, batch: torch.Tensor) -> torch.Tensor:
+        """This rank's slice of a global batch: (B, ...) -> (B / size, ...), rank r taking
+        images r B / size .. (r + 1) B / size - 1."""
+        if not self.active:
+            return batch
+        n = batch.shape[0] // self.size
+        return batch[self.rank * n : (self.rank + 1) * n]
+
+    def sum(self, values: torch.Tensor) -> torch.Tensor:
+        """``values`` summed over the ranks (float64 or float32 CPU tensor, any shape); the
+        tensor itself when alone."""
+        if self.active:
+            dist.all_reduce(values, op=dist.ReduceOp.SUM)
+        return values
+
+    def from_main(self, make: Callable[[], T]) -> T:
+        """``make()`` as rank 0 computes it, on every rank (pickled through the process group;
+        the other ranks do not call ``make``)."""
+        if not self.active:
+            return make()
+        box: list[Any] = [make() if self.is_main else None]
+        dist.broadcast_object_list(box, src=0)
+        return box[0]
+
+    def barrier(self) -> None:
+        """Wait until every rank is here."""
+        if self.active:
+            dist.barrier()
+
+
+SINGLE = World()
+
+
+def world_from_env() -> World:
+    """The ``World`` that ``torchrun`` describes in ``RANK`` and ``WORLD_SIZE`` (one process
+    when they are not set)."""
+    size = int(os.environ.get("WORLD_SIZE", "1"))
+    rank = int(os.environ.get("RANK", "0"))
+    if size < 1 or not 0 <= rank < size:
+        raise ValueError(f"RANK={rank} and WORLD_SIZE={size} from the environment do not fit "
+                         "together; start several processes with torchrun")
+    return World(rank, size)
+
+
+def backend_for(device: torch.device) -> str:
+    """The process group backend for tensors on ``device``: nccl for CUDA, gloo on CPU."""
+    return "nccl" if device.type == "cuda" else "gloo"
+
+
+def check_batch_size(batch_size: int, world: World) -> None:
+    """Raise ValueError naming ``batch_size`` when it does not split evenly between the ranks."""
+    if batch_size % world.size:
+        raise ValueError(
+            f"batch_size={batch_size} does not split between the {world.size} torchrun "
+            f"processes: use a multiple of {world.size} (each process trains on batch_size / "
+            f"{world.size} images of every global batch)")
+
+
+@contextmanager
+def process_group(device: str = "cpu", timeout_minutes: float = 30.0) -> Iterator[World]:
+    """Join ``torchrun``'s processes for the block (nothing to join for one process).
+
+    Args:
+        device: where the training tensors live (``backend_for``): "cpu" or "cuda".
+        timeout_minutes: how long a collective waits for the slowest rank (the other ranks
+            wait while rank 0 validates and saves after each epoch).
+
+    Yields:
+        This process's ``World``. On a normal exit every rank meets at a barrier before the
+        group is destroyed; after an error the group is destroyed at once (torchrun then
+        stops the other processes).
+    """
+    world = world_from_env()
+    if not world.active:
+        yield world
+        return
+    dist.init_process_group(backend_for(torch.device(device)), init_method="env://",
+                            rank=world.rank, world_size=world.size,
+                            timeout=timedelta(minutes=timeout_minutes))
+    try:
+        yield world
+        dist.barrier()
+    finally:
+        dist.destroy_process_group()
