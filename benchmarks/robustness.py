@@ -134,7 +134,9 @@ def pooled(report: Path, threshold_m: float = 1.0, lost_s: float = 1.0) -> dict:
 
 
 def table(robust: dict) -> list[str]:
-    modes = sorted({m for f in robust.values() for m in f})
+    seen = {m for f in robust.values() for m in f}
+    modes = [m for m in ("none", "cnn", "oracle") if m in seen] + sorted(
+        seen - {"none", "cnn", "oracle"})
     lines = ["| factor | " + " | ".join(f"{m} mean / p95 (m), lost" for m in modes) + " |",
              "|---|" + "---|" * len(modes)]
     for factor, by_mode in robust.items():
