@@ -158,7 +158,7 @@ def draw_plan(s: ProceduralWorldConfig, rng: np.random.Generator) -> Plan:
     # grid nodes, inset so perimeter rooms of a drawn depth fit between corridor and outer wall
     inset = np.full(2, outer + _uniform(rng, s.room_depth) + t + w_max / 2)
     spacing = _uniform(rng, s.grid_spacing)
-    counts = np.maximum(1, np.round((size - 2 * inset) / spacing).astype(int) + 1)
+    counts = np.maximum(1, np.floor((size - 2 * inset) / spacing + 1e-9).astype(int) + 1)
     size = np.where(counts > 1, size, 2 * inset)  # too short for two lines: one, centred
     gx, gy = (np.linspace(inset[a], size[a] - inset[a], counts[a]) for a in (0, 1))
     ii, jj = np.meshgrid(np.arange(counts[0]), np.arange(counts[1]), indexing="ij")
@@ -208,7 +208,7 @@ def draw_plan(s: ProceduralWorldConfig, rng: np.random.Generator) -> Plan:
                                   max(1, int((lobby[3] - lobby[1] - 3) // 3) + 1)):
                 if lobby[2] - lobby[0] > 3 and lobby[3] - lobby[1] > 3:
                     columns.append([cx - c, cy - c, cx + c, cy + c])
-    # recesses and rooms along each corridor side, between its junctions
+    # rooms, then recesses, along each corridor side between its junctions
     sides = []
     for e, ((a, b), w) in enumerate(zip(edges, widths, strict=True)):
         axis = 0 if nodes[a, 1] == nodes[b, 1] else 1
@@ -221,17 +221,6 @@ def draw_plan(s: ProceduralWorldConfig, rng: np.random.Generator) -> Plan:
                 columns.append(_along(axis, p - cs, p + cs, c - cs, c + cs))
         for side in (-1, 1):
             sides.append((e, axis, s0, s1, c, w, side))
-    for e, axis, s0, s1, c, w, side in sides:
-        if rng.random() >= s.recesses:
-            continue
-        rw, rd = _uniform(rng, s.recess_width), _uniform(rng, s.recess_depth)
-        if s1 - s0 < rw:
-            continue
-        p = rng.uniform(s0, s1 - rw)
-        wall = c + side * w / 2
-        r = _along(axis, p, p + rw, *sorted((wall, wall + side * rd)))
-        if out.clear_of(r, t, skip=(edge_rect[e],)):
-            out.add(r, SPACE, h, "recess")
     for _, axis, s0, s1, c, w, side in sides:
         wall = c + side * w / 2
         far = inner[3 - axis] if side > 0 else inner[1 - axis]  # the outer wall that side
@@ -254,7 +243,21 @@ def draw_plan(s: ProceduralWorldConfig, rng: np.random.Generator) -> Plan:
                     out.add(_along(axis, dc - dw / 2, dc + dw / 2, *sorted((wall, near))),
                             DOORWAY, door_h, "door")
                     break
+            else:  # no room fits here: try a metre further on
+                p += 1.0
+                continue
             p += rw + t
+    for e, axis, s0, s1, c, w, side in sides:
+        if rng.random() >= s.recesses:
+            continue
+        rw, rd = _uniform(rng, s.recess_width), _uniform(rng, s.recess_depth)
+        if s1 - s0 < rw:
+            continue
+        p = rng.uniform(s0, s1 - rw)
+        wall = c + side * w / 2
+        r = _along(axis, p, p + rw, *sorted((wall, wall + side * rd)))
+        if out.clear_of(r, t, skip=(edge_rect[e],)):
+            out.add(r, SPACE, h, "recess")
     for r in columns:
         out.add(r, COLUMN, 0.0, "column")
     # windows along the outer walls: one per window_spacing, centred in each bay
