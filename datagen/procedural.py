@@ -271,7 +271,7 @@ def draw_plan(s: ProceduralWorldConfig, rng: np.random.Generator) -> Plan:
     info = {"nodes": int(len(used)), "corridors": int(len(edges)), "loops": int(extra.sum()),
             "rooms": out.roles.count("room"), "doors": out.roles.count("door"),
             "glass_walls": out.roles.count("glass"), "recesses": out.roles.count("recess"),
-            "columns": out.roles.count("column"), "lobby": [round(v, 3) for v in lobby],
+            "columns": out.roles.count("column"), "lobby": [round(float(v), 3) for v in lobby],
             "height": round(h, 3), "lobby_height": round(h_lobby, 3),
             "corridor_widths": [round(float(w), 3) for w in widths],
             "door_height": round(door_h, 3), "size": size.round(3).tolist(),
@@ -407,3 +407,54 @@ def build_floor(s: ProceduralWorldConfig) -> tuple[Building, Plan]:
         "bounds": [lo.round(4).tolist(), hi.round(4).tolist()], "plan": plan.info,
     }
     return b, plan
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m datagen.procedural --seed N [--size X Y] [--out DIR]``: draw a floor and
+    write ``DIR/procedural_<seed>_plan.png`` (classes, free space, a planned route) and
+    ``DIR/procedural_<seed>.json`` (the building's info); prints the plan's figures."""
+    import argparse
+    import json
+    import sys
+    from pathlib import Path
+
+    from core.atomic import atomic_write_json
+    from datagen.importers.plan import write_plan
+    from datagen.routes import find_turns, plan_route, route_length
+    from datagen.site import camera_free_space
+
+    p = argparse.ArgumentParser(prog="python -m datagen.procedural",
+                                description="Draw a world=procedural floor and write its plan.")
+    p.add_argument("--seed", type=int, default=0, help="world.seed (default 0)")
+    p.add_argument("--size", type=float, nargs=2, default=None, metavar=("X", "Y"),
+                   help="world.size in m (default: ProceduralWorldConfig's)")
+    p.add_argument("--out", default="outputs/procedural", help="output folder")
+    args = p.parse_args(argv)
+    spec = ProceduralWorldConfig(seed=args.seed)
+    if args.size is not None:
+        spec.size = list(args.size)
+    try:
+        b, _ = build_floor(spec)
+        free = camera_free_space(b, spec, f"world=procedural seed {spec.seed}")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    try:
+        route = plan_route(free, np.random.default_rng(spec.seed), {"min_turns": 1})
+    except ValueError:  # no route with a turn: a plain one
+        route = plan_route(free, np.random.default_rng(spec.seed))
+    out = Path(args.out)
+    stem = f"procedural_{spec.seed}"
+    plan = write_plan(b, out / f"{stem}_plan.png", free=free, paths=[route])
+    info = {**b.info, "free_area_m2": round(free.area, 1),
+            "route_m": round(route_length(route), 1), "route_turns": len(find_turns(route))}
+    atomic_write_json(out / f"{stem}.json", info)
+    print(json.dumps({k: info[k] for k in ("faces", "faces_per_class", "free_area_m2",
+                                           "route_m", "route_turns")}))
+    print(json.dumps(info["plan"]))
+    print(f"plan: {plan}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -12,10 +12,11 @@ from scipy import ndimage
 
 import datagen.generate as gen
 from core import classes as C
+from core.atomic import read_png
 from core.dataset import Dataset
 from core.occupancy import OccupancyMap
 from datagen.config import ProceduralWorldConfig, world_config
-from datagen.procedural import build_floor, draw_plan
+from datagen.procedural import build_floor, draw_plan, main
 from datagen.routes import find_turns, plan_route, route_length
 from datagen.site import build_site
 from tests.helpers import compose_config
@@ -168,6 +169,16 @@ class TestSite:
         spec = world_config(cfg["world"])
         assert isinstance(spec, ProceduralWorldConfig)
         assert spec.seed == 3 and spec.corridor_width == [1.4, 2.0]
+
+
+def test_cli_plan(tmp_path, capsys):
+    """``python -m datagen.procedural``: the plan image and the info of a floor."""
+    assert main(["--seed", "1", "--size", "26", "22", "--out", str(tmp_path)]) == 0
+    assert read_png(tmp_path / "procedural_1_plan.png").ndim == 3
+    info = json.loads((tmp_path / "procedural_1.json").read_text())
+    assert info["plan"]["rooms"] >= 3 and info["free_area_m2"] > 100 and info["route_m"] > 10
+    assert main(["--size", "5", "5", "--out", str(tmp_path)]) == 2
+    assert "world.size" in capsys.readouterr().err
 
 
 def test_tiny_dataset(tmp_path):
