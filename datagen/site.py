@@ -98,7 +98,7 @@ def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig
 
 
 def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
-                  source: str) -> Site:
+                  source: str, t0: float | None = None) -> Site:
     """A classed building mesh (imported, or drawn by datagen/procedural.py) made a site:
     camera free space, standing map, model edges, lights (``building_scene``).
 
@@ -107,11 +107,12 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
         spec: the free-space keys (``z_range``, ``camera_margin``, ``free_cell``,
             ``crease_deg``, ``light_spacing``), ``name`` and ``kind``.
         source: what errors and the log name (the file, or the procedural seed).
+        t0: ``time.perf_counter()`` when building began (the log's time; None: now).
 
     Raises:
         ValueError: no free space left, naming the source and keys.
     """
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() if t0 is None else t0
     free = camera_free_space(b, spec, source)
     floor_z = float(b.info["floor_z"])
     try:
@@ -144,7 +145,8 @@ def file_site(spec: FileWorldConfig) -> Site:
         FileNotFoundError, ValueError: from the import (unknown extension, no floor, no walls,
             a storey that does not exist, ...) or no free space left, naming the file or key.
     """
-    return building_site(load_building(settings=spec), spec, spec.path)
+    t0 = time.perf_counter()
+    return building_site(load_building(settings=spec), spec, spec.path, t0)
 
 
 def procedural_site(spec: ProceduralWorldConfig) -> Site:
@@ -155,8 +157,9 @@ def procedural_site(spec: ProceduralWorldConfig) -> Site:
     """
     from datagen.procedural import build_floor
 
+    t0 = time.perf_counter()
     b, _ = build_floor(spec)
-    return building_site(b, spec, f"world=procedural seed {spec.seed}")
+    return building_site(b, spec, f"world=procedural seed {spec.seed}", t0)
 
 
 def build_site(spec: object) -> Site:
