@@ -90,7 +90,8 @@ class WorldConfig:
     take the door's / window's class, so the class boundary is the recess's outer edge
     (docs/datagen.md)."""
 
-    kind: str = "corridor"  # corridor (this) | file (FileWorldConfig: ``world=file``)
+    kind: str = "corridor"  # corridor (this) | file (FileWorldConfig: ``world=file``) |
+    # procedural (ProceduralWorldConfig: ``world=procedural``)
     name: str = "corridor_paper"
     length: float = 10.0  # m, along +Y
     width: float = 2.0  # m, x in [-width/2, width/2]
@@ -128,18 +129,75 @@ class FileWorldConfig(ImportSettings):
     # the file has no lights (the hospital: 258 panels; 3 m: 121, half as bright)
 
 
-def world_config(world: object, where: str = "world") -> WorldConfig | FileWorldConfig:
-    """The typed world settings of ``world``: a ``WorldConfig`` or ``FileWorldConfig``, or a
-    mapping with ``kind`` corridor (the default) or file (None: the corridor's defaults)."""
-    if isinstance(world, (WorldConfig, FileWorldConfig)):
+@dataclass
+class ProceduralWorldConfig:
+    """An office floor drawn from a seed (``world=procedural``, datagen/procedural.py):
+    corridors on a coarse grid (L and T junctions, loops), a lobby, rooms behind door
+    openings, recesses, columns, glass walls (class window) and windows on the outer walls;
+    built into a world as an imported building is (the free-space keys as
+    ``FileWorldConfig``'s). Pairs are [min, max] ranges, drawn per floor (or per corridor,
+    room, door); probabilities in [0, 1]. Same seed, same floor."""
+
+    kind: str = "procedural"
+    name: str = "procedural"  # the world's name in world.json
+    seed: int = 0  # the floor's seed (the plan and every size drawn)
+    size: list[float] = field(default_factory=lambda: [36.0, 28.0])  # m, (x, y) outline (a
+    # side too short for two corridor lines shrinks to one corridor with its rooms)
+    grid_spacing: list[float] = field(default_factory=lambda: [7.0, 11.0])  # m between the
+    # corridor grid's lines (the grid fills the outline, so the spacing is about this)
+    corridor_width: list[float] = field(default_factory=lambda: [1.2, 4.0])  # m, per corridor
+    height: list[float] = field(default_factory=lambda: [2.4, 4.0])  # m, ceiling of corridors
+    # and rooms (the lobby's: drawn between that and the max)
+    lobby_size: list[float] = field(default_factory=lambda: [5.0, 9.0])  # m, each side
+    room_depth: list[float] = field(default_factory=lambda: [2.5, 4.5])  # m, away from the
+    # corridor (rooms on the outer side of a perimeter corridor reach the outer wall)
+    door_spacing: list[float] = field(default_factory=lambda: [3.0, 5.0])  # m between doors
+    # along a corridor (a room's width; one door per room)
+    door_width: list[float] = field(default_factory=lambda: [0.9, 1.2])  # m
+    door_height: list[float] = field(default_factory=lambda: [2.0, 2.3])  # m, drawn per floor
+    # (below height's min)
+    window_spacing: list[float] = field(default_factory=lambda: [2.0, 4.0])  # m between window
+    # centres along the outer walls
+    window_width: list[float] = field(default_factory=lambda: [0.8, 1.6])  # m
+    window_sill: list[float] = field(default_factory=lambda: [0.8, 1.0])  # m above the floor
+    window_height: list[float] = field(default_factory=lambda: [1.0, 1.3])  # m
+    recess_width: list[float] = field(default_factory=lambda: [0.8, 2.0])  # m, along the wall
+    recess_depth: list[float] = field(default_factory=lambda: [0.3, 0.6])  # m, into the wall
+    column_size: list[float] = field(default_factory=lambda: [0.3, 0.5])  # m, square side
+    wall_thickness: float = 0.15  # m, between a corridor and its rooms, and between rooms
+    outer_wall: float = 0.3  # m, the outer walls' thickness
+    loops: float = 0.3  # probability each grid edge off the spanning tree is a corridor too
+    # (at least one loop where the grid has 2 x 2 nodes)
+    columns: float = 0.5  # probability the lobby, and each corridor >= 2.8 m wide, has columns
+    recesses: float = 0.3  # probability of a recess on each side of each corridor
+    glass: float = 0.2  # probability a room's corridor wall is glass (class window)
+    crease_deg: float = 20.0  # faces meeting at a larger angle make a model edge
+    camera_margin: float = 0.3  # m kept between a camera and any surface
+    z_range: list[float] = field(default_factory=lambda: [0.5, 1.9])  # m above the floor,
+    # camera heights (below door_height's min, so the rooms join the corridors through
+    # their doors in the free space)
+    free_cell: float = 0.1  # m, cell of the free-space map (world/free.npz)
+    light_spacing: float = 2.0  # m between the ceiling panels added along the free space
+
+
+WorldSettings = WorldConfig | FileWorldConfig | ProceduralWorldConfig
+
+
+def world_config(world: object, where: str = "world") -> WorldSettings:
+    """The typed world settings of ``world``: a ``WorldConfig``, ``FileWorldConfig`` or
+    ``ProceduralWorldConfig``, or a mapping with ``kind`` corridor (the default), file or
+    procedural (None: the corridor's defaults)."""
+    if isinstance(world, (WorldConfig, FileWorldConfig, ProceduralWorldConfig)):
         return world
     from core.config import typed
 
     kind = (world or {}).get("kind", "corridor")
-    kinds = {"corridor": WorldConfig, "file": FileWorldConfig}
+    kinds = {"corridor": WorldConfig, "file": FileWorldConfig,
+             "procedural": ProceduralWorldConfig}
     if kind not in kinds:
         raise ValueError(f"{where}.kind: unknown world kind {kind!r}; use one of "
-                         f"{sorted(kinds)} (world=corridor_paper or world=file)")
+                         f"{sorted(kinds)} (world=corridor_paper, world=file or "
+                         "world=procedural)")
     return typed(kinds[kind], world, where)
 
 
@@ -706,8 +764,9 @@ class DatagenConfig:
     # that differs only by larger `splits` counts or more `render_flights` / `val_flights` is
     # grown, not emptied; docs/outputs.md)
     progress: bool = True  # tqdm progress bars (not part of the dataset's config hash)
-    world: Any = None  # WorldConfig (conf/world/corridor_paper, also None) or FileWorldConfig
-    # (conf/world/file); ``world_config`` types a mapping
+    world: Any = None  # WorldConfig (conf/world/corridor_paper, also None), FileWorldConfig
+    # (conf/world/file) or ProceduralWorldConfig (conf/world/procedural); ``world_config``
+    # types a mapping
     camera: CameraConfig = field(default_factory=CameraConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
     appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
@@ -724,3 +783,4 @@ class DatagenConfig:
 register_schema("datagen_schema", DatagenConfig)
 register_schema("corridor_schema", WorldConfig, group="world")
 register_schema("file_schema", FileWorldConfig, group="world")
+register_schema("procedural_schema", ProceduralWorldConfig, group="world")

@@ -1,7 +1,9 @@
 """A built world: everything the datagen job reads of it, whatever it was built from.
 
 ``build_site`` makes one from the world settings: the procedural corridor (``WorldConfig``,
-datagen/world.py) or a building model file (``FileWorldConfig``, datagen/importers). Both give
+datagen/world.py), a building model file (``FileWorldConfig``, datagen/importers) or a floor
+drawn from a seed (``ProceduralWorldConfig``, datagen/procedural.py; built as a file is). All
+give
 the same structures: the ``World`` the localizer reads (classed mesh, model edges, free space
 as an occupancy map), a map of where distractors and people may stand, and the world's own
 flight route if it has one.
@@ -17,7 +19,7 @@ import numpy as np
 
 from core.dataset import World
 from core.occupancy import OccupancyMap
-from datagen.config import FileWorldConfig, WorldConfig, world_config
+from datagen.config import FileWorldConfig, ProceduralWorldConfig, WorldConfig, world_config
 from datagen.edges import extract_edges
 from datagen.importers import Building, load_building
 from datagen.importers.classify import class_shares
@@ -73,12 +75,14 @@ def corridor_site(spec: WorldConfig) -> Site:
     return Site(w, corridor_scene(model), floor, route, b, model)
 
 
-def camera_free_space(b: Building, spec: FileWorldConfig) -> OccupancyMap:
-    """Where a camera may be in an imported building: ``spec.z_range`` above its floor,
+def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
+                      source: str | None = None) -> OccupancyMap:
+    """Where a camera may be in a building: ``spec.z_range`` above its floor,
     ``spec.camera_margin`` from every surface, ``spec.free_cell`` cells.
 
     Raises:
-        ValueError: a bad z_range, or no free space left, naming the file and the keys.
+        ValueError: a bad z_range, or no free space left, naming ``source`` (None: the file,
+            ``spec.path``) and the keys.
     """
     z = np.asarray(spec.z_range, dtype=np.float64)
     if z.shape != (2,) or not 0 <= z[0] < z[1]:
@@ -89,7 +93,49 @@ def camera_free_space(b: Building, spec: FileWorldConfig) -> OccupancyMap:
                                       float(b.info["floor_z"]) + z, spec.camera_margin,
                                       spec.free_cell)
     except ValueError as err:
-        raise ValueError(f"{spec.path}: world.camera_margin / world.z_range: {err}") from None
+        raise ValueError(f"{source or spec.path}: world.camera_margin / world.z_range: "
+                         f"{err}") from None
+
+
+def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
+                  source: str, t0: float | None = None) -> Site:
+    """A classed building mesh (imported, or drawn by datagen/procedural.py) made a site:
+    camera free space, standing map, model edges, lights (``building_scene``).
+
+    Args:
+        b: the building; ``info["floor_z"]`` its floor height (m).
+        spec: the free-space keys (``z_range``, ``camera_margin``, ``free_cell``,
+            ``crease_deg``, ``light_spacing``), ``name`` and ``kind``.
+        source: what errors and the log name (the file, or the procedural seed).
+        t0: ``time.perf_counter()`` when building began (the log's time; None: now).
+
+    Raises:
+        ValueError: no free space left, naming the source and keys.
+    """
+    t0 = time.perf_counter() if t0 is None else t0
+    free = camera_free_space(b, spec, source)
+    floor_z = float(b.info["floor_z"])
+    try:
+        floor = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
+                                       floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
+    except ValueError as err:
+        raise ValueError(f"{source}: {err}") from None
+    segments, seg_classes, crease = extract_edges(b.vertices, b.faces, b.face_class,
+                                                  spec.crease_deg)
+    info = {
+        "name": spec.name, "kind": spec.kind, **b.info,
+        "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
+                       "margin": float(spec.camera_margin), "area_m2": round(free.area, 3)},
+        "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
+    }
+    world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
+                  segments=segments, segment_classes=seg_classes, crease_deg=crease,
+                  free=free, info=info)
+    scene = building_scene(b, free, light_spacing=spec.light_spacing)
+    log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
+             source, len(b.faces), len(segments), free.area, scene.num_lights,
+             time.perf_counter() - t0)
+    return Site(world, scene, floor, None, b)
 
 
 def file_site(spec: FileWorldConfig) -> Site:
@@ -100,34 +146,28 @@ def file_site(spec: FileWorldConfig) -> Site:
             a storey that does not exist, ...) or no free space left, naming the file or key.
     """
     t0 = time.perf_counter()
-    b = load_building(settings=spec)
-    free = camera_free_space(b, spec)
-    floor_z = float(b.info["floor_z"])
-    try:
-        floor = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
-                                       floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
-    except ValueError as err:
-        raise ValueError(f"{spec.path}: {err}") from None
-    segments, seg_classes, crease = extract_edges(b.vertices, b.faces, b.face_class,
-                                                  spec.crease_deg)
-    info = {
-        "name": spec.name, "kind": "file", **b.info,
-        "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
-                       "margin": float(spec.camera_margin), "area_m2": round(free.area, 3)},
-        "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
-    }
-    world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
-                  segments=segments, segment_classes=seg_classes, crease_deg=crease,
-                  free=free, info=info)
-    scene = building_scene(b, free, light_spacing=spec.light_spacing)
-    log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
-             spec.path, len(b.faces), len(segments), free.area, scene.num_lights,
-             time.perf_counter() - t0)
-    return Site(world, scene, floor, None, b)
+    return building_site(load_building(settings=spec), spec, spec.path, t0)
+
+
+def procedural_site(spec: ProceduralWorldConfig) -> Site:
+    """A floor drawn from ``spec.seed`` (datagen/procedural.py), built as a file's building.
+
+    Raises:
+        ValueError: a bad setting (naming the ``world.`` key) or no free space left.
+    """
+    from datagen.procedural import build_floor
+
+    t0 = time.perf_counter()
+    b, _ = build_floor(spec)
+    return building_site(b, spec, f"world=procedural seed {spec.seed}", t0)
 
 
 def build_site(spec: object) -> Site:
-    """The site of world settings (``WorldConfig``, ``FileWorldConfig`` or a mapping with
-    ``kind``; None: the corridor's defaults)."""
+    """The site of world settings (``WorldConfig``, ``FileWorldConfig``,
+    ``ProceduralWorldConfig`` or a mapping with ``kind``; None: the corridor's defaults)."""
     spec = world_config(spec)
-    return file_site(spec) if isinstance(spec, FileWorldConfig) else corridor_site(spec)
+    if isinstance(spec, FileWorldConfig):
+        return file_site(spec)
+    if isinstance(spec, ProceduralWorldConfig):
+        return procedural_site(spec)
+    return corridor_site(spec)
