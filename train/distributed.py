@@ -68,6 +68,12 @@ class World:
             dist.all_reduce(values, op=dist.ReduceOp.SUM)
         return values
 
+    def any(self, flag: bool) -> bool:
+        """Whether ``flag`` is true on any rank (``flag`` itself when alone)."""
+        if not self.active:
+            return bool(flag)
+        return bool(self.sum(torch.tensor([float(flag)], dtype=torch.float64)) > 0)
+
     def from_main(self, make: Callable[[], T]) -> T:
         """``make()`` as rank 0 computes it, on every rank (pickled through the process group;
         the other ranks do not call ``make``)."""

@@ -297,74 +297,10 @@ def train_one_epoch(
         Mean loss (of the global batches), number of steps done, and whether the deadline
         stopped the epoch.
     """
-    if world.active:
-        return _train_one_epoch_ddp(model, data, class_weights, optimizer, scheduler, augment,
-                                    generator, batch_size, deadline, progress, desc, bf16, ema,
-                                    boundary_weight, full_labels, world, ddp)
-    model.train()
-    total, steps, stopped = 0.0, 0, False
-    n_steps = num_batches(len(data), batch_size, drop_last=True)
-    bar = tqdm(
-        batches(len(data), batch_size, generator, drop_last=True),
-        total=n_steps,
-        desc=desc,
-        disable=not progress,
-        leave=False,
-    )
-    for idx in bar:
-        if time.monotonic() > deadline:
-            stopped = True
-            break
-        x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
-        if not full_labels and model.training_factor != model.downsample:
-            y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
-        x = x.contiguous(memory_format=torch.channels_last)
-        logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16)
-        loss = segmentation_loss(logits, y, class_weights, boundary_weight)
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        optimizer.step()
-        scheduler.step()
-        if ema is not None:
-            ema.update_parameters(model)
-        total += float(loss.detach())
-        steps += 1
-        bar.set_postfix(loss=f"{total / steps:.3f}")
-    bar.close()
-    return EpochResult(total / max(steps, 1), steps, stopped)
-
-
-def _train_one_epoch_ddp(
-    model: SegNet,
-    data: SplitData,
-    class_weights: torch.Tensor | None,
-    optimizer: torch.optim.Optimizer,
-    scheduler: torch.optim.lr_scheduler.LRScheduler,
-    augment: AugmentConfig,
-    generator: torch.Generator,
-    batch_size: int,
-    deadline: float,
-    progress: bool,
-    desc: str,
-    bf16: bool,
-    ema: AveragedModel | None,
-    boundary_weight: float,
-    full_labels: bool,
-    world: World,
-    ddp: torch.nn.parallel.DistributedDataParallel | None,
-) -> EpochResult:
-    """``train_one_epoch`` on this rank's share of every global batch (its arguments).
-
-    The loss of a global batch is sum(numerators) / sum(denominators) over its pixels
-    (``segmentation_loss_terms``); rank r backpropagates N * numerator_r / denominator (the
-    denominator summed over the ranks), so DDP's average of the N gradients is the gradient of
-    the global batch's loss, as one process computes it (up to float rounding and BatchNorm's
-    per-rank statistics; train/distributed.py).
-    """
-    if ddp is None:
+    if world.active and ddp is None:
         raise ValueError("train_one_epoch: world.active needs ddp=data_parallel(model, ...)")
     model.train()
-    total, steps, stopped = torch.zeros(1, dtype=torch.float64), 0, False
+    total, steps, stopped = 0.0, 0, False
     n_steps = num_batches(len(data), batch_size, drop_last=True)
     bar = tqdm(
         batches(len(data), batch_size, generator, drop_last=True),
@@ -374,36 +310,56 @@ def _train_one_epoch_ddp(
         leave=False,
     )
     for idx in bar:
+        if world.any(time.monotonic() > deadline):  # every rank stops at the same step
+            stopped = True
+            break
         x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
         x, y = world.shard(x), world.shard(y)
         if not full_labels and model.training_factor != model.downsample:
-            y = block_majority(y, model.downsample).long()
-        pixel_weights = pixel_loss_weights(y, class_weights, boundary_weight)
-        # one collective before the forward pass: the global batch's loss denominator, and
-        # whether any rank is past the deadline (all stop together)
-        shared = world.sum(torch.stack([
-            pixel_weights.sum(dtype=torch.float64),
-            torch.tensor(float(time.monotonic() > deadline), dtype=torch.float64)]))
-        if shared[1] > 0:
-            stopped = True
-            break
-        denominator = float(shared[0].clamp(min=1e-12))
+            y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
         x = x.contiguous(memory_format=torch.channels_last)
         logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16, ddp)
-        numerator = (F.cross_entropy(logits, y, ignore_index=IGNORE, reduction="none")
-                     * pixel_weights).sum()
-        loss = numerator * (world.size / denominator)
+        loss, value = batch_loss(logits, y, class_weights, boundary_weight, world)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
         scheduler.step()
         if ema is not None:
             ema.update_parameters(model)
-        total += float(numerator.detach()) / denominator
+        total += value
         steps += 1
+        bar.set_postfix(loss=f"{total / steps:.3f}")
     bar.close()
-    mean = float(world.sum(total)) / max(steps, 1)
-    return EpochResult(mean, steps, stopped)
+    if world.active:  # the global batches' loss: the ranks' shares summed
+        total = float(world.sum(torch.tensor([total], dtype=torch.float64)))
+    return EpochResult(total / max(steps, 1), steps, stopped)
+
+
+def batch_loss(logits: torch.Tensor, y: torch.Tensor, class_weights: torch.Tensor | None,
+               boundary_weight: float, world: World) -> tuple[torch.Tensor, float]:
+    """The loss this rank backpropagates, and its share of the global batch's loss value.
+
+    One process: ``segmentation_loss`` and its value. Under torchrun the loss of a global
+    batch is sum(numerators) / sum(denominators) over its pixels (``pixel_loss_weights``);
+    rank r backpropagates N * numerator_r / denominator (the denominator summed over the
+    ranks), so DDP's average of the N gradients is the gradient of the global batch's loss, as
+    one process computes it (up to float rounding and BatchNorm's per-rank statistics;
+    train/distributed.py); its share of the value is numerator_r / denominator.
+
+    Args:
+        logits: (B, C, H, W) float32 at the labels' resolution (this rank's images).
+        y: (B, H, W) int64 labels, 255 ignored.
+        class_weights, boundary_weight: as for ``segmentation_loss``.
+        world: the training processes.
+    """
+    if not world.active:
+        loss = segmentation_loss(logits, y, class_weights, boundary_weight)
+        return loss, float(loss.detach())
+    pixel_weights = pixel_loss_weights(y, class_weights, boundary_weight)
+    denominator = float(world.sum(pixel_weights.sum(dtype=torch.float64)).clamp(min=1e-12))
+    numerator = (F.cross_entropy(logits, y, ignore_index=IGNORE, reduction="none")
+                 * pixel_weights).sum()
+    return numerator * (world.size / denominator), float(numerator.detach()) / denominator
 
 
 def _write_log(path: Path, history: list[dict]) -> None:
