@@ -26,16 +26,16 @@ import argparse
 import json
 import subprocess
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
-from datagen.config import RealismConfig  # noqa: E402
+from datagen.config import load_realism  # noqa: E402
 from localize.metrics import error_stats, lost_track  # noqa: E402
 
 #: Per factor, how a strength s scales the real preset's magnitudes: "mul" x s, "inv" / s
@@ -57,9 +57,7 @@ SUMMARY_KEYS = ("mean_position_error_m", "p95_m", "lost_rate")
 
 def real_preset() -> dict:
     """conf/realism/real.yaml over ``RealismConfig``'s defaults, as a plain dict."""
-    base = OmegaConf.structured(RealismConfig)
-    real = OmegaConf.load(ROOT / "conf" / "realism" / "real.yaml")
-    return OmegaConf.to_container(OmegaConf.merge(base, real))
+    return asdict(load_realism("real"))
 
 
 def factors(real: dict) -> list[str]:

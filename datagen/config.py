@@ -9,11 +9,11 @@ times in seconds. See docs/datagen.md for what the options do.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from omegaconf import MISSING
+from omegaconf import MISSING, OmegaConf
 
 from core.config import register_schema
 from datagen.importers.settings import ImportSettings
@@ -713,8 +713,6 @@ def load_realism(name: str, where: str = "realism") -> RealismConfig:
     Raises:
         ValueError: no such preset (names the ones there are), or a key the schema lacks.
     """
-    from omegaconf import OmegaConf
-
     path = REALISM_DIR / f"{name}.yaml"
     if not path.is_file():
         known = sorted(p.stem for p in REALISM_DIR.glob("*.yaml"))
@@ -727,8 +725,6 @@ def realism_label(settings: RealismConfig) -> str:
     """The name a dataset records for its realism: the preset's name where the settings are
     that preset's (or the name names no preset), else the name and the keys changed, e.g.
     ``ideal + map.wall_std_m, map.builtins``."""
-    from dataclasses import asdict
-
     if not (REALISM_DIR / f"{settings.name}.yaml").is_file():
         return settings.name
 
