@@ -42,6 +42,7 @@ from localize.localizer import Localizer  # noqa: E402
 from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
 from localize.runner import prepare  # noqa: E402
+from localize.segmenter import model_path  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0
@@ -141,7 +142,7 @@ def main() -> int:
         cfg = compose("localize", overrides=["progress=false", "name=speed",
                                              "out_root=outputs/benchmarks",
                                              f"modes=[{args.mode}]", *args.overrides])
-    onnx_path = Path(cfg.onnx_model)
+    onnx_path = model_path(cfg.onnx_model, cfg.dataset)
     if args.mode == "cnn" and not onnx_path.is_file():
         print(f"{onnx_path} not found: train first (python -m train) or pass --mode oracle",
               file=sys.stderr)

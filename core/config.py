@@ -19,6 +19,16 @@ from omegaconf.errors import OmegaConfBaseException
 T = TypeVar("T")
 
 
+def _cycle(index: int, values: list) -> Any:
+    """``${cycle:${world.seed},[60,80,100]}``: ``values[index % len(values)]`` (a setting that
+    varies along a sweep, e.g. each procedural floor's camera)."""
+    return values[int(index) % len(values)]
+
+
+if not OmegaConf.has_resolver("cycle"):
+    OmegaConf.register_new_resolver("cycle", _cycle)
+
+
 def register_schema(name: str, node: type, group: str | None = None) -> None:
     """Store dataclass ``node`` in Hydra's ConfigStore as ``name`` (in config group ``group``),
     for a defaults list (``defaults: [name, ...]``): every key then has its type and

@@ -26,6 +26,7 @@ interpolates it at each delivered frame's timestamp, as a folder recording's rea
 
 from __future__ import annotations
 
+import glob
 import json
 from dataclasses import dataclass
 from functools import cached_property
@@ -350,3 +351,21 @@ def _ranges(idx: np.ndarray, limit: int = 4) -> str:
     runs = [(int(r[0]), int(r[-1])) for r in np.split(idx, cuts)]
     text = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:limit])
     return text + (", ..." if len(runs) > limit else "")
+
+
+def open_datasets(pattern: str | Path) -> list[Dataset]:
+    """The datasets that a folder or a glob pattern names, in sorted order.
+
+    A plain path is one dataset. A pattern (``outputs/datasets/generalist/floor*``) is every
+    matching folder that holds a dataset.json; matching none is an error naming the pattern.
+    """
+    text = str(pattern)
+    if not any(c in text for c in "*?["):
+        return [Dataset(text)]
+    roots = sorted(p for p in glob.glob(text) if (Path(p) / "dataset.json").is_file())
+    if not roots:
+        raise FileNotFoundError(
+            f"{text!r} matches no dataset folder (one holding a dataset.json); make them with "
+            "`python -m datagen` or fix the pattern."
+        )
+    return [Dataset(r) for r in roots]

@@ -19,6 +19,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from core.outputs import flatten
 from localize.runner import run
+from localize.segmenter import model_path
 from train.runtime import model_localize_settings
 
 log = logging.getLogger(__name__)
@@ -88,6 +89,9 @@ def apply_model_settings(cfg: DictConfig, overrides: Sequence[str]) -> dict:
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="localize")
 def main(cfg: DictConfig) -> None:
+    if cfg.onnx_model == "auto":
+        cfg.onnx_model = str(model_path("auto", cfg.dataset))
+        log.info("onnx_model=auto: %s", cfg.onnx_model)
     apply_model_settings(cfg, HydraConfig.get().overrides.task)
     if cfg.recording is None:
         report = run(cfg)

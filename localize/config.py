@@ -457,8 +457,11 @@ class LocalizeConfig(Settings):
     Attributes:
         name: report folder ``<out_root>/<name>/``.
         dataset: the dataset made by ``python -m datagen``.
-        onnx_model: the SegNet made by ``python -m train`` (cnn mode only); the localize
-            settings it carries apply under the command line's.
+        onnx_model: the SegNet of cnn mode, a segnet.onnx made by ``python -m train``; the
+            localize settings it carries apply under the command line's. ``auto``: the
+            dataset's own, ``outputs/models/<dataset folder name>/segnet.onnx``, where it
+            exists, else the generalist shipped in ``models/generalist/``
+            (``localize.segmenter.model_path``).
         out_root: where report folders go.
         flight_set: the dataset's flights to run: ``test`` (the default: ``render_flights``,
             the flights figures are reported on) or ``val`` (``val_flights``, ``<name>_val``:
@@ -484,7 +487,7 @@ class LocalizeConfig(Settings):
 
     name: str = "demo"
     dataset: str = "outputs/datasets/demo"
-    onnx_model: str = "outputs/models/demo/segnet.onnx"
+    onnx_model: str = "auto"
     out_root: str = "outputs/reports"
     flight_set: str = "test"
     flight_names: list[str] | None = None

@@ -43,7 +43,7 @@ from localize.metrics import (
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
 from localize.runner import Context, RunSpec, check_run_lists, settings_of
-from localize.segmenter import load_segmenter
+from localize.segmenter import load_segmenter, model_path
 
 log = logging.getLogger(__name__)
 
@@ -159,7 +159,8 @@ def run_recording(cfg: DictConfig) -> Path:
                          body_from_cam=None if mount is None else np.asarray(mount,
                                                                              dtype=np.float64))
     out = Path(cfg.out_root) / str(cfg.name) / "recordings" / rec.name
-    segmenter = (load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads))
+    segmenter = (load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
+                                int(cfg.threads))
                  if "cnn" in modes else None)
     ctx = Context(cfg, dataset, rec.camera, world, settings,
                   EdgeModel.build(world, settings, out / "cache"), out, segmenter)

@@ -45,7 +45,7 @@ from localize.localizer import (
 )
 from localize.metrics import position_errors, yaw_errors_deg
 from localize.particle_filter import odometry_increment
-from localize.segmenter import load_segmenter
+from localize.segmenter import load_segmenter, model_path
 
 log = logging.getLogger(__name__)
 
@@ -198,7 +198,8 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> C
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
-        segmenter = load_segmenter(cfg.onnx_model, dataset.classes, int(cfg.threads))
+        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
+                                   int(cfg.threads))
     return Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter,
                    dict(source_wrappers or {}))
 
@@ -397,7 +398,7 @@ def check_resume(out: Path, cfg: DictConfig) -> Claim:
     otherwise it raises naming the differing keys.
     """
     conf = OmegaConf.to_container(cfg, resolve=True)
-    onnx_path = Path(str(cfg.onnx_model))
+    onnx_path = model_path(str(cfg.onnx_model), str(cfg.dataset))
     conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)
     path = out / "config.json"

@@ -13,6 +13,26 @@ from localize.edges import check_rgb
 
 log = logging.getLogger(__name__)
 
+#: The generalist SegNet that ships with the code, for buildings it never saw: trained on
+#: procedural floors (models/generalist/README.md).
+SHIPPED_MODEL = Path(__file__).resolve().parents[1] / "models" / "generalist" / "segnet.onnx"
+#: Where ``python -m train`` writes its model folders (its ``out_root``).
+MODELS_ROOT = Path("outputs/models")
+
+
+def model_path(onnx_model: str, dataset: str) -> Path:
+    """The segnet.onnx that localize's ``onnx_model`` names.
+
+    ``auto`` (the default) is the dataset's own SegNet,
+    ``outputs/models/<the dataset folder's name>/segnet.onnx`` (what ``python -m train
+    name=<name>`` writes for ``dataset=outputs/datasets/<name>``) where it exists, else the
+    shipped generalist (``SHIPPED_MODEL``). Any other value is the path itself.
+    """
+    if onnx_model != "auto":
+        return Path(onnx_model)
+    own = MODELS_ROOT / Path(dataset).name / "segnet.onnx"
+    return own if own.is_file() else SHIPPED_MODEL
+
 
 def check_classes(model_classes: list[dict], dataset_classes: list[dict], where: str) -> None:
     """Raise if the segmenter's classes differ from the dataset's (ids and names).

@@ -230,7 +230,9 @@ class TrainConfig:
 
     Attributes:
         name: the output folder's name.
-        dataset: a dataset made by ``python -m datagen`` (relative to the working dir).
+        dataset: a dataset made by ``python -m datagen`` (relative to the working dir), or
+            a glob pattern of several (``outputs/datasets/generalist/floor*``, with one class
+            list and image size) whose splits are trained on together.
         out_root: the folder of the model folders.
         seed: seeds the initial weights, the shuffling and the augmentation.
         precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AMX tiles):

@@ -70,6 +70,37 @@ def check_classes(classes: Sequence[dict], num_classes: int | None, source: str)
     return len(ids)
 
 
+def check_same_kind(datasets: Sequence[Dataset]) -> None:
+    """Raise unless the datasets trained on together share their classes and image size.
+
+    Args:
+        datasets: the datasets of ``dataset`` (a folder or a glob pattern).
+    """
+    first = datasets[0]
+    want = (first.classes, first.camera.width, first.camera.height)
+    for d in datasets[1:]:
+        if (d.classes, d.camera.width, d.camera.height) != want:
+            raise ValueError(
+                f"{d.root / 'dataset.json'}: its classes or image size "
+                f"({d.camera.width}x{d.camera.height}) differ from those of "
+                f"{first.root / 'dataset.json'} ({want[1]}x{want[2]}); train on datasets "
+                "made with one class list and one camera.width/height."
+            )
+
+
+def load_splits(datasets: Sequence[Dataset], split: str, num_classes: int,
+                limit: int | None = None, progress: bool = False) -> SplitData:
+    """``load_split`` of each dataset, concatenated in order (``limit`` applies to each)."""
+    parts = [load_split(d, split, num_classes, limit, progress) for d in datasets]
+    if len(parts) == 1:
+        return parts[0]
+    return SplitData(
+        images=torch.cat([p.images for p in parts]),
+        labels=torch.cat([p.labels for p in parts]),
+        paths=[path for p in parts for path in p.paths],
+    )
+
+
 def load_split(
     dataset: Dataset,
     split: str,

@@ -36,7 +36,7 @@ from onnxruntime.quantization.shape_inference import quant_pre_process
 from tqdm import tqdm
 
 from core.atomic import atomic_write, atomic_write_json, read_png
-from core.dataset import Dataset
+from core.dataset import open_datasets
 from train.config import ExportConfig
 from train.metrics import confusion_matrix, metrics_json
 from train.predict import OnnxSegmenter, network_input
@@ -215,8 +215,8 @@ def quantize_model_dir(model_dir: str | Path, dataset: str | Path | None = None,
 
     Args:
         model_dir: holds segnet.onnx and config.json.
-        dataset: the dataset to calibrate on (training split) and test on (test split); None:
-            the one the model was trained on (config.json).
+        dataset: the dataset (or a glob pattern of datasets) to calibrate on (training
+            split) and test on (test split); None: the model's own (config.json).
         calibration: training images for the activation ranges, spread over the split.
         test_limit: compare on the first N test images only (None: all).
 
@@ -233,18 +233,19 @@ def quantize_model_dir(model_dir: str | Path, dataset: str | Path | None = None,
         if not cfg_path.is_file():
             raise FileNotFoundError(f"{cfg_path} not found; pass the dataset with --dataset")
         dataset = json.loads(cfg_path.read_text())["dataset"]
-    data = Dataset(dataset)
-    train_rgb, _ = data.split("train")
+    datasets = open_datasets(dataset)
+    train_rgb = [p for d in datasets for p in d.split("train")[0]]
     if not train_rgb:
-        raise FileNotFoundError(f"{data.root / 'train'} has no images to calibrate on; finish "
+        raise FileNotFoundError(f"{dataset} has no training images to calibrate on; finish "
                                 "the dataset with `python -m datagen`")
     chosen = [train_rgb[i] for i in spread_indices(len(train_rgb), calibration)]
     dst = model_dir / INT8_NAME
     info = quantize_segnet(src, dst, read_images(chosen))
-    test_rgb, test_label = data.split("test")
+    test_rgb = [p for d in datasets for p in d.split("test")[0]]
+    test_label = [p for d in datasets for p in d.split("test")[1]]
     if test_limit is not None:
         test_rgb, test_label = test_rgb[:test_limit], test_label[:test_limit]
-    report = {"model": str(src), "int8_model": str(dst), "dataset": str(data.root),
+    report = {"model": str(src), "int8_model": str(dst), "dataset": str(dataset),
               "quantization": info}
     report.update(compare_on_split(src, dst, test_rgb, test_label, threads, progress=progress))
     atomic_write_json(model_dir / REPORT_NAME, report)

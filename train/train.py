@@ -41,7 +41,7 @@ from tqdm import tqdm
 
 from core.atomic import atomic_write_json, atomic_write_text
 from core.config import as_config
-from core.dataset import Dataset
+from core.dataset import Dataset, open_datasets
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
 from datagen import camera_effects
 from datagen.config import load_realism
@@ -62,8 +62,9 @@ from train.data import (
     batches,
     block_majority,
     check_classes,
+    check_same_kind,
     downsample_split,
-    load_split,
+    load_splits,
     num_batches,
     through_camera,
     to_float,
@@ -424,7 +425,7 @@ class Job:
 
     cfg: TrainConfig
     out_dir: Path
-    dataset: Dataset
+    datasets: list[Dataset]  # what ``dataset`` names (a folder or a glob pattern)
     num_classes: int
     info: dict  # config_hash, dataset_digest, dataset, config (config.json)
     model: SegNet
@@ -454,11 +455,11 @@ class Job:
 
     @property
     def classes(self) -> list[dict]:
-        return self.dataset.classes
+        return self.datasets[0].classes
 
     @property
     def names(self) -> list[str]:
-        return [c["name"] for c in self.dataset.classes]
+        return [c["name"] for c in self.classes]
 
     @property
     def class_weights(self) -> dict[str, float] | None:
@@ -512,16 +513,17 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
     check_batch_size(cfg.batch_size, world)
     camera = load_realism(cfg.data.realism, "data.realism")
     torch.set_num_threads(cfg.threads)
-    dataset = Dataset(cfg.dataset)
-    ds_json = (dataset.root / "dataset.json").read_bytes()
+    datasets = open_datasets(cfg.dataset)
+    check_same_kind(datasets)
+    ds_json = b"".join((d.root / "dataset.json").read_bytes() for d in datasets)
     num_classes = check_classes(
-        dataset.classes, cfg.model.num_classes, str(dataset.root / "dataset.json")
+        datasets[0].classes, cfg.model.num_classes, str(datasets[0].root / "dataset.json")
     )
     train_cfg = training_config(cfg)
     info = {
         "config_hash": config_hash(train_cfg, ds_json),
         "dataset_digest": hashlib.sha256(ds_json).hexdigest()[:16],
-        "dataset": str(dataset.root),
+        "dataset": str(datasets[0].root) if len(datasets) == 1 else cfg.dataset,
         "config": train_cfg,
     }
     model = build_network(cfg, num_classes)
@@ -532,8 +534,8 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
 
     full_labels = cfg.loss.resolution == "input"
     progress = cfg.progress and world.is_main
-    train_data = load_split(dataset, "train", num_classes, cfg.data.limit, progress)
-    val_data = (load_split(dataset, "val", num_classes, cfg.data.limit, progress)
+    train_data = load_splits(datasets, "train", num_classes, cfg.data.limit, progress)
+    val_data = (load_splits(datasets, "val", num_classes, cfg.data.limit, progress)
                 if world.is_main else None)
     if camera_effects.is_active(camera):
         train_data = through_camera(train_data, camera, cfg.seed, stream=0)
@@ -549,7 +551,7 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
     # the longest schedule: refit_schedule may span fewer epochs
     optimizer, scheduler = make_optimizer(model, cfg.optim, cfg.epochs * steps_per_epoch)
-    job = Job(cfg, out_dir, dataset, num_classes, info, model, make_ema(model, cfg.ema_decay),
+    job = Job(cfg, out_dir, datasets, num_classes, info, model, make_ema(model, cfg.ema_decay),
               optimizer, scheduler, train_data, val_data,
               cfg.data.augment.at_resolution(model.training_factor), weights, batch_size,
               steps_per_epoch, cfg.epochs, bf16, world,
@@ -776,7 +778,7 @@ def quantize(job: Job, metrics: dict) -> None:
             (out_dir / name).unlink(missing_ok=True)
         return
     with disk_space_guard(out_dir, INT8_NAME):
-        q = quantize_model_dir(out_dir, job.dataset.root, cfg.export.int8_calibration,
+        q = quantize_model_dir(out_dir, job.info["dataset"], cfg.export.int8_calibration,
                                cfg.data.limit, cfg.threads, cfg.progress)
         metrics["int8"] = int8_summary(q)
         atomic_write_json(out_dir / "metrics.json", metrics)
@@ -800,7 +802,7 @@ def finish(job: Job, state: dict, t_start: float) -> dict:
     model, best = load_best(job)
     n_train = len(job.train_data)
     job.train_data = None  # its memory, before the test split is loaded
-    test_data = load_split(job.dataset, "test", job.num_classes, job.cfg.data.limit,
+    test_data = load_splits(job.datasets, "test", job.num_classes, job.cfg.data.limit,
                            job.cfg.progress)
     images = {"train": n_train, "val": len(job.val_data), "test": len(test_data)}
     metrics = run_metrics(job, state, model, best, images)

@@ -197,3 +197,18 @@ def test_tiny_dataset(tmp_path):
     assert len(list((out / "train" / "rgb").glob("*.png"))) == 3
     assert len(list((out / "flights" / "paper" / "rgb").glob("*.png"))) == 5
     assert ds.world().free.area == pytest.approx(info["free_space"]["area_m2"], abs=1e-3)
+
+
+def test_generalist_recipe_composes():
+    """experiment=generalist_floors: each floor of the sweep is its own dataset, with its own
+    seed and a field of view that cycles through 60-100 deg; the training recipe reads them
+    all through a glob pattern."""
+    fovs = []
+    for seed in range(6):
+        cfg = compose_config("datagen", ["experiment=generalist_floors", f"world.seed={seed}"])
+        assert cfg["name"] == f"generalist/floor{seed}" and cfg["seed"] == seed
+        assert cfg["world"]["kind"] == "procedural" and cfg["render_flights"] == []
+        fovs.append(cfg["camera"]["hfov_deg"])
+    assert fovs == [60, 70, 80, 90, 100, 60]
+    train = compose_config("train", ["experiment=generalist"])
+    assert train["dataset"] == "outputs/datasets/generalist/floor*"

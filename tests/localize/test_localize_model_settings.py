@@ -11,7 +11,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
-from localize.segmenter import load_segmenter
+from localize.segmenter import SHIPPED_MODEL, load_segmenter, model_path
 from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
 from train.predict import OnnxSegmenter
@@ -154,3 +154,18 @@ class TestNotAnOnnxFile:
     def test_missing(self, tmp_path: Path) -> None:
         with pytest.raises(FileNotFoundError, match="not found"):
             OnnxSegmenter(tmp_path / "none.onnx")
+
+
+class TestModelPath:
+    """onnx_model=auto: the dataset's own SegNet where `python -m train` wrote one, else the
+    shipped generalist; any other value is a path."""
+
+    def test_auto(self, tmp_path, monkeypatch):
+        monkeypatch.chdir(tmp_path)
+        assert model_path("auto", "outputs/datasets/office") == SHIPPED_MODEL
+        own = tmp_path / "outputs" / "models" / "office" / "segnet.onnx"
+        own.parent.mkdir(parents=True)
+        own.write_bytes(b"onnx")
+        assert model_path("auto", "outputs/datasets/office").resolve() == own
+        assert model_path("auto", "outputs/datasets/other") == SHIPPED_MODEL
+        assert model_path("m/segnet.onnx", "outputs/datasets/office") == Path("m/segnet.onnx")

@@ -11,7 +11,7 @@ import torch
 from core import classes as C
 from core.atomic import write_png
 from core.config import typed
-from core.dataset import Dataset
+from core.dataset import Dataset, open_datasets
 from datagen.camera_effects import to_linear
 from datagen.config import load_realism
 from train.data import (
@@ -21,8 +21,10 @@ from train.data import (
     batches,
     block_majority,
     check_classes,
+    check_same_kind,
     downsample_split,
     load_split,
+    load_splits,
     through_camera,
 )
 
@@ -207,6 +209,31 @@ class TestLoad:
         bad.write_bytes(bad.read_bytes()[:100])
         with pytest.raises(ValueError, match=rf"cut-short PNG.*{bad}.*re-renders broken"):
             load_split(Dataset(root), "train", 8)
+
+    def test_several_datasets(self, tmp_path: Path, make_dataset) -> None:
+        """A glob pattern names several datasets, trained on together: their splits are
+        concatenated in sorted order; folders without a dataset.json are not datasets."""
+        b = make_dataset(tmp_path / "floor1", {"train": 3, "val": 1, "test": 1}, seed=1)
+        a = make_dataset(tmp_path / "floor0", {"train": 2, "val": 1, "test": 1}, seed=0)
+        (tmp_path / "floor2").mkdir()  # a dataset not begun
+        found = open_datasets(tmp_path / "floor*")
+        assert [d.root for d in found] == [a, b]
+        assert [d.root for d in open_datasets(a)] == [a]
+        check_same_kind(found)
+        both = load_splits(found, "train", 8)
+        one, two = load_split(found[0], "train", 8), load_split(found[1], "train", 8)
+        assert len(both) == 5 and both.paths == one.paths + two.paths
+        assert torch.equal(both.images, torch.cat([one.images, two.images]))
+        assert torch.equal(both.labels, torch.cat([one.labels, two.labels]))
+        with pytest.raises(FileNotFoundError, match=r"'.*nothing\*' matches no dataset"):
+            open_datasets(tmp_path / "nothing*")
+
+    def test_several_datasets_must_agree(self, tmp_path: Path, make_dataset) -> None:
+        make_dataset(tmp_path / "a", {"train": 1, "val": 1, "test": 1})
+        make_dataset(tmp_path / "b", {"train": 1, "val": 1, "test": 1}, height=32)
+        with pytest.raises(ValueError, match=r"b/dataset.json: its classes or image size "
+                                             r"\(64x32\) differ"):
+            check_same_kind(open_datasets(tmp_path / "[ab]"))
 
     def test_class_count_mismatch(self) -> None:
         assert check_classes(C.as_json(), None, "x/dataset.json") == 8
