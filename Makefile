@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.installed
 
-.PHONY: setup llvm test test-fast demo best building lint bench contact-sheet clean
+.PHONY: setup llvm test test-fast demo best generalist building lint bench contact-sheet clean
 
 setup: $(STAMP)
 
@@ -70,6 +70,13 @@ best: setup
 	set -e; for stage in $(BEST_CHAIN); do $(PY) -m train experiment=$$stage; done
 	$(PY) -m localize name=best onnx_model=outputs/models/hr3c/segnet.onnx
 	@echo "report: outputs/reports/best/report.md"
+
+# The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist"): 24
+# procedural floors (~25 min; `hydra/launcher=ray` or `slurm` spreads them), then 60 min of
+# training. A copy ships in models/generalist/; interrupted, `make generalist` resumes.
+generalist: setup
+	$(PY) -m datagen -m experiment=generalist_floors
+	$(PY) -m train experiment=generalist
 
 # Your building: the demo's three stages on a whole floor of a model file (docs/importers.md):
 # `make building BUILDING=path/to/model.world NAME=hospital` (.world/.sdf, .glb/.gltf, .obj,
