@@ -252,6 +252,10 @@ class FeatureProbs:
     ceiling_vent: float = 0.6  # a ventilation grille tile
     ceiling_stain: float = 0.3  # a water stain on a ceiling tile
     frame_matches_door: float = 0.3  # the door frame has the door's texture
+    accent_wall: float = 0.0  # the wall's paint (or wallpaper / block / panel colour) is a
+    # saturated accent colour; 0: never (no draw)
+    dark_floor: float = 0.0  # the floor is darkened to 15-45 % of its drawn brightness (slate,
+    # dark vinyl, dark wood); 0: never (no draw)
 
 
 @dataclass
@@ -265,6 +269,13 @@ class LightsAppearance:
     jitter: float = 0.15  # relative per-panel intensity variation
     temperature_k: list[float] = field(default_factory=lambda: [2700.0, 6500.0])  # colour
     # temperature, [min, max] (one per scene, +/-150 K per panel)
+    dim: float = 0.0  # share of scenes whose panels are dimmed by a factor drawn in
+    # dim_factor (night, corridor lights on a sensor); 0: none (no draw)
+    dim_factor: list[float] = field(default_factory=lambda: [0.05, 0.3])  # [min, max]
+    daylight: float = 0.0  # share of scenes with daylight: the windows' emitted outdoor view
+    # is multiplied by a gain drawn in daylight_gain and lights the rooms; 0: none (no draw)
+    daylight_gain: list[float] = field(default_factory=lambda: [4.0, 20.0])  # [min, max]; 1 is
+    # the plain view (radiance <= 1, a few % of a panel's)
 
 
 @dataclass
@@ -296,7 +307,13 @@ class AppearanceConfig:
 
     resolution: int = 256
     floor_styles: dict[str, float] = field(default_factory=lambda: {
-        "tiles": 0.45, "wood": 0.3, "carpet": 0.25})  # probabilities (normalized)
+        "tiles": 0.45, "wood": 0.3, "carpet": 0.25, "vinyl": 0.0, "concrete": 0.0,
+        "terrazzo": 0.0})  # probabilities (normalized)
+    wall_styles: dict[str, float] = field(default_factory=lambda: {
+        "paint": 1.0, "wallpaper": 0.0, "block": 0.0, "brick": 0.0, "panels": 0.0,
+        "tiles": 0.0})  # probabilities (normalized); only paint: no draw
+    ceiling_styles: dict[str, float] = field(default_factory=lambda: {
+        "tiles": 1.0, "plaster": 0.0})  # probabilities (normalized); only tiles: no draw
     door_styles: dict[str, float] = field(default_factory=lambda: {
         "wood": 0.5, "painted": 0.5})
     posters: list[int] = field(default_factory=lambda: [1, 4])  # posters / signs / notice
