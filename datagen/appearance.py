@@ -378,11 +378,11 @@ def _floor(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndarra
     return img
 
 
-def _flecks(rng: np.random.Generator, img: np.ndarray, n: int, sigma: float, share: float,
-            colour: np.ndarray) -> None:
-    """Scatter periodic flecks (blobs of about sigma px) of one colour over a share of the
-    (3, n, n) image, in place."""
-    field = _noise(rng, n, n, (sigma, sigma))
+def _flecks(rng: np.random.Generator, img: np.ndarray, n: int, sigma: float | None,
+            share: float, colour: np.ndarray) -> None:
+    """Scatter periodic flecks (blobs of about sigma px; None: single pixels) of one colour
+    over a share of the (3, n, n) image, in place."""
+    field = _speckle(rng, n, n) if sigma is None else _noise(rng, n, n, (sigma, sigma))
     _fill(img, field > np.quantile(field, 1.0 - share), colour)
 
 
@@ -397,7 +397,7 @@ def _vinyl(rng: np.random.Generator, n: int, px_m: float, y: np.ndarray, x: np.n
     if rng.random() < 0.6:  # flecked: two fleck colours, a few % of the surface each
         for _ in range(2):
             tone = np.clip(base * rng.uniform(0.3, 1.6) + rng.uniform(-0.1, 0.1, 3), 0, 1)
-            _flecks(rng, img, n, rng.uniform(0.8, 2.0), rng.uniform(0.02, 0.08), tone)
+            _flecks(rng, img, n, None, rng.uniform(0.01, 0.05), tone)
     sheet = n / int(rng.choice([1, 2]))  # a 2 m or 1 m wide roll
     weld = max(1.0, 0.004 * px_m)
     seam = (y % sheet) < weld
@@ -587,6 +587,7 @@ def _wall_cover(rng: np.random.Generator, style: str, paint: np.ndarray, uu: np.
         (3, h, w) float32 sRGB.
     """
     h, w = vv.shape[0], uu.shape[1]
+    px = float(uu[0, 1] - uu[0, 0])  # metres per pixel: joints and lines are >= 1 px wide
     if style == "wallpaper":
         img = _solid(paint, 1 + 0.015 * _speckle(rng, h, w), (h, w))
         second = (np.clip(paint * rng.uniform(0.55, 0.9) + rng.uniform(-0.08, 0.08, 3), 0, 1)
@@ -595,7 +596,7 @@ def _wall_cover(rng: np.random.Generator, style: str, paint: np.ndarray, uu: np.
         if kind < 2:  # broad stripes or pinstripes
             pitch = eu / max(1, round(eu / rng.uniform(0.04, 0.3)))
             duty = rng.uniform(0.25, 0.6) if kind == 0 else rng.uniform(0.04, 0.12)
-            mask = np.broadcast_to((uu % pitch) < duty * pitch, (h, w))
+            mask = np.broadcast_to((uu % pitch) < max(duty * pitch, px), (h, w))
         else:  # a small repeating motif (dots or diamonds), half-drop
             pu = eu / max(1, round(eu / rng.uniform(0.06, 0.25)))
             pv = rng.uniform(0.06, 0.25)
@@ -627,6 +628,7 @@ def _wall_cover(rng: np.random.Generator, style: str, paint: np.ndarray, uu: np.
     count = max(1, round(eu / length))
     bw = eu / count
     ri = (vv // course).astype(np.intp)
+    joint = max(joint, px)
     joints = ((vv % course) < joint) | (((uu + (ri % 2) * (bw / 2)) % bw) < joint)
     _fill(img, joints, mortar)
     return img
@@ -637,6 +639,7 @@ def _wall_lower(rng: np.random.Generator, img: np.ndarray, style: str, uu: np.nd
     """Wood or laminate panelling, or glazed wall tiles, from the floor to a height (or the
     full height), over (3, h, w) img in place (uu, vv, eu as for ``_wall_cover``)."""
     h, w = vv.shape[0], uu.shape[1]
+    px = float(uu[0, 1] - uu[0, 0])  # metres per pixel: grooves and grout are >= 1 px wide
     full = rng.random() < 0.4
     if style == "panels":
         top = ev if full else rng.uniform(0.9, 1.5)
@@ -649,7 +652,7 @@ def _wall_lower(rng: np.random.Generator, img: np.ndarray, style: str, uu: np.nd
             colour = (_neutral(rng, (0.4, 0.95), 0.15) if rng.random() < 0.6
                       else _hsv(rng, (0.0, 1.0), (0.2, 0.6), (0.3, 0.8)))
             cover = _solid(colour, 1 + 0.01 * _speckle(rng, h, w), (h, w))
-        groove = rng.uniform(0.004, 0.01)
+        groove = max(rng.uniform(0.004, 0.01), px)
         _fill(cover, np.broadcast_to((uu % pitch) < groove, (h, w)), colour * 0.35)
         cap = (vv >= top - 0.04) & (vv < top)
         _fill(cover, np.broadcast_to(cap, (h, w)), colour * rng.uniform(0.5, 0.8))
@@ -668,7 +671,7 @@ def _wall_lower(rng: np.random.Generator, img: np.ndarray, style: str, uu: np.nd
             band = int(rng.integers(0, max(1, int(top / size))))
             _fill(cover, np.broadcast_to(ri == band, (h, w)),
                   _hsv(rng, (0.0, 1.0), (0.4, 0.9), (0.2, 0.8)))
-        grout = rng.uniform(0.003, 0.006)
+        grout = max(rng.uniform(0.003, 0.006), px)
         _fill(cover, ((vv % size) < grout) | ((uu % su) < grout),
               _neutral(rng, (0.35, 0.85), 0.05))
     r = int(np.searchsorted(-vv[:, 0], -top))  # first row at or below the top (vv falls)

@@ -1,9 +1,9 @@
 """The settings of ``python -m datagen``: the schema of conf/datagen.yaml, and its defaults.
 
 Hydra composes conf/datagen.yaml's groups (``conf/world/``, ``conf/flights/``,
-``conf/distractors/``, ``conf/realism/``) and the command line onto ``DatagenConfig`` (registered as
-``datagen_schema``), so every default is written here once, and an unknown key or a value of
-the wrong type fails at start-up naming the key. Lengths are in metres, angles in degrees,
+``conf/distractors/``, ``conf/realism/``, ``conf/appearance/``) and the command line onto
+``DatagenConfig`` (registered as ``datagen_schema``), so every default is written here once,
+and an unknown key or a value of the wrong type fails at start-up naming the key. Lengths are in metres, angles in degrees,
 times in seconds. See docs/datagen.md for what the options do.
 """
 
@@ -271,7 +271,7 @@ class LightsAppearance:
     # temperature, [min, max] (one per scene, +/-150 K per panel)
     dim: float = 0.0  # share of scenes whose panels are dimmed by a factor drawn in
     # dim_factor (night, corridor lights on a sensor); 0: none (no draw)
-    dim_factor: list[float] = field(default_factory=lambda: [0.05, 0.3])  # [min, max]
+    dim_factor: list[float] = field(default_factory=lambda: [0.1, 0.4])  # [min, max]
     daylight: float = 0.0  # share of scenes with daylight: the windows' emitted outdoor view
     # is multiplied by a gain drawn in daylight_gain and lights the rooms; 0: none (no draw)
     daylight_gain: list[float] = field(default_factory=lambda: [4.0, 20.0])  # [min, max]; 1 is
@@ -301,9 +301,11 @@ class Materials:
 
 @dataclass
 class AppearanceConfig:
-    """Appearance randomization (``appearance``, datagen/appearance.py): procedural
-    textures, materials and lights. Every texture is (resolution, resolution, 3) linear
-    RGB; 512 costs about 4x the time of 256 (sharper posters and grout)."""
+    """Appearance randomization (``appearance``, the conf/appearance/ group: ``default``,
+    today's space, or ``varied``, the wide one; datagen/appearance.py): procedural textures,
+    materials and lights. Every texture is (resolution, resolution, 3) linear RGB; 512 costs
+    about 4x the time of 256 (sharper posters and grout). A style weight or probability of 0
+    draws nothing, so the defaults draw what they always drew."""
 
     resolution: int = 256
     floor_styles: dict[str, float] = field(default_factory=lambda: {
