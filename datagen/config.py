@@ -271,7 +271,7 @@ class LightsAppearance:
     # temperature, [min, max] (one per scene, +/-150 K per panel)
     dim: float = 0.0  # share of scenes whose panels are dimmed by a factor drawn in
     # dim_factor (night, corridor lights on a sensor); 0: none (no draw)
-    dim_factor: list[float] = field(default_factory=lambda: [0.1, 0.4])  # [min, max]
+    dim_factor: list[float] = field(default_factory=lambda: [0.15, 0.5])  # [min, max]
     daylight: float = 0.0  # share of scenes with daylight: the windows' emitted outdoor view
     # is multiplied by a gain drawn in daylight_gain and lights the rooms; 0: none (no draw)
     daylight_gain: list[float] = field(default_factory=lambda: [4.0, 20.0])  # [min, max]; 1 is
