@@ -345,7 +345,8 @@ class DistractorPreset:
     clutter: CountRange = field(default_factory=CountRange)  # furniture-like objects
     people: CountRange = field(default_factory=CountRange)  # person figures
     kinds: list[str] = field(default_factory=lambda: [
-        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly
+        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly; also
+    # trolley, bin, bench, sofa, whiteboard (conf/distractors/varied.yaml lists all ten)
     against_walls: float = 0.7  # probability an object stands against a wall
     wall_margin: float = 0.05  # m kept between an object's footprint and a wall
     camera_keepout_m: float = 0.6  # m kept clear around the camera (and along a flight path)
