@@ -3,8 +3,8 @@
 Hydra composes conf/datagen.yaml's groups (``conf/world/``, ``conf/flights/``,
 ``conf/distractors/``, ``conf/realism/``, ``conf/appearance/``) and the command line onto
 ``DatagenConfig`` (registered as ``datagen_schema``), so every default is written here once,
-and an unknown key or a value of the wrong type fails at start-up naming the key. Lengths are in metres, angles in degrees,
-times in seconds. See docs/datagen.md for what the options do.
+and an unknown key or a value of the wrong type fails at start-up naming the key. Lengths are
+in metres, angles in degrees, times in seconds. See docs/datagen.md for what the options do.
 """
 
 from __future__ import annotations

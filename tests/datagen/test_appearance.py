@@ -368,4 +368,5 @@ def test_tiny_render_varied(tmp_path):
     assert ds.meta["generator"]["appearance"]["wall_styles"]["tiles"] > 0
     again = render(tmp_path / "b")
     for a, b in zip(ds.split("train")[0], again.split("train")[0], strict=True):
-        np.testing.assert_array_equal(read_png(a), read_png(b))
+        # LLVM's threads may move a pixel by one level (docs/datagen.md)
+        np.testing.assert_allclose(read_png(a).astype(int), read_png(b).astype(int), atol=1)
