@@ -993,6 +993,31 @@ def sample_lights(rng: np.random.Generator, num_slots: int,
     return on, radiance.astype(np.float32)
 
 
+def sample_floor_gloss(rng: np.random.Generator, cfg: AppearanceConfig | Mapping | None = None
+                       ) -> tuple[float, float] | None:
+    """The floor's gloss for one scene (``appearance.prob.glossy_floor``; ``cfg`` as for
+    ``sample_textures``).
+
+    Returns:
+        None where the floor is never glossy (probability 0: no random number drawn, the
+        renderer keeps its diffuse floor), else (weight, alpha): the weight in [0, 1] of a
+        rough plastic lobe over the diffuse texture (0: not glossy this time; else drawn in
+        ``materials.floor_gloss``) and its GGX roughness alpha (drawn in
+        ``materials.roughness.floor``).
+    """
+    cfg = as_config(AppearanceConfig, cfg, "appearance")
+    if cfg.prob.glossy_floor == 0:
+        return None
+    if not _maybe(rng, cfg.prob.glossy_floor, "prob.glossy_floor"):
+        return 0.0, 0.1
+    w_lo, w_hi = _range(cfg.materials.floor_gloss, "materials.floor_gloss")
+    a_lo, a_hi = _range(cfg.materials.roughness.floor, "materials.roughness.floor")
+    if not (0 <= w_lo and w_hi <= 1) or a_lo <= 0:
+        raise ValueError("appearance.materials.floor_gloss must lie in [0, 1] and "
+                         "appearance.materials.roughness.floor must be > 0")
+    return float(rng.uniform(w_lo, w_hi)), float(rng.uniform(a_lo, a_hi))
+
+
 def object_colours(rng: np.random.Generator, n: int) -> np.ndarray:
     """Base colours of clutter objects or clothes.
 

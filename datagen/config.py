@@ -254,6 +254,9 @@ class FeatureProbs:
     frame_matches_door: float = 0.3  # the door frame has the door's texture
     accent_wall: float = 0.0  # the wall's paint (or wallpaper / block / panel colour) is a
     # saturated accent colour; 0: never (no draw)
+    glossy_floor: float = 0.0  # the floor is glossy: a rough plastic lobe over its texture
+    # (weight materials.floor_gloss, GGX alpha materials.roughness.floor); 0: never, and the
+    # renderer keeps today's diffuse floor
     dark_floor: float = 0.0  # the floor is darkened to 15-45 % of its drawn brightness (slate,
     # dark vinyl, dark wood); 0: never (no draw)
 
@@ -297,6 +300,8 @@ class Materials:
 
     roughness: Roughness = field(default_factory=Roughness)
     tint_jitter: float = 0.08  # per-channel darkening of textured surfaces (tint <= 1)
+    floor_gloss: list[float] = field(default_factory=lambda: [0.3, 1.0])  # [min, max] weight
+    # of a glossy floor's rough plastic lobe (prob.glossy_floor)
 
 
 @dataclass

@@ -327,6 +327,24 @@ class TestVaried:
                         for s in range(200)])
         assert 0.2 < float((lum < 1.0).mean()) < 0.4
 
+    def test_floor_gloss(self, cfg):
+        rng = np.random.default_rng(0)
+        state = rng.bit_generator.state
+        assert A.sample_floor_gloss(rng, cfg) is None  # never glossy: the renderer's plain
+        assert rng.bit_generator.state == state  # and no number drawn
+        glossy = OmegaConf.merge(cfg, {"prob": {"glossy_floor": 1.0},
+                                       "materials": {"floor_gloss": [0.4, 0.6],
+                                                     "roughness": {"floor": [0.05, 0.1]}}})
+        for seed in range(10):
+            weight, alpha = A.sample_floor_gloss(np.random.default_rng(seed), glossy)
+            assert 0.4 <= weight <= 0.6 and 0.05 <= alpha <= 0.1
+        some = OmegaConf.merge(glossy, {"prob": {"glossy_floor": 0.3}})
+        weights = [A.sample_floor_gloss(np.random.default_rng(s), some)[0] for s in range(100)]
+        assert 0.15 < np.mean(np.array(weights) > 0) < 0.45
+        with pytest.raises(ValueError, match="materials.floor_gloss"):
+            A.sample_floor_gloss(rng, OmegaConf.merge(glossy, {"materials": {
+                "floor_gloss": [0.5, 1.5]}}))
+
     def test_bad_settings(self, cfg):
         rng = np.random.default_rng(0)
         with pytest.raises(ValueError, match="prob.accent_wall"):
@@ -344,8 +362,9 @@ class TestVaried:
 
 
 def test_tiny_render_varied(tmp_path):
-    """A 64x48 dataset rendered with appearance=varied (daylight in every scene): images and
-    labels written, the preset recorded with the dataset, the same seed the same images."""
+    """A 64x48 dataset rendered with appearance=varied (daylight and a glossy floor in every
+    scene): images and labels written, the preset recorded with the dataset, the same seed
+    the same images."""
     from core.atomic import read_png
     from core.dataset import Dataset
     from datagen.generate import run
@@ -354,6 +373,7 @@ def test_tiny_render_varied(tmp_path):
     def render(out):
         cfg = compose_config("datagen", [
             "appearance=varied", "appearance.lights.daylight=1.0", "appearance.resolution=64",
+            "appearance.prob.glossy_floor=1.0",
             "camera.width=64", "camera.height=48", "splits.train=3", "splits.val=0",
             "splits.test=0", "render.spp=1", "training.chunk=3", "render_flights=[]",
             "val_flights=[]", f"out_dir={out}"])
