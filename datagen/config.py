@@ -285,7 +285,8 @@ class LightsAppearance:
 class Roughness:
     """Uniform [min, max] roughness per surface (``appearance.materials.roughness``)."""
 
-    floor: list[float] = field(default_factory=lambda: [0.15, 0.7])
+    floor: list[float] = field(default_factory=lambda: [0.15, 0.7])  # also a glossy floor's
+    # GGX alpha (prob.glossy_floor)
     wall: list[float] = field(default_factory=lambda: [0.5, 1.0])
     ceiling: list[float] = field(default_factory=lambda: [0.7, 1.0])
     door: list[float] = field(default_factory=lambda: [0.3, 0.8])
