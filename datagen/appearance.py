@@ -35,7 +35,9 @@ TEXTURE_SPECS: dict[str, tuple[float, float]] = {
     "window": (1.2, 1.0),  # one window, 1:1 (outside view with mullions)
 }
 
-FLOOR_STYLES: tuple[str, ...] = ("tiles", "wood", "carpet")
+FLOOR_STYLES: tuple[str, ...] = ("tiles", "wood", "carpet", "vinyl", "concrete", "terrazzo")
+WALL_STYLES: tuple[str, ...] = ("paint", "wallpaper", "block", "brick", "panels", "tiles")
+CEILING_STYLES: tuple[str, ...] = ("tiles", "plaster")
 DOOR_STYLES: tuple[str, ...] = ("wood", "painted")
 SIGN_WORDS: tuple[str, ...] = (
     "EXIT", "FIRE EXIT", "WC", "LAB", "OFFICE", "STAIRS", "MEETING", "NO SMOKING",
@@ -74,6 +76,25 @@ def _probs(table: Mapping[str, float], key: str, names: tuple[str, ...]) -> np.n
 def _chance(rng: np.random.Generator, cfg: AppearanceConfig, key: str) -> bool:
     """True with the probability ``appearance.prob.<key>``."""
     return bool(rng.random() < getattr(cfg.prob, key))
+
+
+def _maybe(rng: np.random.Generator, p: float, key: str) -> bool:
+    """True with the probability p (``appearance.<key>``); p = 0 draws nothing, so a setting
+    that is off leaves the random sequence of the rest unchanged."""
+    p = float(p)
+    if not 0.0 <= p <= 1.0:
+        raise ValueError(f"appearance.{key} = {p} is a probability; give a value in [0, 1]")
+    return p > 0.0 and bool(rng.random() < p)
+
+
+def _style(rng: np.random.Generator, table: Mapping[str, float], key: str,
+           names: tuple[str, ...]) -> str:
+    """A style drawn from the ``appearance.<key>`` table; none drawn (no random number used)
+    when the first name, today's style, has all the weight."""
+    p = _probs(table, key, names)
+    if p[0] == 1.0:
+        return names[0]
+    return names[rng.choice(len(names), p=p)]
 
 
 # --------------------------------------------------------------------------- colour & noise
@@ -325,7 +346,7 @@ def _floor(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndarra
         _fill(img, ((y % pw) < seam_w) | ((along % pl) < seam_w), base * rng.uniform(0.25, 0.45))
         if rng.random() < 0.5:  # planks along v instead of u
             img = np.ascontiguousarray(img.transpose(0, 2, 1))
-    else:  # carpet tiles with alternating pile direction and a seam
+    elif style == "carpet":  # carpet tiles with alternating pile direction and a seam
         k = int(rng.choice([4, 5]))  # 0.5 m or 0.4 m carpet tiles
         tile = n / k
         iv, iu = (y // tile).astype(np.intp) % k, (x // tile).astype(np.intp) % k
@@ -346,6 +367,87 @@ def _floor(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndarra
             ly = y % tile
             band = (ly > lo) & (ly < lo + rng.uniform(0.05, 0.2) * tile)
             _fill(img, band & ~seam_rows & ~seam_cols, accent)
+    elif style == "vinyl":
+        img = _vinyl(rng, n, px_m, y, x)
+    elif style == "concrete":
+        img = _concrete(rng, n, px_m, y, x)
+    else:
+        img = _terrazzo(rng, n, px_m, y, x)
+    if _maybe(rng, cfg.prob.dark_floor, "prob.dark_floor"):
+        img = img * np.float32(rng.uniform(0.15, 0.45))
+    return img
+
+
+def _flecks(rng: np.random.Generator, img: np.ndarray, n: int, sigma: float | None,
+            share: float, colour: np.ndarray) -> None:
+    """Scatter periodic flecks (blobs of about sigma px; None: single pixels) of one colour
+    over a share of the (3, n, n) image, in place."""
+    field = _speckle(rng, n, n) if sigma is None else _noise(rng, n, n, (sigma, sigma))
+    _fill(img, field > np.quantile(field, 1.0 - share), colour)
+
+
+def _vinyl(rng: np.random.Generator, n: int, px_m: float, y: np.ndarray, x: np.ndarray
+           ) -> np.ndarray:
+    """Sheet vinyl, 2 x 2 m (n x n px): plain or flecked, welded seams every 1 or 2 m (along
+    u or v), sometimes an inlaid border strip; periodic."""
+    base = (_hsv(rng, (0.0, 1.0), (0.15, 0.6), (0.3, 0.8)) if rng.random() < 0.4
+            else _neutral(rng, (0.25, 0.85), 0.15))
+    img = _solid(base, 1 + 0.03 * _noise(rng, n, n, (12, 12)) + 0.02 * _speckle(rng, n, n),
+                 (n, n))
+    if rng.random() < 0.6:  # flecked: two fleck colours, a few % of the surface each
+        for _ in range(2):
+            tone = np.clip(base * rng.uniform(0.3, 1.6) + rng.uniform(-0.1, 0.1, 3), 0, 1)
+            _flecks(rng, img, n, None, rng.uniform(0.01, 0.05), tone)
+    sheet = n / int(rng.choice([1, 2]))  # a 2 m or 1 m wide roll
+    weld = max(1.0, 0.004 * px_m)
+    seam = (y % sheet) < weld
+    if rng.random() < 0.5:
+        _fill_grid(img, seam[:, 0], np.zeros(n, bool), base * rng.uniform(0.3, 0.6))
+    else:
+        _fill_grid(img, np.zeros(n, bool), seam[:, 0], base * rng.uniform(0.3, 0.6))
+    if rng.random() < 0.3:  # an inlaid border strip of a contrasting colour
+        width = rng.uniform(0.05, 0.15) * px_m
+        at = rng.uniform(0, n - width)
+        _rect(img, at, 0, at + width, n, _hsv(rng, (0.0, 1.0), (0.3, 0.9), (0.2, 0.8)))
+    return img
+
+
+def _concrete(rng: np.random.Generator, n: int, px_m: float, y: np.ndarray, x: np.ndarray
+              ) -> np.ndarray:
+    """Polished concrete, 2 x 2 m: mottled grey, exposed aggregate specks, dark saw cuts every
+    1 or 2 m (or 0.67 m), sometimes a sealed (tinted) finish; periodic."""
+    base = _neutral(rng, (0.35, 0.75), 0.08)
+    if rng.random() < 0.25:  # tinted sealer
+        base = np.clip(base * _hsv(rng, (0.0, 1.0), (0.1, 0.4), (0.85, 1.0)), 0, 1)
+    mottle = (0.08 * _noise(rng, n, n, (30, 30)) + 0.05 * _noise(rng, n, n, (6, 6))
+              + 0.03 * _speckle(rng, n, n))
+    img = _solid(base, 1 + mottle, (n, n))
+    _flecks(rng, img, n, 0.7, rng.uniform(0.01, 0.05), base * rng.uniform(0.5, 0.8))
+    _flecks(rng, img, n, 0.7, rng.uniform(0.005, 0.02), np.clip(base * 1.3, 0, 1))
+    k = int(rng.choice([1, 2, 3]))  # saw-cut joints per 2 m
+    cut = max(1.0, 0.005 * px_m)
+    _fill_grid(img, (y[:, 0] % (n / k)) < cut, (x[0] % (n / k)) < cut,
+               base * rng.uniform(0.2, 0.45))
+    return img
+
+
+def _terrazzo(rng: np.random.Generator, n: int, px_m: float, y: np.ndarray, x: np.ndarray
+              ) -> np.ndarray:
+    """Terrazzo, 2 x 2 m: a light or coloured matrix with chips of 2-4 colours, sometimes
+    brass or zinc divider strips every 1 or 2 m; periodic."""
+    matrix = (_neutral(rng, (0.55, 0.9), 0.12) if rng.random() < 0.7
+              else _hsv(rng, (0.0, 1.0), (0.2, 0.6), (0.3, 0.8)))
+    img = _solid(matrix, 1 + 0.03 * _noise(rng, n, n, (10, 10)), (n, n))
+    for _ in range(int(rng.integers(2, 5))):
+        chip = (_neutral(rng, (0.05, 0.95), 0.2) if rng.random() < 0.6
+                else _hsv(rng, (0.0, 1.0), (0.3, 0.8), (0.2, 0.8)))
+        _flecks(rng, img, n, rng.uniform(0.6, 2.5) * max(1.0, px_m / 128),
+                rng.uniform(0.03, 0.12), chip)
+    if rng.random() < 0.6:
+        k = int(rng.choice([1, 2]))
+        strip = max(1.0, 0.004 * px_m)
+        _fill_grid(img, (y[:, 0] % (n / k)) < strip, (x[0] % (n / k)) < strip,
+                   _metal_colour(rng))
     return img
 
 
@@ -354,6 +456,8 @@ def _ceiling(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndar
     px_m = n / TEXTURE_SPECS["ceiling"][0]
     y = np.arange(n, dtype=np.float32)[:, None]
     x = np.arange(n, dtype=np.float32)[None, :]
+    if _style(rng, cfg.ceiling_styles, "ceiling_styles", CEILING_STYLES) == "plaster":
+        return _plaster(rng, n, px_m, y, x)
     k = int(rng.choice([2, 3, 4]))
     tile = n / k
     colour = _neutral(rng, (0.75, 0.95), 0.06)
@@ -381,6 +485,31 @@ def _ceiling(rng: np.random.Generator, n: int, cfg: AppearanceConfig) -> np.ndar
     _fill_grid(img, (ly >= bar_w) & (ly < bar_w + lip), (lx >= bar_w) & (lx < bar_w + lip),
                colour * 0.55)
     _fill_grid(img, ly < bar_w, lx < bar_w, bar_colour)
+    return img
+
+
+def _plaster(rng: np.random.Generator, n: int, px_m: float, y: np.ndarray, x: np.ndarray
+             ) -> np.ndarray:
+    """Plain plasterboard ceiling, 2 x 2 m: painted, faint board seams every 1.2 m-ish (1 or
+    2 per 2 m, one direction), sometimes an access hatch or a round fitting; periodic."""
+    colour = _neutral(rng, (0.75, 0.97), 0.05)
+    img = _solid(colour, 1 + 0.015 * _noise(rng, n, n, (30, 30)) + 0.01 * _speckle(rng, n, n),
+                 (n, n))
+    seams = (y[:, 0] % (n / int(rng.choice([1, 2])))) < max(1.0, 0.004 * px_m)
+    tone = colour * rng.uniform(0.8, 0.93)
+    if rng.random() < 0.5:
+        _fill_grid(img, seams, np.zeros(n, bool), tone)
+    else:
+        _fill_grid(img, np.zeros(n, bool), seams, tone)
+    if rng.random() < 0.5:  # access hatch, 0.6 m square
+        side = 0.6 * px_m
+        r0, c0 = rng.uniform(0.05 * n, n - side - 0.05 * n, 2)
+        _rect(img, r0, c0, r0 + side, c0 + side, colour * 0.6, outline=max(1, round(0.01 * px_m)))
+    if rng.random() < 0.4:  # a round vent or detector
+        cy, cx = rng.uniform(0.1 * n, 0.9 * n, 2)
+        rad = rng.uniform(0.05, 0.12) * px_m
+        _circle(img, cy, cx, rad, _neutral(rng, (0.5, 0.95), 0.05))
+        _circle(img, cy, cx, 0.6 * rad, colour * rng.uniform(0.3, 0.7))
     return img
 
 
@@ -444,6 +573,111 @@ def _poster(img: np.ndarray, rng: np.random.Generator, px_m: float) -> None:
         _rect(img, 0, 0, h, w, np.full(3, 0.7, np.float32), outline=max(2, round(2 * line)))
 
 
+def _wall_cover(rng: np.random.Generator, style: str, paint: np.ndarray, uu: np.ndarray,
+                vv: np.ndarray, eu: float) -> np.ndarray:
+    """A wall covering of the full height: wallpaper, painted concrete block or brick.
+
+    Args:
+        style: 'wallpaper', 'block' or 'brick'.
+        paint: (3,) the wall's sRGB colour (wallpaper ground, block paint).
+        uu: (1, w) metres along the wall; vv: (h, 1) metres above the floor.
+        eu: metres of wall one texture covers (patterns repeat an integer number of times).
+
+    Returns:
+        (3, h, w) float32 sRGB.
+    """
+    h, w = vv.shape[0], uu.shape[1]
+    px = float(uu[0, 1] - uu[0, 0])  # metres per pixel: joints and lines are >= 1 px wide
+    if style == "wallpaper":
+        img = _solid(paint, 1 + 0.015 * _speckle(rng, h, w), (h, w))
+        second = (np.clip(paint * rng.uniform(0.55, 0.9) + rng.uniform(-0.08, 0.08, 3), 0, 1)
+                  if rng.random() < 0.6 else _hsv(rng, (0.0, 1.0), (0.2, 0.7), (0.3, 0.9)))
+        kind = int(rng.integers(3))
+        if kind < 2:  # broad stripes or pinstripes
+            pitch = eu / max(1, round(eu / rng.uniform(0.04, 0.3)))
+            duty = rng.uniform(0.25, 0.6) if kind == 0 else rng.uniform(0.04, 0.12)
+            mask = np.broadcast_to((uu % pitch) < max(duty * pitch, px), (h, w))
+        else:  # a small repeating motif (dots or diamonds), half-drop
+            pu = eu / max(1, round(eu / rng.uniform(0.06, 0.25)))
+            pv = rng.uniform(0.06, 0.25)
+            col = (uu // pu) % 2
+            du = (uu % pu) / pu - 0.5
+            dv = ((vv + col * pv / 2) % pv) / pv - 0.5
+            r = rng.uniform(0.15, 0.35)
+            mask = (np.abs(du) + np.abs(dv) < r) if rng.random() < 0.5 else (du**2 + dv**2 < r**2)
+        _fill(img, mask, second)
+        return img
+    if style == "block":  # 0.4 x 0.2 m blocks, running bond, painted (joints shaded)
+        course, length, joint = 0.2, 0.4, rng.uniform(0.008, 0.014)
+        base = paint if rng.random() < 0.8 else _neutral(rng, (0.35, 0.65), 0.05)
+        rough = 0.04 * _noise(rng, h, w, (1.0, 1.0)) + 0.04 * _speckle(rng, h, w)
+        img = _solid(base, 1 + rough, (h, w))
+        mortar = base * rng.uniform(0.55, 0.8)
+    else:  # brick: 0.225 x 0.075 m, running bond, per-brick colour, light mortar
+        course, length, joint = 0.075, 0.225, rng.uniform(0.008, 0.012)
+        base = (_hsv(rng, (0.0, 0.07), (0.4, 0.75), (0.3, 0.65)) if rng.random() < 0.7
+                else _neutral(rng, (0.75, 0.95), 0.05))  # red-brown or painted
+        count = max(1, round(eu / length))
+        bw = eu / count
+        ri = (vv // course).astype(np.intp)  # (h, 1) course index from the floor
+        shifted = uu + (ri % 2) * (bw / 2)
+        ci = (shifted // bw).astype(np.intp) % count
+        jitter = (1 + rng.normal(0, 0.12, (int(ri.max()) + 1, count))).astype(np.float32)
+        img = _solid(base, jitter[ri, ci] * (1 + 0.05 * _speckle(rng, h, w)), (h, w))
+        mortar = _neutral(rng, (0.45, 0.8), 0.08)
+    count = max(1, round(eu / length))
+    bw = eu / count
+    ri = (vv // course).astype(np.intp)
+    joint = max(joint, px)
+    joints = ((vv % course) < joint) | (((uu + (ri % 2) * (bw / 2)) % bw) < joint)
+    _fill(img, joints, mortar)
+    return img
+
+
+def _wall_lower(rng: np.random.Generator, img: np.ndarray, style: str, uu: np.ndarray,
+                vv: np.ndarray, eu: float, ev: float) -> None:
+    """Wood or laminate panelling, or glazed wall tiles, from the floor to a height (or the
+    full height), over (3, h, w) img in place (uu, vv, eu as for ``_wall_cover``)."""
+    h, w = vv.shape[0], uu.shape[1]
+    px = float(uu[0, 1] - uu[0, 0])  # metres per pixel: grooves and grout are >= 1 px wide
+    full = rng.random() < 0.4
+    if style == "panels":
+        top = ev if full else rng.uniform(0.9, 1.5)
+        pitch = eu / max(1, round(eu / rng.uniform(0.12, 0.6)))
+        if rng.random() < 0.6:  # wood
+            colour = _wood_colour(rng)
+            grain = _noise(rng, h, w, (40.0, 0.8)) + 0.5 * _noise(rng, h, w, (12.0, 0.5))
+            cover = _solid(colour, 1 + 0.1 * grain, (h, w))
+        else:  # laminate
+            colour = (_neutral(rng, (0.4, 0.95), 0.15) if rng.random() < 0.6
+                      else _hsv(rng, (0.0, 1.0), (0.2, 0.6), (0.3, 0.8)))
+            cover = _solid(colour, 1 + 0.01 * _speckle(rng, h, w), (h, w))
+        groove = max(rng.uniform(0.004, 0.01), px)
+        _fill(cover, np.broadcast_to((uu % pitch) < groove, (h, w)), colour * 0.35)
+        cap = (vv >= top - 0.04) & (vv < top)
+        _fill(cover, np.broadcast_to(cap, (h, w)), colour * rng.uniform(0.5, 0.8))
+    else:  # glazed wall tiles, 0.1-0.2 m squares, grout lines, sometimes a coloured band
+        top = ev if full else rng.uniform(1.2, 2.1)
+        size = float(rng.choice([0.1, 0.15, 0.2]))
+        count = max(1, round(eu / size))
+        su = eu / count
+        colour = (_neutral(rng, (0.75, 0.97), 0.08) if rng.random() < 0.6
+                  else _hsv(rng, (0.0, 1.0), (0.1, 0.45), (0.55, 0.95)))
+        ri = (vv // size).astype(np.intp)
+        ci = (uu // su).astype(np.intp) % count
+        jitter = (1 + rng.normal(0, 0.03, (int(ri.max()) + 1, count))).astype(np.float32)
+        cover = _solid(colour, jitter[ri, ci] * (1 + 0.01 * _speckle(rng, h, w)), (h, w))
+        if rng.random() < 0.4:  # a band of coloured tiles
+            band = int(rng.integers(0, max(1, int(top / size))))
+            _fill(cover, np.broadcast_to(ri == band, (h, w)),
+                  _hsv(rng, (0.0, 1.0), (0.4, 0.9), (0.2, 0.8)))
+        grout = max(rng.uniform(0.003, 0.006), px)
+        _fill(cover, ((vv % size) < grout) | ((uu % su) < grout),
+              _neutral(rng, (0.35, 0.85), 0.05))
+    r = int(np.searchsorted(-vv[:, 0], -top))  # first row at or below the top (vv falls)
+    img[:, r:] = cover[:, r:]
+
+
 def _wall(rng: np.random.Generator, n: int, cfg: AppearanceConfig,
           extent: tuple[float, float]) -> np.ndarray:
     """Wall covering 4 m (u, periodic) x full height (v up from the floor)."""
@@ -457,6 +691,14 @@ def _wall(rng: np.random.Generator, n: int, cfg: AppearanceConfig,
     paint = _neutral(rng, (0.55, 0.95), 0.35)
     img = _solid(paint, 1 + 0.02 * _noise(rng, h, w, (25, 25)) + 0.015 * _speckle(rng, h, w),
                  (h, w))
+    style = _style(rng, cfg.wall_styles, "wall_styles", WALL_STYLES)
+    if _maybe(rng, cfg.prob.accent_wall, "prob.accent_wall"):
+        paint = _hsv(rng, (0.0, 1.0), (0.45, 0.95), (0.3, 0.85))
+        img = _solid(paint, 1 + 0.015 * _speckle(rng, h, w), (h, w))
+    uu = np.arange(w, dtype=np.float32)[None, :] / np.float32(px_m)  # (1, w) m along the wall
+    vv = (h - np.arange(h, dtype=np.float32)[:, None]) / np.float32(px_m)  # (h, 1) m up
+    if style in ("wallpaper", "block", "brick"):
+        img = _wall_cover(rng, style, paint, uu, vv, eu)
 
     dado = rng.uniform(0.8, 1.05)
     if _chance(rng, cfg, "two_tone"):
@@ -465,6 +707,8 @@ def _wall(rng: np.random.Generator, n: int, cfg: AppearanceConfig,
     if _chance(rng, cfg, "dado"):
         _rect(img, row(dado + rng.uniform(0.03, 0.07)), 0, row(dado), w,
               _wood_colour(rng) if rng.random() < 0.5 else _neutral(rng, (0.1, 1.0), 0.2))
+    if style in ("panels", "tiles"):
+        _wall_lower(rng, img, style, uu, vv, eu, ev)
     skirt_h = rng.uniform(0.06, 0.15)
     skirt = (_wood_colour(rng) if rng.random() < 0.3 else
              _neutral(rng, (0.05, 0.3), 0.2) if rng.random() < 0.7 else
@@ -648,7 +892,8 @@ def sample_textures(rng: np.random.Generator, resolution: int | None = None,
 
     Returns:
         name -> (R, R, 3) float32 linear RGB in [0, 1], row 0 at the top of the surface,
-        for every name in TEXTURE_SPECS.
+        for every name in TEXTURE_SPECS; in a daylight scene (``lights.daylight``) the
+        window's radiance is scaled by ``lights.daylight_gain`` (values up to that gain).
     """
     cfg = as_config(AppearanceConfig, cfg, "appearance")
     n = int(cfg.resolution if resolution is None else resolution)
@@ -678,6 +923,11 @@ def sample_textures(rng: np.random.Generator, resolution: int | None = None,
         if img.shape[:2] != (n, n):
             img = cv2.resize(img, (n, n), interpolation=cv2.INTER_LINEAR)
         out[name] = _to_linear(img)
+    if _maybe(rng, cfg.lights.daylight, "lights.daylight"):
+        lo, hi = _range(cfg.lights.daylight_gain, "lights.daylight_gain")
+        if lo < 0:
+            raise ValueError(f"appearance.lights.daylight_gain = [{lo}, {hi}] must be >= 0")
+        out["window"] = out["window"] * np.float32(rng.uniform(lo, hi))
     return out
 
 
@@ -711,7 +961,8 @@ def sample_lights(rng: np.random.Generator, num_slots: int,
     Args:
         rng: random generator.
         num_slots: number of light panels in the scene (>= 1).
-        cfg: appearance config (as for ``sample_textures``); reads its ``lights``.
+        cfg: appearance config (as for ``sample_textures``); reads its ``lights``. A share
+            ``lights.dim`` of the scenes has every panel dimmed by ``lights.dim_factor``.
 
     Returns:
         on: (num_slots,) bool, at least one True.
@@ -733,8 +984,38 @@ def sample_lights(rng: np.random.Generator, num_slots: int,
     jitter = lights.jitter
     kelvin = rng.uniform(k_lo, k_hi) + rng.normal(0, 150, num_slots)  # same fixture type
     gain = level * np.clip(1 + jitter * rng.standard_normal(num_slots), 0.2, None)
+    if _maybe(rng, lights.dim, "lights.dim"):
+        d_lo, d_hi = _range(lights.dim_factor, "lights.dim_factor")
+        if d_lo < 0:
+            raise ValueError(f"appearance.lights.dim_factor = [{d_lo}, {d_hi}] must be >= 0")
+        gain = gain * rng.uniform(d_lo, d_hi)
     radiance = kelvin_to_rgb(kelvin) * gain[:, None] * on[:, None]
     return on, radiance.astype(np.float32)
+
+
+def sample_floor_gloss(rng: np.random.Generator, cfg: AppearanceConfig | Mapping | None = None
+                       ) -> tuple[float, float] | None:
+    """The floor's gloss for one scene (``appearance.prob.glossy_floor``; ``cfg`` as for
+    ``sample_textures``).
+
+    Returns:
+        None where the floor is never glossy (probability 0: no random number drawn, the
+        renderer keeps its diffuse floor), else (weight, alpha): the weight in [0, 1] of a
+        rough plastic lobe over the diffuse texture (0: not glossy this time; else drawn in
+        ``materials.floor_gloss``) and its GGX roughness alpha (drawn in
+        ``materials.roughness.floor``).
+    """
+    cfg = as_config(AppearanceConfig, cfg, "appearance")
+    if cfg.prob.glossy_floor == 0:
+        return None
+    if not _maybe(rng, cfg.prob.glossy_floor, "prob.glossy_floor"):
+        return 0.0, 0.1
+    w_lo, w_hi = _range(cfg.materials.floor_gloss, "materials.floor_gloss")
+    a_lo, a_hi = _range(cfg.materials.roughness.floor, "materials.roughness.floor")
+    if not (0 <= w_lo and w_hi <= 1) or a_lo <= 0:
+        raise ValueError("appearance.materials.floor_gloss must lie in [0, 1] and "
+                         "appearance.materials.roughness.floor must be > 0")
+    return float(rng.uniform(w_lo, w_hi)), float(rng.uniform(a_lo, a_hi))
 
 
 def object_colours(rng: np.random.Generator, n: int) -> np.ndarray:

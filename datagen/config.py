@@ -1,10 +1,10 @@
 """The settings of ``python -m datagen``: the schema of conf/datagen.yaml, and its defaults.
 
 Hydra composes conf/datagen.yaml's groups (``conf/world/``, ``conf/flights/``,
-``conf/distractors/``, ``conf/realism/``) and the command line onto ``DatagenConfig`` (registered as
-``datagen_schema``), so every default is written here once, and an unknown key or a value of
-the wrong type fails at start-up naming the key. Lengths are in metres, angles in degrees,
-times in seconds. See docs/datagen.md for what the options do.
+``conf/distractors/``, ``conf/realism/``, ``conf/appearance/``) and the command line onto
+``DatagenConfig`` (registered as ``datagen_schema``), so every default is written here once,
+and an unknown key or a value of the wrong type fails at start-up naming the key. Lengths are
+in metres, angles in degrees, times in seconds. See docs/datagen.md for what the options do.
 """
 
 from __future__ import annotations
@@ -252,6 +252,13 @@ class FeatureProbs:
     ceiling_vent: float = 0.6  # a ventilation grille tile
     ceiling_stain: float = 0.3  # a water stain on a ceiling tile
     frame_matches_door: float = 0.3  # the door frame has the door's texture
+    accent_wall: float = 0.0  # the wall's paint (or wallpaper / block / panel colour) is a
+    # saturated accent colour; 0: never (no draw)
+    glossy_floor: float = 0.0  # the floor is glossy: a rough plastic lobe over its texture
+    # (weight materials.floor_gloss, GGX alpha materials.roughness.floor); 0: never, and the
+    # renderer keeps today's diffuse floor
+    dark_floor: float = 0.0  # the floor is darkened to 15-45 % of its drawn brightness (slate,
+    # dark vinyl, dark wood); 0: never (no draw)
 
 
 @dataclass
@@ -265,13 +272,21 @@ class LightsAppearance:
     jitter: float = 0.15  # relative per-panel intensity variation
     temperature_k: list[float] = field(default_factory=lambda: [2700.0, 6500.0])  # colour
     # temperature, [min, max] (one per scene, +/-150 K per panel)
+    dim: float = 0.0  # share of scenes whose panels are dimmed by a factor drawn in
+    # dim_factor (night, corridor lights on a sensor); 0: none (no draw)
+    dim_factor: list[float] = field(default_factory=lambda: [0.15, 0.5])  # [min, max]
+    daylight: float = 0.0  # share of scenes with daylight: the windows' emitted outdoor view
+    # is multiplied by a gain drawn in daylight_gain and lights the rooms; 0: none (no draw)
+    daylight_gain: list[float] = field(default_factory=lambda: [4.0, 20.0])  # [min, max]; 1 is
+    # the plain view (radiance <= 1, a few % of a panel's)
 
 
 @dataclass
 class Roughness:
     """Uniform [min, max] roughness per surface (``appearance.materials.roughness``)."""
 
-    floor: list[float] = field(default_factory=lambda: [0.15, 0.7])
+    floor: list[float] = field(default_factory=lambda: [0.15, 0.7])  # also a glossy floor's
+    # GGX alpha (prob.glossy_floor)
     wall: list[float] = field(default_factory=lambda: [0.5, 1.0])
     ceiling: list[float] = field(default_factory=lambda: [0.7, 1.0])
     door: list[float] = field(default_factory=lambda: [0.3, 0.8])
@@ -286,17 +301,27 @@ class Materials:
 
     roughness: Roughness = field(default_factory=Roughness)
     tint_jitter: float = 0.08  # per-channel darkening of textured surfaces (tint <= 1)
+    floor_gloss: list[float] = field(default_factory=lambda: [0.3, 1.0])  # [min, max] weight
+    # of a glossy floor's rough plastic lobe (prob.glossy_floor)
 
 
 @dataclass
 class AppearanceConfig:
-    """Appearance randomization (``appearance``, datagen/appearance.py): procedural
-    textures, materials and lights. Every texture is (resolution, resolution, 3) linear
-    RGB; 512 costs about 4x the time of 256 (sharper posters and grout)."""
+    """Appearance randomization (``appearance``, the conf/appearance/ group: ``default``,
+    today's space, or ``varied``, the wide one; datagen/appearance.py): procedural textures,
+    materials and lights. Every texture is (resolution, resolution, 3) linear RGB; 512 costs
+    about 4x the time of 256 (sharper posters and grout). A style weight or probability of 0
+    draws nothing, so the defaults draw what they always drew."""
 
     resolution: int = 256
     floor_styles: dict[str, float] = field(default_factory=lambda: {
-        "tiles": 0.45, "wood": 0.3, "carpet": 0.25})  # probabilities (normalized)
+        "tiles": 0.45, "wood": 0.3, "carpet": 0.25, "vinyl": 0.0, "concrete": 0.0,
+        "terrazzo": 0.0})  # probabilities (normalized)
+    wall_styles: dict[str, float] = field(default_factory=lambda: {
+        "paint": 1.0, "wallpaper": 0.0, "block": 0.0, "brick": 0.0, "panels": 0.0,
+        "tiles": 0.0})  # probabilities (normalized); only paint: no draw
+    ceiling_styles: dict[str, float] = field(default_factory=lambda: {
+        "tiles": 1.0, "plaster": 0.0})  # probabilities (normalized); only tiles: no draw
     door_styles: dict[str, float] = field(default_factory=lambda: {
         "wood": 0.5, "painted": 0.5})
     posters: list[int] = field(default_factory=lambda: [1, 4])  # posters / signs / notice
@@ -326,7 +351,8 @@ class DistractorPreset:
     clutter: CountRange = field(default_factory=CountRange)  # furniture-like objects
     people: CountRange = field(default_factory=CountRange)  # person figures
     kinds: list[str] = field(default_factory=lambda: [
-        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly
+        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly; also
+    # trolley, bin, bench, sofa, whiteboard (conf/distractors/varied.yaml lists all ten)
     against_walls: float = 0.7  # probability an object stands against a wall
     wall_margin: float = 0.05  # m kept between an object's footprint and a wall
     camera_keepout_m: float = 0.6  # m kept clear around the camera (and along a flight path)

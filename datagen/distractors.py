@@ -24,7 +24,8 @@ from datagen.config import DistractorPreset
 from datagen.map_cache import derived
 from datagen.routes import first_blocked
 
-CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant")
+CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant", "trolley", "bin",
+                                   "bench", "sofa", "whiteboard")
 MAX_HEIGHT = 1.8  # m, tallest clutter object
 
 
@@ -185,8 +186,122 @@ def _plant(rng: np.random.Generator) -> trimesh.Trimesh:
     return mesh
 
 
+def _trolley(rng: np.random.Generator) -> trimesh.Trimesh:
+    """A service cart: 2-3 shelves on four corner posts, casters, a push handle (at -x)."""
+    lx, ly = rng.uniform(0.55, 0.9), rng.uniform(0.4, 0.55)
+    h = rng.uniform(0.8, 1.0)
+    shelves = int(rng.integers(2, 4))
+    parts = []
+    for i in range(shelves):
+        z = 0.15 + (h - 0.15) * i / (shelves - 1)
+        parts.append(_box((lx, ly, 0.03), (0, 0, z)))
+        if rng.random() < 0.4:  # a load on the shelf
+            e = rng.uniform([0.15, 0.15, 0.05], [0.4, 0.35, 0.2])
+            if i < shelves - 1:
+                e[2] = min(e[2], (h - 0.15) / (shelves - 1) - 0.05)
+            parts.append(_box(tuple(e), (rng.uniform(-0.2, 0.2) * lx, 0, z + 0.015 + e[2] / 2)))
+    for x in (-1, 1):
+        for y in (-1, 1):
+            p = np.array([x * (lx / 2 - 0.02), y * (ly / 2 - 0.02)])
+            parts.append(_rod([*p, 0.1], [*p, h], 0.012, 6))
+            parts.append(_ellipsoid((*p, 0.05), (0.05, 0.02, 0.05), 0))  # caster
+    for y in (-1, 1):  # the push handle
+        parts.append(_rod([-lx / 2, y * (ly / 2 - 0.05), h], [-lx / 2 - 0.1, y * (ly / 2 - 0.05),
+                                                                h + 0.1], 0.012, 6))
+    parts.append(_rod([-lx / 2 - 0.1, -(ly / 2 - 0.05), h + 0.1],
+                      [-lx / 2 - 0.1, ly / 2 - 0.05, h + 0.1], 0.015, 6))
+    return _join(parts)
+
+
+def _bin(rng: np.random.Generator) -> trimesh.Trimesh:
+    """A waste bin (a tapered round bin, sometimes with a lid) or a wheelie bin."""
+    if rng.random() < 0.6:
+        r, h = rng.uniform(0.14, 0.25), rng.uniform(0.3, 0.75)
+        parts = [_frustum(r * rng.uniform(0.75, 0.95), r, h)]
+        if rng.random() < 0.5:  # a domed or flat lid
+            parts.append(_ellipsoid((0, 0, h), (r * 1.02, r * 1.02, rng.uniform(0.02, 0.12)), 1))
+        return _join(parts)
+    w, d, h = rng.uniform(0.45, 0.6), rng.uniform(0.5, 0.7), rng.uniform(0.9, 1.1)
+    parts = [_box((d, w, h - 0.1), (0, 0, 0.05 + (h - 0.1) / 2)),
+             _box((d + 0.06, w + 0.02, 0.05), (0.03, 0, h - 0.025)),  # the lid
+             _box((0.05, w * 0.8, 0.04), (-d / 2 - 0.03, 0, h - 0.12))]  # the handle
+    for y in (-1, 1):
+        parts.append(_rod([-d / 2 + 0.08, y * (w / 2 - 0.03), 0.1],
+                          [-d / 2 + 0.08, y * (w / 2 + 0.02), 0.1], 0.1, 10))
+    return _join(parts)
+
+
+def _bench(rng: np.random.Generator) -> trimesh.Trimesh:
+    """A waiting-area bench: a seat (one slab or slats) on legs or two end frames, sometimes
+    a backrest."""
+    lx, ly = rng.uniform(0.9, 1.3), rng.uniform(0.35, 0.45)
+    seat_z = rng.uniform(0.42, 0.47)
+    parts = []
+    if rng.random() < 0.5:
+        parts.append(_box((lx, ly, 0.05), (0, 0, seat_z - 0.025)))
+    else:  # slats along the bench
+        slats = int(rng.integers(3, 6))
+        for i in range(slats):
+            y = (i + 0.5) / slats * ly - ly / 2
+            parts.append(_box((lx, ly / slats * 0.75, 0.035), (0, y, seat_z - 0.0175)))
+    for x in (-1, 1):
+        xl = x * (lx / 2 - 0.08)
+        if rng.random() < 0.5:
+            parts.append(_box((0.05, ly, seat_z - 0.05), (xl, 0, (seat_z - 0.05) / 2)))
+        else:
+            for y in (-1, 1):
+                parts.append(_rod([xl, y * (ly / 2 - 0.04), 0.0],
+                                  [xl, y * (ly / 2 - 0.04), seat_z - 0.05], 0.02, 8))
+    if rng.random() < 0.5:  # backrest at -y
+        back_h = rng.uniform(0.3, 0.45)
+        parts.append(_box((lx, 0.04, back_h), (0, -ly / 2 + 0.02, seat_z + 0.05 + back_h / 2)))
+        for x in (-1, 1):
+            parts.append(_box((0.04, 0.04, 0.06), (x * (lx / 2 - 0.08), -ly / 2 + 0.02,
+                                                   seat_z + 0.025)))
+    return _join(parts, yaw=np.pi / 2)
+
+
+def _sofa(rng: np.random.Generator) -> trimesh.Trimesh:
+    """An armchair or a small sofa: a base, seat cushions, a backrest and arms."""
+    lx, ly = rng.uniform(0.75, 1.2), rng.uniform(0.7, 0.8)
+    seat_z, arm_w = rng.uniform(0.4, 0.46), rng.uniform(0.1, 0.18)
+    back_d, top = rng.uniform(0.15, 0.22), rng.uniform(0.75, 0.9)
+    inner = lx - 2 * arm_w
+    parts = [_box((inner, ly - back_d, seat_z - 0.12), (0, back_d / 2, 0.06 + (seat_z - 0.12) / 2)),
+             _box((lx, back_d, top - 0.06), (0, -ly / 2 + back_d / 2, 0.06 + (top - 0.06) / 2))]
+    seats = 1 if inner < 0.8 else 2
+    for i in range(seats):
+        x = (i + 0.5) / seats * inner - inner / 2
+        parts.append(_box((inner / seats - 0.01, ly - back_d - 0.02, 0.12),
+                          (x, back_d / 2, seat_z - 0.06)))
+    arm_z = rng.uniform(0.55, 0.65)
+    for x in (-1, 1):
+        parts.append(_box((arm_w, ly, arm_z - 0.06), (x * (lx - arm_w) / 2, 0,
+                                                      0.06 + (arm_z - 0.06) / 2)))
+        for y in (-1, 1):  # feet
+            parts.append(_box((0.05, 0.05, 0.06), (x * (lx / 2 - 0.05), y * (ly / 2 - 0.05), 0.03)))
+    return _join(parts, yaw=np.pi / 2)
+
+
+def _whiteboard(rng: np.random.Generator) -> trimesh.Trimesh:
+    """A mobile whiteboard or flip chart: a thin board on two legs with splayed feet."""
+    w, bh = rng.uniform(0.7, 1.2), rng.uniform(0.6, 0.9)
+    top = rng.uniform(1.5, MAX_HEIGHT)
+    parts = [_box((0.03, w, bh), (0, 0, top - bh / 2)),
+             _box((0.08, w, 0.03), (0.04, 0, top - bh - 0.015))]  # the pen tray
+    foot = rng.uniform(0.4, 0.55)
+    for y in (-1, 1):
+        yl = y * (w / 2 + 0.02)
+        parts.append(_rod([0, yl, 0.06], [0, yl, top], 0.016, 8))
+        parts.append(_box((foot, 0.04, 0.03), (0, yl, 0.045)))
+        for x in (-1, 1):
+            parts.append(_ellipsoid((x * (foot / 2 - 0.03), yl, 0.03), (0.03,) * 3, 0))
+    return _join(parts)
+
+
 _MAKERS = {"box": _cardboard, "cabinet": _cabinet, "chair": _chair, "table": _table,
-           "plant": _plant}
+           "plant": _plant, "trolley": _trolley, "bin": _bin, "bench": _bench, "sofa": _sofa,
+           "whiteboard": _whiteboard}
 
 
 def make_clutter_mesh(kind: str, rng: np.random.Generator) -> trimesh.Trimesh:

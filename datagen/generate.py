@@ -538,13 +538,15 @@ def _new_renderer(job: Job, textures, clutter, people, camera: Camera | None = N
                   scene: Scene | None = None):
     """The renderer of the site's scene (or ``scene``), with ``camera`` (None: the job's);
     with more than ``NEAR_LIGHTS_FROM`` lights (a floor, most lights out of view) it samples
-    lights by radiance / distance^2 (``near_lights``)."""
+    lights by radiance / distance^2 (``near_lights``); a floor that can be glossy where
+    ``appearance.prob.glossy_floor`` > 0."""
     from datagen.render import Renderer
 
     scene = job.site.scene if scene is None else scene
     return Renderer(scene, job.camera if camera is None else camera, textures, clutter, people,
                     max_depth=job.cfg.render.max_depth,
-                    near_lights=scene.num_lights > NEAR_LIGHTS_FROM)
+                    near_lights=scene.num_lights > NEAR_LIGHTS_FROM,
+                    glossy_floor=job.cfg.appearance.prob.glossy_floor > 0)
 
 
 def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPreset,
@@ -553,6 +555,9 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
     look = job.cfg.appearance
     renderer.set_textures(appearance.sample_textures(rng, None, look))
     renderer.set_lights(appearance.sample_lights(rng, renderer.num_lights, look)[1])
+    gloss = appearance.sample_floor_gloss(rng, look)  # None (and no draw) when never glossy
+    if gloss is not None:
+        renderer.set_floor_gloss(*gloss)
     n_clutter, n_people = distractors.preset_counts(rng, preset)
     slots = renderer.slots
     clutter_ids = [i for i, (_, c) in enumerate(slots) if c == C.CLUTTER]
@@ -679,6 +684,7 @@ class FlightScene:
     colours: np.ndarray
     placed: np.ndarray
     tracks: np.ndarray
+    gloss: tuple[float, float] | None = None  # the floor's (weight, alpha), drawn last
 
 
 def flight_scene(job: Job, name: str) -> FlightScene:
@@ -716,7 +722,8 @@ def flight_scene(job: Job, name: str) -> FlightScene:
         avoid_radius=dp.person_camera_keepout, max_turn_deg_s=dp.person_max_turn_deg_s,
         patience_s=dp.person_patience_s,
     ) if n_people else np.zeros((0, len(gt), 3))
-    return FlightScene(clutter, people, textures, lights, colours, placed, tracks)
+    gloss = appearance.sample_floor_gloss(rng, cfg.appearance)
+    return FlightScene(clutter, people, textures, lights, colours, placed, tracks, gloss)
 
 
 def render_flight(job: Job, name: str, progress: bool = True) -> int:
@@ -734,6 +741,8 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
     renderer = _new_renderer(job, scene.textures, scene.clutter, scene.people,
                              None if fo is None else fo.render_camera, job.flight_render_scene)
     renderer.set_lights(scene.lights)
+    if scene.gloss is not None:
+        renderer.set_floor_gloss(*scene.gloss)
     with Pipeline() as pipe:
         for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
             renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, i]], axis=0),

@@ -147,11 +147,16 @@ class Renderer:
             radiance over its squared distance to the camera (at least 1 m^2): unbiased, and
             much less noise where most of many lights are out of view (a building floor);
             False: Mitsuba's uniform choice (the corridor's renders as they were).
+        glossy_floor: the procedurally textured floor is a blend of the diffuse texture and a
+            rough plastic of the same texture, whose weight and roughness
+            ``set_floor_gloss`` sets per image (weight 0, the start: the diffuse floor);
+            False: the diffuse floor only.
     """
 
     def __init__(self, scene: Scene, camera: Camera, textures: Mapping[str, np.ndarray],
                  clutter: Sequence[trimesh.Trimesh] = (), people: Sequence[trimesh.Trimesh] = (),
-                 max_depth: int = RenderConfig.max_depth, near_lights: bool = False):
+                 max_depth: int = RenderConfig.max_depth, near_lights: bool = False,
+                 glossy_floor: bool = False):
         import mitsuba as mi
 
         if not isinstance(scene, Scene):
@@ -172,6 +177,8 @@ class Renderer:
         self._camera_at = np.zeros(3)
         self.class_of: dict[str, int] = {}  # shape id -> class id
         self._texture_keys: list[tuple[str, str]] = []  # (parameter key, texture name)
+        self.glossy_floor = glossy_floor
+        self._gloss_shapes: list[str] = []  # the floor shapes with a blended BSDF
         desc = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
         desc.update(self._surface_shapes(scene, textures))
         desc.update(self._light_shapes(scene))
@@ -208,6 +215,15 @@ class Renderer:
                 bsdf = mi.load_dict({"type": "diffuse",
                                      "reflectance": _bitmap(mi, scene.images[s.texture])})
                 out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf)
+            elif self.glossy_floor and s.texture == "floor":  # one texture, two lobes
+                tex = mi.load_dict(_bitmap(mi, textures[s.texture]))
+                bsdf = mi.load_dict({"type": "blendbsdf", "weight": 0.0,
+                                     "bsdf_0": {"type": "diffuse", "reflectance": tex},
+                                     "bsdf_1": {"type": "roughplastic", "alpha": 0.1,
+                                                "diffuse_reflectance": tex}})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf)
+                self._texture_keys.append((f"{s.name}.bsdf.bsdf_0.reflectance.data", s.texture))
+                self._gloss_shapes.append(s.name)
             else:
                 bsdf = mi.load_dict({"type": "diffuse",
                                      "reflectance": _bitmap(mi, textures[s.texture])})
@@ -285,6 +301,15 @@ class Renderer:
         self._radiance = radiance.copy()
         for i, rad in enumerate(radiance):
             self.params[f"light{i}.emitter.radiance.value"] = self.mi.Color3f(*rad.tolist())
+
+    def set_floor_gloss(self, weight: float, alpha: float) -> None:
+        """Make the floor glossy (a renderer built with ``glossy_floor``): weight in [0, 1] of
+        the rough plastic lobe (0: the diffuse floor), alpha its GGX roughness (> 0)."""
+        if not self.glossy_floor:
+            raise ValueError("set_floor_gloss needs a Renderer built with glossy_floor=True")
+        for name in self._gloss_shapes:
+            self.params[f"{name}.bsdf.weight.value"] = float(weight)
+            self.params[f"{name}.bsdf.bsdf_1.alpha"] = float(max(alpha, 1e-3))
 
     def _weigh_lights(self) -> None:
         """Sampling weights of the lights for the current camera (``near_lights``)."""

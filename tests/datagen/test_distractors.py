@@ -69,7 +69,7 @@ class TestMeshes:
 
     def test_unknown_kind(self):
         with pytest.raises(ValueError, match="unknown clutter kind"):
-            D.make_clutter_mesh("sofa", np.random.default_rng(0))
+            D.make_clutter_mesh("piano", np.random.default_rng(0))
 
     def test_footprint_radius(self):
         box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
@@ -188,6 +188,20 @@ class TestPresets:
         if name == "none":
             assert D.preset_counts(rng, cfg) == (0, 0)
 
+    def test_new_kinds_only_where_listed(self, presets):
+        """The default presets draw today's five kinds; conf/distractors/varied.yaml, added
+        as a fourth preset, draws every kind."""
+        for name in ("none", "paper", "cluttered"):
+            assert list(presets[name].kinds) == ["box", "cabinet", "chair", "table", "plant"]
+        cfg = typed(DatagenConfig, compose_config(
+            "datagen", ["+distractors@distractor_presets.varied=varied",
+                        "+training.distractors.varied=0.3"]), "datagen")
+        varied = cfg.distractor_presets["varied"]
+        assert set(varied.kinds) == set(D.CLUTTER_KINDS)
+        D.check_preset(varied)
+        drawn = set(D.sample_kinds(np.random.default_rng(0), 200, varied))
+        assert drawn == set(D.CLUTTER_KINDS)
+
     def test_presets_grow(self, presets):
         load = [presets[n] for n in ("none", "paper", "cluttered")]
         assert load[0].clutter.max < load[1].clutter.max < load[2].clutter.min + 1
@@ -197,4 +211,4 @@ class TestPresets:
         with pytest.raises(ValueError, match="clutter"):
             D.preset_counts(np.random.default_rng(0), {"clutter": {"min": 3, "max": 1}})
         with pytest.raises(ValueError, match="kinds"):
-            D.sample_kinds(np.random.default_rng(0), 2, {"kinds": ["sofa"]})
+            D.sample_kinds(np.random.default_rng(0), 2, {"kinds": ["piano"]})

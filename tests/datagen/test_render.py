@@ -209,3 +209,37 @@ def test_renderer_takes_a_scene():
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     with pytest.raises(TypeError, match="corridor_scene"):
         Renderer(build_world(cfg["world"]), make_camera(cfg["camera"]), {})
+
+
+def test_glossy_floor():
+    """A renderer built with glossy_floor: weight 0 renders the diffuse floor (as a plain
+    renderer, within path-tracing noise); a smooth glossy floor mirrors the ceiling lights
+    (brighter highlights on the floor); a plain renderer refuses set_floor_gloss."""
+    from core.variant import choose_variant
+    from datagen.render import Renderer
+
+    choose_variant()
+    cfg = compose_config("datagen", ["camera.width=80", "camera.height=60"])
+    camera = make_camera(cfg["camera"])
+    tex = appearance.sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
+    scene = corridor_scene(build_world(cfg["world"]))
+    pose = pose_from_xyz_rpy([0.2, 0.8, 1.3], [0.0, 0.25, np.pi / 2])[0] @ camera.body_from_cam
+
+    def floor_pixels(r, gloss=None):
+        r.set_lights(np.full((r.num_lights, 3), 6.0))
+        if gloss is not None:
+            r.set_floor_gloss(*gloss)
+        r.set_camera(pose)
+        rgb, label, _ = r.render(spp=4, seed=1)
+        return rgb[label == C.FLOOR].astype(float)
+
+    plain = Renderer(scene, camera, tex)
+    glossy = Renderer(scene, camera, tex, glossy_floor=True)
+    base = floor_pixels(plain)
+    assert len(base) > 500
+    matte = floor_pixels(glossy, (0.0, 0.1))
+    assert abs(matte.mean() - base.mean()) < 0.03 * base.mean() + 1
+    shiny = floor_pixels(glossy, (1.0, 0.03))
+    assert np.percentile(shiny.mean(1), 99) > np.percentile(base.mean(1), 99) + 10
+    with pytest.raises(ValueError, match="glossy_floor"):
+        plain.set_floor_gloss(1.0, 0.1)
