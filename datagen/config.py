@@ -727,6 +727,9 @@ class TrainingConfig:
     flight_views: float = 0.5  # share of images posed as a random frame of a flight (a
     # `flights` preset, along its route either way): the flights' heights, sway, yaw swings
     # and tilts; 0 = none (docs/datagen.md)
+    min_view_m: float = 0.0  # m of free space a spread-out pose must see ahead (along its
+    # yaw); one that sees less is drawn again, so rooms give fewer wall-filling close-ups
+    # (0 = off; the flight views keep theirs)
     chunk: int = 40  # images sharing one set of distractor meshes (one scene load)
 
 

@@ -183,6 +183,8 @@ def _check_counts(cfg: DatagenConfig) -> None:
         raise ValueError(f"shard={cfg.shard} must be in [0, num_shards={cfg.num_shards})")
     if cfg.training.chunk <= 0:
         raise ValueError("training.chunk must be positive")
+    if cfg.training.min_view_m < 0:
+        raise ValueError(f"training.min_view_m={cfg.training.min_view_m} must be >= 0 m")
     if not 0.0 <= cfg.training.flight_views <= 1.0:
         raise ValueError(f"training.flight_views={cfg.training.flight_views} must be a share "
                          "in [0, 1]")
@@ -259,7 +261,8 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
         else:
             poses[i] = trajectories.sample_training_poses(
                 rng_for(seed, stream, i, 0), 1, free, z_range,
-                tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg)[0]
+                tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg,
+                tr.min_view_m)[0]
     return poses
 
 

@@ -68,7 +68,9 @@ def sample_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
                           z_range: np.ndarray,
                           max_roll_pitch_deg: float = TrainingConfig.max_roll_pitch_deg,
                           along_fraction: float = TrainingConfig.yaw_along_corridor,
-                          along_spread_deg: float = TrainingConfig.yaw_spread_deg) -> np.ndarray:
+                          along_spread_deg: float = TrainingConfig.yaw_spread_deg,
+                          min_view_m: float = TrainingConfig.min_view_m,
+                          tries: int = 20) -> np.ndarray:
     """Camera body poses spread over the free space, for training images.
 
     Args:
@@ -83,10 +85,50 @@ def sample_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
             there looks; the others have a uniform yaw. In a 2 m corridor a uniform yaw
             mostly faces a wall from less than a metre, a close-up that a flight rarely sees.
         along_spread_deg: half-width of the along-axis yaw range, degrees.
+        min_view_m: a pose whose free space ahead (``view_depth``) is shorter is drawn again,
+            up to ``tries`` times (the last draw is kept); 0: no check, no extra draws.
 
     Returns:
         (n, 4, 4) world_from_body.
     """
+    poses = _draw_training_poses(rng, n, free, z_range, max_roll_pitch_deg, along_fraction,
+                                 along_spread_deg)
+    if min_view_m <= 0:
+        return poses
+    for _ in range(tries):
+        short = view_depth(free, poses, min_view_m) < min_view_m
+        if not short.any():
+            break
+        poses[short] = _draw_training_poses(rng, int(short.sum()), free, z_range,
+                                            max_roll_pitch_deg, along_fraction, along_spread_deg)
+    return poses
+
+
+def view_depth(free: OccupancyMap, poses: np.ndarray, reach: float) -> np.ndarray:
+    """(N,) m of free space straight ahead of each pose, along its yaw, up to ``reach``.
+
+    Args:
+        free: the free space (its cells).
+        poses: (N, 4, 4) world_from_body; the body's +x looks ahead.
+        reach: m, the farthest distance looked at.
+
+    Returns:
+        (N,) m: the distance of the last step (steps half a cell apart) before the first
+        outside the free space; 0 when the first is outside, about ``reach`` when none is.
+    """
+    step = free.cell / 2
+    d = np.arange(1, int(np.ceil(reach / step)) + 1) * step  # (K,)
+    ahead = poses[:, :2, 0] / np.linalg.norm(poses[:, :2, 0], axis=1, keepdims=True)
+    pts = poses[:, None, :2, 3] + d[None, :, None] * ahead[:, None, :]  # (N, K, 2)
+    inside = free.contains(pts.reshape(-1, 2)).reshape(len(poses), len(d))
+    first_out = np.where(inside.all(axis=1), len(d), np.argmin(inside, axis=1))
+    return np.minimum(np.concatenate([[0.0], d])[first_out], reach)
+
+
+def _draw_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
+                         z_range: np.ndarray, max_roll_pitch_deg: float, along_fraction: float,
+                         along_spread_deg: float) -> np.ndarray:
+    """``sample_training_poses``'s draw of (n, 4, 4) poses, unchecked."""
     if not 0.0 <= along_fraction <= 1.0:
         raise ValueError(f"training.yaw_along_corridor must be in [0, 1], got {along_fraction}")
     z = _check_z(z_range)

@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from core.occupancy import OccupancyMap
-from core.poses import xyzyaw_from_pose
+from core.poses import pose_from_xyz_rpy, xyzyaw_from_pose
 from datagen import trajectories as TR
 from datagen.config import OdometryConfig
 from tests.helpers import compose_config
@@ -82,6 +82,28 @@ class TestTrainingPoses:
     def test_bad_input(self):
         with pytest.raises(ValueError, match="z_range"):
             TR.sample_training_poses(np.random.default_rng(0), 3, FREE, [2.0, 1.0])
+
+    def test_view_depth(self):
+        """The free space ahead, to the edges of its box: along the corridor (+Y from y = 1)
+        8.7 m, across it (+X from x = 0) 0.7 m."""
+        along = pose_from_xyz_rpy(np.array([[0.0, 1.0, 1.0]]), np.array([[0, 0, np.pi / 2]]))
+        across = pose_from_xyz_rpy(np.array([[0.0, 1.0, 1.0]]), np.array([[0, 0, 0.0]]))
+        d = TR.view_depth(FREE, np.concatenate([along, across]), 20.0)
+        np.testing.assert_allclose(d, [8.7, 0.7], atol=0.05)
+        assert TR.view_depth(FREE, along, 3.0)[0] == pytest.approx(3.0)
+
+    def test_min_view(self):
+        """min_view_m draws again the poses that see less free space ahead; 0 draws exactly
+        what no check draws."""
+        free = TR.view_depth(FREE, TR.sample_training_poses(
+            np.random.default_rng(2), 500, FREE, Z, along_fraction=0.0), 3.0)
+        assert (free < 1.0).mean() > 0.3  # a uniform yaw in a 2 m corridor faces the walls
+        T = TR.sample_training_poses(np.random.default_rng(2), 500, FREE, Z, along_fraction=0.0,
+                                     min_view_m=1.0)
+        assert (TR.view_depth(FREE, T, 3.0) >= 1.0).all()
+        np.testing.assert_array_equal(
+            TR.sample_training_poses(np.random.default_rng(3), 20, FREE, Z, min_view_m=0.0),
+            TR.sample_training_poses(np.random.default_rng(3), 20, FREE, Z))
 
 
 class TestFlightViews:
