@@ -26,8 +26,25 @@ def compose_experiment(name: str, *overrides: str):
         return compose("train", overrides=[f"experiment={name}", *overrides])
 
 
-def test_every_experiment_file_is_in_the_chain() -> None:
-    assert sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")) == sorted(CHAIN)
+#: conf/experiment/'s other recipes: of python -m train, and of python -m datagen.
+TRAIN_RECIPES = ["generalist", "finetune"]
+DATAGEN_RECIPES = ["generalist_floors"]
+
+
+def test_every_experiment_file_is_known() -> None:
+    assert sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")) == sorted(
+        CHAIN + TRAIN_RECIPES + DATAGEN_RECIPES)
+
+
+def test_generalist_recipes_compose() -> None:
+    """The generalist trains on every procedural floor; fine-tuning starts from the shipped
+    generalist's folder with a 10-minute budget."""
+    cfg = compose_experiment("generalist")
+    assert (cfg.name, cfg.dataset, cfg.init_from) == (
+        "generalist", "outputs/datasets/generalist/floor*", None)
+    cfg = compose_experiment("finetune", "dataset=outputs/datasets/office")
+    assert (cfg.init_from, cfg.max_minutes) == ("models/generalist", 10)
+    assert cfg.dataset == "outputs/datasets/office"
 
 
 @pytest.mark.parametrize("stage", range(len(CHAIN)), ids=CHAIN)
