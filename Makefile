@@ -72,8 +72,8 @@ best: setup
 	@echo "report: outputs/reports/best/report.md"
 
 # The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist"): 24
-# procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them), then 45 min of
-# training. A copy ships in models/generalist/; interrupted, `make generalist` resumes.
+# procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them), then 14 epochs
+# of training (23 min). A copy ships in models/generalist/; interrupted, `make generalist` resumes.
 generalist: setup
 	$(PY) -m datagen -m experiment=generalist_floors
 	$(PY) -m train experiment=generalist
