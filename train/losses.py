@@ -95,11 +95,9 @@ def segmentation_loss(
     """
     if boundary_weight == 1.0:
         return F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE)
-    ce = F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE, reduction="none")
-    valid = target != IGNORE
-    w_pix = torch.ones_like(ce) if weight is None else weight[target.clamp(max=len(weight) - 1)]
-    pw = torch.where(boundary_mask(target), float(boundary_weight), 1.0) * valid
-    return (ce * pw).sum() / (w_pix * pw).sum().clamp(min=1e-12)
+    ce = F.cross_entropy(logits, target, ignore_index=IGNORE, reduction="none")
+    w_pix = pixel_loss_weights(target, weight, boundary_weight)
+    return (ce * w_pix).sum() / w_pix.sum().clamp(min=1e-12)
 
 
 def pixel_loss_weights(target: torch.Tensor, weight: torch.Tensor | None = None,

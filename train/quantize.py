@@ -241,10 +241,9 @@ def quantize_model_dir(model_dir: str | Path, dataset: str | Path | None = None,
     chosen = [train_rgb[i] for i in spread_indices(len(train_rgb), calibration)]
     dst = model_dir / INT8_NAME
     info = quantize_segnet(src, dst, read_images(chosen))
-    test_rgb = [p for d in datasets for p in d.split("test")[0]]
-    test_label = [p for d in datasets for p in d.split("test")[1]]
-    if test_limit is not None:
-        test_rgb, test_label = test_rgb[:test_limit], test_label[:test_limit]
+    tests = [d.split("test") for d in datasets]  # (rgb paths, label paths) of each
+    test_rgb = [p for rgb, _ in tests for p in rgb][:test_limit]
+    test_label = [p for _, labels in tests for p in labels][:test_limit]
     report = {"model": str(src), "int8_model": str(dst), "dataset": str(dataset),
               "quantization": info}
     report.update(compare_on_split(src, dst, test_rgb, test_label, threads, progress=progress))

@@ -628,28 +628,26 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
         bf16=job.bf16, ema=job.ema, boundary_weight=cfg.loss.boundary_weight,
         full_labels=job.full_labels, world=job.world, ddp=job.ddp,
     )
-    if not job.world.is_main:  # rank 0's epoch time, so that all re-span the schedule alike
-        dt = job.world.from_main(lambda: 0.0)
-        state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
-                     stopped_by_budget=res.stopped)
-        if state["epoch"] < state["epochs"] and not res.stopped:
-            refit_schedule(job, state, budget, dt)
-        return True
-    val = scores(evaluate(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
-                          cfg.progress, "val"))
+    main = job.world.is_main
+    val = (scores(evaluate(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
+                           cfg.progress, "val")) if main else None)
+    # rank 0's epoch time on every rank, so that all re-span the schedule alike
     dt = job.world.from_main(lambda: time.monotonic() - t0)
     state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
                  stopped_by_budget=res.stopped)
-    row = epoch_row(epoch + 1, res, job.scheduler.get_last_lr()[0], val, dt)
-    state["history"].append(row)
-    improved = val[cfg.eval.select] > state["best_score"]
-    if improved:
-        state["best_score"], state["best_epoch"] = val[cfg.eval.select], epoch + 1
-        save_best(job.out_dir / "checkpoint_best.pt", job.net, job.cfg.model, job.classes,
-                  job.num_classes, epoch + 1, {k: row[k] for k in row if k.startswith("val_")},
-                  job.info["config_hash"])
+    if main:
+        row = epoch_row(epoch + 1, res, job.scheduler.get_last_lr()[0], val, dt)
+        state["history"].append(row)
+        improved = val[cfg.eval.select] > state["best_score"]
+        if improved:
+            state["best_score"], state["best_epoch"] = val[cfg.eval.select], epoch + 1
+            save_best(job.out_dir / "checkpoint_best.pt", job.net, job.cfg.model, job.classes,
+                      job.num_classes, epoch + 1,
+                      {k: row[k] for k in row if k.startswith("val_")}, job.info["config_hash"])
     if state["epoch"] < state["epochs"] and not res.stopped:
         refit_schedule(job, state, budget, dt)
+    if not main:
+        return True
     save_last(job.out_dir / "checkpoint_last.pt", job.model, job.optimizer, job.scheduler,
               job.ema, state, job.info["config_hash"])
     _write_log(job.out_dir / "train_log.csv", state["history"])
@@ -803,7 +801,7 @@ def finish(job: Job, state: dict, t_start: float) -> dict:
     n_train = len(job.train_data)
     job.train_data = None  # its memory, before the test split is loaded
     test_data = load_splits(job.datasets, "test", job.num_classes, job.cfg.data.limit,
-                           job.cfg.progress)
+                            job.cfg.progress)
     images = {"train": n_train, "val": len(job.val_data), "test": len(test_data)}
     metrics = run_metrics(job, state, model, best, images)
     onnx_path = export_onnx(job, model, test_data, metrics)
