@@ -607,30 +607,27 @@ def _wall_cover(rng: np.random.Generator, style: str, paint: np.ndarray, uu: np.
             mask = (np.abs(du) + np.abs(dv) < r) if rng.random() < 0.5 else (du**2 + dv**2 < r**2)
         _fill(img, mask, second)
         return img
-    if style == "block":  # 0.4 x 0.2 m blocks, running bond, painted (joints shaded)
-        course, length, joint = 0.2, 0.4, rng.uniform(0.008, 0.014)
+    # block: 0.4 x 0.2 m, brick: 0.225 x 0.075 m; running bond
+    course, length, joint = ((0.2, 0.4, rng.uniform(0.008, 0.014)) if style == "block"
+                             else (0.075, 0.225, rng.uniform(0.008, 0.012)))
+    count = max(1, round(eu / length))
+    bw = eu / count
+    ri = (vv // course).astype(np.intp)  # (h, 1) course index from the floor
+    shifted = uu + (ri % 2) * (bw / 2)  # (h, w) m along the wall, every other course by half
+    if style == "block":  # painted (joints shaded)
         base = paint if rng.random() < 0.8 else _neutral(rng, (0.35, 0.65), 0.05)
         rough = 0.04 * _noise(rng, h, w, (1.0, 1.0)) + 0.04 * _speckle(rng, h, w)
         img = _solid(base, 1 + rough, (h, w))
         mortar = base * rng.uniform(0.55, 0.8)
-    else:  # brick: 0.225 x 0.075 m, running bond, per-brick colour, light mortar
-        course, length, joint = 0.075, 0.225, rng.uniform(0.008, 0.012)
+    else:  # brick: per-brick colour, light mortar
         base = (_hsv(rng, (0.0, 0.07), (0.4, 0.75), (0.3, 0.65)) if rng.random() < 0.7
                 else _neutral(rng, (0.75, 0.95), 0.05))  # red-brown or painted
-        count = max(1, round(eu / length))
-        bw = eu / count
-        ri = (vv // course).astype(np.intp)  # (h, 1) course index from the floor
-        shifted = uu + (ri % 2) * (bw / 2)
         ci = (shifted // bw).astype(np.intp) % count
         jitter = (1 + rng.normal(0, 0.12, (int(ri.max()) + 1, count))).astype(np.float32)
         img = _solid(base, jitter[ri, ci] * (1 + 0.05 * _speckle(rng, h, w)), (h, w))
         mortar = _neutral(rng, (0.45, 0.8), 0.08)
-    count = max(1, round(eu / length))
-    bw = eu / count
-    ri = (vv // course).astype(np.intp)
     joint = max(joint, px)
-    joints = ((vv % course) < joint) | (((uu + (ri % 2) * (bw / 2)) % bw) < joint)
-    _fill(img, joints, mortar)
+    _fill(img, ((vv % course) < joint) | ((shifted % bw) < joint), mortar)
     return img
 
 
