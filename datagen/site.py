@@ -3,10 +3,9 @@
 ``build_site`` makes one from the world settings: the procedural corridor (``WorldConfig``,
 datagen/world.py), a building model file (``FileWorldConfig``, datagen/importers) or a floor
 drawn from a seed (``ProceduralWorldConfig``, datagen/procedural.py; built as a file is). All
-give
-the same structures: the ``World`` the localizer reads (classed mesh, model edges, free space
-as an occupancy map), a map of where distractors and people may stand, and the world's own
-flight route if it has one.
+give the same structures: the ``World`` the localizer reads (classed mesh, model edges, free
+space as an occupancy map), a map of where distractors and people may stand, and the world's
+own flight route if it has one.
 """
 
 from __future__ import annotations
