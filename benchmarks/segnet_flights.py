@@ -11,7 +11,8 @@ localizer, motion blur, rolling shutter) are what the cnn mode meets; this score
 every delivered frame of a dataset's flights of one set, undistorted to the pinhole K with their
 true labels (``Flight.image`` / ``Flight.labels``), skipping frames inside a camera dropout (the
 image shows nothing) and pixels the lens does not see. Prints pixel accuracy and mean IoU (over
-the classes present) per model and dataset, and writes them as JSON with ``--out``.
+the classes present) per model and dataset, and writes them with each class's IoU as JSON
+with ``--out``.
 """
 
 from __future__ import annotations
@@ -83,6 +84,9 @@ def main() -> int:
             s = scores(cm)
             results.setdefault(str(onnx), {})[ds_path.name] = {
                 "pixel_accuracy": s["pixel_accuracy"], "mean_iou": s["mean_iou"],
+                "per_class_iou": {c: None if np.isnan(v) else float(v)
+                                  for c, v in zip((c["name"] for c in dataset.classes), s["iou"],
+                                                  strict=True)},
                 "pixels": int(cm.sum())}
     names = [p.name for p in args.datasets if any(p.name in r for r in results.values())]
     print(f"pixel accuracy / mean IoU on the {args.flight_set} flights' frames")
