@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 from core.atomic import atomic_write_json  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from localize.segmenter import load_segmenter  # noqa: E402
-from train.metrics import confusion_matrix, scores  # noqa: E402
+from train.metrics import confusion_matrix, metrics_json  # noqa: E402
 
 BATCH = 16
 
@@ -81,13 +81,10 @@ def main() -> int:
         for onnx in args.onnx:
             seg = load_segmenter(onnx, dataset.classes)
             cm = confusion(seg, dataset, args.flight_set, seg.num_classes)
-            s = scores(cm)
+            m = metrics_json(cm, [c["name"] for c in dataset.classes])
             results.setdefault(str(onnx), {})[ds_path.name] = {
-                "pixel_accuracy": s["pixel_accuracy"], "mean_iou": s["mean_iou"],
-                "per_class_iou": {c: None if np.isnan(v) else float(v)
-                                  for c, v in zip((c["name"] for c in dataset.classes), s["iou"],
-                                                  strict=True)},
-                "pixels": int(cm.sum())}
+                k: m[k] for k in ("pixel_accuracy", "mean_iou", "per_class_iou")
+            } | {"pixels": int(cm.sum())}
     names = [p.name for p in args.datasets if any(p.name in r for r in results.values())]
     print(f"pixel accuracy / mean IoU on the {args.flight_set} flights' frames")
     print("| model | " + " | ".join(names) + " |")
