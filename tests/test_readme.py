@@ -35,6 +35,7 @@ def demo_sized(tmp_path_factory) -> Path:
     return run(cfg, progress=False)
 
 
+@pytest.mark.slow
 def test_snippet_runs_as_pasted(demo_sized, monkeypatch, capsys):
     code = readme_snippet()
     line = 'DATASET = "outputs/datasets/demo"'
