@@ -19,7 +19,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from core.outputs import flatten
 from localize.runner import run
-from localize.segmenter import model_path
+from localize.frontend.segmenter import model_path
 from train.runtime import model_localize_settings
 
 log = logging.getLogger(__name__)

@@ -15,7 +15,7 @@ from typing import Any
 
 from core.config import register_schema
 
-#: The edge modes (``localize.extractor``).
+#: The edge modes (``localize.frontend.extractor``).
 MODES = ("none", "cnn", "oracle")
 #: ``edges.cnn.refine`` choices.
 REFINES = ("none", "union")
@@ -243,7 +243,7 @@ class LabelSettings:
 @dataclass
 class CnnSettings:
     """``edges.cnn``: how the cnn mode makes edges of the SegNet's output
-    (``localize.extractor``, ``localize.snap``).
+    (``localize.frontend.extractor``, ``localize.frontend.boundaries``).
 
     Attributes:
         prior_correction: strength s: structural labels by the argmax of logit - s * log(class
@@ -285,7 +285,7 @@ class CnnSettings:
 
 @dataclass
 class EdgeSettings:
-    """``edges``: the image edges of each mode (``localize.extractor``).
+    """``edges``: the image edges of each mode (``localize.frontend.extractor``).
 
     Attributes:
         canny: mode none's Canny.
@@ -461,7 +461,7 @@ class LocalizeConfig(Settings):
             localize settings it carries apply under the command line's. ``auto``: the
             dataset's own, ``outputs/models/<dataset folder name>/segnet.onnx``, where it
             exists, else the generalist shipped in ``models/generalist/``
-            (``localize.segmenter.model_path``).
+            (``localize.frontend.segmenter.model_path``).
         out_root: where report folders go.
         flight_set: the dataset's flights to run: ``test`` (the default: ``render_flights``,
             the flights figures are reported on) or ``val`` (``val_flights``, ``<name>_val``:

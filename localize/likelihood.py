@@ -67,7 +67,7 @@ import numpy as np
 
 from core.dataset import Camera
 from localize.config import LikelihoodParams
-from localize.edges import EdgeImage, edge_normal_angle
+from localize.frontend.edge_image import EdgeImage, edge_normal_angle
 from localize.projection import (
     ModelSamples,
     cam_from_world,

@@ -20,7 +20,7 @@ import numpy as np
 
 from core.dataset import Camera, World
 from localize.config import LikelihoodParams, PaperFaithfulSettings
-from localize.edges import EdgeImage, label_edges
+from localize.frontend.edge_image import EdgeImage, label_edges
 from localize.projection import cam_from_world
 from localize.render import ModelRenderer
 

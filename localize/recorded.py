@@ -43,7 +43,7 @@ from localize.metrics import (
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
 from localize.runner import Context, RunSpec, check_run_lists, settings_of
-from localize.segmenter import load_segmenter, model_path
+from localize.frontend.segmenter import load_segmenter, model_path
 
 log = logging.getLogger(__name__)
 

@@ -10,9 +10,9 @@ import pytest
 
 from core import classes as C
 from localize.config import HoughSettings
-from localize.edges import EdgeImage, canny_edges, label_edges, pair_classes, pair_code, pair_name
-from localize.extractor import EdgeExtractor, edge_settings
-from localize.segmenter import (
+from localize.frontend.edge_image import EdgeImage, canny_edges, label_edges, pair_classes, pair_code, pair_name
+from localize.frontend.extractor import EdgeExtractor, edge_settings
+from localize.frontend.segmenter import (
     check_classes,
     class_log_prior,
     load_segmenter,

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from localize.extractor import CnnSettings
-from localize.frontend import (
+from localize.frontend.extractor import CnnSettings
+from localize.frontend.front_end import (
     CannyEdges,
     EdgeSource,
     FrontEnd,

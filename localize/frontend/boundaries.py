@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from localize.edges import EdgeImage, check_rgb, edge_normal_angle
+from localize.frontend.edge_image import EdgeImage, check_rgb, edge_normal_angle
 
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,

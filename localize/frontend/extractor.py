@@ -25,9 +25,9 @@ import numpy as np
 from core import classes as C
 from core.config import as_config
 from localize.config import MODES, CnnSettings, EdgeSettings
-from localize.edges import EdgeImage, canny_edges, dilate, label_edges
-from localize.segmenter import LabelPredictor
-from localize.snap import snap_to_image_edges
+from localize.frontend.edge_image import EdgeImage, canny_edges, dilate, label_edges
+from localize.frontend.segmenter import LabelPredictor
+from localize.frontend.boundaries import snap_to_image_edges
 
 __all__ = ["MODES", "CnnSettings", "EdgeExtractor", "edge_settings"]
 
@@ -73,7 +73,7 @@ class EdgeExtractor:
         ``segmenter.LabelPredictor``)."""
         if self.predictor is None:
             raise ValueError("edge mode 'cnn' needs a segmenter to segment a frame (see "
-                             "localize.segmenter.load_segmenter)")
+                             "localize.frontend.segmenter.load_segmenter)")
         return self.predictor(rgb)
 
     def edges(self, rgb: np.ndarray, labels: np.ndarray | None = None) -> EdgeImage:

@@ -1,6 +1,6 @@
 """Edge images: edge pixels, where edges are known, and the class pair of each boundary.
 
-The building blocks of the edge modes (``localize.extractor``): Canny edges of an image
+The building blocks of the edge modes (``localize.frontend.extractor``): Canny edges of an image
 (``canny_edges``, optionally its Hough segments), boundaries between structural classes of a
 label map (``label_edges``) with the mask of unknown pixels (objects that are not in the
 model), the class-pair code of a boundary (``pair_code``) and the structure-tensor normal of an

@@ -30,10 +30,10 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from localize.config import MODES, CnnSettings, EdgeSettings
-from localize.edges import EdgeImage, check_rgb
-from localize.extractor import EdgeExtractor, edge_settings
+from localize.frontend.edge_image import EdgeImage, check_rgb
+from localize.frontend.extractor import EdgeExtractor, edge_settings
 from localize.likelihood import EdgeLikelihood, Observation
-from localize.segmenter import LabelPredictor
+from localize.frontend.segmenter import LabelPredictor
 
 
 @runtime_checkable
@@ -153,7 +153,7 @@ def edge_source(spec, segmenter=None, cnn: CnnSettings | None = None) -> EdgeSou
     if spec == "cnn":
         if segmenter is None:
             raise ValueError("edge source 'cnn' needs a segmenter: use FrontEnd('cnn', "
-                             "edges_cfg, segmenter=localize.segmenter.load_segmenter(path, "
+                             "edges_cfg, segmenter=localize.frontend.segmenter.load_segmenter(path, "
                              "dataset classes)) or SegmenterLabels(segmenter)")
         return SegmenterLabels(segmenter, cnn)
     raise ValueError(f"unknown edge source {spec!r}; use one of {MODES}, an EdgeSource or a "

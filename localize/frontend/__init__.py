@@ -1,0 +1,1 @@
+"""The localizer's front end: a camera frame -> its labels -> its edge image."""
