@@ -38,11 +38,11 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import read_png  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.frontend.segmenter import model_path  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
 from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
 from localize.runner import prepare  # noqa: E402
-from localize.frontend.segmenter import model_path  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0

@@ -18,8 +18,8 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 from omegaconf.errors import OmegaConfBaseException
 
 from core.outputs import flatten
-from localize.runner import run
 from localize.frontend.segmenter import model_path
+from localize.runner import run
 from train.runtime import model_localize_settings
 
 log = logging.getLogger(__name__)

@@ -20,7 +20,8 @@ import numpy as np
 
 from core.dataset import Camera, World
 from localize.config import LikelihoodParams, PaperFaithfulSettings
-from localize.frontend.edge_image import EdgeImage, label_edges
+from localize.frontend.boundaries import label_edges
+from localize.frontend.edge_image import EdgeImage
 from localize.projection import cam_from_world
 from localize.render import ModelRenderer
 

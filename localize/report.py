@@ -296,7 +296,8 @@ def plot_errors(records: list[dict], flight: str, path: Path, threshold: float) 
 
 def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     """One frame: model edges at the estimate over the image, segmentation, edge map (Fig. 2)."""
-    from localize.frontend.front_end import FrontEnd, LabelFunction
+    from localize.frontend.front_end import FrontEnd
+    from localize.frontend.sources import LabelFunction
     from localize.projection import (
         cam_from_world,
         camera_centres,

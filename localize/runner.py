@@ -35,7 +35,9 @@ from core.dataset import FLIGHT_SETS, Camera, Dataset, Flight, World
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES, LocalizeConfig
-from localize.frontend.front_end import EdgeSource, FrontEnd, edge_source
+from localize.frontend.front_end import FrontEnd
+from localize.frontend.segmenter import load_segmenter, model_path
+from localize.frontend.sources import EdgeSource, edge_source
 from localize.localizer import (
     EdgeModel,
     Estimate,
@@ -45,7 +47,6 @@ from localize.localizer import (
 )
 from localize.metrics import position_errors, yaw_errors_deg
 from localize.particle_filter import odometry_increment
-from localize.frontend.segmenter import load_segmenter, model_path
 
 log = logging.getLogger(__name__)
 

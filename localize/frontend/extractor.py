@@ -8,8 +8,9 @@
   window); pixels of clutter, person, void or ignore, dilated by a few pixels, are *unknown*:
   an object that is not in the model may hide a model edge, so a model line falling there is
   neither confirmed nor contradicted (the likelihood scores such samples with the image's
-  chance level). The boundaries are then snapped onto the image (``snap.snap_to_image_edges``):
-  the network places them at its quarter resolution, the image's gradient to a pixel. With
+  chance level). The boundaries are then snapped onto the image
+  (``boundaries.snap_to_image_edges``): the network places them at its quarter resolution,
+  the image's gradient to a pixel. With
   ``edges.cnn.refine: union`` the colour image's Canny edges beside the boundaries join them.
 - ``oracle``: the same from the true label images (not snapped), the upper bound of what
   segmentation gives.
@@ -24,12 +25,11 @@ import numpy as np
 
 from core import classes as C
 from core.config import as_config
-from localize.config import MODES, CnnSettings, EdgeSettings
-from localize.frontend.edge_image import EdgeImage, canny_edges, dilate, label_edges
+from localize.config import MODES, EdgeSettings
+from localize.frontend.boundaries import dilate, label_edges, snap_to_image_edges
+from localize.frontend.canny import canny_edges
+from localize.frontend.edge_image import EdgeImage
 from localize.frontend.segmenter import LabelPredictor
-from localize.frontend.boundaries import snap_to_image_edges
-
-__all__ = ["MODES", "CnnSettings", "EdgeExtractor", "edge_settings"]
 
 
 def edge_settings(edges: EdgeSettings | Mapping | None) -> EdgeSettings:

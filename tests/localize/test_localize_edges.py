@@ -10,7 +10,9 @@ import pytest
 
 from core import classes as C
 from localize.config import HoughSettings
-from localize.frontend.edge_image import EdgeImage, canny_edges, label_edges, pair_classes, pair_code, pair_name
+from localize.frontend.boundaries import label_edges
+from localize.frontend.canny import canny_edges
+from localize.frontend.edge_image import EdgeImage, pair_classes, pair_code, pair_name
 from localize.frontend.extractor import EdgeExtractor, edge_settings
 from localize.frontend.segmenter import (
     check_classes,

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from localize.frontend.edge_image import label_edges, pair_code
+from localize.frontend.boundaries import label_edges, snap_to_image_edges
+from localize.frontend.edge_image import pair_code
 from localize.frontend.extractor import EdgeExtractor
-from localize.frontend.boundaries import snap_to_image_edges
 from tests.localize.test_localize_edges import EDGES_CFG, cnn
 
 
