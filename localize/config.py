@@ -26,7 +26,8 @@ class LikelihoodParams:
     """The edge likelihood (``filter.likelihood``; ``localize.likelihood``).
 
     Attributes:
-        alpha, k: weight ``W = alpha * exp(k * score)``.
+        k: weight ``W = exp(k * score)`` (the paper's ``alpha * exp(k * score)``: a constant
+            factor alpha cancels when the weights are normalized).
         sigma: tolerance of g(d), a fraction of ``search_px`` (0.1: 1 px; the paper's 0.3: 3 px).
         search_px: reach of the edge search, pixels; d is truncated there and divided by it.
         min_quality_samples: known visible samples needed to judge the fit (recovery).
@@ -47,7 +48,6 @@ class LikelihoodParams:
             samples a block culls may move a score by float64 rounding, ~1e-16).
     """
 
-    alpha: float = 1.0
     k: float = 25.0
     sigma: float = 0.1
     search_px: float = 10.0
@@ -62,9 +62,9 @@ class LikelihoodParams:
     workers: int = 2
 
     def __post_init__(self) -> None:
-        if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
-            raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
-                             f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")
+        if self.sigma <= 0 or self.search_px <= 0:
+            raise ValueError("likelihood.sigma and likelihood.search_px must be positive, got "
+                             f"{self.sigma}, {self.search_px}")
         if self.workers < 1:
             raise ValueError(f"likelihood.workers must be >= 1, got {self.workers}")
         if self.lines_ref < 0:
@@ -87,7 +87,6 @@ class FilterParams:
         global_max_particles: most particles of a global start (time: a global update of
             the hospital floor costs about 10 ms per 1,000 particles in mode oracle).
         global_frames: frames the global set is kept.
-        global_temper: log-likelihood scale while the global set is kept.
         global_likelihood: ``likelihood`` keys that differ while the global set is kept.
         mode_likelihood: ``likelihood`` keys that differ per edge mode, ``{mode: {key: value}}``.
         global_motion_scale: motion noise multiplier while the global set is kept (the uniform
@@ -129,7 +128,6 @@ class FilterParams:
     global_area: float = 16.0
     global_max_particles: int = 200000
     global_frames: int = 40
-    global_temper: float = 1.0
     global_likelihood: dict[str, Any] = field(default_factory=lambda: {
         "k": 20.0, "sigma": 0.3, "class_pairs": True, "min_line_samples": 2})
     mode_likelihood: dict[str, dict[str, Any]] = field(default_factory=lambda: {

@@ -6,8 +6,8 @@ boundaries between classes in the render) and the Hough line segments on them, p
 ``samples_per_line`` points on each line, search the image edge map along each point's normal
 up to ``search_px`` pixels for the nearest edge (d in pixels, divided by ``search_px`` as in
 ``likelihood``), score ``g = exp(-d^2 / (2 sigma^2))``, line score ``l = mean g`` and
-``log W = log alpha + k * mean l``. Normal-search points on unknown (masked) pixels score the
-chance level, as in the vectorized model.
+``log W = k * mean l`` (the paper's alpha cancels in the normalized weights). Normal-search
+points on unknown (masked) pixels score the chance level, as in the vectorized model.
 
 It costs a render plus a Hough transform per particle (a Python loop over particles), which is
 the point of comparing it with ``likelihood.EdgeLikelihood``.
@@ -56,7 +56,7 @@ class PaperFaithfulLikelihood:
 
     Args:
         world, camera: the model and camera.
-        params: alpha, k, sigma (same units as the vectorized likelihood).
+        params: k, sigma (same units as the vectorized likelihood).
         settings: ``paper_faithful``: ``hough`` (on the rendered contours), ``samples_per_line``
             (S points per model line), ``search_px`` (normal search reach, pixels; d is divided
             by it), ``render_variant`` (Mitsuba variant of the renders).
@@ -107,4 +107,4 @@ class PaperFaithfulLikelihood:
         g0 = float(np.exp(-1.0 / (2 * self.params.sigma ** 2)))
         scores = np.array([self.score(self.model_lines(s, tilt), edge, g0)
                            for s in np.asarray(states)])
-        return np.log(self.params.alpha) + self.params.k * scores, scores
+        return self.params.k * scores, scores
