@@ -86,10 +86,10 @@ def compare_likelihoods(ctx, loc: Localizer, seen: list, truth: np.ndarray, n: i
                         frames: int) -> tuple[list[float], list[float]]:
     """ms of the vectorized and the paper-faithful likelihood of the same ``n`` particles
     around the truth, on the first ``frames`` frames of ``seen`` (``time_frames``)."""
-    from localize.paper_faithful import PaperFaithfulLikelihood
+    from localize.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings
 
     pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
-                                  ctx.settings.paper_faithful)
+                                  PaperFaithfulSettings())
     rng = np.random.default_rng(1)
     t_vec, t_pf = [], []
     for t in range(min(frames, len(seen))):

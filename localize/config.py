@@ -402,36 +402,6 @@ class MetricsSettings:
 
 
 @dataclass
-class PaperFaithfulSettings:
-    """``paper_faithful``: the paper's render-contours-Hough likelihood, run beside the
-    vectorized one on the same frames and particles (``localize.paper_faithful``).
-
-    Attributes:
-        enabled: run the comparison.
-        flight: the flight to run it on (skipped if absent).
-        mode: edge mode of the comparison runs (both likelihoods).
-        frames: the first N frames.
-        num_particles: both likelihoods use this many particles.
-        seeds: one run of each per seed.
-        render_variant: Mitsuba variant of the renders.
-        hough: on the rendered model's class boundaries.
-        samples_per_line: S normals per model line.
-        search_px: reach of the normal search, pixels (as ``likelihood.search_px``).
-    """
-
-    enabled: bool = True
-    flight: str = "paper"
-    mode: str = "oracle"
-    frames: int = 30
-    num_particles: int = 100
-    seeds: list[int] = field(default_factory=lambda: [0])
-    render_variant: str = "auto"
-    hough: HoughSettings = field(default_factory=lambda: HoughSettings(20, 15, 3))
-    samples_per_line: int = 10
-    search_px: float = 10.0
-
-
-@dataclass
 class ReportSettings:
     """``report``: the report's figure and reference figures.
 
@@ -480,7 +450,7 @@ class LocalizeConfig(Settings):
         threads: onnxruntime intra-op threads.
         overwrite: re-run trajectories that already exist.
         progress: tqdm progress bars.
-        metrics, paper_faithful, report: the report's settings.
+        metrics, report: the report's settings.
     """
 
     name: str = "demo"
@@ -501,7 +471,6 @@ class LocalizeConfig(Settings):
     overwrite: bool = False
     progress: bool = True
     metrics: MetricsSettings = field(default_factory=MetricsSettings)
-    paper_faithful: PaperFaithfulSettings = field(default_factory=PaperFaithfulSettings)
     report: ReportSettings = field(default_factory=ReportSettings)
 
 

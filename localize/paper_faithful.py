@@ -15,15 +15,34 @@ the point of comparing it with ``likelihood.EdgeLikelihood``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import cv2
 import numpy as np
 
 from core.dataset import Camera, World
-from localize.config import LikelihoodParams, PaperFaithfulSettings
+from localize.config import HoughSettings, LikelihoodParams
 from localize.frontend.boundaries import label_edges
 from localize.frontend.edge_image import EdgeImage
 from localize.projection import cam_from_world
 from localize.render import ModelRenderer
+
+
+@dataclass
+class PaperFaithfulSettings:
+    """How the paper-faithful likelihood renders and searches (benchmarks/paper_faithful.py).
+
+    Attributes:
+        render_variant: Mitsuba variant of the renders.
+        hough: on the rendered model's class boundaries.
+        samples_per_line: S normals per model line.
+        search_px: reach of the normal search, pixels (as ``likelihood.search_px``).
+    """
+
+    render_variant: str = "auto"
+    hough: HoughSettings = field(default_factory=lambda: HoughSettings(20, 15, 3))
+    samples_per_line: int = 10
+    search_px: float = 10.0
 
 
 def normal_search(edges: np.ndarray, points: np.ndarray, normals: np.ndarray,
@@ -57,9 +76,9 @@ class PaperFaithfulLikelihood:
     Args:
         world, camera: the model and camera.
         params: k, sigma (same units as the vectorized likelihood).
-        settings: ``paper_faithful``: ``hough`` (on the rendered contours), ``samples_per_line``
-            (S points per model line), ``search_px`` (normal search reach, pixels; d is divided
-            by it), ``render_variant`` (Mitsuba variant of the renders).
+        settings: ``PaperFaithfulSettings``: ``hough`` (on the rendered contours),
+            ``samples_per_line`` (S points per model line), ``search_px`` (normal search reach,
+            pixels; d is divided by it), ``render_variant`` (Mitsuba variant of the renders).
     """
 
     def __init__(self, world: World, camera: Camera, params: LikelihoodParams,
