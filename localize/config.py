@@ -451,6 +451,9 @@ class LocalizeConfig(Settings):
         overwrite: re-run trajectories that already exist.
         progress: tqdm progress bars.
         metrics, report: the report's settings.
+        set_by: written by ``python -m localize`` (``localize.settings.resolve``), not read:
+            for each setting whose value differs from its default, the layer that set it
+            (``conf/...yaml``, ``model <file>``, ``onnx_model=auto``, ``command line``).
     """
 
     name: str = "demo"
@@ -472,6 +475,7 @@ class LocalizeConfig(Settings):
     progress: bool = True
     metrics: MetricsSettings = field(default_factory=MetricsSettings)
     report: ReportSettings = field(default_factory=ReportSettings)
+    set_by: dict[str, str] = field(default_factory=dict)
 
 
 register_schema("localize_schema", LocalizeConfig)

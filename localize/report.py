@@ -26,6 +26,7 @@ from localize.metrics import (  # noqa: E402
     lost_track,
     timing_stats,
 )
+from localize.settings import settings_table  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -368,7 +369,20 @@ def _header(m: dict, cfg) -> list[str]:
         f"{cfg.report.paper_time_ms:g} ms per frame on a GTX 1050; a LIDAR method "
         f"~{cfg.report.lidar_error_m} m.",
         "",
+        *_settings(m),
     ]
+
+
+def _settings(m: dict) -> list[str]:
+    """The settings that differ from their defaults and the layer that set each
+    (``localize.settings``)."""
+    rows = m.get("settings", [])
+    if not rows:
+        return []
+    return ["Settings that differ from the defaults (localize/config.py):", "",
+            "| setting | value | default | set by |", "|---|---|---|---|",
+            *(f"| {r['key']} | `{r['value']}` | `{r['default']}` | {r['set_by']} |"
+              for r in rows), ""]
 
 
 def _accuracy(m: dict, cfg) -> list[str]:
@@ -478,7 +492,8 @@ def write_report(ctx) -> Path:
                            "nothing to report")
     metrics = {**summarize(records, ctx.cfg), "realism": ctx.dataset.realism,
                "flight_set": flight_set, "flight_set_note": FLIGHT_SET_NOTE[flight_set],
-               "flights_used": sorted({r["flight"] for r in records})}
+               "flights_used": sorted({r["flight"] for r in records}),
+               "settings": settings_table(ctx.cfg)}
     atomic_write_json(out / "metrics.json", metrics)
     plots: dict[str, list[str]] = {}
     for flight in sorted({r["flight"] for r in _main(records)}):
