@@ -1,11 +1,12 @@
 """The localize settings: the schema of ``conf/localize.yaml`` (``python -m localize``).
 
 The field defaults below are the defaults, written nowhere else: Hydra composes
-``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``, the command line, the
-settings a model carries) onto ``LocalizeConfig``, so a typo or a wrong type fails at start-up
-naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is the default
-config's. Library code builds one from a partial mapping with ``core.config.typed``. Why the
-defaults are what they are: docs/localize.md.
+``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``) and the command line onto
+``LocalizeConfig``, and ``localize.settings.resolve`` adds the settings a model carries and
+records which layer set each value that differs from its default; a typo or a wrong type fails
+at start-up naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is
+the default config's. Library code builds one from a partial mapping with
+``core.config.typed``. Why the defaults are what they are: docs/localize.md.
 """
 
 from __future__ import annotations
