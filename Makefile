@@ -93,13 +93,14 @@ building: setup
 contact-sheet: setup
 	$(PY) -m datagen.contact_sheet outputs/datasets/demo docs/img/contact_sheet.png
 
-# Speed and accuracy figures; the last five read the demo's outputs (run `make demo` first).
+# Speed and accuracy figures; those after render_building read the demo's outputs (run `make demo` first).
 bench: setup
 	$(PY) benchmarks/datagen_throughput.py
 	$(PY) benchmarks/render_building.py  # an imported building (the AWS hospital, if ../shared has it)
 	-$(PY) benchmarks/train_accuracy.py outputs/models/demo  # exits 1 when a target is missed
 	$(PY) benchmarks/segnet_speed.py
 	$(PY) benchmarks/localize_speed.py
+	$(PY) benchmarks/paper_faithful.py   # the paper's render-per-particle likelihood against the vectorized one
 	$(PY) benchmarks/boundary_distance.py
 	$(PY) benchmarks/flight_spread.py   # 3 new flights per preset and the demo's own 2: the accuracy over 8 flights (~12 min)
 	$(PY) benchmarks/dropout_recovery.py   # 2 s camera dropouts on the demo's flights: back within 0.3 m in 3 s? (~8 min)

@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core import classes as C  # noqa: E402
-from localize.frontend import EdgeSource, LabelFunction  # noqa: E402
+from localize.frontend.sources import EdgeSource, LabelFunction  # noqa: E402
 
 
 def swap_labels(predicted: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> np.ndarray:

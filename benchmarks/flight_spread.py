@@ -122,8 +122,7 @@ def main(source_wrappers=None) -> None:
     for dataset, suffix in runs:
         with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
             cfg = compose(config_name="localize", overrides=[
-                f"dataset={dataset}", f"name={out.name}", "inits=[tracking]",
-                "paper_faithful.enabled=false", *a.overrides])
+                f"dataset={dataset}", f"name={out.name}", "inits=[tracking]", *a.overrides])
         if suffix:  # the own flights' report beside the new ones' (a `name=` override too)
             cfg.name = f"{cfg.name}{suffix}"
         reports.append(localize(cfg, source_wrappers))

@@ -55,7 +55,7 @@ def localize_command(args: argparse.Namespace) -> list[str]:
     cmd = [sys.executable, "-m", "localize", f"dataset={args.dataset}",
            f"out_root={args.out_root}", f"name={args.name}", f"modes={lst(args.modes)}",
            f"inits={lst(args.inits)}", f"seeds={lst(args.seeds)}",
-           f"max_frames={args.max_frames}", "paper_faithful.enabled=false", "progress=false",
+           f"max_frames={args.max_frames}", "progress=false",
            f"metrics.converge_within_frames={args.within}"]
     if args.flights:
         cmd.append(f"flight_names={lst(args.flights)}")

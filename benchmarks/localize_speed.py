@@ -38,11 +38,11 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import read_png  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.frontend.segmenter import model_path  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
 from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
 from localize.runner import prepare  # noqa: E402
-from localize.segmenter import model_path  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0
@@ -86,10 +86,10 @@ def compare_likelihoods(ctx, loc: Localizer, seen: list, truth: np.ndarray, n: i
                         frames: int) -> tuple[list[float], list[float]]:
     """ms of the vectorized and the paper-faithful likelihood of the same ``n`` particles
     around the truth, on the first ``frames`` frames of ``seen`` (``time_frames``)."""
-    from localize.paper_faithful import PaperFaithfulLikelihood
+    from localize.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings
 
     pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
-                                  ctx.settings.paper_faithful)
+                                  PaperFaithfulSettings())
     rng = np.random.default_rng(1)
     t_vec, t_pf = [], []
     for t in range(min(frames, len(seen))):

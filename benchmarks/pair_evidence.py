@@ -34,8 +34,8 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.atomic import read_png  # noqa: E402
-from localize.edges import pair_name  # noqa: E402
-from localize.frontend import Frame  # noqa: E402
+from localize.frontend.edge_image import pair_name  # noqa: E402
+from localize.frontend.front_end import Frame  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.localizer import mode_likelihood_params  # noqa: E402
 from localize.particle_filter import estimate as estimate_pose  # noqa: E402

@@ -215,7 +215,7 @@ def main() -> None:
                         f"out_root={args.out_root / 'robustness' / 'runs'}",
                         f"modes={lst(args.modes)}", "inits=[tracking]",
                         f"seeds={lst(args.seeds)}", f"onnx_model={args.onnx}",
-                        "paper_faithful.enabled=false", "progress=false", *args.localize]):
+                        "progress=false", *args.localize]):
                 sys.exit(f"localize failed on {ds}")
             by_strength.setdefault(factor, {})[f"{s:g}"] = pooled(
                 args.out_root / "robustness" / "runs" / tag)

@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import atomic_write_json  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
-from localize.segmenter import load_segmenter  # noqa: E402
+from localize.frontend.segmenter import load_segmenter  # noqa: E402
 from train.metrics import confusion_matrix, metrics_json  # noqa: E402
 
 BATCH = 16

@@ -41,8 +41,8 @@ from core.occupancy import OccupancyMap  # noqa: E402
 from core.poses import pose_from_xyzyaw  # noqa: E402
 from core.rays import RayCaster  # noqa: E402
 from localize.config import Settings  # noqa: E402
-from localize.edges import EdgeImage  # noqa: E402
-from localize.frontend import Frame  # noqa: E402
+from localize.frontend.edge_image import EdgeImage  # noqa: E402
+from localize.frontend.front_end import Frame  # noqa: E402
 from localize.localizer import EdgeModel, Localizer, scored_segments  # noqa: E402
 from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import (  # noqa: E402

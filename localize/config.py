@@ -1,11 +1,12 @@
 """The localize settings: the schema of ``conf/localize.yaml`` (``python -m localize``).
 
 The field defaults below are the defaults, written nowhere else: Hydra composes
-``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``, the command line, the
-settings a model carries) onto ``LocalizeConfig``, so a typo or a wrong type fails at start-up
-naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is the default
-config's. Library code builds one from a partial mapping with ``core.config.typed``. Why the
-defaults are what they are: docs/localize.md.
+``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``) and the command line onto
+``LocalizeConfig``, and ``localize.settings.resolve`` adds the settings a model carries and
+records which layer set each value that differs from its default; a typo or a wrong type fails
+at start-up naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is
+the default config's. Library code builds one from a partial mapping with
+``core.config.typed``. Why the defaults are what they are: docs/localize.md.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Any
 
 from core.config import register_schema
 
-#: The edge modes (``localize.extractor``).
+#: The edge modes (``localize.frontend.extractor``).
 MODES = ("none", "cnn", "oracle")
 #: ``edges.cnn.refine`` choices.
 REFINES = ("none", "union")
@@ -26,7 +27,8 @@ class LikelihoodParams:
     """The edge likelihood (``filter.likelihood``; ``localize.likelihood``).
 
     Attributes:
-        alpha, k: weight ``W = alpha * exp(k * score)``.
+        k: weight ``W = exp(k * score)`` (the paper's ``alpha * exp(k * score)``: a constant
+            factor alpha cancels when the weights are normalized).
         sigma: tolerance of g(d), a fraction of ``search_px`` (0.1: 1 px; the paper's 0.3: 3 px).
         search_px: reach of the edge search, pixels; d is truncated there and divided by it.
         min_quality_samples: known visible samples needed to judge the fit (recovery).
@@ -47,7 +49,6 @@ class LikelihoodParams:
             samples a block culls may move a score by float64 rounding, ~1e-16).
     """
 
-    alpha: float = 1.0
     k: float = 25.0
     sigma: float = 0.1
     search_px: float = 10.0
@@ -62,9 +63,9 @@ class LikelihoodParams:
     workers: int = 2
 
     def __post_init__(self) -> None:
-        if self.sigma <= 0 or self.search_px <= 0 or self.alpha <= 0:
-            raise ValueError("likelihood.sigma, likelihood.search_px and likelihood.alpha must "
-                             f"be positive, got {self.sigma}, {self.search_px}, {self.alpha}")
+        if self.sigma <= 0 or self.search_px <= 0:
+            raise ValueError("likelihood.sigma and likelihood.search_px must be positive, got "
+                             f"{self.sigma}, {self.search_px}")
         if self.workers < 1:
             raise ValueError(f"likelihood.workers must be >= 1, got {self.workers}")
         if self.lines_ref < 0:
@@ -87,7 +88,6 @@ class FilterParams:
         global_max_particles: most particles of a global start (time: a global update of
             the hospital floor costs about 10 ms per 1,000 particles in mode oracle).
         global_frames: frames the global set is kept.
-        global_temper: log-likelihood scale while the global set is kept.
         global_likelihood: ``likelihood`` keys that differ while the global set is kept.
         mode_likelihood: ``likelihood`` keys that differ per edge mode, ``{mode: {key: value}}``.
         global_motion_scale: motion noise multiplier while the global set is kept (the uniform
@@ -129,7 +129,6 @@ class FilterParams:
     global_area: float = 16.0
     global_max_particles: int = 200000
     global_frames: int = 40
-    global_temper: float = 1.0
     global_likelihood: dict[str, Any] = field(default_factory=lambda: {
         "k": 20.0, "sigma": 0.3, "class_pairs": True, "min_line_samples": 2})
     mode_likelihood: dict[str, dict[str, Any]] = field(default_factory=lambda: {
@@ -243,7 +242,7 @@ class LabelSettings:
 @dataclass
 class CnnSettings:
     """``edges.cnn``: how the cnn mode makes edges of the SegNet's output
-    (``localize.extractor``, ``localize.snap``).
+    (``localize.frontend.extractor``, ``localize.frontend.boundaries``).
 
     Attributes:
         prior_correction: strength s: structural labels by the argmax of logit - s * log(class
@@ -285,7 +284,7 @@ class CnnSettings:
 
 @dataclass
 class EdgeSettings:
-    """``edges``: the image edges of each mode (``localize.extractor``).
+    """``edges``: the image edges of each mode (``localize.frontend.extractor``).
 
     Attributes:
         canny: mode none's Canny.
@@ -404,36 +403,6 @@ class MetricsSettings:
 
 
 @dataclass
-class PaperFaithfulSettings:
-    """``paper_faithful``: the paper's render-contours-Hough likelihood, run beside the
-    vectorized one on the same frames and particles (``localize.paper_faithful``).
-
-    Attributes:
-        enabled: run the comparison.
-        flight: the flight to run it on (skipped if absent).
-        mode: edge mode of the comparison runs (both likelihoods).
-        frames: the first N frames.
-        num_particles: both likelihoods use this many particles.
-        seeds: one run of each per seed.
-        render_variant: Mitsuba variant of the renders.
-        hough: on the rendered model's class boundaries.
-        samples_per_line: S normals per model line.
-        search_px: reach of the normal search, pixels (as ``likelihood.search_px``).
-    """
-
-    enabled: bool = True
-    flight: str = "paper"
-    mode: str = "oracle"
-    frames: int = 30
-    num_particles: int = 100
-    seeds: list[int] = field(default_factory=lambda: [0])
-    render_variant: str = "auto"
-    hough: HoughSettings = field(default_factory=lambda: HoughSettings(20, 15, 3))
-    samples_per_line: int = 10
-    search_px: float = 10.0
-
-
-@dataclass
 class ReportSettings:
     """``report``: the report's figure and reference figures.
 
@@ -461,7 +430,7 @@ class LocalizeConfig(Settings):
             localize settings it carries apply under the command line's. ``auto``: the
             dataset's own, ``outputs/models/<dataset folder name>/segnet.onnx``, where it
             exists, else the generalist shipped in ``models/generalist/``
-            (``localize.segmenter.model_path``).
+            (``localize.frontend.segmenter.model_path``).
         out_root: where report folders go.
         flight_set: the dataset's flights to run: ``test`` (the default: ``render_flights``,
             the flights figures are reported on) or ``val`` (``val_flights``, ``<name>_val``:
@@ -482,7 +451,10 @@ class LocalizeConfig(Settings):
         threads: onnxruntime intra-op threads.
         overwrite: re-run trajectories that already exist.
         progress: tqdm progress bars.
-        metrics, paper_faithful, report: the report's settings.
+        metrics, report: the report's settings.
+        set_by: written by ``python -m localize`` (``localize.settings.resolve``), not read:
+            for each setting whose value differs from its default, the layer that set it
+            (``conf/...yaml``, ``model <file>``, ``onnx_model=auto``, ``command line``).
     """
 
     name: str = "demo"
@@ -503,8 +475,8 @@ class LocalizeConfig(Settings):
     overwrite: bool = False
     progress: bool = True
     metrics: MetricsSettings = field(default_factory=MetricsSettings)
-    paper_faithful: PaperFaithfulSettings = field(default_factory=PaperFaithfulSettings)
     report: ReportSettings = field(default_factory=ReportSettings)
+    set_by: dict[str, str] = field(default_factory=dict)
 
 
 register_schema("localize_schema", LocalizeConfig)

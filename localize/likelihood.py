@@ -35,9 +35,9 @@ where d is the distance from the pixel to the nearest image edge:
 
 Scores aggregate as in the paper: line score ``l = mean g`` over a line's visible samples,
 ``score = mean l`` over lines with at least ``min_line_samples`` visible samples. A particle
-seeing fewer than ``min_lines`` lines is padded with g0. Finally ``log W = log(alpha) + k *
-score``. The likelihood stays finite for any input: with no edges at all every particle gets
-the same score.
+seeing fewer than ``min_lines`` lines is padded with g0. Finally ``log W = k * score`` (the
+paper's constant factor alpha cancels when the weights are normalized). The likelihood stays
+finite for any input: with no edges at all every particle gets the same score.
 
 **Fit quality** (what recovery watches): apart from the score, each particle's visible samples
 on known pixels are judged by their mean log-ratio ``log(g + eps) - log(g0 + eps)`` against
@@ -67,7 +67,7 @@ import numpy as np
 
 from core.dataset import Camera
 from localize.config import LikelihoodParams
-from localize.edges import EdgeImage, edge_normal_angle
+from localize.frontend.edge_image import EdgeImage, edge_normal_angle
 from localize.projection import (
     ModelSamples,
     cam_from_world,
@@ -474,7 +474,7 @@ class EdgeLikelihood:
 
     def log_likelihood(self, states: np.ndarray, obs: Observation,
                        tilt: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``log W = log(alpha) + k * score`` per particle, k scaled down in a frame of few
+        """``log W = k * score`` per particle, k scaled down in a frame of few
         lines (``frame_k``, with ``lines_ref``).
 
         Returns:
@@ -482,4 +482,4 @@ class EdgeLikelihood:
         """
         score, quality, lines = self._evaluate(states, obs, tilt)
         k = frame_k(self.params.k, lines, self.params.lines_ref)
-        return np.log(self.params.alpha) + k * score, quality
+        return k * score, quality

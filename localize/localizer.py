@@ -39,8 +39,8 @@ from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import FilterParams, LikelihoodParams, Settings
-from localize.edges import EdgeImage, pair_code
-from localize.frontend import Frame, FrontEnd
+from localize.frontend.edge_image import EdgeImage, pair_code
+from localize.frontend.front_end import Frame, FrontEnd
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose

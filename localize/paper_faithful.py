@@ -6,8 +6,8 @@ boundaries between classes in the render) and the Hough line segments on them, p
 ``samples_per_line`` points on each line, search the image edge map along each point's normal
 up to ``search_px`` pixels for the nearest edge (d in pixels, divided by ``search_px`` as in
 ``likelihood``), score ``g = exp(-d^2 / (2 sigma^2))``, line score ``l = mean g`` and
-``log W = log alpha + k * mean l``. Normal-search points on unknown (masked) pixels score the
-chance level, as in the vectorized model.
+``log W = k * mean l`` (the paper's alpha cancels in the normalized weights). Normal-search
+points on unknown (masked) pixels score the chance level, as in the vectorized model.
 
 It costs a render plus a Hough transform per particle (a Python loop over particles), which is
 the point of comparing it with ``likelihood.EdgeLikelihood``.
@@ -15,14 +15,34 @@ the point of comparing it with ``likelihood.EdgeLikelihood``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import cv2
 import numpy as np
 
 from core.dataset import Camera, World
-from localize.config import LikelihoodParams, PaperFaithfulSettings
-from localize.edges import EdgeImage, label_edges
+from localize.config import HoughSettings, LikelihoodParams
+from localize.frontend.boundaries import label_edges
+from localize.frontend.edge_image import EdgeImage
 from localize.projection import cam_from_world
 from localize.render import ModelRenderer
+
+
+@dataclass
+class PaperFaithfulSettings:
+    """How the paper-faithful likelihood renders and searches (benchmarks/paper_faithful.py).
+
+    Attributes:
+        render_variant: Mitsuba variant of the renders.
+        hough: on the rendered model's class boundaries.
+        samples_per_line: S normals per model line.
+        search_px: reach of the normal search, pixels (as ``likelihood.search_px``).
+    """
+
+    render_variant: str = "auto"
+    hough: HoughSettings = field(default_factory=lambda: HoughSettings(20, 15, 3))
+    samples_per_line: int = 10
+    search_px: float = 10.0
 
 
 def normal_search(edges: np.ndarray, points: np.ndarray, normals: np.ndarray,
@@ -55,10 +75,10 @@ class PaperFaithfulLikelihood:
 
     Args:
         world, camera: the model and camera.
-        params: alpha, k, sigma (same units as the vectorized likelihood).
-        settings: ``paper_faithful``: ``hough`` (on the rendered contours), ``samples_per_line``
-            (S points per model line), ``search_px`` (normal search reach, pixels; d is divided
-            by it), ``render_variant`` (Mitsuba variant of the renders).
+        params: k, sigma (same units as the vectorized likelihood).
+        settings: ``PaperFaithfulSettings``: ``hough`` (on the rendered contours),
+            ``samples_per_line`` (S points per model line), ``search_px`` (normal search reach,
+            pixels; d is divided by it), ``render_variant`` (Mitsuba variant of the renders).
     """
 
     def __init__(self, world: World, camera: Camera, params: LikelihoodParams,
@@ -106,4 +126,4 @@ class PaperFaithfulLikelihood:
         g0 = float(np.exp(-1.0 / (2 * self.params.sigma ** 2)))
         scores = np.array([self.score(self.model_lines(s, tilt), edge, g0)
                            for s in np.asarray(states)])
-        return np.log(self.params.alpha) + self.params.k * scores, scores
+        return self.params.k * scores, scores

@@ -355,8 +355,6 @@ class ParticleFilter:
         p = self.params
         loglik, score = log_likelihood(self.particles, self.tilt)
         global_phase = self.in_global_phase
-        if global_phase:
-            loglik = loglik * p.global_temper
         prior = free_space_log_prior(self.particles, self.free, p.free_space_slack,
                                      p.outside_log_penalty)
         best = float(score[np.argmax(loglik + prior)]) if len(score) else float("nan")

@@ -32,6 +32,7 @@ from tqdm import tqdm
 from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
+from localize.frontend.segmenter import load_segmenter, model_path
 from localize.localizer import EdgeModel, Localizer
 from localize.metrics import (
     error_stats,
@@ -43,7 +44,6 @@ from localize.metrics import (
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
 from localize.runner import Context, RunSpec, check_run_lists, settings_of
-from localize.segmenter import load_segmenter, model_path
 
 log = logging.getLogger(__name__)
 

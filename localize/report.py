@@ -26,6 +26,7 @@ from localize.metrics import (  # noqa: E402
     lost_track,
     timing_stats,
 )
+from localize.settings import settings_table  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -111,37 +112,7 @@ def summarize(records: list[dict], cfg) -> dict:
                   "total_ms": float(cfg.report.paper_time_ms),
                   "lidar_error_m": float(cfg.report.lidar_error_m)},
     }
-    pf = paper_faithful_summary(records)
-    if pf:
-        out["paper_faithful"] = pf
     out["targets"] = targets(out, cfg)
-    return out
-
-
-def paper_faithful_summary(records: list[dict]) -> dict:
-    """Accuracy and filter time of the vectorized vs the paper-faithful likelihood."""
-    rows = {}
-    for r in records:
-        lik = r["likelihood"]
-        if lik == "vectorized":
-            continue
-        kind = "paper_faithful" if lik.startswith("paper_faithful") else "vectorized"
-        d = rows.setdefault(kind, {"errors": [], "filter_ms": [], "flight": r["flight"],
-                                   "mode": r["mode"], "num_particles": r["filter_particles"],
-                                   "num_frames": r["num_frames"]})
-        d["errors"].append(np.array(r["position_error_m"]))
-        d["filter_ms"].append(np.array(r["timing_ms"]["filter"]))
-    out = {}
-    for kind, d in rows.items():
-        out[kind] = {
-            "flight": d["flight"], "mode": d["mode"], "num_particles": d["num_particles"],
-            "num_frames": d["num_frames"],
-            **error_stats(np.concatenate(d["errors"])),
-            "filter_ms": timing_stats(np.concatenate(d["filter_ms"])),
-        }
-    if "paper_faithful" in out and "vectorized" in out:
-        out["speed_ratio"] = (out["paper_faithful"]["filter_ms"]["avg"]
-                              / max(out["vectorized"]["filter_ms"]["avg"], 1e-9))
     return out
 
 
@@ -181,10 +152,6 @@ def targets(m: dict, cfg) -> list[dict]:
         seg_filter = tm["segmentation"]["avg"] + tm["preprocessing"]["avg"] + f
         add(f"segmentation + edges + filter ({m['timing_mode']}), avg per frame", seg_filter,
             seg_filter <= 50.0, "<= 50 ms")
-    pf = m.get("paper_faithful", {})
-    if "speed_ratio" in pf:
-        add("vectorized likelihood speed-up over paper_faithful (same particles)",
-            pf["speed_ratio"], None, "report")
     return out
 
 
@@ -296,7 +263,8 @@ def plot_errors(records: list[dict], flight: str, path: Path, threshold: float) 
 
 def plot_frame(ctx, records: list[dict], flight_name: str, path: Path) -> None:
     """One frame: model edges at the estimate over the image, segmentation, edge map (Fig. 2)."""
-    from localize.frontend import FrontEnd, LabelFunction
+    from localize.frontend.front_end import FrontEnd
+    from localize.frontend.sources import LabelFunction
     from localize.projection import (
         cam_from_world,
         camera_centres,
@@ -401,7 +369,20 @@ def _header(m: dict, cfg) -> list[str]:
         f"{cfg.report.paper_time_ms:g} ms per frame on a GTX 1050; a LIDAR method "
         f"~{cfg.report.lidar_error_m} m.",
         "",
+        *_settings(m),
     ]
+
+
+def _settings(m: dict) -> list[str]:
+    """The settings that differ from their defaults and the layer that set each
+    (``localize.settings``)."""
+    rows = m.get("settings", [])
+    if not rows:
+        return []
+    return ["Settings that differ from the defaults (localize/config.py):", "",
+            "| setting | value | default | set by |", "|---|---|---|---|",
+            *(f"| {r['key']} | `{r['value']}` | `{r['default']}` | {r['set_by']} |"
+              for r in rows), ""]
 
 
 def _accuracy(m: dict, cfg) -> list[str]:
@@ -471,22 +452,6 @@ def _timing(m: dict, cfg) -> list[str]:
                     "`benchmarks/localize_speed.py` measures the stages alone.", ""]
 
 
-def _paper_faithful(m: dict) -> list[str]:
-    """The vectorized likelihood against the paper-faithful one, where both ran."""
-    pf = m.get("paper_faithful")
-    if not (pf and "vectorized" in pf and "paper_faithful" in pf):
-        return []
-    v, p = pf["vectorized"], pf["paper_faithful"]
-    return ["## Vectorized vs paper-faithful likelihood", "",
-            f"Same flight ({v['flight']}, first {v['num_frames']} frames), mode "
-            f"{v['mode']}, {v['num_particles']} particles, tracking init.", "",
-            "| likelihood | mean error (m) | filter ms/frame (avg) |", "|---|---|---|",
-            f"| vectorized | {_fmt(v['mean_position_error_m'])} | {v['filter_ms']['avg']:.1f} |",
-            f"| paper_faithful (render + contours + Hough per particle) | "
-            f"{_fmt(p['mean_position_error_m'])} | {p['filter_ms']['avg']:.1f} |", "",
-            f"Speed-up of the vectorized likelihood: {pf['speed_ratio']:.0f}x.", ""]
-
-
 def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
     """The targets table, the plots per flight and where the trajectories are."""
     lines = []
@@ -509,7 +474,7 @@ def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
 def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
     """report.md text."""
     return "\n".join([*_header(m, cfg), *_accuracy(m, cfg), *_global(m, cfg), *_timing(m, cfg),
-                      *_paper_faithful(m), *_targets_and_plots(m, plots)])
+                      *_targets_and_plots(m, plots)])
 
 
 def write_report(ctx) -> Path:
@@ -527,7 +492,8 @@ def write_report(ctx) -> Path:
                            "nothing to report")
     metrics = {**summarize(records, ctx.cfg), "realism": ctx.dataset.realism,
                "flight_set": flight_set, "flight_set_note": FLIGHT_SET_NOTE[flight_set],
-               "flights_used": sorted({r["flight"] for r in records})}
+               "flights_used": sorted({r["flight"] for r in records}),
+               "settings": settings_table(ctx.cfg)}
     atomic_write_json(out / "metrics.json", metrics)
     plots: dict[str, list[str]] = {}
     for flight in sorted({r["flight"] for r in _main(records)}):

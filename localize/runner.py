@@ -35,7 +35,9 @@ from core.dataset import FLIGHT_SETS, Camera, Dataset, Flight, World
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES, LocalizeConfig
-from localize.frontend import EdgeSource, FrontEnd, edge_source
+from localize.frontend.front_end import FrontEnd
+from localize.frontend.segmenter import load_segmenter, model_path
+from localize.frontend.sources import EdgeSource, edge_source
 from localize.localizer import (
     EdgeModel,
     Estimate,
@@ -45,7 +47,6 @@ from localize.localizer import (
 )
 from localize.metrics import position_errors, yaw_errors_deg
 from localize.particle_filter import odometry_increment
-from localize.segmenter import load_segmenter, model_path
 
 log = logging.getLogger(__name__)
 
@@ -296,51 +297,6 @@ def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
         record.write(i, r, ctx.out_dir, flight, truth, localizers[i].filter_params.num_particles)
 
 
-def paper_faithful_runs(ctx: Context) -> None:
-    """The comparison: paper-faithful vs vectorized likelihood, same particles and frames."""
-    pcfg = ctx.settings.paper_faithful
-    if not pcfg.enabled:
-        return
-    names = ctx.dataset.flight_names(ctx.cfg.flight_set)
-    name = pcfg.flight if ctx.cfg.flight_set == "test" else f"{pcfg.flight}_val"
-    if name not in names:
-        log.warning("paper_faithful: flight %r not in the dataset's %s flights; skipped", name,
-                    ctx.cfg.flight_set)
-        return
-    mode = pcfg.mode
-    if mode == "cnn" and ctx.segmenter is None:
-        log.warning("paper_faithful: mode cnn needs the model; skipped")
-        return
-    from localize.paper_faithful import PaperFaithfulLikelihood
-    from localize.render import centred
-
-    if not centred(ctx.camera):
-        log.warning("paper_faithful: the camera's principal point is off its image's centre "
-                    "(a calibrated K); the paper-faithful renderer needs a centred one, so "
-                    "the comparison is skipped")
-        return
-
-    flight = ctx.dataset.flight(name)
-    sub = OmegaConf.merge(ctx.cfg, {"max_frames": pcfg.frames})
-    sub_ctx = Context(**{**ctx.__dict__, "cfg": sub})
-    n = pcfg.num_particles
-    vec = [RunSpec(flight.name, mode, "tracking", int(s), f"vectorized_n{n}")
-           for s in pcfg.seeds]
-    todo = [r for r in vec if ctx.cfg.overwrite or not r.done(ctx.out_dir)]
-    run_pass(sub_ctx, flight, mode, todo, num_particles=n)
-    pf_runs = [RunSpec(flight.name, mode, "tracking", int(s), f"paper_faithful_n{n}")
-               for s in pcfg.seeds]
-    todo = [r for r in pf_runs if ctx.cfg.overwrite or not r.done(ctx.out_dir)]
-    if todo:
-        pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood, pcfg)
-
-        def paper_faithful(edge, tilt):
-            return lambda states: pfl.log_likelihood(states, edge, tilt)
-
-        run_pass(sub_ctx, flight, mode, todo, likelihood_override=paper_faithful,
-                 num_particles=n)
-
-
 @releases_claims
 def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
     """Run every flight x mode x init x seed (skipping finished runs) and write the report.
@@ -368,7 +324,6 @@ def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
                 log.info("%s/%s: %d of %d runs already done", name, mode,
                          len(runs) - len(todo), len(runs))
             run_pass(ctx, flight, mode, todo)
-    paper_faithful_runs(ctx)
     return write_report(ctx)
 
 

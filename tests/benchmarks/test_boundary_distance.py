@@ -13,10 +13,11 @@ from benchmarks.boundary_distance import (
     signed_offsets,
 )
 from core import classes as C
-from localize.edges import pair_code
-from localize.extractor import edge_settings
-from localize.frontend import FrontEnd, SegmenterLabels
-from localize.segmenter import LabelPredictor
+from localize.frontend.edge_image import pair_code
+from localize.frontend.extractor import edge_settings
+from localize.frontend.front_end import FrontEnd
+from localize.frontend.segmenter import LabelPredictor
+from localize.frontend.sources import SegmenterLabels
 
 CFG = {"labels": {"dilate_px": 0, "median": 0},
        "cnn": {"snap_px": 0, "prior_correction": 0.0, "refine": "none"}}

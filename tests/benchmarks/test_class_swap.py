@@ -7,8 +7,9 @@ import pytest
 
 from benchmarks.class_swap import report_name, swap_labels, swapped_source
 from core import classes as C
-from localize.extractor import edge_settings
-from localize.frontend import FrontEnd, SegmenterLabels
+from localize.frontend.extractor import edge_settings
+from localize.frontend.front_end import FrontEnd
+from localize.frontend.sources import SegmenterLabels
 
 CFG = {"labels": {"dilate_px": 0, "median": 0},
        "cnn": {"snap_px": 0, "prior_correction": 0.0, "refine": "none"}}

@@ -12,7 +12,7 @@ from benchmarks.segnet_flights import confusion, flight_frames
 from core import classes as C
 from core.atomic import read_png, write_png
 from core.dataset import Dataset
-from localize.segmenter import load_segmenter
+from localize.frontend.segmenter import load_segmenter
 from tests.localize.conftest import palette_segnet
 from train.metrics import scores
 

@@ -108,7 +108,7 @@ def localize_cfg(overrides: list[str]) -> DictConfig:
         return compose(config_name="localize", overrides=overrides)
 
 
-#: Shrinks the evaluation to seconds: few particles, a coarse occlusion grid, no comparison.
+#: Shrinks the evaluation to seconds: few particles, a coarse occlusion grid.
 QUICK = ["progress=false", "seeds=[0]", "filter.num_particles=200",
          "filter.global_particles=2000", "filter.global_frames=5", "model_edges.spacing=0.2",
-         "visibility.cell_xy=0.4", "visibility.cell_z=0.5", "paper_faithful.enabled=false"]
+         "visibility.cell_xy=0.4", "visibility.cell_z=0.5"]

@@ -13,7 +13,7 @@ import yaml
 from core.atomic import read_png
 from core.dataset import Dataset
 from datagen import generate as gen
-from localize.frontend import LabelFunction
+from localize.frontend.sources import LabelFunction
 from localize.recording import read_recording
 from localize.recording_export import export_folder
 from localize.runner import run

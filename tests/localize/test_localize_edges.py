@@ -10,14 +10,17 @@ import pytest
 
 from core import classes as C
 from localize.config import HoughSettings
-from localize.edges import EdgeImage, canny_edges, label_edges, pair_classes, pair_code, pair_name
-from localize.extractor import EdgeExtractor, edge_settings
-from localize.segmenter import (
+from localize.frontend.boundaries import label_edges
+from localize.frontend.canny import canny_edges
+from localize.frontend.edge_image import EdgeImage, pair_classes, pair_code, pair_name
+from localize.frontend.extractor import EdgeExtractor, edge_settings
+from localize.frontend.segmenter import (
     check_classes,
     class_log_prior,
     load_segmenter,
     structural_prior_labels,
 )
+from localize.frontend.sources import SegmenterLabels, edge_source
 from tests.localize.conftest import palette_segnet
 
 # the cnn mode as the plain class boundaries of the predicted labels (no prior correction, no
@@ -32,6 +35,11 @@ EDGES_CFG = {"canny": {"low": 50.0, "high": 150.0, "blur": 3},
 def cnn(**settings) -> dict:
     """EDGES_CFG with these ``edges.cnn`` settings on top of the plain ones."""
     return {**EDGES_CFG, "cnn": {**PLAIN_CNN, **settings}}
+
+
+def segment(segmenter, edges: dict, rgb: np.ndarray) -> np.ndarray:
+    """The cnn mode's labels of a frame with these ``edges`` settings."""
+    return SegmenterLabels(segmenter, edge_settings(edges).cnn).labels(rgb, None)
 
 
 def two_walls() -> np.ndarray:
@@ -143,19 +151,20 @@ class TestPriorCorrection:
         seg = load_segmenter(palette_segnet(tmp_path / "a.onnx", 20, 30,
                                             extra_metadata={"class_weights": weights}),
                              C.as_json(), 1)
-        labels = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
+        labels = segment(seg, cfg, C.colorize(lab))
         np.testing.assert_array_equal(labels, lab)  # equal weights: nothing to correct
         weights["door"] = 1e-9  # the network "learned" door with a tiny weight: favour it
         seg = load_segmenter(palette_segnet(tmp_path / "b.onnx", 20, 30,
                                             extra_metadata={"class_weights": weights}),
                              C.as_json(), 1)
-        labels = EdgeExtractor("cnn", cfg, seg).segment(C.colorize(lab))
+        labels = segment(seg, cfg, C.colorize(lab))
         structural = np.isin(lab, C.STRUCTURAL)
         assert (labels[structural] == C.DOOR).all()
         np.testing.assert_array_equal(labels[~structural], lab[~structural])  # masks unchanged
-        ex = EdgeExtractor("cnn", cnn(prior_correction=0.0), seg)
-        assert ex.log_prior is None  # strength 0: off
-        np.testing.assert_array_equal(ex.segment(C.colorize(lab)), lab)
+        assert SegmenterLabels(seg, edge_settings(cnn(prior_correction=0.0)).cnn
+                               ).predictor.log_prior is None  # strength 0: off
+        np.testing.assert_array_equal(segment(seg, cnn(prior_correction=0.0), C.colorize(lab)),
+                                      lab)
 
     def test_model_without_weights_warns_and_skips(self, tmp_path, caplog):
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
@@ -163,8 +172,8 @@ class TestPriorCorrection:
             assert class_log_prior(seg) is None
         assert "class_weights" in caplog.text
         lab = two_walls()
-        ex = EdgeExtractor("cnn", cnn(prior_correction=1.0), seg)
-        np.testing.assert_array_equal(ex.segment(C.colorize(lab)), lab)
+        np.testing.assert_array_equal(segment(seg, cnn(prior_correction=1.0), C.colorize(lab)),
+                                      lab)
 
     def test_model_trained_without_weighting_needs_no_correction(self, tmp_path, caplog):
         path = palette_segnet(tmp_path / "s.onnx", 20, 30, extra_metadata={"class_weights": None})
@@ -183,23 +192,22 @@ class TestSegmenter:
     def test_palette_segnet_is_exact(self, tmp_path):
         lab = two_walls()
         seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
-        ex = EdgeExtractor("cnn", EDGES_CFG, seg)
-        labels = ex.segment(C.colorize(lab))
+        ex = EdgeExtractor("cnn", EDGES_CFG)
+        labels = segment(seg, EDGES_CFG, C.colorize(lab))
         np.testing.assert_array_equal(labels, lab)
         e = ex.edges(C.colorize(lab), labels)
         ref = label_edges(lab, dilate_px=1)
         np.testing.assert_array_equal(e.edges, ref.edges)
 
-    def test_union_adds_image_edges_beside_boundaries(self, tmp_path):
+    def test_union_adds_image_edges_beside_boundaries(self):
         """refine union: every predicted boundary stays (with its class pair); Canny edges
         within refine_px of one join it, without a pair; those farther away do not."""
         lab = two_walls()
         rgb = C.colorize(lab)
         rgb[9:11, 2:8] = 255   # a stripe inside the wall, far from every boundary
         rgb[6:9, 12] = 255     # a short mark 2 px left of the wall | door boundary
-        seg = load_segmenter(palette_segnet(tmp_path / "s.onnx", 20, 30), C.as_json(), 1)
-        plain = EdgeExtractor("cnn", cnn(refine="none"), seg).edges(rgb, lab)
-        both = EdgeExtractor("cnn", cnn(refine="union", refine_px=2), seg).edges(rgb, lab)
+        plain = EdgeExtractor("cnn", cnn(refine="none")).edges(rgb, lab)
+        both = EdgeExtractor("cnn", cnn(refine="union", refine_px=2)).edges(rgb, lab)
         canny = canny_edges(rgb, **{k: EDGES_CFG["canny"][k] for k in ("low", "high", "blur")})
         assert canny.edges[8:12, 2:8].any() and canny.edges[6:9, 11:14].any()
         assert (both.edges >= plain.edges).all()
@@ -230,7 +238,7 @@ class TestSegmenter:
         with pytest.raises(ValueError, match="unknown edge mode"):
             EdgeExtractor("sobel", EDGES_CFG)
         with pytest.raises(ValueError, match="needs a segmenter"):
-            EdgeExtractor("cnn", EDGES_CFG).segment(np.zeros((20, 30, 3), np.uint8))
+            edge_source("cnn")
         # a partial edges config takes the defaults for the rest
         assert EdgeExtractor("none", {"canny": EDGES_CFG["canny"]}).settings.hough == \
             HoughSettings()
@@ -243,7 +251,7 @@ class TestSegmenter:
 class TestCnnSettings:
     def test_unknown_cnn_key_raises(self):
         with pytest.raises(ValueError, match=r"edges.cnn.snap_pixels: Key 'snap_pixels' not in"):
-            EdgeExtractor("cnn", cnn(snap_pixels=3), object())
+            EdgeExtractor("cnn", cnn(snap_pixels=3))
 
     def test_cnn_setting_of_the_wrong_type_raises(self):
         for key, value in (("snap_nearest", "maybe"), ("snap_px", 1.5),
@@ -255,4 +263,4 @@ class TestCnnSettings:
     @pytest.mark.parametrize("refine", ["sobel", "canny", "mask"])
     def test_unknown_refine_raises(self, refine):
         with pytest.raises(ValueError, match="edges.cnn.refine"):
-            EdgeExtractor("cnn", cnn(refine=refine), object())
+            EdgeExtractor("cnn", cnn(refine=refine))

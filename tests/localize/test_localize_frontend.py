@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from localize.extractor import CnnSettings
-from localize.frontend import (
+from localize.config import CnnSettings
+from localize.frontend.front_end import FrontEnd
+from localize.frontend.sources import (
     CannyEdges,
     EdgeSource,
-    FrontEnd,
     LabelFunction,
     SegmenterLabels,
     TrueLabels,

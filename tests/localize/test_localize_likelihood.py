@@ -9,7 +9,8 @@ import pytest
 
 from core import classes as C
 from core.config import typed
-from localize.edges import EdgeImage, label_edges, pair_code
+from localize.frontend.boundaries import label_edges
+from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.likelihood import (
     FIT_EPS,
     EdgeLikelihood,
@@ -274,7 +275,7 @@ class TestDegenerate:
 
     @pytest.mark.parametrize("case", ["no_edges", "all_unknown", "black_canny"])
     def test_finite_and_flat(self, model, camera, case):
-        from localize.edges import canny_edges
+        from localize.frontend.canny import canny_edges
 
         s, vis = model
         H, W = camera.height, camera.width

@@ -1,6 +1,7 @@
 """``python -m localize`` takes the localize settings a model carries (its folder's
-localize.yaml or its ONNX metadata) under the command line's overrides; a file that is not an
-ONNX model is named as such."""
+localize.yaml or its ONNX metadata) under the command line's overrides and records which layer
+set each value that differs from its default; a file that is not an ONNX model is named as
+such."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
-from localize.segmenter import SHIPPED_MODEL, load_segmenter, model_path
+from localize import settings as ls
+from localize.frontend.segmenter import SHIPPED_MODEL, load_segmenter, model_path
 from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
 from train.predict import OnnxSegmenter
@@ -39,8 +41,8 @@ class TestApplyModelSettings:
     def test_from_metadata(self, carrying: Path, caplog) -> None:
         overrides = [f"onnx_model={carrying}"]
         cfg = composed(overrides)
-        with caplog.at_level(logging.INFO, logger="localize.__main__"):
-            taken = lm.apply_model_settings(cfg, overrides)
+        with caplog.at_level(logging.INFO, logger="localize.settings"):
+            taken = ls.apply_model_settings(cfg, overrides)
         assert cfg.filter.mode_likelihood.cnn.k == 50.0
         assert cfg.filter.mode_likelihood.cnn.orientation_bins == 12  # merged, not replaced
         assert cfg.edges.cnn.snap_px == 1 and cfg.edges.cnn.snap_nearest is True
@@ -55,8 +57,8 @@ class TestApplyModelSettings:
         overrides = [f"onnx_model={carrying}", "edges.cnn.snap_px=3", "filter=paper"]
         cfg = composed(overrides)
         paper_k = cfg.filter.mode_likelihood.cnn.k
-        with caplog.at_level(logging.INFO, logger="localize.__main__"):
-            taken = lm.apply_model_settings(cfg, overrides)
+        with caplog.at_level(logging.INFO, logger="localize.settings"):
+            taken = ls.apply_model_settings(cfg, overrides)
         assert cfg.edges.cnn.snap_px == 3
         assert cfg.filter.mode_likelihood.cnn.k == paper_k != 50.0
         assert cfg.edges.cnn.refine == "none"  # from the model
@@ -70,7 +72,7 @@ class TestApplyModelSettings:
         (carrying.parent / "localize.yaml").write_text("edges:\n  cnn:\n    snap_px: 4\n")
         overrides = [f"onnx_model={carrying}"]
         cfg = composed(overrides)
-        assert lm.apply_model_settings(cfg, overrides) == {"edges.cnn.snap_px": 4}
+        assert ls.apply_model_settings(cfg, overrides) == {"edges.cnn.snap_px": 4}
         assert cfg.edges.cnn.snap_px == 4
         assert cfg.filter.mode_likelihood.cnn.k == 40.0  # conf/filter/default.yaml's
 
@@ -79,7 +81,7 @@ class TestApplyModelSettings:
         for path in (plain, tmp_path / "absent" / "segnet.onnx"):
             overrides = [f"onnx_model={path}"]
             cfg = composed(overrides)
-            assert lm.apply_model_settings(cfg, overrides) == {}
+            assert ls.apply_model_settings(cfg, overrides) == {}
             assert cfg == composed(overrides)
 
     def test_unknown_section_names_the_file(self, carrying: Path) -> None:
@@ -87,7 +89,7 @@ class TestApplyModelSettings:
         overrides = [f"onnx_model={carrying}"]
         with pytest.raises(ValueError, match=r"localize.yaml: edgez.cnn.snap_px is not a "
                                              r"localize setting"):
-            lm.apply_model_settings(composed(overrides), overrides)
+            ls.apply_model_settings(composed(overrides), overrides)
 
     def test_unknown_key_names_the_file(self, carrying: Path) -> None:
         """A key localize/config.py does not take (a typo, or a setting since removed) fails
@@ -96,18 +98,18 @@ class TestApplyModelSettings:
         overrides = [f"onnx_model={carrying}"]
         with pytest.raises(ValueError, match=r"localize.yaml: edges.cnn.snap_band=True: Key "
                                              r"'snap_band' not in 'CnnSettings'"):
-            lm.apply_model_settings(composed(overrides), overrides)
+            ls.apply_model_settings(composed(overrides), overrides)
 
     def test_not_a_mapping(self, carrying: Path) -> None:
         (carrying.parent / "localize.yaml").write_text("- 1\n")
         overrides = [f"onnx_model={carrying}"]
         with pytest.raises(ValueError, match="localize.yaml: the localize settings must be a "
                                              "mapping"):
-            lm.apply_model_settings(composed(overrides), overrides)
+            ls.apply_model_settings(composed(overrides), overrides)
 
 
 def test_override_keys() -> None:
-    assert lm.override_keys(["a.b=1", "+c.d=[1,2]", "++e=x", "~f.g", "filter=paper",
+    assert ls.override_keys(["a.b=1", "+c.d=[1,2]", "++e=x", "~f.g", "filter=paper",
                              "hydra.run.dir=/x", "db@pkg=mysql"]) == \
         ["a.b", "c.d", "e", "f.g", "filter", "db"]
 
@@ -138,6 +140,56 @@ def test_main_reads_the_command_line(carrying: Path, tmp_path: Path, monkeypatch
     cfg = seen["cfg"]
     assert cfg.edges.cnn.snap_px == 2 and cfg.filter.mode_likelihood.cnn.k == 50.0
     assert cfg.edges.cnn.refine == "none"
+    assert cfg.set_by["onnx_model"] == "command line"
+    assert "edges.cnn.snap_px" not in cfg.set_by  # the command line gave its default
+    assert cfg.set_by["edges.cnn.refine"].startswith(f"model {carrying}")
+
+
+class TestSettingLayers:
+    """``resolve`` records, for each value that differs from its default, the layer that set
+    it; ``settings_table`` gives the rows metrics.json and report.md show."""
+
+    def test_each_layer_named(self, carrying: Path, tmp_path: Path, monkeypatch) -> None:
+        monkeypatch.chdir(tmp_path)  # no outputs/models/<dataset>: auto is the shipped model
+        overrides = ["filter=paper", "edges.cnn.snap_px=3", "name=layers"]
+        cfg = composed(overrides)
+        set_by = ls.resolve(cfg, overrides, {"filter": "paper", "hydra/launcher": "basic"})
+        assert cfg.onnx_model == str(SHIPPED_MODEL) and set_by["onnx_model"] == ls.AUTO
+        assert set_by["filter.num_particles"] == "conf/filter/paper.yaml"
+        assert set_by["filter.likelihood.k"] == "conf/filter/paper.yaml"
+        assert set_by["edges.cnn.snap_px"] == set_by["name"] == "command line"
+        assert "dataset" not in set_by and "seeds" not in set_by  # defaults
+        assert dict(cfg.set_by) == set_by
+
+        overrides = [f"onnx_model={carrying}", "filter=paper", "edges.cnn.snap_px=3"]
+        cfg = composed(overrides)
+        set_by = ls.resolve(cfg, overrides, {"filter": "paper"})
+        model = f"model {carrying} (metadata key 'localize')"
+        assert set_by["edges.cnn.refine"] == set_by["edges.cnn.snap_nearest"] == model
+        assert set_by["edges.cnn.prior_correction"] == model
+        assert set_by["filter.mode_likelihood.cnn.k"] == "conf/filter/paper.yaml"  # kept
+        assert set_by["edges.cnn.snap_px"] == set_by["onnx_model"] == "command line"
+
+    def test_table(self, carrying: Path) -> None:
+        from localize.report import _settings
+
+        overrides = [f"onnx_model={carrying}", "filter.num_particles=300"]
+        cfg = composed(overrides)
+        assert {"key": "filter.num_particles", "value": 300, "default": 500,
+                "set_by": ls.UNRECORDED} in ls.settings_table(cfg)  # not resolved
+        ls.resolve(cfg, overrides, {"filter": "default"})
+        rows = {r["key"]: r for r in ls.settings_table(cfg)}
+        assert rows["filter.num_particles"] == {"key": "filter.num_particles", "value": 300,
+                                                "default": 500, "set_by": "command line"}
+        assert rows["edges.cnn.snap_px"]["default"] == 2
+        assert rows["edges.cnn.snap_px"]["value"] == 1
+        assert "set_by" not in rows
+        lines = _settings({"settings": list(rows.values())})
+        assert "| filter.num_particles | `300` | `500` | command line |" in lines
+        assert _settings({}) == []
+
+    def test_defaults_have_no_rows(self) -> None:
+        assert ls.settings_table(composed([])) == []
 
 
 class TestNotAnOnnxFile:

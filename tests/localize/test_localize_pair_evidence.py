@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.pair_evidence import evidence, pair_likelihoods
-from localize.edges import label_edges, pair_code
-from localize.frontend import Frame
+from localize.frontend.boundaries import label_edges
+from localize.frontend.edge_image import pair_code
+from localize.frontend.front_end import Frame
 from localize.likelihood import LikelihoodParams
 from localize.projection import cam_from_world, sample_segments
 from localize.visibility import build_visibility

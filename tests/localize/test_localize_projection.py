@@ -187,7 +187,7 @@ class TestAgainstRender:
         assert (depth > 0).all()  # closed model: every pixel hits it
 
     def test_visible_samples_on_rendered_boundaries(self, scene):
-        from localize.edges import label_edges
+        from localize.frontend.boundaries import label_edges
         from localize.likelihood import distance_to
 
         s, labels, depth, hidden, pr = scene

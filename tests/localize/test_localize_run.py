@@ -1,5 +1,5 @@
 """``python -m localize`` end to end on the tiny dataset: every mode converges, the report's
-shape, resuming, the paper-faithful comparison, and clear errors for bad input."""
+shape, resuming, and clear errors for bad input."""
 
 from __future__ import annotations
 
@@ -163,22 +163,6 @@ def test_mode_likelihood_params():
     assert mode_likelihood_params(lp, fp, "oracle") is lp
     with pytest.raises(ValueError, match=r"filter.mode_likelihood.cnn.kk: Key 'kk' not in"):
         mode_likelihood_params(lp, FilterParams(mode_likelihood={"cnn": {"kk": 1}}), "cnn")
-
-
-@pytest.mark.slow
-def test_paper_faithful_comparison(tiny_dataset, tmp_path):
-    cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}", "name=pf",
-                        "modes=[oracle]", "inits=[tracking]", "flight_names=[paper]",
-                        "max_frames=4", "paper_faithful.enabled=true",
-                        "paper_faithful.frames=3", "paper_faithful.num_particles=8",
-                        "paper_faithful.hough.min_length=8"])
-    path = run(cfg)
-    m = json.loads((path.parent / "metrics.json").read_text())
-    pf = m["paper_faithful"]
-    assert pf["paper_faithful"]["num_particles"] == pf["vectorized"]["num_particles"] == 8
-    assert pf["speed_ratio"] > 1.0
-    assert np.isfinite(pf["paper_faithful"]["mean_position_error_m"])
-    assert "paper-faithful" in path.read_text()
 
 
 class TestBadInput:

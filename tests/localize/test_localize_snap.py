@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from localize.edges import label_edges, pair_code
-from localize.extractor import EdgeExtractor
-from localize.snap import snap_to_image_edges
+from localize.frontend.boundaries import label_edges, snap_to_image_edges
+from localize.frontend.edge_image import pair_code
+from localize.frontend.extractor import EdgeExtractor
 from tests.localize.test_localize_edges import EDGES_CFG, cnn
 
 
@@ -116,9 +116,9 @@ class TestSnap:
     def test_extractor_snaps_cnn_boundaries(self):
         lab, rgb = self.step(80, 160)
         cfg = cnn(snap_px=3, snap_min_gradient=15.0)
-        e = EdgeExtractor("cnn", cfg, object()).edges(rgb, lab)
+        e = EdgeExtractor("cnn", cfg).edges(rgb, lab)
         assert set(np.nonzero(e.edges)[1]) == {29}
-        plain = EdgeExtractor("cnn", EDGES_CFG, object()).edges(rgb, lab)
+        plain = EdgeExtractor("cnn", EDGES_CFG).edges(rgb, lab)
         assert set(np.nonzero(plain.edges)[1]) == {26, 27}
         oracle = EdgeExtractor("oracle", cfg).edges(rgb, lab)  # true labels: never moved
         np.testing.assert_array_equal(oracle.edges, plain.edges)

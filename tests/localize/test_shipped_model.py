@@ -13,7 +13,7 @@ import torch
 from core import classes as C
 from core.atomic import read_png
 from core.dataset import Dataset
-from localize.segmenter import SHIPPED_MODEL, load_segmenter
+from localize.frontend.segmenter import SHIPPED_MODEL, load_segmenter
 from tests.helpers import TINY_DATAGEN, compose_config
 from train.metrics import confusion_matrix, scores
 

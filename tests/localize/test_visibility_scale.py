@@ -99,7 +99,7 @@ def test_culled_scores_equal_unculled(model, camera, renderer, monkeypatch):
     """Scoring only the samples the block's cells see and its cameras face gives the scores
     of scoring all samples against the same lists (up to float64 summation order)."""
     import localize.likelihood as L
-    from localize.edges import label_edges
+    from localize.frontend.boundaries import label_edges
 
     s, vis = model
     rng = np.random.default_rng(1)

@@ -98,7 +98,7 @@ def test_tiny_chain(synthetic_dataset: Path, tmp_path: Path) -> None:
     """usrhbw6 then usrhbw6nw, a few steps each: the second starts from the first's weights
     (at a vanishing learning rate it keeps them), each folder carries its stage's settings,
     and localize's config takes them."""
-    import localize.__main__ as lm
+    from localize.settings import apply_model_settings
 
     tiny = [f"dataset={synthetic_dataset}", f"out_root={tmp_path}", *TINY_OVERRIDES,
             "epochs=1", "data.limit=8", "export.int8=false", "model.head_channels=4"]
@@ -122,5 +122,5 @@ def test_tiny_chain(synthetic_dataset: Path, tmp_path: Path) -> None:
     overrides = [f"onnx_model={onnx_path}"]
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose("localize", overrides=overrides)
-    lm.apply_model_settings(cfg, overrides)
+    apply_model_settings(cfg, overrides)
     assert cfg.filter.mode_likelihood.cnn.k == 50.0 and cfg.edges.cnn.snap_nearest is True

@@ -2,15 +2,16 @@
 
 - ``none``: Canny on the grey image, reduced to its Hough line segments (the paper's pipeline
   without segmentation). Every pixel is "known".
-- ``cnn``: labels from the ONNX SegNet (``train.predict.OnnxSegmenter``), the structural ones
+- ``cnn``: labels from the ONNX SegNet (``sources.SegmenterLabels``), the structural ones
   with the training's class weights taken out (``segmenter.structural_prior_labels``); edges
   are the boundaries between two *different structural* classes (floor, wall, ceiling, door,
   window); pixels of clutter, person, void or ignore, dilated by a few pixels, are *unknown*:
   an object that is not in the model may hide a model edge, so a model line falling there is
   neither confirmed nor contradicted (the likelihood scores such samples with the image's
-  chance level). The boundaries are then snapped onto the image (``snap.snap_to_image_edges``):
-  the network places them at its quarter resolution, the image's gradient to a pixel. With
-  ``edges.cnn.refine: union`` the colour image's Canny edges beside the boundaries join them.
+  chance level). The boundaries are then snapped onto the image
+  (``boundaries.snap_to_image_edges``): the network places them at its quarter resolution,
+  the image's gradient to a pixel. With ``edges.cnn.refine: union`` the colour image's Canny
+  edges beside the boundaries join them.
 - ``oracle``: the same from the true label images (not snapped), the upper bound of what
   segmentation gives.
 """
@@ -24,12 +25,10 @@ import numpy as np
 
 from core import classes as C
 from core.config import as_config
-from localize.config import MODES, CnnSettings, EdgeSettings
-from localize.edges import EdgeImage, canny_edges, dilate, label_edges
-from localize.segmenter import LabelPredictor
-from localize.snap import snap_to_image_edges
-
-__all__ = ["MODES", "CnnSettings", "EdgeExtractor", "edge_settings"]
+from localize.config import MODES, EdgeSettings
+from localize.frontend.boundaries import dilate, label_edges, snap_to_image_edges
+from localize.frontend.canny import canny_edges
+from localize.frontend.edge_image import EdgeImage
 
 
 def edge_settings(edges: EdgeSettings | Mapping | None) -> EdgeSettings:
@@ -39,42 +38,20 @@ def edge_settings(edges: EdgeSettings | Mapping | None) -> EdgeSettings:
 
 
 class EdgeExtractor:
-    """Edge images of frames in one mode.
+    """Edge images of frames in one mode, from their labels (the labels come from the edge
+    source, ``localize.frontend.sources``).
 
     Args:
         mode: ``none`` | ``cnn`` | ``oracle``.
         edges: the ``edges`` settings (``edge_settings``: an ``EdgeSettings`` or a partial
             mapping of them).
-        segmenter: an ``OnnxSegmenter`` for ``segment`` (cnn mode; ``edges`` takes the labels
-            from the caller and needs none).
     """
 
-    def __init__(self, mode: str, edges: EdgeSettings | Mapping | None = None, segmenter=None):
+    def __init__(self, mode: str, edges: EdgeSettings | Mapping | None = None):
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {MODES}")
         self.mode, self.settings = mode, edge_settings(edges)
         self.cnn = self.settings.cnn
-        self.predictor = None
-        if mode == "cnn" and segmenter is not None:
-            self.predictor = LabelPredictor(segmenter, self.cnn.prior_correction)
-
-    @property
-    def segmenter(self):
-        """The segmenter of ``segment`` (None without one)."""
-        return None if self.predictor is None else self.predictor.segmenter
-
-    @property
-    def log_prior(self) -> np.ndarray | None:
-        """(C,) s * log w_c the structural labels are corrected by (None: plain argmax)."""
-        return None if self.predictor is None else self.predictor.log_prior
-
-    def segment(self, rgb: np.ndarray) -> np.ndarray:
-        """Predicted labels (H, W) uint8 of an RGB frame (cnn mode;
-        ``segmenter.LabelPredictor``)."""
-        if self.predictor is None:
-            raise ValueError("edge mode 'cnn' needs a segmenter to segment a frame (see "
-                             "localize.segmenter.load_segmenter)")
-        return self.predictor(rgb)
 
     def edges(self, rgb: np.ndarray, labels: np.ndarray | None = None) -> EdgeImage:
         """Edge image of a frame.

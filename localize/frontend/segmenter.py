@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from localize.edges import check_rgb
+from localize.frontend.edge_image import check_rgb
 
 log = logging.getLogger(__name__)
 
 #: The generalist SegNet that ships with the code, for buildings it never saw: trained on
 #: procedural floors (models/generalist/README.md).
-SHIPPED_MODEL = Path(__file__).resolve().parents[1] / "models" / "generalist" / "segnet.onnx"
+SHIPPED_MODEL = Path(__file__).resolve().parents[2] / "models" / "generalist" / "segnet.onnx"
 #: Where ``python -m train`` writes its model folders (its ``out_root``).
 MODELS_ROOT = Path("outputs/models")
 

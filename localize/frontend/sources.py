@@ -1,10 +1,9 @@
-"""The localizer's front end: a camera frame -> its labels -> its edge image -> score maps.
-
-An **edge source** says where a frame's class labels come from; the front end makes the edge
-image of its mode from them (``extractor.EdgeExtractor``, the ``edges`` config):
+"""Edge sources: where a frame's class labels come from, and the edge mode they are made
+into edges in (``localize.frontend.extractor``, the ``edges`` config):
 
 - ``CannyEdges`` (mode ``none``): no labels; Canny + Hough on the image.
-- ``SegmenterLabels`` (mode ``cnn``): the ONNX SegNet's labels (``segmenter.LabelPredictor``).
+- ``SegmenterLabels`` (mode ``cnn``): the ONNX SegNet's labels
+  (``localize.frontend.segmenter.LabelPredictor``).
 - ``TrueLabels`` (mode ``oracle``): the frame's true labels, given to ``frame``/``step``.
 - ``LabelFunction`` (mode ``cnn``): any callable ``rgb -> labels (H, W) uint8`` (or, with
   ``needs_truth``, ``(rgb, true_labels) -> labels``); its labels are made into edges as the
@@ -13,27 +12,18 @@ image of its mode from them (``extractor.EdgeExtractor``, the ``edges`` config):
 Any object with the attributes ``mode``, ``needs_image``, ``needs_truth`` and a method
 ``labels(rgb, true_labels) -> labels | None`` is an edge source (``EdgeSource``);
 ``edge_source`` turns a mode name or a callable into one.
-
-``FrontEnd.frame(image, true_labels)`` runs the source and the edge extraction once and
-returns a ``Frame``; ``Frame.observation(likelihood)`` makes a likelihood's score maps of it
-once and hands the same maps to every later caller with the same map settings, so filters
-sharing a ``Frame`` share its segmentation, edge image and distance transforms.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Mapping
-from dataclasses import astuple, dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from localize.config import MODES, CnnSettings, EdgeSettings
-from localize.edges import EdgeImage, check_rgb
-from localize.extractor import EdgeExtractor, edge_settings
-from localize.likelihood import EdgeLikelihood, Observation
-from localize.segmenter import LabelPredictor
+from localize.config import MODES, CnnSettings
+from localize.frontend.segmenter import LabelPredictor
 
 
 @runtime_checkable
@@ -153,89 +143,8 @@ def edge_source(spec, segmenter=None, cnn: CnnSettings | None = None) -> EdgeSou
     if spec == "cnn":
         if segmenter is None:
             raise ValueError("edge source 'cnn' needs a segmenter: use FrontEnd('cnn', "
-                             "edges_cfg, segmenter=localize.segmenter.load_segmenter(path, "
-                             "dataset classes)) or SegmenterLabels(segmenter)")
+                             "edges_cfg, segmenter=localize.frontend.segmenter.load_segmenter("
+                             "path, dataset classes)) or SegmenterLabels(segmenter)")
         return SegmenterLabels(segmenter, cnn)
     raise ValueError(f"unknown edge source {spec!r}; use one of {MODES}, an EdgeSource or a "
                      "callable rgb -> labels")
-
-
-@dataclass
-class Frame:
-    """One frame through the front end.
-
-    Attributes:
-        edge: the edge image, (H, W).
-        labels: (H, W) uint8 labels the edges were made of (None for mode ``none``).
-        timing_ms: ``segmentation`` (the source's labels) and ``edges`` (the edge image), ms.
-    """
-
-    edge: EdgeImage
-    labels: np.ndarray | None
-    timing_ms: dict[str, float]
-    _maps: dict = field(default_factory=dict, repr=False)
-
-    def observation(self, likelihood: EdgeLikelihood) -> tuple[Observation, float]:
-        """The likelihood's score maps of this frame, made on the first call for its map
-        settings (shared by every likelihood with the same settings and class pairs).
-
-        Returns:
-            The observation and the ms it took to make (also when made by an earlier call).
-        """
-        codes = likelihood.pair_codes
-        key = (astuple(likelihood.params), None if codes is None else codes.tobytes())
-        if key not in self._maps:
-            t0 = time.perf_counter()
-            obs = likelihood.observe(self.edge)
-            self._maps[key] = (obs, (time.perf_counter() - t0) * 1e3)
-        return self._maps[key]
-
-
-class FrontEnd:
-    """Frames -> edge images with one edge source and the ``edges`` config.
-
-    Args:
-        source: an edge source, a mode name or a labelling callable (``edge_source``).
-        edges: the ``edges`` settings (``localize.config.EdgeSettings``, or a partial mapping
-            of them; None: the defaults).
-        segmenter: the SegNet when ``source`` is ``"cnn"``.
-    """
-
-    def __init__(self, source, edges: EdgeSettings | Mapping | None = None, segmenter=None):
-        edges = edge_settings(edges)
-        self.source = edge_source(source, segmenter, edges.cnn)
-        if self.source.mode not in MODES:
-            raise ValueError(f"edge source mode {self.source.mode!r}: use one of {MODES}")
-        self.extractor = EdgeExtractor(self.source.mode, edges)
-
-    @property
-    def mode(self) -> str:
-        """The edge mode: ``none`` | ``cnn`` | ``oracle``."""
-        return self.source.mode
-
-    def frame(self, image: np.ndarray | None, true_labels: np.ndarray | None = None) -> Frame:
-        """The edge image of a frame.
-
-        Args:
-            image: (H, W, 3) uint8 RGB (may be None when the source does not read it:
-                ``TrueLabels``).
-            true_labels: (H, W) uint8 class ids (sources with ``needs_truth``).
-        """
-        if image is None and self.source.needs_image:
-            raise ValueError(f"edge source {self.mode!r} needs the image: pass an (H, W, 3) "
-                             "uint8 RGB frame")
-        if image is not None:
-            check_rgb(image)
-        if true_labels is not None:
-            true_labels = np.asarray(true_labels)
-            if true_labels.ndim != 2 or (image is not None
-                                         and true_labels.shape != image.shape[:2]):
-                raise ValueError(f"labels must be (H, W) class ids of the image "
-                                 f"{None if image is None else image.shape[:2]}, got "
-                                 f"{true_labels.shape}")
-        t0 = time.perf_counter()
-        labels = self.source.labels(image, true_labels)
-        t1 = time.perf_counter()
-        edge = self.extractor.edges(image, labels)
-        t2 = time.perf_counter()
-        return Frame(edge, labels, {"segmentation": (t1 - t0) * 1e3, "edges": (t2 - t1) * 1e3})

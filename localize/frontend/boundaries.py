@@ -1,4 +1,9 @@
-"""Class boundaries moved onto the image's own edges (the paper's search along the normal)."""
+"""Class boundaries of a label map, and their move onto the image's own edges.
+
+``label_edges`` marks the boundaries between two different structural classes (with the mask
+of unknown pixels: objects that are not in the model); ``snap_to_image_edges`` moves them
+onto the image's gradient (the paper's search along the normal).
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,94 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from localize.edges import EdgeImage, check_rgb, edge_normal_angle
+from core import classes as C
+from localize.frontend.edge_image import EdgeImage, check_rgb, edge_normal_angle, pair_code
+
+
+def dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    """A bool mask (H, W) grown by a disk of ``radius`` pixels."""
+    if radius <= 0 or not mask.any():
+        return mask
+    k = 2 * int(radius) + 1
+    return cv2.dilate(mask.astype(np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
+
+
+def structural_mask(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL
+                    ) -> np.ndarray:
+    """(H, W) bool: the pixels of ``labels`` (uint8 class ids) whose class is structural."""
+    lut = np.zeros(256, dtype=bool)
+    lut[list(structural)] = True
+    return lut[labels]
+
+
+def class_changes(labels: np.ndarray, struct: np.ndarray
+                  ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+    """The 4-neighbour pixel pairs p, q whose classes are two different structural classes.
+
+    Args:
+        labels: (H, W) class ids.
+        struct: (H, W) bool, the structural pixels (``structural_mask``).
+
+    Returns:
+        For axis 0 (q below p) and axis 1 (q right of p): ``(diff, a, b)``, each (H - 1, W)
+        or (H, W - 1): ``diff`` true at the p of each such pair, ``a`` and ``b`` the classes
+        of p and q.
+    """
+    out = []
+    for axis in (0, 1):
+        a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
+        b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
+        sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
+        sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
+        out.append(((a != b) & sa & sb, a, b))
+    return tuple(out)
+
+
+def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
+                dilate_px: int = 3, median: int = 0) -> EdgeImage:
+    """Boundaries between different structural classes, and the mask of unknown pixels.
+
+    A pixel is an edge pixel when a 4-neighbour holds a different structural class and it is
+    structural itself (both sides of a boundary are marked, so the boundary lies midway).
+    Non-structural pixels (clutter, person, void, 255) dilated by ``dilate_px`` are unknown.
+
+    Args:
+        labels: (H, W) uint8 class ids.
+        structural: the class ids that are in the model.
+        dilate_px: growth of the unknown mask, pixels (covers the objects' blurred borders).
+        median: median filter size applied to the labels first (odd; 0 disables it), which
+            removes speckle of a predicted segmentation.
+
+    Returns:
+        The edge image, with the class pair of each edge pixel (``pairs``; a pixel where two
+        boundaries meet keeps one of their pairs).
+    """
+    if labels.ndim != 2:
+        raise ValueError(f"expected an (H, W) label map, got {labels.shape}")
+    labels = np.ascontiguousarray(labels, dtype=np.uint8)
+    if median and median > 1:
+        labels = cv2.medianBlur(labels, int(median) | 1)
+    struct = structural_mask(labels, structural)
+    edges = np.zeros(labels.shape, dtype=bool)
+    pairs = np.zeros(labels.shape, dtype=np.uint8)
+    for axis, (diff, a, b) in enumerate(class_changes(labels, struct)):
+        # codes only at the boundaries (a few thousand pixels, not the whole image)
+        ys, xs = np.nonzero(diff)  # between (ys, xs) and its next pixel along the axis
+        code = pair_code(a[ys, xs], b[ys, xs])
+        if axis == 0:
+            edges[:-1] |= diff
+            edges[1:] |= diff
+            pairs[ys + 1, xs] = code
+        else:
+            edges[:, :-1] |= diff
+            edges[:, 1:] |= diff
+            pairs[ys, xs + 1] = code
+        pairs[ys, xs] = code
+    unknown = dilate(~struct, int(dilate_px))
+    edges &= ~unknown
+    return EdgeImage(edges, ~unknown, np.where(edges, pairs, np.uint8(0)))
+
 
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
