@@ -11,6 +11,7 @@ does not grow with the recording.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,11 +29,14 @@ from localize.config import BagTopics
 from localize.recording import (
     Recording,
     SourceCamera,
+    UnreadableFrame,
     check_distortion,
     check_increasing,
     delivered_camera,
     select_frames,
 )
+
+log = logging.getLogger(__name__)
 
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
@@ -61,7 +65,7 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
     if msgtype.endswith("CompressedImage"):
         bgr = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
         if bgr is None:
-            raise ValueError(f"{where}: cannot decode the CompressedImage ({msg.format!r})")
+            raise UnreadableFrame(f"{where}: cannot decode the CompressedImage ({msg.format!r})")
         return np.ascontiguousarray(bgr[..., ::-1])
     if msg.encoding not in ENCODINGS:
         raise ValueError(f"{where}: image encoding {msg.encoding!r} is not supported; use one "
@@ -70,7 +74,7 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < w * ch or data.size < h * step:
-        raise ValueError(f"{where}: image data ({data.size} bytes, step {step}) too short for "
+        raise UnreadableFrame(f"{where}: image data ({data.size} bytes, step {step}) too short for "
                          f"{w}x{h} {msg.encoding}")
     rows = data[: h * step].reshape(h, step)[:, : w * ch].reshape(h, w, ch)
     return np.ascontiguousarray(rows[..., order])
@@ -154,7 +158,7 @@ class BagFrames:
             return decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
                                 f"{self.path} topic {self.topic} frame {index}")
 
-    def iter(self) -> Iterator[np.ndarray]:
+    def iter(self) -> Iterator[np.ndarray | None]:
         wanted = set(zip(self.log_times.tolist(), self.ranks.tolist(), strict=True))
         with _open(self.path) as reader:
             conns = [c for c in reader.connections if c.topic == self.topic]
@@ -163,8 +167,12 @@ class BagFrames:
                 rank = rank + 1 if lt == prev else 0
                 prev = lt
                 if (lt, rank) in wanted:
-                    yield decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
-                                       f"{self.path} topic {self.topic} frame {i}")
+                    try:
+                        yield decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
+                                           f"{self.path} topic {self.topic} frame {i}")
+                    except UnreadableFrame as err:
+                        log.warning("%s; frame dropped", err)
+                        yield None
                     i += 1
 
 
@@ -233,6 +241,6 @@ class _SizedFrames:
     def read(self, index: int) -> np.ndarray:
         return self._check(self.frames.read(index), index)
 
-    def iter(self) -> Iterator[np.ndarray]:
+    def iter(self) -> Iterator[np.ndarray | None]:
         for i, image in enumerate(self.frames.iter()):
-            yield self._check(image, i)
+            yield None if image is None else self._check(image, i)

@@ -13,8 +13,7 @@ import yaml
 
 from core.atomic import read_png, write_png
 from core.dataset import Camera, Dataset
-from core.poses import interpolate_poses, pose_from_xyzyaw, write_tum
-from localize.particle_filter import odometry_increment
+from core.poses import interpolate_poses, odometry_increment, pose_from_xyzyaw, write_tum
 from localize.recording import (
     Rectifier,
     SourceCamera,
