@@ -453,10 +453,11 @@ def result_settings(conf: dict) -> dict:
     return REPORT_POLICY.settings(conf)
 
 
-def check_resume(out: Path, cfg: DictConfig) -> Claim:
+def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLICY) -> Claim:
     """Claim ``out`` for this config and write ``out/config.json`` (the whole config and the
     segnet.onnx digest): the runs already in ``out`` must come from the same result settings
-    and segnet.onnx bytes (``REPORT_POLICY``).
+    and segnet.onnx bytes (``policy``: ``REPORT_POLICY``, a recording's
+    ``recorded.RECORDING_POLICY``).
 
     With ``overwrite=true`` a folder of other settings is emptied (every run is re-done);
     otherwise it raises naming the differing keys.
@@ -471,7 +472,7 @@ def check_resume(out: Path, cfg: DictConfig) -> Claim:
             conf["onnx_sha256"] = json.loads(path.read_text()).get("onnx_sha256")
         except json.JSONDecodeError:
             pass  # claim_output names the broken file
-    return claim_output(out, conf, REPORT_POLICY, overwrite=bool(cfg.overwrite))
+    return claim_output(out, conf, policy, overwrite=bool(cfg.overwrite))
 
 
 def load_runs(out_dir: Path) -> list[dict]:
