@@ -22,7 +22,8 @@ Output folder ``<out_root>/<name>/recordings/<recording name>/``::
 A recording has no true labels, so mode ``oracle`` is skipped. The start: ``start=[x, y, z,
 yaw_deg]`` tracks from that world pose; else the first ground-truth pose when the recording
 has one; else a global (uniform) start. Each mode is one run of ``seeds[0]``; a mode whose
-trajectory and run record exist is not run again (``overwrite=true`` re-runs it). A frame that
+trajectory and run record exist is not run again (``overwrite=true`` re-runs it), and the
+report covers every mode run in the folder. A frame that
 cannot be read is dropped (counted in ``dropped_frames``), the odometry increment then spans
 from the last frame read.
 """
@@ -151,15 +152,18 @@ def model_of(out_dir: Path, cfg: DictConfig, modes) -> dict:
             "onnx_sha256": conf.get("onnx_sha256")}
 
 
-def write_recording_report(ctx: Context, rec: Recording, modes: list[str], start: str) -> Path:
-    """trajectory.txt/.json (the first mode's), each mode's companion, overlay.png,
-    metrics.json and report.md, from the run records of ``modes`` under ``runs/``.
+def write_recording_report(ctx: Context, rec: Recording, start: str) -> Path:
+    """trajectory.txt/.json (the first mode's: cnn when it ran), each mode's companion,
+    overlay.png, metrics.json and report.md, from every run record under ``runs/`` (runs of
+    other modes made earlier in the folder, of the same result settings, are reported too).
 
     Returns:
         Path of report.md.
     """
     out = ctx.out_dir
-    records = {m: json.loads((out / "runs" / f"{m}.json").read_text()) for m in modes}
+    paths = sorted((out / "runs").glob("*.json"), key=lambda p: (p.stem != "cnn", p.stem))
+    records = {p.stem: json.loads(p.read_text()) for p in paths}
+    modes = list(records)
     for mode, record in records.items():
         atomic_write_json(out / "trajectories" / f"{mode}.json", companion(record))
     first = modes[0]
@@ -207,4 +211,4 @@ def run_recording(cfg: DictConfig) -> Path:
         run = RunSpec(rec.name, mode, init, int(cfg.seeds[0]), recording=True)
         if cfg.overwrite or not run.done(ctx.out_dir):
             run_pass(ctx, rec, mode, [run], start=start)
-    return write_recording_report(ctx, rec, modes, how)
+    return write_recording_report(ctx, rec, how)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -125,8 +126,23 @@ def _read_poses(reader: AnyReader, conns, path: Path, topic: str) -> tuple[np.nd
     return t, np.stack(T)
 
 
-def _open(path: Path) -> AnyReader:
-    return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+@contextmanager
+def _open(path: Path) -> Iterator[AnyReader]:
+    """The bag opened for reading; a file or folder rosbags cannot open (not a bag, cut short,
+    a metadata.yaml missing keys) raises ValueError naming it and what rosbags found."""
+    reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    try:
+        reader.open()
+    except Exception as err:  # rosbags raises its own errors, KeyError, UnicodeDecodeError...
+        kind, whole = (("ROS 1 .bag file", "a whole bag, not cut short") if path.suffix == ".bag"
+                       else ("ROS 2 bag folder", "its metadata.yaml as `ros2 bag record` "
+                             "writes it, beside its .db3/.mcap files"))
+        raise ValueError(f"{path}: cannot be read as a {kind} ({type(err).__name__}: {err}); "
+                         f"give {whole}, or record it again") from err
+    try:
+        yield reader
+    finally:
+        reader.close()
 
 
 @dataclass(frozen=True)
