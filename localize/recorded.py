@@ -41,13 +41,12 @@ from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset
 from core.outputs import FolderPolicy, releases_claims
 from core.poses import xyzyaw_from_pose
-from localize.metrics import error_stats, health_stats, timing_stats
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
+from localize.report import model_of, summarize
 from localize.runner import (
     RESULT_KEYS,
     SPEED_ONLY,
-    STAGES,
     Context,
     RunSpec,
     check_resume,
@@ -88,19 +87,6 @@ def companion(record: dict) -> dict[str, list]:
             "confidence": record["confidence"], "position_std_m": record["position_std"]}
 
 
-def summary(record: dict) -> dict:
-    """Errors (with ground truth), frame times, dropped frames and the filter's own health of
-    one mode's run record: the share of coasting frames, the losses it declared, its mean
-    confidence."""
-    out = {"num_frames": record["num_frames"], "dropped_frames": record["dropped_frames"],
-           "timing_ms": {k: timing_stats(record["timing_ms"][k]) for k in STAGES},
-           **health_stats(record["status"], record["confidence"])}
-    if "position_error_m" in record:
-        out["errors"] = error_stats(np.asarray(record["position_error_m"]),
-                                    np.asarray(record["yaw_error_deg"]))
-    return out
-
-
 def write_overlay(path: Path, rec: Recording, ctx: Context, record: dict) -> None:
     """``overlay.png``: eight frames spread over the run, model edges at estimate and truth."""
     states = np.asarray(record["estimate"])
@@ -117,8 +103,10 @@ def write_overlay(path: Path, rec: Recording, ctx: Context, record: dict) -> Non
                   [f"frame {i}" for i in picks])
 
 
-def markdown(rec: Recording, results: dict[str, dict], start: str) -> str:
-    """report.md of a recording's run."""
+def markdown(rec: Recording, metrics: dict, start: str) -> str:
+    """report.md of a recording's run, from its metrics (``report.summarize``)."""
+    results = {m: e if "num_frames" in e else e.get("global", {})
+               for m, e in metrics["flights"][rec.name].items()}
     dropped = max((r["dropped_frames"] for r in results.values()), default=0)
     lines = [f"# {rec.name}: localized against the model", "",
              f"Recording `{rec.source}`, {len(rec)} frames, camera {rec.camera.width}x"
@@ -128,28 +116,15 @@ def markdown(rec: Recording, results: dict[str, dict], start: str) -> str:
              "| mode | frames | mean error (m) | p95 (m) | max (m) | mean yaw error (deg) | "
              "frame ms (mean) |", "|---|---|---|---|---|---|---|"]
     for mode, r in results.items():
-        e = r.get("errors", {})
-        cells = [e.get(k) for k in ("mean_position_error_m", "p95_m", "max_m",
+        cells = [r.get(k) for k in ("mean_position_error_m", "p95_m", "max_m",
                                     "mean_yaw_error_deg")]
         text = ["-" if v is None else f"{v:.3f}" for v in cells]
         lines.append(f"| {mode} | {r['num_frames']} | {' | '.join(text)} | "
-                     f"{r['timing_ms']['total']['avg']:.1f} |")
+                     f"{metrics['timing_ms_by_mode'][mode]['total']['avg']:.1f} |")
     if rec.groundtruth is None:
         lines += ["", "No ground truth in the recording: errors are not measured."]
     lines += ["", "![model edges at the estimate (green) and the truth (magenta)](overlay.png)", ""]
     return "\n".join(lines)
-
-
-def model_of(out_dir: Path, cfg: DictConfig, modes) -> dict:
-    """The model a report's cnn runs used: the segnet.onnx path and digest (config.json's
-    ``onnx_sha256``); None where no cnn run is in the report."""
-    if "cnn" not in modes:
-        return {"onnx_model": None, "onnx_sha256": None}
-    from localize.segmenter import model_path
-
-    conf = json.loads((out_dir / "config.json").read_text())
-    return {"onnx_model": str(model_path(str(cfg.onnx_model), str(cfg.dataset))),
-            "onnx_sha256": conf.get("onnx_sha256")}
 
 
 def write_recording_report(ctx: Context, rec: Recording, start: str) -> Path:
@@ -170,12 +145,12 @@ def write_recording_report(ctx: Context, rec: Recording, start: str) -> Path:
     atomic_write_text(out / "trajectory.txt",
                       (out / "trajectories" / f"{first}.txt").read_text())
     atomic_write_json(out / "trajectory.json", companion(records[first]))
-    results = {m: summary(r) for m, r in records.items()}
+    metrics = {"recording": str(rec.source), **summarize(list(records.values()), ctx.cfg),
+               "model": model_of(out, ctx.cfg, modes), "start": start}
+    del metrics["paper"], metrics["targets"]  # the paper's corridor and the issue's flights
     write_overlay(out / "overlay.png", rec, ctx, records[first])
-    atomic_write_json(out / "metrics.json", {
-        "recording": str(rec.source), "dataset": str(ctx.cfg.dataset),
-        "model": model_of(out, ctx.cfg, modes), "start": start, "modes": results})
-    atomic_write_text(out / "report.md", markdown(rec, results, start))
+    atomic_write_json(out / "metrics.json", metrics)
+    atomic_write_text(out / "report.md", markdown(rec, metrics, start))
     log.info("trajectory: %s", out / "trajectory.txt")
     return out / "report.md"
 

@@ -65,7 +65,7 @@ class TestRecordedFlight:
         assert set(health["status"]) <= {"tracking", "coasting", "lost", "global"}
         c = np.array(health["confidence"])
         assert len(c) == len(t) and ((c >= 0) & (c <= 1)).all() and c[-1] > 0
-        m = json.loads((folder / "metrics.json").read_text())["modes"]["cnn"]
+        m = json.loads((folder / "metrics.json").read_text())["flights"][FLIGHT]["cnn"]
         assert m["mean_confidence"] == pytest.approx(c.mean())
 
 
@@ -118,7 +118,7 @@ class TestRecordingOutputPolicy:
                                              "max_frames=4", "modes=[cnn]", model))
         folder = report.parent
         m = json.loads((folder / "metrics.json").read_text())
-        assert list(m["modes"]) == ["cnn", "none"]
+        assert list(m["flights"][FLIGHT]) == ["cnn", "none"]
         assert m["dataset"] == str(flat_dataset)
         assert m["model"]["onnx_model"] == str(flat_segnet) and m["model"]["onnx_sha256"]
         assert ((folder / "trajectory.txt").read_text()
@@ -148,7 +148,7 @@ def test_unreadable_frame_is_dropped(flat_dataset, folder_recording, tmp_path):
     broken = sorted((rec / "images").iterdir())[2]
     broken.write_bytes(b"not an image")
     report = run_recording(recording_cfg(flat_dataset, rec, tmp_path / "out", "max_frames=6"))
-    m = json.loads((report.parent / "metrics.json").read_text())["modes"]["none"]
+    m = json.loads((report.parent / "metrics.json").read_text())["flights"][FLIGHT]["none"]
     assert m["num_frames"] == 5 and m["dropped_frames"] == 1
     assert len(read_tum(report.parent / "trajectory.txt")[0]) == 5
     assert "1 frames could not be read" in report.read_text()
@@ -157,3 +157,19 @@ def test_unreadable_frame_is_dropped(flat_dataset, folder_recording, tmp_path):
 def test_max_frames_zero_names_the_key(flat_dataset, folder_recording, tmp_path):
     with pytest.raises(ValueError, match=r"max_frames=0: .*max_frames=null"):
         run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=0"))
+
+
+def test_recording_without_truth_reports_no_errors(flat_dataset, folder_recording, tmp_path):
+    """The same report without truth: the filter's health and timings, no errors."""
+    import json
+    import shutil
+
+    rec = tmp_path / FLIGHT
+    shutil.copytree(folder_recording, rec)
+    (rec / "groundtruth.txt").unlink()
+    report = run_recording(recording_cfg(flat_dataset, rec, tmp_path / "out", "max_frames=4"))
+    m = json.loads((report.parent / "metrics.json").read_text())
+    entry = m["flights"][FLIGHT]["none"]["global"]
+    assert entry["num_frames"] == 4 and "mean_position_error_m" not in entry
+    assert 0 <= entry["mean_confidence"] <= 1 and m["timing_ms_by_mode"]["none"]
+    assert "No ground truth" in report.read_text()
