@@ -43,7 +43,7 @@ from core.outputs import FolderPolicy, releases_claims
 from core.poses import xyzyaw_from_pose
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
-from localize.report import model_of, summarize
+from localize.report import model_of, results_sections, summarize
 from localize.runner import (
     RESULT_KEYS,
     SPEED_ONLY,
@@ -103,27 +103,20 @@ def write_overlay(path: Path, rec: Recording, ctx: Context, record: dict) -> Non
                   [f"frame {i}" for i in picks])
 
 
-def markdown(rec: Recording, metrics: dict, start: str) -> str:
-    """report.md of a recording's run, from its metrics (``report.summarize``)."""
-    results = {m: e if "num_frames" in e else e.get("global", {})
-               for m, e in metrics["flights"][rec.name].items()}
-    dropped = max((r["dropped_frames"] for r in results.values()), default=0)
+def markdown(rec: Recording, metrics: dict, cfg: DictConfig, start: str) -> str:
+    """report.md of a recording: its header, then the sections of a flight's report
+    (``report.results_sections``: accuracy and convergence where there is ground truth, time
+    per frame) and the overlay."""
+    dropped = max((e.get("dropped_frames", e.get("global", {}).get("dropped_frames", 0))
+                   for e in metrics["flights"][rec.name].values()), default=0)
     lines = [f"# {rec.name}: localized against the model", "",
              f"Recording `{rec.source}`, {len(rec)} frames, camera {rec.camera.width}x"
              f"{rec.camera.height}; start: {start}."
              + (f" {dropped} frames could not be read and were dropped." if dropped else ""),
-             "",
-             "| mode | frames | mean error (m) | p95 (m) | max (m) | mean yaw error (deg) | "
-             "frame ms (mean) |", "|---|---|---|---|---|---|---|"]
-    for mode, r in results.items():
-        cells = [r.get(k) for k in ("mean_position_error_m", "p95_m", "max_m",
-                                    "mean_yaw_error_deg")]
-        text = ["-" if v is None else f"{v:.3f}" for v in cells]
-        lines.append(f"| {mode} | {r['num_frames']} | {' | '.join(text)} | "
-                     f"{metrics['timing_ms_by_mode'][mode]['total']['avg']:.1f} |")
+             "", *results_sections(metrics, cfg)]
     if rec.groundtruth is None:
-        lines += ["", "No ground truth in the recording: errors are not measured."]
-    lines += ["", "![model edges at the estimate (green) and the truth (magenta)](overlay.png)", ""]
+        lines += ["No ground truth in the recording: errors are not measured.", ""]
+    lines += ["![model edges at the estimate (green) and the truth (magenta)](overlay.png)", ""]
     return "\n".join(lines)
 
 
@@ -150,7 +143,7 @@ def write_recording_report(ctx: Context, rec: Recording, start: str) -> Path:
     del metrics["paper"], metrics["targets"]  # the paper's corridor and the issue's flights
     write_overlay(out / "overlay.png", rec, ctx, records[first])
     atomic_write_json(out / "metrics.json", metrics)
-    atomic_write_text(out / "report.md", markdown(rec, metrics, start))
+    atomic_write_text(out / "report.md", markdown(rec, metrics, ctx.cfg, start))
     log.info("trajectory: %s", out / "trajectory.txt")
     return out / "report.md"
 

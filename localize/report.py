@@ -465,7 +465,7 @@ def _accuracy(m: dict, cfg) -> list[str]:
 def _global(m: dict, cfg) -> list[str]:
     """Convergence from a uniform start, where global runs exist."""
     glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()
-            for mode, s in modes.items() if "global" in s]
+            for mode, s in modes.items() if "converged_within_rate" in s.get("global", {})]
     if not glob:
         return []
     n = cfg.metrics.converge_within_frames
@@ -537,10 +537,18 @@ def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
                     "`runs/`.", ""]
 
 
+def results_sections(m: dict, cfg) -> list[str]:
+    """The sections of a flight's or a recording's report: accuracy (where there is truth),
+    global convergence (where there is truth), time per frame."""
+    truth = any("mean_position_error_m" in s for modes in m["flights"].values()
+                for s in modes.values())
+    return [*(_accuracy(m, cfg) if truth else []), *_global(m, cfg), *_timing(m, cfg)]
+
+
 def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
     """report.md text."""
-    return "\n".join([*_header(m, cfg), *_accuracy(m, cfg), *_global(m, cfg), *_timing(m, cfg),
-                      *_paper_faithful(m), *_targets_and_plots(m, plots)])
+    return "\n".join([*_header(m, cfg), *results_sections(m, cfg), *_paper_faithful(m),
+                      *_targets_and_plots(m, plots)])
 
 
 def write_report(ctx) -> Path:

@@ -55,7 +55,8 @@ class TestRecordedFlight:
         for name in ("trajectory.txt", "trajectory.json", "trajectories/cnn.txt",
                      "trajectories/cnn.json", "metrics.json", "overlay.png"):
             assert (folder / name).is_file(), name
-        assert "mean error" in runs["bag_report"].read_text()
+        text = runs["bag_report"].read_text()
+        assert "## Accuracy, tracking init" in text and f"| {FLIGHT} | cnn | " in text
         # the companion: one entry per trajectory line, the filter's own status and confidence
         import json
 
