@@ -5,7 +5,10 @@ A recording is a folder (``images/``, ``camera.yaml``, ``odometry.txt``, optiona
 ROS 1 ``.bag`` / ROS 2 bag folder (``localize.recording_bag``). ``read_recording`` turns either
 into a ``Recording``:
 
-- frames are read lazily, one at a time, when asked (``image(i)``, ``images()``);
+- frames are read lazily, one at a time, when asked (``image(i)``, ``images()``,
+  ``steps()``: the ``core.frames.FrameSource`` a run loops over); a frame that cannot be
+  decoded (``UnreadableFrame``) is dropped from ``steps()`` with a warning, as a camera's
+  dropped frame;
 - every frame is rectified to the target camera (the dataset's, which the SegNet was trained
   on): undistorted at the recorded size (OpenCV ``plumb_bob`` / ``rational_polynomial``),
   then scaled to cover the target size and centre-cropped (the aspect ratio is kept, the

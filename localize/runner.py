@@ -9,7 +9,9 @@ Layout of ``outputs/reports/<name>/``::
     cache/visibility_<hash>.npz                       occlusion grid of the world
 
 One pass per (flight, mode) reads each frame once, makes its edges once (``FrontEnd.frame``)
-and steps every (init, seed) ``Localizer`` that is not finished yet with that frame. A run is
+and steps every (init, seed) ``Localizer`` that is not finished yet with that frame
+(``run_pass``: the one loop, over any ``core.frames.FrameSource``; a recording's run,
+``localize.recorded``, goes through it and through ``prepare`` too). A run is
 finished when its trajectory and run file exist, so a stopped job resumes where it was
 (``overwrite=true`` re-runs everything).
 """
@@ -99,8 +101,9 @@ class RunSpec:
 
 @dataclass
 class Context:
-    """What every pass shares: the dataset, the model edges, the settings (the whole config,
-    typed: ``settings_of``), the segmenter."""
+    """What every pass shares: the dataset, the camera of the frames (the dataset's, or a
+    recording's), the model edges, the settings (the whole config, typed: ``settings_of``),
+    the segmenter, the output folder."""
 
     cfg: DictConfig
     dataset: Dataset
