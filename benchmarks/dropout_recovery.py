@@ -29,10 +29,9 @@ sys.path.insert(0, str(ROOT))
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from core import classes as C  # noqa: E402
-from core.poses import xyzyaw_from_pose  # noqa: E402
+from core.poses import odometry_increment, xyzyaw_from_pose  # noqa: E402
 from datagen.camera_effects import apply_effects  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
-from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.runner import RunSpec, prepare  # noqa: E402
 
 

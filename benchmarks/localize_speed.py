@@ -37,10 +37,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.atomic import read_png  # noqa: E402
-from core.poses import xyzyaw_from_pose  # noqa: E402
+from core.poses import odometry_increment, xyzyaw_from_pose  # noqa: E402
 from localize.frontend.segmenter import model_path  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
-from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
 from localize.runner import prepare  # noqa: E402
 

@@ -38,13 +38,12 @@ sys.path.insert(0, str(ROOT))
 
 from core.dataset import Camera, World  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
-from core.poses import pose_from_xyzyaw  # noqa: E402
+from core.poses import odometry_increment, pose_from_xyzyaw  # noqa: E402
 from core.rays import RayCaster  # noqa: E402
 from localize.config import Settings  # noqa: E402
 from localize.frontend.edge_image import EdgeImage  # noqa: E402
 from localize.frontend.front_end import Frame  # noqa: E402
 from localize.localizer import EdgeModel, Localizer, scored_segments  # noqa: E402
-from localize.particle_filter import odometry_increment  # noqa: E402
 from localize.projection import (  # noqa: E402
     cam_from_world,
     camera_centres,

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import glob
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -35,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import png_complete, read_png
+from core.frames import Frame, delivered_frames, frame_count
 from core.lens import Undistorter, coefficients
 from core.occupancy import OccupancyMap
 from core.poses import interpolate_poses, read_tum
@@ -93,7 +95,8 @@ FLIGHT_SETS = ("test", "val")
 
 @dataclass(frozen=True)
 class Flight:
-    """One evaluation flight as the localizer gets it: its delivered frames (T of them).
+    """One evaluation flight as the localizer gets it: its delivered frames (T of them), a
+    ``core.frames.FrameSource``.
 
     rgb, label: (T,) frame paths; timestamps: (T,) s, the images' timestamps; groundtruth:
     (T, 4, 4) world_from_body at each frame's capture; odometry: (T, 4, 4) world_from_body
@@ -145,6 +148,17 @@ class Flight:
         ignore where the lens sees nothing)."""
         label = read_png(self.label[t], rgb=False)
         return label if self.undistorter is None else self.undistorter.labels(label)
+
+    def __len__(self) -> int:
+        return len(self.timestamps)
+
+    def steps(self, limit: int | None = None, *, images: bool = True,
+               labels: bool = False) -> Iterator[Frame]:
+        """The first ``limit`` frames (all: None) as ``core.frames.Frame``, each image and
+        labels read when its frame is reached (``core.frames.FrameSource``)."""
+        n = frame_count(self, limit)
+        return delivered_frames(self, n, (self.image(t) for t in range(n)) if images else None,
+                                (self.labels(t) for t in range(n)) if labels else None)
 
 
 class Dataset:

@@ -68,6 +68,21 @@ def wrap_angle(a: np.ndarray) -> np.ndarray:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
+def odometry_increment(prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
+    """Motion between two odometry poses in the earlier pose's heading frame.
+
+    Args:
+        prev, cur: (4, 4) world_from_body.
+
+    Returns:
+        (4,) forward, left, up (metres), yaw change (radians).
+    """
+    a, b = xyzyaw_from_pose(np.stack([prev, cur]))
+    c, s = np.cos(a[3]), np.sin(a[3])
+    d = b[:3] - a[:3]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2], wrap_angle(b[3] - a[3])])
+
+
 def interpolate_poses(times: np.ndarray, stamps: np.ndarray, poses: np.ndarray,
                       extrapolate: bool = False) -> np.ndarray:
     """Poses at given times: linear in translation, slerp in rotation, between the two samples

@@ -447,7 +447,8 @@ class LocalizeConfig(Settings):
             dataset's.
         start: recording: [x, y, z, yaw_deg] world pose to track from; None: the first
             ground-truth pose, else a global start.
-        max_frames: only the first N frames of each flight (quick runs, tests).
+        max_frames: only the first N >= 1 frames of each flight or recording (quick runs,
+            tests); null: every frame; 0 is refused, naming the key.
         threads: onnxruntime intra-op threads.
         overwrite: re-run trajectories that already exist.
         progress: tqdm progress bars.

@@ -290,7 +290,7 @@ class Localizer:
                 (``TrueLabels``).
             odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since
                 the previous frame, in that frame's heading frame
-                (``particle_filter.odometry_increment``); None on the first frame.
+                (``core.poses.odometry_increment``); None on the first frame.
             attitude: (4, 4) world_from_body (or its (3, 3) rotation) from the IMU/odometry at
                 this frame; only its roll and pitch are used (``tilt_from_pose``); None: level.
             timestamp: seconds; not before the previous frame's.
@@ -386,7 +386,7 @@ def _check_increment(delta) -> np.ndarray | None:
     d = np.asarray(delta, dtype=np.float64)
     if d.shape != (4,) or not np.isfinite(d).all():
         raise ValueError(f"odometry_increment must be (4,) finite forward, left, up, yaw "
-                         f"change (particle_filter.odometry_increment) or None, got {d.shape}")
+                         f"change (core.poses.odometry_increment) or None, got {d.shape}")
     return d
 
 

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from core.occupancy import OccupancyMap
-from core.poses import wrap_angle, xyzyaw_from_pose
+from core.poses import wrap_angle
 from localize.config import FilterParams
 
 # --- the three model functions ---------------------------------------------------------------
@@ -78,21 +78,6 @@ def init_global(rng: np.random.Generator, free: OccupancyMap, n: int) -> np.ndar
     z = rng.uniform(free.band[0], free.band[1], n)
     yaw = rng.uniform(-np.pi, np.pi, n)
     return np.column_stack([xy, z, yaw])
-
-
-def odometry_increment(prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
-    """Motion between two odometry poses in the earlier pose's heading frame.
-
-    Args:
-        prev, cur: (4, 4) world_from_body.
-
-    Returns:
-        (4,) forward, left, up (metres), yaw change (radians).
-    """
-    a, b = xyzyaw_from_pose(np.stack([prev, cur]))
-    c, s = np.cos(a[3]), np.sin(a[3])
-    d = b[:3] - a[:3]
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2], wrap_angle(b[3] - a[3])])
 
 
 def apply_increment(poses: np.ndarray, delta: np.ndarray) -> np.ndarray:

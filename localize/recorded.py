@@ -1,53 +1,71 @@
 """``python -m localize recording=PATH dataset=DATASET``: localize a recording (a folder or a
 ROS bag, ``localize.recording``) against DATASET's world, with the camera the recording brings.
 
+A recording is a frame source (``core.frames.FrameSource``) as a rendered flight is: it goes
+through the runner's context (``runner.prepare``), output policy (``runner.check_resume``:
+claimed, resumed, refused when its result settings differ) and loop (``runner.run_pass``).
+
 Output folder ``<out_root>/<name>/recordings/<recording name>/``::
 
-    trajectory.txt              the first mode's estimates (cnn when it runs), TUM, world_from_body
+    config.json                 the settings its results depend on (core.outputs)
+    trajectory.txt              the first mode's estimates (cnn when it ran), TUM, world_from_body
     trajectory.json             its companion: per frame the timestamp, the filter's status
                                 (tracking, coasting, lost, global), confidence (0-1) and
                                 particle spread (m)
     trajectories/<mode>.txt     each mode's estimates (TUM), and <mode>.json their companions
+    runs/<mode>.json            each mode's run record (as a flight's, ``runner.PassRecord``)
     report.md, metrics.json     per mode: errors against groundtruth (when the recording has it),
-                                frame timings, the settings used
+                                frame timings, dropped frames; the recording, dataset and model
     overlay.png                 model edges at the estimates (green) and the truth (magenta) on
                                 eight frames of the first mode
 
 A recording has no true labels, so mode ``oracle`` is skipped. The start: ``start=[x, y, z,
 yaw_deg]`` tracks from that world pose; else the first ground-truth pose when the recording
-has one; else a global (uniform) start. Each mode is one run of ``seeds[0]``; the whole run is
-made again on every call (a single pass, nothing to resume).
+has one; else a global (uniform) start. Each mode is one run of ``seeds[0]``; a mode whose
+trajectory and run record exist is not run again (``overwrite=true`` re-runs it), and the
+report covers every mode run in the folder. A frame that
+cannot be read is dropped (counted in ``dropped_frames``), the odometry increment then spans
+from the last frame read.
 """
 
 from __future__ import annotations
 
+import json
 import logging
-from itertools import islice
 from pathlib import Path
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
-from tqdm import tqdm
 
 from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset
-from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
-from localize.frontend.segmenter import load_segmenter, model_path
-from localize.localizer import EdgeModel, Localizer
-from localize.metrics import (
-    error_stats,
-    health_stats,
-    position_errors,
-    timing_stats,
-    yaw_errors_deg,
-)
+from core.outputs import FolderPolicy, releases_claims
+from core.poses import xyzyaw_from_pose
 from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
-from localize.runner import Context, RunSpec, check_run_lists, settings_of
+from localize.report import model_of, results_sections, summarize
+from localize.runner import (
+    RESULT_KEYS,
+    SPEED_ONLY,
+    Context,
+    RunSpec,
+    check_resume,
+    check_run_lists,
+    prepare,
+    run_pass,
+    settings_of,
+)
 
 log = logging.getLogger(__name__)
 
 OVERLAY_FRAMES = 8
+#: A recording's folder belongs to its result settings: a flight's, the recording, how it is
+#: read and where the runs start (``seeds``: its first is the one run).
+RECORDING_POLICY = FolderPolicy(
+    record="config.json",
+    keys=(*RESULT_KEYS, "recording", "recording_topics", "recording_body_from_cam", "start",
+          "seeds"),
+    grow=("onnx_sha256",), speed_only=SPEED_ONLY, results=("runs",))
 
 
 def start_state(cfg: DictConfig, rec: Recording) -> np.ndarray | None:
@@ -62,56 +80,21 @@ def start_state(cfg: DictConfig, rec: Recording) -> np.ndarray | None:
     return None
 
 
-def track(ctx: Context, rec: Recording, mode: str, start: np.ndarray | None, seed: int,
-          max_frames: int | None, progress: bool
-          ) -> tuple[np.ndarray, dict[str, list], dict[str, list]]:
-    """Step one Localizer through the recording.
-
-    Returns:
-        (T, 4) estimated states, per-stage frame times (ms), and the per-frame companion
-        (``timestamp``, ``status``, ``confidence``, ``position_std_m``).
-    """
-    init = "global" if start is None else "tracking"
-    rng = RunSpec(rec.name, mode, init, seed).rng()  # a flight's run of the same name and seed
-    loc = Localizer(ctx.world, rec.camera, ctx.front_end(mode), ctx.settings, rng,
-                    model=ctx.model_for(mode))
-    loc.reset(start)
-    T = len(rec) if max_frames is None else min(int(max_frames), len(rec))
-    states, timing = np.zeros((T, 4)), {"segmentation": [], "preprocessing": [], "filter": []}
-    health: dict[str, list] = {"timestamp": [], "status": [], "confidence": [],
-                               "position_std_m": []}
-    for f in tqdm(islice(rec.steps(), T), total=T, desc=f"{rec.name}/{mode}",
-                  disable=not progress, leave=False, mininterval=2.0):
-        est = loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp)
-        states[f.index] = est.state
-        for k in timing:
-            timing[k].append(est.timing_ms[k])
-        for k, v in (("timestamp", est.timestamp), ("status", est.status),
-                     ("confidence", est.confidence), ("position_std_m", est.position_std)):
-            health[k].append(v)
-    return states, timing, health
+def companion(record: dict) -> dict[str, list]:
+    """A trajectory's companion of a run record: per frame the timestamp, the filter's status,
+    confidence (0-1) and particle spread (m)."""
+    return {"timestamp": record["timestamps"], "status": record["status"],
+            "confidence": record["confidence"], "position_std_m": record["position_std"]}
 
 
-def summary(states: np.ndarray, timing: dict, rec: Recording, health: dict) -> dict:
-    """Errors (with ground truth), frame times and the filter's own health of one mode's run:
-    the share of coasting frames, the losses it declared, its mean confidence."""
-    out = {"num_frames": len(states),
-           "timing_ms": {k: timing_stats(v) for k, v in timing.items()},
-           **health_stats(health["status"], health["confidence"])}
-    total = np.sum([timing[k] for k in timing], axis=0)
-    out["timing_ms"]["total"] = timing_stats(total)
-    if rec.groundtruth is not None:
-        truth = xyzyaw_from_pose(rec.groundtruth[:len(states)])
-        out["errors"] = error_stats(position_errors(states, truth),
-                                    yaw_errors_deg(states, truth))
-    return out
-
-
-def write_overlay(path: Path, rec: Recording, ctx: Context, states: np.ndarray) -> None:
+def write_overlay(path: Path, rec: Recording, ctx: Context, record: dict) -> None:
     """``overlay.png``: eight frames spread over the run, model edges at estimate and truth."""
-    picks = np.unique(np.linspace(0, len(states) - 1, OVERLAY_FRAMES).round().astype(int))
+    states = np.asarray(record["estimate"])
+    index = np.asarray(record.get("frame_index", range(len(states))), dtype=int)
+    rows = np.unique(np.linspace(0, len(states) - 1, OVERLAY_FRAMES).round().astype(int))
+    picks = index[rows]
     images = [rec.image(int(i)) for i in picks]
-    est = camera_poses(states[picks], rec.odometry[picks], rec.camera)
+    est = camera_poses(states[rows], rec.odometry[picks], rec.camera)
     truth = None
     if rec.groundtruth is not None:
         gt = rec.groundtruth[picks]
@@ -120,26 +103,52 @@ def write_overlay(path: Path, rec: Recording, ctx: Context, states: np.ndarray) 
                   [f"frame {i}" for i in picks])
 
 
-def markdown(rec: Recording, results: dict[str, dict], start: str) -> str:
-    """report.md of a recording's run."""
+def markdown(rec: Recording, metrics: dict, cfg: DictConfig, start: str) -> str:
+    """report.md of a recording: its header, then the sections of a flight's report
+    (``report.results_sections``: accuracy and convergence where there is ground truth, time
+    per frame) and the overlay."""
+    dropped = max((e.get("dropped_frames", e.get("global", {}).get("dropped_frames", 0))
+                   for e in metrics["flights"][rec.name].values()), default=0)
     lines = [f"# {rec.name}: localized against the model", "",
              f"Recording `{rec.source}`, {len(rec)} frames, camera {rec.camera.width}x"
-             f"{rec.camera.height}; start: {start}.", "",
-             "| mode | frames | mean error (m) | p95 (m) | max (m) | mean yaw error (deg) | "
-             "frame ms (mean) |", "|---|---|---|---|---|---|---|"]
-    for mode, r in results.items():
-        e = r.get("errors", {})
-        cells = [e.get(k) for k in ("mean_position_error_m", "p95_m", "max_m",
-                                    "mean_yaw_error_deg")]
-        text = ["-" if v is None else f"{v:.3f}" for v in cells]
-        lines.append(f"| {mode} | {r['num_frames']} | {' | '.join(text)} | "
-                     f"{r['timing_ms']['total']['avg']:.1f} |")
+             f"{rec.camera.height}; start: {start}."
+             + (f" {dropped} frames could not be read and were dropped." if dropped else ""),
+             "", *results_sections(metrics, cfg)]
     if rec.groundtruth is None:
-        lines += ["", "No ground truth in the recording: errors are not measured."]
-    lines += ["", "![model edges at the estimate (green) and the truth (magenta)](overlay.png)", ""]
+        lines += ["No ground truth in the recording: errors are not measured.", ""]
+    lines += ["![model edges at the estimate (green) and the truth (magenta)](overlay.png)", ""]
     return "\n".join(lines)
 
 
+def write_recording_report(ctx: Context, rec: Recording, start: str) -> Path:
+    """trajectory.txt/.json (the first mode's: cnn when it ran), each mode's companion,
+    overlay.png, metrics.json and report.md, from every run record under ``runs/`` (runs of
+    other modes made earlier in the folder, of the same result settings, are reported too).
+
+    Returns:
+        Path of report.md.
+    """
+    out = ctx.out_dir
+    paths = sorted((out / "runs").glob("*.json"), key=lambda p: (p.stem != "cnn", p.stem))
+    records = {p.stem: json.loads(p.read_text()) for p in paths}
+    modes = list(records)
+    for mode, record in records.items():
+        atomic_write_json(out / "trajectories" / f"{mode}.json", companion(record))
+    first = modes[0]
+    atomic_write_text(out / "trajectory.txt",
+                      (out / "trajectories" / f"{first}.txt").read_text())
+    atomic_write_json(out / "trajectory.json", companion(records[first]))
+    metrics = {"recording": str(rec.source), **summarize(list(records.values()), ctx.cfg),
+               "model": model_of(out, ctx.cfg, modes), "start": start}
+    del metrics["paper"], metrics["targets"]  # the paper's corridor and the issue's flights
+    write_overlay(out / "overlay.png", rec, ctx, records[first])
+    atomic_write_json(out / "metrics.json", metrics)
+    atomic_write_text(out / "report.md", markdown(rec, metrics, ctx.cfg, start))
+    log.info("trajectory: %s", out / "trajectory.txt")
+    return out / "report.md"
+
+
+@releases_claims
 def run_recording(cfg: DictConfig) -> Path:
     """Localize ``cfg.recording`` in each mode of ``cfg.modes`` but oracle; write the outputs.
 
@@ -151,38 +160,23 @@ def run_recording(cfg: DictConfig) -> Path:
     if not modes:
         raise ValueError("modes: a recording has no true labels, so oracle cannot run; use "
                          "modes=[cnn] or modes=[none,cnn]")
+    modes.sort(key=lambda m: m != "cnn")  # cnn first: it gives trajectory.txt
     settings = settings_of(cfg)
-    dataset = Dataset(cfg.dataset)
-    world = dataset.world()
     mount = settings.recording_body_from_cam
-    rec = read_recording(cfg.recording, dataset.camera, topics=settings.recording_topics,
+    rec = read_recording(cfg.recording, Dataset(cfg.dataset).camera,
+                         topics=settings.recording_topics,
                          body_from_cam=None if mount is None else np.asarray(mount,
                                                                              dtype=np.float64))
-    out = Path(cfg.out_root) / str(cfg.name) / "recordings" / rec.name
-    segmenter = (load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
-                                int(cfg.threads))
-                 if "cnn" in modes else None)
-    ctx = Context(cfg, dataset, rec.camera, world, settings,
-                  EdgeModel.build(world, settings, out / "cache"), out, segmenter)
+    ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
+    check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY)
     start = start_state(cfg, rec)
     how = ("global (uniform)" if start is None else
            f"tracking from x {start[0]:.2f}, y {start[1]:.2f}, z {start[2]:.2f} m, "
            f"yaw {np.degrees(start[3]):.1f} deg")
-    results, first = {}, None
-    for mode in sorted(modes, key=lambda m: m != "cnn"):  # cnn first: it gives trajectory.txt
-        states, timing, health = track(ctx, rec, mode, start, int(cfg.seeds[0]),
-                                       cfg.max_frames, bool(cfg.progress))
-        ts = rec.timestamps[:len(states)]
-        write_tum(out / "trajectories" / f"{mode}.txt", ts, pose_from_xyzyaw(states))
-        atomic_write_json(out / "trajectories" / f"{mode}.json", health)
-        if first is None:
-            first = states
-            write_tum(out / "trajectory.txt", ts, pose_from_xyzyaw(states))
-            atomic_write_json(out / "trajectory.json", health)
-        results[mode] = summary(states, timing, rec, health)
-    write_overlay(out / "overlay.png", rec, ctx, first)
-    atomic_write_json(out / "metrics.json", {"recording": str(rec.source), "start": how,
-                                             "modes": results})
-    atomic_write_text(out / "report.md", markdown(rec, results, how))
-    log.info("trajectory: %s", out / "trajectory.txt")
-    return out / "report.md"
+    init = "global" if start is None else "tracking"
+    for mode in modes:
+        # a flight's run of the same name and seed draws the same numbers
+        run = RunSpec(rec.name, mode, init, int(cfg.seeds[0]), recording=True)
+        if cfg.overwrite or not run.done(ctx.out_dir):
+            run_pass(ctx, rec, mode, [run], start=start)
+    return write_recording_report(ctx, rec, how)

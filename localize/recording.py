@@ -5,7 +5,10 @@ A recording is a folder (``images/``, ``camera.yaml``, ``odometry.txt``, optiona
 ROS 1 ``.bag`` / ROS 2 bag folder (``localize.recording_bag``). ``read_recording`` turns either
 into a ``Recording``:
 
-- frames are read lazily, one at a time, when asked (``image(i)``, ``images()``);
+- frames are read lazily, one at a time, when asked (``image(i)``, ``images()``,
+  ``steps()``: the ``core.frames.FrameSource`` a run loops over); a frame that cannot be
+  decoded (``UnreadableFrame``) is dropped from ``steps()`` with a warning, as a camera's
+  dropped frame;
 - every frame is rectified to the target camera (the dataset's, which the SegNet was trained
   on): undistorted at the recorded size (OpenCV ``plumb_bob`` / ``rational_polynomial``),
   then scaled to cover the target size and centre-cropped (the aspect ratio is kept, the
@@ -25,15 +28,15 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import NamedTuple, Protocol
+from typing import Protocol
 
 import cv2
 import numpy as np
 
 from core.dataset import Camera
+from core.frames import Frame, delivered_frames
 from core.lens import Undistorter
 from core.poses import read_tum
-from localize.particle_filter import odometry_increment
 
 log = logging.getLogger(__name__)
 
@@ -44,14 +47,21 @@ DISTORTION_MODELS = {"plumb_bob": (4, 5, 8), "rational_polynomial": (8,)}
 SPAN_SLACK = 1e-6
 
 
-class FrameSource(Protocol):
-    """Raw recorded frames: ``read(i)`` and ``iter()`` give (h, w, 3) uint8 RGB images."""
+class UnreadableFrame(ValueError):
+    """A recorded frame that cannot be decoded (a broken file or message): ``Recording.steps``
+    drops it as a dropped frame."""
+
+
+class RawFrames(Protocol):
+    """Raw recorded frames: ``read(i)`` gives frame i's (h, w, 3) uint8 RGB image (ValueError
+    naming the frame, ``UnreadableFrame`` when it cannot be decoded); ``iter()`` gives them in
+    order, None (with a warning naming the frame) for one that cannot be decoded."""
 
     def __len__(self) -> int: ...
 
     def read(self, index: int) -> np.ndarray: ...
 
-    def iter(self) -> Iterator[np.ndarray]: ...
+    def iter(self) -> Iterator[np.ndarray | None]: ...
 
 
 @dataclass(frozen=True)
@@ -126,29 +136,9 @@ class Rectifier:
         return np.ascontiguousarray(image[y0:y0 + self.height, x0:x0 + self.width])
 
 
-class RecordedFrame(NamedTuple):
-    """One frame with what ``Localizer.step`` takes.
-
-    Attributes:
-        index: frame index in the recording.
-        timestamp: seconds.
-        image: (H, W, 3) uint8 RGB as delivered (``Recording.camera``).
-        odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since the
-            previous frame in its heading frame (``particle_filter.odometry_increment``); None
-            for the first frame.
-        attitude: (4, 4) world_from_body odometry pose of the frame (its roll and pitch).
-    """
-
-    index: int
-    timestamp: float
-    image: np.ndarray
-    odometry_increment: np.ndarray | None
-    attitude: np.ndarray
-
-
 @dataclass(frozen=True)
 class Recording:
-    """A recorded flight, ready for the localizer.
+    """A recorded flight, ready for the localizer (a ``core.frames.FrameSource``).
 
     Attributes:
         name: recording name (the folder or bag name without suffix).
@@ -168,7 +158,7 @@ class Recording:
     timestamps: np.ndarray
     odometry: np.ndarray
     groundtruth: np.ndarray | None
-    frames: FrameSource
+    frames: RawFrames
     rectifier: Rectifier
 
     def __len__(self) -> int:
@@ -180,18 +170,19 @@ class Recording:
             raise IndexError(f"{self.source}: frame {index} out of range [0, {len(self)})")
         return self.rectifier(self.frames.read(index))
 
-    def images(self) -> Iterator[np.ndarray]:
-        """All delivered frames in order, read one at a time (one pass over a bag)."""
+    def images(self) -> Iterator[np.ndarray | None]:
+        """All delivered frames in order, read one at a time (one pass over a bag); None for
+        a frame that cannot be read (warned, naming it)."""
         for image in self.frames.iter():
-            yield self.rectifier(image)
+            yield None if image is None else self.rectifier(image)
 
-    def steps(self) -> Iterator[RecordedFrame]:
-        """The frames in order with their odometry increments and attitudes, e.g.
-        ``for f in rec.steps(): localizer.step(f.image, f.odometry_increment, f.attitude,
-        f.timestamp)``."""
-        for i, image in enumerate(self.images()):
-            inc = odometry_increment(self.odometry[i - 1], self.odometry[i]) if i else None
-            yield RecordedFrame(i, float(self.timestamps[i]), image, inc, self.odometry[i])
+    def steps(self, limit: int | None = None, *, images: bool = True,
+              labels: bool = False) -> Iterator[Frame]:
+        """The first ``limit`` frames (all: None) in order with their odometry increments and
+        attitudes (``core.frames.delivered_frames``; a frame that cannot be read is dropped),
+        e.g. ``for f in rec.steps(): localizer.step(f.image, f.odometry_increment,
+        f.attitude, f.timestamp)``. A recording has no true labels: ``labels`` gives None."""
+        return delivered_frames(self, limit, self.images() if images else None)
 
 
 # --- poses -----------------------------------------------------------------------------------

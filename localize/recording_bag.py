@@ -11,7 +11,9 @@ does not grow with the recording.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,11 +30,14 @@ from localize.config import BagTopics
 from localize.recording import (
     Recording,
     SourceCamera,
+    UnreadableFrame,
     check_distortion,
     check_increasing,
     delivered_camera,
     select_frames,
 )
+
+log = logging.getLogger(__name__)
 
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
@@ -61,7 +66,7 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
     if msgtype.endswith("CompressedImage"):
         bgr = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
         if bgr is None:
-            raise ValueError(f"{where}: cannot decode the CompressedImage ({msg.format!r})")
+            raise UnreadableFrame(f"{where}: cannot decode the CompressedImage ({msg.format!r})")
         return np.ascontiguousarray(bgr[..., ::-1])
     if msg.encoding not in ENCODINGS:
         raise ValueError(f"{where}: image encoding {msg.encoding!r} is not supported; use one "
@@ -70,7 +75,7 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < w * ch or data.size < h * step:
-        raise ValueError(f"{where}: image data ({data.size} bytes, step {step}) too short for "
+        raise UnreadableFrame(f"{where}: image data ({data.size} bytes, step {step}) too short for "
                          f"{w}x{h} {msg.encoding}")
     rows = data[: h * step].reshape(h, step)[:, : w * ch].reshape(h, w, ch)
     return np.ascontiguousarray(rows[..., order])
@@ -121,8 +126,23 @@ def _read_poses(reader: AnyReader, conns, path: Path, topic: str) -> tuple[np.nd
     return t, np.stack(T)
 
 
-def _open(path: Path) -> AnyReader:
-    return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+@contextmanager
+def _open(path: Path) -> Iterator[AnyReader]:
+    """The bag opened for reading; a file or folder rosbags cannot open (not a bag, cut short,
+    a metadata.yaml missing keys) raises ValueError naming it and what rosbags found."""
+    reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    try:
+        reader.open()
+    except Exception as err:  # rosbags raises its own errors, KeyError, UnicodeDecodeError...
+        kind, whole = (("ROS 1 .bag file", "a whole bag, not cut short") if path.suffix == ".bag"
+                       else ("ROS 2 bag folder", "its metadata.yaml as `ros2 bag record` "
+                             "writes it, beside its .db3/.mcap files"))
+        raise ValueError(f"{path}: cannot be read as a {kind} ({type(err).__name__}: {err}); "
+                         f"give {whole}, or record it again") from err
+    try:
+        yield reader
+    finally:
+        reader.close()
 
 
 @dataclass(frozen=True)
@@ -154,7 +174,7 @@ class BagFrames:
             return decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
                                 f"{self.path} topic {self.topic} frame {index}")
 
-    def iter(self) -> Iterator[np.ndarray]:
+    def iter(self) -> Iterator[np.ndarray | None]:
         wanted = set(zip(self.log_times.tolist(), self.ranks.tolist(), strict=True))
         with _open(self.path) as reader:
             conns = [c for c in reader.connections if c.topic == self.topic]
@@ -163,8 +183,12 @@ class BagFrames:
                 rank = rank + 1 if lt == prev else 0
                 prev = lt
                 if (lt, rank) in wanted:
-                    yield decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
-                                       f"{self.path} topic {self.topic} frame {i}")
+                    try:
+                        yield decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype,
+                                           f"{self.path} topic {self.topic} frame {i}")
+                    except UnreadableFrame as err:
+                        log.warning("%s; frame dropped", err)
+                        yield None
                     i += 1
 
 
@@ -233,6 +257,6 @@ class _SizedFrames:
     def read(self, index: int) -> np.ndarray:
         return self._check(self.frames.read(index), index)
 
-    def iter(self) -> Iterator[np.ndarray]:
+    def iter(self) -> Iterator[np.ndarray | None]:
         for i, image in enumerate(self.frames.iter()):
-            yield self._check(image, i)
+            yield None if image is None else self._check(image, i)

@@ -11,6 +11,7 @@ lines, paths relative to the folder or to images/) or else from the file names (
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +26,7 @@ from localize.recording import (
     IMAGE_SUFFIXES,
     Recording,
     SourceCamera,
+    UnreadableFrame,
     check_distortion,
     check_increasing,
     check_rigid,
@@ -32,6 +34,8 @@ from localize.recording import (
     read_trajectory,
     select_frames,
 )
+
+log = logging.getLogger(__name__)
 
 
 def _field(d: Mapping, key: str, path: Path):
@@ -105,16 +109,20 @@ class FolderFrames:
         path = self.paths[index]
         bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if bgr is None:
-            raise ValueError(f"cannot read image {path}: not a readable PNG or JPEG; replace it "
-                             f"or remove it (and its images.txt line)")
+            raise UnreadableFrame(f"cannot read image {path}: not a readable PNG or JPEG; "
+                                  f"replace it or remove it (and its images.txt line)")
         if bgr.shape[:2] != (self.height, self.width):
             raise ValueError(f"{path}: image is {bgr.shape[1]}x{bgr.shape[0]}, but camera.yaml "
                              f"says {self.width}x{self.height}; fix image_width/image_height")
         return np.ascontiguousarray(bgr[..., ::-1])
 
-    def iter(self) -> Iterator[np.ndarray]:
+    def iter(self) -> Iterator[np.ndarray | None]:
         for i in range(len(self)):
-            yield self.read(i)
+            try:
+                yield self.read(i)
+            except UnreadableFrame as err:
+                log.warning("%s; frame %d dropped", err, i)
+                yield None
 
 
 def _frames_from_list(root: Path) -> tuple[list[Path], np.ndarray]:

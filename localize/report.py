@@ -46,12 +46,14 @@ def _main(records: list[dict]) -> list[dict]:
 
 
 def summarize(records: list[dict], cfg) -> dict:
-    """metrics.json content from the run records.
+    """metrics.json content from the run records (of flights or recordings).
 
-    Per flight and mode: the tracking runs' error statistics over all frames of all seeds,
-    the failure rate (share of frames with an error above ``failure_threshold_m``), the mean
-    error of each seed, and for global init the convergence frame of each seed and the share
-    converged within ``converge_within_frames``.
+    Per flight (or recording) and mode: the tracking runs' error statistics over all frames
+    of all seeds, the failure rate (share of frames with an error above
+    ``failure_threshold_m``), the mean error of each seed, and for global init the
+    convergence frame of each seed and the share converged within ``converge_within_frames``.
+    Records without truth (a recording without ground truth) give no errors: the filter's
+    own health, the frames and the seeds only.
     """
     mc = cfg.metrics
     flights: dict = defaultdict(dict)
@@ -60,6 +62,14 @@ def summarize(records: list[dict], cfg) -> dict:
         groups[(r["flight"], r["mode"], r["init"])].append(r)
     for (flight, mode, init), runs in sorted(groups.items()):
         entry = flights[flight].setdefault(mode, {})
+        if "position_error_m" not in runs[0]:
+            own = entry if init == "tracking" else entry.setdefault(init, {})
+            own.update(_health(runs))
+            own.update(seeds=[int(r["seed"]) for r in runs],
+                       num_frames=int(runs[0]["num_frames"]),
+                       dropped_frames=int(runs[0].get("dropped_frames", 0)),
+                       num_particles=int(runs[0]["filter_particles"]))
+            continue
         pos = np.concatenate([r["position_error_m"] for r in runs])
         yaw = np.concatenate([r["yaw_error_deg"] for r in runs])
         fail = float(np.mean(pos > mc.failure_threshold_m))
@@ -69,13 +79,11 @@ def summarize(records: list[dict], cfg) -> dict:
             entry["lost_rate"] = float(np.mean([
                 lost_track(r["position_error_m"], r["timestamps"], mc.failure_threshold_m,
                            mc.lost_after_s) for r in runs]))
-            status = [s for r in runs for s in r.get("status", [])]
-            if status:
-                entry.update(health_stats(status, np.concatenate([r["confidence"]
-                                                                  for r in runs])))
+            entry.update(_health(runs))
             entry["seeds"] = [int(r["seed"]) for r in runs]
             entry["per_seed_mean_m"] = [float(np.mean(r["position_error_m"])) for r in runs]
             entry["num_frames"] = int(runs[0]["num_frames"])
+            entry["dropped_frames"] = int(runs[0].get("dropped_frames", 0))
             entry["num_particles"] = int(runs[0]["filter_particles"])
         else:
             conv = [convergence_frame(np.array(r["position_error_m"]),
@@ -97,6 +105,7 @@ def summarize(records: list[dict], cfg) -> dict:
     timing_by_mode = {}
     for mode in {r["mode"] for r in _main(records)}:
         runs = [r for r in _main(records) if r["mode"] == mode and r["init"] == "tracking"]
+        runs = runs or [r for r in _main(records) if r["mode"] == mode]  # global runs alone
         if runs:
             timing_by_mode[mode] = {s: timing_stats(np.concatenate([r["timing_ms"][s]
                                                                     for r in runs]))
@@ -114,6 +123,28 @@ def summarize(records: list[dict], cfg) -> dict:
     }
     out["targets"] = targets(out, cfg)
     return out
+
+
+def _health(runs: list[dict]) -> dict:
+    """The filter's own health over the frames of runs (``metrics.health_stats``); {} for
+    records without status."""
+    status = [s for r in runs for s in r.get("status", [])]
+    if not status:
+        return {}
+    return health_stats(status, np.concatenate([r["confidence"] for r in runs]))
+
+
+def model_of(out_dir: Path, cfg, modes) -> dict:
+    """The model a report's cnn runs used: the segnet.onnx path and its digest (the report
+    folder's config.json ``onnx_sha256``); None where no cnn run is in the report."""
+    if "cnn" not in modes:
+        return {"onnx_model": None, "onnx_sha256": None}
+    from localize.frontend.segmenter import model_path
+
+    path = Path(out_dir) / "config.json"
+    conf = json.loads(path.read_text()) if path.is_file() else {}
+    return {"onnx_model": str(model_path(str(cfg.onnx_model), str(cfg.dataset))),
+            "onnx_sha256": conf.get("onnx_sha256")}
 
 
 def targets(m: dict, cfg) -> list[dict]:
@@ -140,7 +171,7 @@ def targets(m: dict, cfg) -> list[dict]:
         add("cluttered flight: cnn / oracle mean error", ratio, ratio <= 1.25, "<= 1.25")
     for mode in ("cnn", "oracle", "none"):
         g = paper.get(mode, {}).get("global")
-        if g:
+        if g and "converged_within_rate" in g:
             add(f"paper flight, {mode}, global init: converged within "
                 f"{g['converged_within_frames']} frames", g["converged_within_rate"],
                 g["converged_within_rate"] >= 0.9, ">= 90% of seeds")
@@ -415,7 +446,7 @@ def _accuracy(m: dict, cfg) -> list[str]:
 def _global(m: dict, cfg) -> list[str]:
     """Convergence from a uniform start, where global runs exist."""
     glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()
-            for mode, s in modes.items() if "global" in s]
+            for mode, s in modes.items() if "converged_within_rate" in s.get("global", {})]
     if not glob:
         return []
     n = cfg.metrics.converge_within_frames
@@ -471,9 +502,17 @@ def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
                     "`runs/`.", ""]
 
 
+def results_sections(m: dict, cfg) -> list[str]:
+    """The sections of a flight's or a recording's report: accuracy (where there is truth),
+    global convergence (where there is truth), time per frame."""
+    truth = any("mean_position_error_m" in s for modes in m["flights"].values()
+                for s in modes.values())
+    return [*(_accuracy(m, cfg) if truth else []), *_global(m, cfg), *_timing(m, cfg)]
+
+
 def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
     """report.md text."""
-    return "\n".join([*_header(m, cfg), *_accuracy(m, cfg), *_global(m, cfg), *_timing(m, cfg),
+    return "\n".join([*_header(m, cfg), *results_sections(m, cfg),
                       *_targets_and_plots(m, plots)])
 
 
@@ -490,7 +529,9 @@ def write_report(ctx) -> Path:
     if not records:
         raise RuntimeError(f"no run records of {flight_set} flights under {out / 'runs'}; "
                            "nothing to report")
-    metrics = {**summarize(records, ctx.cfg), "realism": ctx.dataset.realism,
+    metrics = {**summarize(records, ctx.cfg),
+               "model": model_of(out, ctx.cfg, {r["mode"] for r in _main(records)}),
+               "realism": ctx.dataset.realism,
                "flight_set": flight_set, "flight_set_note": FLIGHT_SET_NOTE[flight_set],
                "flights_used": sorted({r["flight"] for r in records}),
                "settings": settings_table(ctx.cfg)}

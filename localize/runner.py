@@ -9,7 +9,9 @@ Layout of ``outputs/reports/<name>/``::
     cache/visibility_<hash>.npz                       occlusion grid of the world
 
 One pass per (flight, mode) reads each frame once, makes its edges once (``FrontEnd.frame``)
-and steps every (init, seed) ``Localizer`` that is not finished yet with that frame. A run is
+and steps every (init, seed) ``Localizer`` that is not finished yet with that frame
+(``run_pass``: the one loop, over any ``core.frames.FrameSource``; a recording's run,
+``localize.recorded``, goes through it and through ``prepare`` too). A run is
 finished when its trajectory and run file exist, so a stopped job resumes where it was
 (``overwrite=true`` re-runs everything).
 """
@@ -31,7 +33,8 @@ from tqdm import tqdm
 
 from core.atomic import atomic_write_json
 from core.config import typed
-from core.dataset import FLIGHT_SETS, Camera, Dataset, Flight, World
+from core.dataset import FLIGHT_SETS, Camera, Dataset, World
+from core.frames import Frame, FrameSource, frame_count
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES, LocalizeConfig
@@ -46,7 +49,6 @@ from localize.localizer import (
     mode_likelihood_params,
 )
 from localize.metrics import position_errors, yaw_errors_deg
-from localize.particle_filter import odometry_increment
 
 log = logging.getLogger(__name__)
 
@@ -68,18 +70,25 @@ class RunSpec:
     init: str
     seed: int
     likelihood: str = "vectorized"  # or paper_faithful
+    recording: bool = False  # a recording's run: one per mode, its files named by the mode
 
     @property
     def stem(self) -> str:
-        """File stem of the trajectory (the issue's ``<mode>_seed<k>`` for tracking)."""
+        """File stem of the trajectory (the issue's ``<mode>_seed<k>`` for tracking; the mode
+        alone for a recording's run)."""
+        if self.recording:
+            return self.mode
         tag = "" if self.init == "tracking" else f"_{self.init}"
         lik = "" if self.likelihood == "vectorized" else f"_{self.likelihood}"
         return f"{self.mode}{lik}{tag}_seed{self.seed}"
 
     def paths(self, out_dir: Path) -> tuple[Path, Path]:
-        """(trajectory .txt, run record .json)."""
-        return (out_dir / "trajectories" / self.flight / f"{self.stem}.txt",
-                out_dir / "runs" / self.flight / f"{self.stem}.json")
+        """(trajectory .txt, run record .json): ``trajectories/<flight>/<stem>.txt`` and
+        ``runs/<flight>/<stem>.json``; a recording's: ``trajectories/<mode>.txt`` and
+        ``runs/<mode>.json``."""
+        sub = Path() if self.recording else Path(self.flight)
+        return (out_dir / "trajectories" / sub / f"{self.stem}.txt",
+                out_dir / "runs" / sub / f"{self.stem}.json")
 
     def done(self, out_dir: Path) -> bool:
         return all(p.is_file() for p in self.paths(out_dir))
@@ -93,8 +102,9 @@ class RunSpec:
 
 @dataclass
 class Context:
-    """What every pass shares: the dataset, the model edges, the settings (the whole config,
-    typed: ``settings_of``), the segmenter."""
+    """What every pass shares: the dataset, the camera of the frames (the dataset's, or a
+    recording's), the model edges, the settings (the whole config, typed: ``settings_of``),
+    the segmenter, the output folder."""
 
     cfg: DictConfig
     dataset: Dataset
@@ -185,14 +195,35 @@ def settings_of(cfg: DictConfig) -> LocalizeConfig:
     return typed(LocalizeConfig, cfg, "localize config")
 
 
-def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Context:
+def check_max_frames(cfg: DictConfig) -> None:
+    """Raise ValueError naming ``max_frames`` when it is set and below 1 (null: every frame)."""
+    n = cfg.max_frames
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+        raise ValueError(f"max_frames={n!r}: a run needs at least one frame; give a positive "
+                         "count, or max_frames=null for every frame")
+
+
+def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
+            recording: FrameSource | None = None, camera: Camera | None = None) -> Context:
     """Open the dataset, sample the model edges, load or build the visibility grid, load the
-    segmenter (cnn mode)."""
+    segmenter (cnn mode).
+
+    Args:
+        cfg: the composed localize config.
+        source_wrappers: per edge mode, the edge source to use instead (``SourceWrappers``).
+        recording: a recording to run instead of the dataset's flights: the output folder is
+            ``<out_root>/<name>/recordings/<recording name>``.
+        camera: the camera of the frames (a recording's); None: the dataset's.
+    """
     check_run_lists(cfg)
+    check_max_frames(cfg)
     dataset = Dataset(cfg.dataset)
-    select_flights(dataset, cfg.flight_names, cfg.flight_set)
+    if recording is None:
+        select_flights(dataset, cfg.flight_names, cfg.flight_set)
     world = dataset.world()
     out_dir = Path(cfg.out_root) / str(cfg.name)
+    if recording is not None:
+        out_dir = out_dir / "recordings" / recording.name
     settings = settings_of(cfg)
     for mode in cfg.modes:  # fail before any run on a bad per-mode setting
         mode_likelihood_params(settings.likelihood, settings.filter, mode)
@@ -201,25 +232,36 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> C
     if "cnn" in cfg.modes:
         segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
                                    int(cfg.threads))
-    return Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter,
-                   dict(source_wrappers or {}))
-
-
-def _truth_states(flight: Flight, n: int) -> np.ndarray:
-    return xyzyaw_from_pose(flight.groundtruth[:n])
+    return Context(cfg, dataset, dataset.camera if camera is None else camera, world, settings,
+                   model, out_dir, segmenter, dict(source_wrappers or {}))
 
 
 class PassRecord:
-    """Per-frame estimates, diagnostics and timings of the runs of one pass."""
+    """Per delivered frame: the estimates, diagnostics and timings of the runs of one pass,
+    the frame's index, timestamp and true state (when the source has ground truth)."""
 
     def __init__(self, n_runs: int, T: int):
         self.estimate = np.zeros((n_runs, T, 4))
         self.diag = {k: np.zeros((n_runs, T)) for k in DIAGNOSTICS}
         self.timing = {k: np.zeros((n_runs, T)) for k in STAGES}
         self.status = [[""] * T for _ in range(n_runs)]
+        self.index: list[int] = []
+        self.timestamps: list[float] = []
+        self.truth: list[np.ndarray] | None = []
+        self.num_frames = T  # frames of the source the pass covered, delivered or dropped
+
+    def add_frame(self, frame: Frame) -> int:
+        """Register a delivered frame; returns its row."""
+        self.index.append(frame.index)
+        self.timestamps.append(frame.timestamp)
+        if frame.truth is None:
+            self.truth = None
+        elif self.truth is not None:
+            self.truth.append(frame.truth)
+        return len(self.index) - 1
 
     def add(self, i: int, t: int, est: Estimate, acquisition_ms: float) -> None:
-        """Run i's estimate of frame t (``acquisition_ms``: reading the frame)."""
+        """Run i's estimate of row t (``acquisition_ms``: reading the frame)."""
         self.estimate[i, t] = est.state
         for k in DIAGNOSTICS:
             self.diag[k][i, t] = getattr(est, k)
@@ -229,72 +271,97 @@ class PassRecord:
             self.timing[k][i, t] = v
         self.timing["total"][i, t] = sum(stages.values())
 
-    def write(self, i: int, run: RunSpec, out_dir: Path, flight: Flight, truth: np.ndarray,
-              num_particles: int) -> None:
-        """Run i's trajectory (TUM) and run record (JSON)."""
+    def write(self, i: int, run: RunSpec, out_dir: Path, num_particles: int) -> None:
+        """Run i's trajectory (TUM, world_from_body) and run record (JSON: per delivered frame
+        the estimate, the timings and the diagnostics; the errors where there is truth)."""
         traj, rec = run.paths(out_dir)
-        T = len(truth)
-        ts = flight.timestamps[:T]
-        write_tum(traj, ts, pose_from_xyzyaw(self.estimate[i]))
-        atomic_write_json(rec, {
+        n = len(self.index)
+        estimate = self.estimate[i, :n]
+        ts = np.asarray(self.timestamps, dtype=np.float64)
+        write_tum(traj, ts, pose_from_xyzyaw(estimate))
+        record = {
             "flight": run.flight, "mode": run.mode, "init": run.init, "seed": run.seed,
-            "likelihood": run.likelihood, "num_frames": T,
+            "likelihood": run.likelihood, "num_frames": n,
+            "dropped_frames": self.num_frames - n,
             "filter_particles": int(num_particles),
             "timestamps": ts.tolist(),
-            "estimate": self.estimate[i].tolist(), "truth": truth.tolist(),
-            "position_error_m": position_errors(self.estimate[i], truth).tolist(),
-            "yaw_error_deg": yaw_errors_deg(self.estimate[i], truth).tolist(),
-            "timing_ms": {k: v[i].tolist() for k, v in self.timing.items()},
-            **{k: v[i].tolist() for k, v in self.diag.items()},
-            "status": self.status[i],
-        })
+            "estimate": estimate.tolist(),
+        }
+        if self.truth is not None:
+            truth = xyzyaw_from_pose(np.stack(self.truth))
+            record.update({"truth": truth.tolist(),
+                           "position_error_m": position_errors(estimate, truth).tolist(),
+                           "yaw_error_deg": yaw_errors_deg(estimate, truth).tolist()})
+        if n < self.num_frames:
+            record["frame_index"] = list(self.index)
+        record.update({"timing_ms": {k: v[i, :n].tolist() for k, v in self.timing.items()},
+                       **{k: v[i, :n].tolist() for k, v in self.diag.items()},
+                       "status": self.status[i][:n]})
+        atomic_write_json(rec, record)
 
 
-def run_pass(ctx: Context, flight: Flight, mode: str, runs: list[RunSpec],
+def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
              likelihood_override: LikelihoodOverride | None = None,
-             num_particles: int | None = None) -> None:
-    """Step every run of one (flight, mode) through the flight, frame by frame.
+             num_particles: int | None = None, start: np.ndarray | None = None) -> None:
+    """Step every run of one (frame source, mode) through the source, frame by frame, and
+    write each run's trajectory and run record (``PassRecord.write``).
 
     Args:
         ctx: the shared context.
-        flight: the flight.
+        source: the frames (a flight, a recording: ``core.frames.FrameSource``).
         mode: edge mode.
-        runs: the runs to do (all share the flight and mode).
+        runs: the runs to do (all share the source and mode).
         likelihood_override: replaces the edge likelihood (the paper-faithful comparison).
         num_particles: override of the filter's particle count (both inits).
+        start: (4,) x, y, z (m), yaw (rad) the tracking runs start from; None: the source's
+            first true pose.
     """
     if not runs:
         return
     cfg = ctx.cfg
-    T = len(flight.timestamps) if cfg.max_frames is None else min(int(cfg.max_frames),
-                                                                  len(flight.timestamps))
+    check_max_frames(cfg)
+    T = frame_count(source, cfg.max_frames)
     if T < 1:
-        raise ValueError(f"flight {flight.name} has no frames")
+        raise ValueError(f"{source.name} has no frames")
     settings = ctx.settings if num_particles is None else ctx.settings.with_particles(
         num_particles)
     front = ctx.front_end(mode)
-    truth = _truth_states(flight, T)
+    if start is None and any(r.init == "tracking" for r in runs):
+        if source.groundtruth is None:
+            raise ValueError(f"{source.name}: a tracking run needs a start pose and the source "
+                             "has no ground truth; give start=[x, y, z, yaw_deg]")
+        start = xyzyaw_from_pose(source.groundtruth[0])[0]
     localizers = []
     for r in runs:
         loc = Localizer(ctx.world, ctx.camera, front, settings, r.rng(),
                         model=ctx.model_for(mode), likelihood_override=likelihood_override)
-        loc.reset(truth[0] if r.init == "tracking" else None)
+        loc.reset(start if r.init == "tracking" else None)
         localizers.append(loc)
     record = PassRecord(len(runs), T)
-    desc = f"{flight.name}/{mode}" + (f"/{runs[0].likelihood}"
+    desc = f"{source.name}/{mode}" + (f"/{runs[0].likelihood}"
                                       if runs[0].likelihood != "vectorized" else "")
-    for t in tqdm(range(T), desc=desc, disable=not cfg.progress, leave=False, mininterval=2.0):
-        t0 = time.perf_counter()
-        rgb = flight.image(t) if front.source.needs_image else None
-        labels = flight.labels(t) if front.source.needs_truth else None
-        acquisition_ms = (time.perf_counter() - t0) * 1e3
-        frame = front.frame(rgb, labels)
-        delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
-        for i, loc in enumerate(localizers):
-            est = loc.step(frame, delta, flight.odometry[t], flight.timestamps[t])
-            record.add(i, t, est, acquisition_ms)
+    frames = source.steps(T, images=front.source.needs_image, labels=front.source.needs_truth)
+    with tqdm(total=T, desc=desc, disable=not cfg.progress, leave=False,
+              mininterval=2.0) as bar:
+        while True:
+            t0 = time.perf_counter()
+            f = next(frames, None)
+            acquisition_ms = (time.perf_counter() - t0) * 1e3
+            if f is None:
+                break
+            row = record.add_frame(f)
+            frame = front.frame(f.image, f.labels)
+            for i, loc in enumerate(localizers):
+                est = loc.step(frame, f.odometry_increment, f.attitude, f.timestamp)
+                record.add(i, row, est, acquisition_ms)
+            bar.update(f.index + 1 - bar.n)
+    if not record.index:
+        raise ValueError(f"{source.name}: none of its {T} frames could be read")
+    if len(record.index) < T:
+        log.warning("%s/%s: %d of %d frames could not be read and were dropped", source.name,
+                    mode, T - len(record.index), T)
     for i, r in enumerate(runs):
-        record.write(i, r, ctx.out_dir, flight, truth, localizers[i].filter_params.num_particles)
+        record.write(i, r, ctx.out_dir, localizers[i].filter_params.num_particles)
 
 
 @releases_claims
@@ -344,10 +411,11 @@ def result_settings(conf: dict) -> dict:
     return REPORT_POLICY.settings(conf)
 
 
-def check_resume(out: Path, cfg: DictConfig) -> Claim:
+def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLICY) -> Claim:
     """Claim ``out`` for this config and write ``out/config.json`` (the whole config and the
     segnet.onnx digest): the runs already in ``out`` must come from the same result settings
-    and segnet.onnx bytes (``REPORT_POLICY``).
+    and segnet.onnx bytes (``policy``: ``REPORT_POLICY``, a recording's
+    ``recorded.RECORDING_POLICY``).
 
     With ``overwrite=true`` a folder of other settings is emptied (every run is re-done);
     otherwise it raises naming the differing keys.
@@ -362,7 +430,7 @@ def check_resume(out: Path, cfg: DictConfig) -> Claim:
             conf["onnx_sha256"] = json.loads(path.read_text()).get("onnx_sha256")
         except json.JSONDecodeError:
             pass  # claim_output names the broken file
-    return claim_output(out, conf, REPORT_POLICY, overwrite=bool(cfg.overwrite))
+    return claim_output(out, conf, policy, overwrite=bool(cfg.overwrite))
 
 
 def load_runs(out_dir: Path) -> list[dict]:

@@ -7,7 +7,13 @@ import pytest
 
 from core.config import typed
 from core.occupancy import OccupancyMap
-from core.poses import pose_from_xyz_rpy, pose_from_xyzyaw, wrap_angle, xyzyaw_from_pose
+from core.poses import (
+    odometry_increment,
+    pose_from_xyz_rpy,
+    pose_from_xyzyaw,
+    wrap_angle,
+    xyzyaw_from_pose,
+)
 from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
 from localize.particle_filter import (
     FilterParams,
@@ -19,7 +25,6 @@ from localize.particle_filter import (
     init_global,
     init_tracking,
     move,
-    odometry_increment,
     systematic_resample,
 )
 

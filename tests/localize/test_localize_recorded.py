@@ -55,7 +55,8 @@ class TestRecordedFlight:
         for name in ("trajectory.txt", "trajectory.json", "trajectories/cnn.txt",
                      "trajectories/cnn.json", "metrics.json", "overlay.png"):
             assert (folder / name).is_file(), name
-        assert "mean error" in runs["bag_report"].read_text()
+        text = runs["bag_report"].read_text()
+        assert "## Accuracy, tracking init" in text and f"| {FLIGHT} | cnn | " in text
         # the companion: one entry per trajectory line, the filter's own status and confidence
         import json
 
@@ -65,7 +66,7 @@ class TestRecordedFlight:
         assert set(health["status"]) <= {"tracking", "coasting", "lost", "global"}
         c = np.array(health["confidence"])
         assert len(c) == len(t) and ((c >= 0) & (c <= 1)).all() and c[-1] > 0
-        m = json.loads((folder / "metrics.json").read_text())["modes"]["cnn"]
+        m = json.loads((folder / "metrics.json").read_text())["flights"][FLIGHT]["cnn"]
         assert m["mean_confidence"] == pytest.approx(c.mean())
 
 
@@ -74,3 +75,102 @@ def test_oracle_alone_is_refused(flat_dataset, tmp_path):
                         f"recording={tmp_path}", f"out_root={tmp_path}"])
     with pytest.raises(ValueError, match="oracle"):
         run_recording(cfg)
+
+
+@pytest.fixture(scope="module")
+def folder_recording(flat_dataset, tmp_path_factory):
+    """The flight exported as a PNG folder recording (exact pixels)."""
+    d = tmp_path_factory.mktemp("recording")
+    return export_folder(flat_dataset, FLIGHT, d / FLIGHT, jpeg_quality=0)
+
+
+def recording_cfg(flat_dataset, recording, out_root, *extra):
+    return localize_cfg([*QUICK, f"dataset={flat_dataset}", f"recording={recording}",
+                         f"out_root={out_root}", "name=r1", "modes=[none]", "inits=[tracking]",
+                         *extra])
+
+
+class TestRecordingOutputPolicy:
+    """A recording's folder goes through the flight's claim / resume / refuse policy."""
+
+    def test_other_settings_are_refused_then_overwritten(self, flat_dataset, folder_recording,
+                                                         tmp_path):
+        from core.outputs import OutputFolderError
+
+        report = run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path,
+                                             "max_frames=4"))
+        folder = report.parent
+        with pytest.raises(OutputFolderError, match="max_frames"):
+            run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path,
+                                        "max_frames=5"))
+        run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=5",
+                                    "overwrite=true"))
+        for name in ("trajectory.txt", "trajectories/none.txt"):
+            assert len(read_tum(folder / name)[0]) == 5, name
+
+    def test_other_modes_join_the_report(self, flat_dataset, folder_recording, flat_segnet,
+                                         tmp_path):
+        import json
+
+        model = f"onnx_model={flat_segnet}"
+        run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=4",
+                                    model))
+        report = run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path,
+                                             "max_frames=4", "modes=[cnn]", model))
+        folder = report.parent
+        m = json.loads((folder / "metrics.json").read_text())
+        assert list(m["flights"][FLIGHT]) == ["cnn", "none"]
+        assert m["dataset"] == str(flat_dataset)
+        assert m["model"]["onnx_model"] == str(flat_segnet) and m["model"]["onnx_sha256"]
+        assert ((folder / "trajectory.txt").read_text()
+                == (folder / "trajectories" / "cnn.txt").read_text())
+
+    def test_a_second_run_at_once_is_refused(self, flat_dataset, folder_recording, tmp_path,
+                                            monkeypatch):
+        from core import outputs
+
+        folder = tmp_path / "r1" / "recordings" / FLIGHT
+        held = outputs.claim_output(folder, {}, outputs.FolderPolicy())
+        monkeypatch.setattr(outputs, "RUN_WAIT_S", 0.2)
+        try:
+            with pytest.raises(outputs.FolderBusy, match="another run is writing"):
+                run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path))
+        finally:
+            held.release()
+
+
+def test_unreadable_frame_is_dropped(flat_dataset, folder_recording, tmp_path):
+    """One broken image costs one frame, not the run: it counts as a dropped frame."""
+    import json
+    import shutil
+
+    rec = tmp_path / FLIGHT
+    shutil.copytree(folder_recording, rec)
+    broken = sorted((rec / "images").iterdir())[2]
+    broken.write_bytes(b"not an image")
+    report = run_recording(recording_cfg(flat_dataset, rec, tmp_path / "out", "max_frames=6"))
+    m = json.loads((report.parent / "metrics.json").read_text())["flights"][FLIGHT]["none"]
+    assert m["num_frames"] == 5 and m["dropped_frames"] == 1
+    assert len(read_tum(report.parent / "trajectory.txt")[0]) == 5
+    assert "1 frames could not be read" in report.read_text()
+
+
+def test_max_frames_zero_names_the_key(flat_dataset, folder_recording, tmp_path):
+    with pytest.raises(ValueError, match=r"max_frames=0: .*max_frames=null"):
+        run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=0"))
+
+
+def test_recording_without_truth_reports_no_errors(flat_dataset, folder_recording, tmp_path):
+    """The same report without truth: the filter's health and timings, no errors."""
+    import json
+    import shutil
+
+    rec = tmp_path / FLIGHT
+    shutil.copytree(folder_recording, rec)
+    (rec / "groundtruth.txt").unlink()
+    report = run_recording(recording_cfg(flat_dataset, rec, tmp_path / "out", "max_frames=4"))
+    m = json.loads((report.parent / "metrics.json").read_text())
+    entry = m["flights"][FLIGHT]["none"]["global"]
+    assert entry["num_frames"] == 4 and "mean_position_error_m" not in entry
+    assert 0 <= entry["mean_confidence"] <= 1 and m["timing_ms_by_mode"]["none"]
+    assert "No ground truth" in report.read_text()

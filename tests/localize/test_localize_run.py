@@ -194,6 +194,7 @@ class TestBadInput:
         ("modes=[]", "modes is empty"),
         ("seeds=[0,0]", "repeats an entry"),
         ("seeds=[-1]", "not a non-negative integer"),
+        ("max_frames=0", "max_frames=0: a run needs at least one frame"),
     ])
     def test_bad_lists(self, tiny_dataset, tmp_path, override, match):
         cfg = localize_cfg([*QUICK, f"dataset={tiny_dataset}", f"out_root={tmp_path}",

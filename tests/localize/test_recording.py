@@ -13,8 +13,7 @@ import yaml
 
 from core.atomic import read_png, write_png
 from core.dataset import Camera, Dataset
-from core.poses import interpolate_poses, pose_from_xyzyaw, write_tum
-from localize.particle_filter import odometry_increment
+from core.poses import interpolate_poses, odometry_increment, pose_from_xyzyaw, write_tum
 from localize.recording import (
     Rectifier,
     SourceCamera,
@@ -232,6 +231,16 @@ class TestErrors:
         with pytest.raises(ValueError, match=r"cannot read image .*000003\.jpg"):
             rec.image(3)
 
+    def test_unreadable_frame_is_dropped(self, recordings, dataset, flight, tmp_path):
+        """A frame that cannot be decoded is skipped as a dropped frame: the next frame's
+        increment spans from the last frame read."""
+        root = copy_of(recordings, "folder", tmp_path)
+        (root / "images" / "000003.jpg").write_bytes(b"not a jpeg")
+        steps = list(read_recording(root, dataset.camera).steps())
+        assert [s.index for s in steps] == [i for i in range(len(flight.timestamps)) if i != 3]
+        np.testing.assert_allclose(steps[3].odometry_increment,
+                                   increments(flight.odometry[[2, 4]])[0], atol=1e-6)
+
     def test_image_size_not_the_calibrated_one(self, recordings, dataset, tmp_path):
         root = copy_of(recordings, "distorted", tmp_path)
         write_png(root / "images" / "000001.png", np.zeros((10, 10, 3), np.uint8))
@@ -314,6 +323,21 @@ class TestErrors:
         (tmp_path / "images").mkdir()
         with pytest.raises(FileNotFoundError, match="camera.yaml not found"):
             read_recording(tmp_path, dataset.camera)
+
+    def test_random_bytes_bag_is_named(self, tmp_path, dataset):
+        bag = tmp_path / "noise.bag"
+        bag.write_bytes(np.random.default_rng(0).bytes(4096))
+        with pytest.raises(ValueError, match=r"noise\.bag: cannot be read as a ROS 1 \.bag"):
+            read_recording(bag, dataset.camera)
+
+    def test_fake_ros2_bag_folder_is_named(self, tmp_path, dataset):
+        root = tmp_path / "fake"
+        root.mkdir()
+        (root / "metadata.yaml").write_text("rosbag2_bagfile_information:\n"
+                                            "  storage_identifier: sqlite3\n")
+        with pytest.raises(ValueError, match=r"fake: cannot be read as a ROS 2 bag folder "
+                                             r".*metadata\.yaml"):
+            read_recording(root, dataset.camera)
 
     def test_export_refuses_to_overwrite(self, recordings, tiny_dataset):
         with pytest.raises(FileExistsError, match="exists"):
