@@ -36,9 +36,9 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from core.classes import as_json
+from core.segmenter import OnnxSegmenter
 from train.checkpoint import load_checkpoint
 from train.export import GRAPH_POOLING, onnx_metadata, to_onnx_proto
-from train.predict import OnnxSegmenter
 from train.quantize import INT8_NAME, quantize_segnet
 from train.segnet import SegNet, build_segnet, count_parameters
 

@@ -17,10 +17,10 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf, open_dict
 from omegaconf.errors import OmegaConfBaseException
 
+from core.model_folder import model_localize_settings
 from core.outputs import flatten
 from localize.runner import run
 from localize.segmenter import model_path
-from train.runtime import model_localize_settings
 
 log = logging.getLogger(__name__)
 

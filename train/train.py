@@ -42,6 +42,7 @@ from tqdm import tqdm
 from core.atomic import atomic_write_json, atomic_write_text
 from core.config import as_config
 from core.dataset import Dataset, open_datasets
+from core.model_folder import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
 from datagen import camera_effects
 from datagen.config import load_realism
@@ -82,7 +83,6 @@ from train.metrics import metrics_json, plot_confusion, scores
 from train.optim import make_ema, make_optimizer, make_scheduler
 from train.quantize import INT8_NAME, int8_summary, quantize_model_dir
 from train.quantize import REPORT_NAME as QUANTIZE_REPORT
-from train.runtime import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from train.segnet import SegNet, build_segnet, count_parameters
 
 log = logging.getLogger(__name__)

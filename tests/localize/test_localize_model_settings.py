@@ -11,10 +11,10 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
+from core.segmenter import OnnxSegmenter
 from localize.segmenter import SHIPPED_MODEL, load_segmenter, model_path
 from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
-from train.predict import OnnxSegmenter
 
 #: What conf/experiment/hr3c.yaml carries.
 HR3C = {"filter": {"mode_likelihood": {"cnn": {"k": 50.0}}},

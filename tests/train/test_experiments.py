@@ -15,8 +15,8 @@ from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
 import train.train as tt
+from core.segmenter import read_metadata
 from tests.train.conftest import CONF_DIR, TINY_OVERRIDES
-from train.runtime import read_metadata
 
 CHAIN = ["usrhbw6", "usrhbw6nw", "hr2", "hr3", "hr3c"]
 

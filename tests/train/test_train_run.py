@@ -14,12 +14,12 @@ from omegaconf import OmegaConf
 
 import train.train as tt
 from core.dataset import Dataset
+from core.segmenter import read_metadata
 from train.budget import MIN_FINISH_BY_SECONDS, fit_epochs, training_budget
 from train.checkpoint import load_init_weights
 from train.data import AugmentConfig, downsample_split, load_split, to_float
 from train.losses import median_frequency_weights, segmentation_loss
 from train.optim import make_ema, make_optimizer, make_scheduler
-from train.runtime import read_metadata
 from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 
 
