@@ -79,7 +79,7 @@ def new_state(epochs: int) -> dict:
     """The run's state before its first epoch (saved in ``checkpoint_last.pt``).
 
     Args:
-        epochs: the schedule's span (``train.train.refit_schedule`` may change it later).
+        epochs: the schedule's span (``train.run.refit_schedule`` may change it later).
     """
     return {
         "epoch": 0,

@@ -197,7 +197,7 @@ def onnx_metadata(
         model: the exported network (for normalization, padding, architecture).
         classes: dataset.json's class list (id, name, color, structural).
         height, width: the graph's input size.
-        config_hash: hash of the training config and dataset (see train.train.config_hash).
+        config_hash: hash of the training config and dataset (see train.run_identity.config_hash).
         extra: more keys to record (values are JSON-encoded).
     """
     meta = {

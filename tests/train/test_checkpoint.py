@@ -11,7 +11,7 @@ import torch
 
 import train.checkpoint as ck
 import train.export as ex
-import train.train as tt
+import train.run as tt
 
 
 def _enospc(*args, **kwargs):

@@ -14,9 +14,10 @@ from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
-import train.train as tt
+import train.run as tt
 from core.segmenter import read_metadata
 from tests.train.conftest import CONF_DIR, TINY_OVERRIDES
+from train.run_identity import training_config
 
 CHAIN = ["usrhbw6", "usrhbw6nw", "hr2", "hr3", "hr3c"]
 
@@ -78,8 +79,8 @@ def test_hr3c_localize_settings() -> None:
 
 def test_localize_settings_left_out_of_the_hash() -> None:
     """Re-tuning a model's localize settings does not make its folder another config."""
-    a = tt.training_config(compose_experiment("hr3"))
-    b = tt.training_config(compose_experiment("hr3", "localize.edges.cnn.refine=union"))
+    a = training_config(compose_experiment("hr3"))
+    b = training_config(compose_experiment("hr3", "localize.edges.cnn.refine=union"))
     assert a == b and "localize" not in a
 
 

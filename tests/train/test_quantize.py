@@ -12,7 +12,7 @@ import numpy as np
 import onnx
 import pytest
 
-import train.train as tt
+import train.run as tt
 from core.atomic import read_png
 from core.dataset import Dataset
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME
