@@ -60,22 +60,23 @@ demo: setup
 	$(PY) -m localize
 	@echo "report: outputs/reports/demo/report.md"
 
-# The best SegNet: the recipe chain of conf/experiment/ (usrhbw6 -> usrhbw6nw -> hr2 -> hr3 ->
-# hr3c, each stage starting from the previous one's weights; about 6 hours on 2 cores) on the
-# demo's dataset, then localize with it: its model folder carries the localize settings it is
-# tuned for (docs/recipes.md). Interrupted, `make best` again resumes where it stopped.
-BEST_CHAIN := usrhbw6 usrhbw6nw hr2 hr3 hr3c
+# The best SegNet: the recipe chain of conf/experiment/ (best1_fullres -> best2_unweighted ->
+# best3_highres -> best4_highres_longer -> best5_context, each stage starting from the
+# previous one's weights; about 6 hours on 2 cores) on the demo's dataset, then localize with
+# it: its model folder carries the localize settings it is tuned for (docs/recipes.md).
+# Interrupted, `make best` again resumes where it stopped.
+BEST_CHAIN := best1_fullres best2_unweighted best3_highres best4_highres_longer best5_context
 best: setup
 	$(PY) -m datagen
 	set -e; for stage in $(BEST_CHAIN); do $(PY) -m train experiment=$$stage; done
-	$(PY) -m localize name=best onnx_model=outputs/models/hr3c/segnet.onnx
+	$(PY) -m localize name=best onnx_model=outputs/models/best5_context/segnet.onnx
 	@echo "report: outputs/reports/best/report.md"
 
 # The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist"): 24
 # procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them), then 14 epochs
 # of training (23 min). A copy ships in models/generalist/; interrupted, `make generalist` resumes.
 generalist: setup
-	$(PY) -m datagen -m experiment=generalist_floors
+	$(PY) -m datagen -m datagen_experiment=generalist_floors
 	$(PY) -m train experiment=generalist
 
 # Your building: the demo's three stages on a whole floor of a model file (docs/importers.md):

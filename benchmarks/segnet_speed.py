@@ -6,7 +6,7 @@ Usage::
     python benchmarks/segnet_speed.py --model segnet_small --height 240 --width 320
     python benchmarks/segnet_speed.py --model-dir outputs/models/demo --runs 50 --threads 2
     python benchmarks/segnet_speed.py --model-dir none model.downsample=2 model.stem=unshuffle \
-        model.head=sharpen      # the hr2 recipe's network, random weights
+        model.head=sharpen      # the best3_highres recipe's network, random weights
 
 With a trained model folder (checkpoint_best.pt + segnet.onnx) both runtimes use its weights;
 otherwise a randomly initialised model of the given config is exported to a temporary file

@@ -16,7 +16,7 @@ from localize.segmenter import SHIPPED_MODEL, load_segmenter, model_path
 from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
 
-#: What conf/experiment/hr3c.yaml carries.
+#: What conf/experiment/best5_context.yaml carries.
 HR3C = {"filter": {"mode_likelihood": {"cnn": {"k": 50.0}}},
         "edges": {"cnn": {"prior_correction": 0.0, "snap_nearest": True, "refine": "none",
                           "snap_px": 1}}}
@@ -29,7 +29,7 @@ def composed(overrides: list[str]):
 
 @pytest.fixture
 def carrying(tmp_path: Path) -> Path:
-    """A model folder whose segnet.onnx carries hr3c's settings in its metadata only."""
+    """A model folder whose segnet.onnx carries best5_context's settings in its metadata only."""
     (tmp_path / "m").mkdir()
     return palette_segnet(tmp_path / "m" / "segnet.onnx", 12, 16,
                           extra_metadata={"localize": HR3C})
