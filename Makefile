@@ -79,15 +79,20 @@ generalist: setup
 	$(PY) -m datagen -m datagen_experiment=generalist_floors
 	$(PY) -m train experiment=generalist
 
-# Your building: the demo's three stages on a whole floor of a model file (docs/importers.md):
-# `make building BUILDING=path/to/model.world NAME=hospital` (.world/.sdf, .glb/.gltf, .obj,
-# .ply, .dae, .stl, .ifc). Two ~45 m flights along routes planned through its free space
-# (conf/flights/floor.yaml); the SegNet trains for conf/train.yaml's max_minutes.
+# Your building, the recommended path (docs/recipes.md, "The generalist"): a whole floor of a
+# model file rendered (docs/importers.md; .world/.sdf, .glb/.gltf, .obj, .ply, .dae, .stl,
+# .ifc) with two ~45 m flights along routes planned through its free space
+# (conf/flights/floor.yaml); the shipped generalist SegNet (models/generalist/) fine-tuned on it
+# for 9 epochs (conf/experiment/finetune.yaml, ~9 min on 2 cores) into outputs/models/NAME/;
+# then localize with that model: `make building BUILDING=path/to/model.world NAME=hospital`.
 NAME ?= building
 building: setup
 	@test -n "$(BUILDING)" || { echo "give BUILDING=path/to/model (.world .sdf .glb .gltf .obj .ply .dae .stl .ifc)"; exit 2; }
+	@echo "1/3 datagen: render $(BUILDING) into outputs/datasets/$(NAME)"
 	$(PY) -m datagen name=$(NAME) world=file world.path=$(BUILDING) flights=floor
-	$(PY) -m train name=$(NAME) dataset=outputs/datasets/$(NAME)
+	@echo "2/3 train: fine-tune the shipped generalist (models/generalist) on it, 9 epochs, into outputs/models/$(NAME)"
+	$(PY) -m train experiment=finetune name=$(NAME) dataset=outputs/datasets/$(NAME)
+	@echo "3/3 localize: the flights of outputs/datasets/$(NAME) with outputs/models/$(NAME)/segnet.onnx"
 	$(PY) -m localize name=$(NAME) dataset=outputs/datasets/$(NAME) onnx_model=outputs/models/$(NAME)/segnet.onnx
 	@echo "report: outputs/reports/$(NAME)/report.md"
 

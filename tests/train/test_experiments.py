@@ -16,6 +16,7 @@ from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
 import train.run as tt
+from core.model_folder import MODELS_ROOT
 from core.segmenter import read_metadata
 from tests.train.conftest import CONF_DIR, TINY_OVERRIDES
 from train.run_identity import training_config
@@ -50,6 +51,19 @@ def test_generalist_recipes_compose() -> None:
     cfg = compose_experiment("finetune", "dataset=outputs/datasets/office")
     assert (cfg.init_from, cfg.max_minutes) == ("models/generalist", 10)
     assert cfg.dataset == "outputs/datasets/office"
+
+
+def test_finetune_of_ones_building() -> None:
+    """`make building`'s training: the fine-tune of the shipped generalist on the building's
+    dataset, written to outputs/models/NAME."""
+    cfg = compose_experiment("finetune", "name=office", "dataset=outputs/datasets/office")
+    assert (cfg.init_from, cfg.epochs, cfg.dataset) == ("models/generalist", 9,
+                                                        "outputs/datasets/office")
+    assert Path(cfg.out_root) / cfg.name == MODELS_ROOT / "office"
+    assert (Path(CONF_DIR).parent / cfg.init_from / "checkpoint_best.pt").is_file()
+    recipe = (Path(CONF_DIR).parent / "Makefile").read_text().split("\nbuilding:")[1]
+    assert "-m train experiment=finetune name=$(NAME) dataset=outputs/datasets/$(NAME)" in recipe
+    assert "onnx_model=outputs/models/$(NAME)/segnet.onnx" in recipe
 
 
 @pytest.mark.parametrize("stage", range(len(CHAIN)), ids=CHAIN)
@@ -132,3 +146,17 @@ def test_tiny_chain(synthetic_dataset: Path, tmp_path: Path) -> None:
         cfg = compose("localize", overrides=overrides)
     lm.apply_model_settings(cfg, overrides)
     assert cfg.filter.mode_likelihood.cnn.k == 50.0 and cfg.edges.cnn.snap_nearest is True
+
+
+@pytest.mark.slow
+def test_finetune_starts_from_the_shipped_generalist(synthetic_dataset: Path,
+                                                     tmp_path: Path) -> None:
+    """The finetune recipe trains on another dataset from models/generalist's weights."""
+    root = Path(CONF_DIR).parent
+    cfg = compose_experiment("finetune", f"dataset={synthetic_dataset}", f"out_root={tmp_path}",
+                             "name=office", f"init_from={root / 'models' / 'generalist'}",
+                             "epochs=1", "data.limit=8", "export.int8=false", "progress=false")
+    metrics = tt.run(cfg)
+    assert (tmp_path / "office" / "segnet.onnx").is_file() and metrics["epochs_done"] == 1
+    config = json.loads((tmp_path / "office" / "config.json").read_text())["config"]
+    assert config["init_from"] == str(root / "models" / "generalist")
