@@ -43,6 +43,7 @@ from datagen import camera_effects
 from datagen.config import load_realism
 from train.budget import fit_epochs, training_budget
 from train.checkpoint import (
+    LAST_CHECKPOINT,
     disk_space_guard,
     load_init_weights,
     new_state,
@@ -321,7 +322,7 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
         refit_schedule(job, state, budget, dt)
     if not main:
         return True
-    save_last(job.out_dir / "checkpoint_last.pt", job.model, job.optimizer, job.scheduler,
+    save_last(job.out_dir / LAST_CHECKPOINT, job.model, job.optimizer, job.scheduler,
               job.ema, state, job.info["config_hash"])
     _write_log(job.out_dir / "train_log.csv", state["history"])
     log.info("epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f%s (%.0f s)%s", epoch + 1,
@@ -341,7 +342,7 @@ def fit(job: Job) -> dict:
         The run's state (``checkpoint.new_state``'s keys).
     """
     state = new_state(job.requested)
-    last = job.out_dir / "checkpoint_last.pt"
+    last = job.out_dir / LAST_CHECKPOINT
     # under torchrun rank 0 reads the checkpoint and the clock, and sends both to the others
     resume(last, job.model, job.optimizer, job.scheduler, job.ema, state,
            job.world.from_main(lambda: read_last(last)))
