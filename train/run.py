@@ -22,9 +22,7 @@ train together (train/distributed.py) and rank 0 alone writes the folder.
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 import logging
 import time
 from collections.abc import Mapping
@@ -65,7 +63,7 @@ from train.data import (
     to_float,
 )
 from train.distributed import SINGLE, World, check_batch_size, process_group
-from train.epoch import EpochResult, data_parallel, train_one_epoch
+from train.epoch import data_parallel, train_one_epoch
 from train.evaluate import evaluate, evaluate_onnx
 from train.export import ParityError, export_checked, onnx_metadata, update_metadata
 from train.losses import median_frequency_weights
@@ -75,20 +73,9 @@ from train.quantize import INT8_NAME, int8_summary, quantize_model_dir
 from train.quantize import REPORT_NAME as QUANTIZE_REPORT
 from train.run_identity import config_hash, prepare_output, train_settings, training_config
 from train.segnet import SegNet, build_segnet, count_parameters
+from train.train_log import TRAIN_LOG, epoch_row, write_train_log
 
 log = logging.getLogger(__name__)
-
-
-def _write_log(path: Path, history: list[dict]) -> None:
-    """``train_log.csv``: one row per epoch (``epoch_row``)."""
-    if not history:
-        return
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(history[0]))
-    writer.writeheader()
-    writer.writerows(history)
-    with disk_space_guard(path.parent, path.name):
-        atomic_write_text(path, buf.getvalue())
 
 
 
@@ -245,20 +232,6 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
     return job
 
 
-def epoch_row(epoch: int, res: EpochResult, lr: float, val: dict, seconds: float) -> dict:
-    """One row of ``train_log.csv`` (and of the checkpoint's history)."""
-    return {
-        "epoch": epoch,
-        "steps": res.steps,
-        "train_loss": round(res.loss, 5),
-        "lr": lr,
-        "val_pixel_accuracy": round(val["pixel_accuracy"], 5),
-        "val_class_accuracy": round(val["class_accuracy"], 5),
-        "val_mean_iou": round(val["mean_iou"], 5),
-        "seconds": round(seconds, 1),
-    }
-
-
 def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -> None:
     """Re-span the one-cycle schedule over the epochs that fit the budget left
     (``fit_epochs``), in place (``job.scheduler``, ``state["epochs"]``): a run the budget cuts
@@ -324,7 +297,7 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
         return True
     save_last(job.out_dir / LAST_CHECKPOINT, job.model, job.optimizer, job.scheduler,
               job.ema, state, job.info["config_hash"])
-    _write_log(job.out_dir / "train_log.csv", state["history"])
+    write_train_log(job.out_dir / TRAIN_LOG, state["history"])
     log.info("epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f%s (%.0f s)%s", epoch + 1,
              state["epochs"], res.loss, val["pixel_accuracy"], val["mean_iou"],
              " *" if improved else "", dt,
