@@ -60,33 +60,39 @@ demo: setup
 	$(PY) -m localize
 	@echo "report: outputs/reports/demo/report.md"
 
-# The best SegNet: the recipe chain of conf/experiment/ (usrhbw6 -> usrhbw6nw -> hr2 -> hr3 ->
-# hr3c, each stage starting from the previous one's weights; about 6 hours on 2 cores) on the
-# demo's dataset, then localize with it: its model folder carries the localize settings it is
-# tuned for (docs/recipes.md). Interrupted, `make best` again resumes where it stopped.
-BEST_CHAIN := usrhbw6 usrhbw6nw hr2 hr3 hr3c
+# The best SegNet: the recipe chain of conf/experiment/ (best1_fullres -> best2_unweighted ->
+# best3_highres -> best4_highres_longer -> best5_context, each stage starting from the
+# previous one's weights; about 6 hours on 2 cores) on the demo's dataset, then localize with
+# it: its model folder carries the localize settings it is tuned for (docs/recipes.md).
+# Interrupted, `make best` again resumes where it stopped.
+BEST_CHAIN := best1_fullres best2_unweighted best3_highres best4_highres_longer best5_context
 best: setup
 	$(PY) -m datagen
 	set -e; for stage in $(BEST_CHAIN); do $(PY) -m train experiment=$$stage; done
-	$(PY) -m localize name=best onnx_model=outputs/models/hr3c/segnet.onnx
+	$(PY) -m localize name=best onnx_model=outputs/models/best5_context/segnet.onnx
 	@echo "report: outputs/reports/best/report.md"
 
 # The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist"): 24
 # procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them), then 14 epochs
 # of training (23 min). A copy ships in models/generalist/; interrupted, `make generalist` resumes.
 generalist: setup
-	$(PY) -m datagen -m experiment=generalist_floors
+	$(PY) -m datagen -m datagen_experiment=generalist_floors
 	$(PY) -m train experiment=generalist
 
-# Your building: the demo's three stages on a whole floor of a model file (docs/importers.md):
-# `make building BUILDING=path/to/model.world NAME=hospital` (.world/.sdf, .glb/.gltf, .obj,
-# .ply, .dae, .stl, .ifc). Two ~45 m flights along routes planned through its free space
-# (conf/flights/floor.yaml); the SegNet trains for conf/train.yaml's max_minutes.
+# Your building, the recommended path (docs/recipes.md, "The generalist"): a whole floor of a
+# model file rendered (docs/importers.md; .world/.sdf, .glb/.gltf, .obj, .ply, .dae, .stl,
+# .ifc) with two ~45 m flights along routes planned through its free space
+# (conf/flights/floor.yaml); the shipped generalist SegNet (models/generalist/) fine-tuned on it
+# for 9 epochs (conf/experiment/finetune.yaml, ~9 min on 2 cores) into outputs/models/NAME/;
+# then localize with that model: `make building BUILDING=path/to/model.world NAME=hospital`.
 NAME ?= building
 building: setup
 	@test -n "$(BUILDING)" || { echo "give BUILDING=path/to/model (.world .sdf .glb .gltf .obj .ply .dae .stl .ifc)"; exit 2; }
+	@echo "1/3 datagen: render $(BUILDING) into outputs/datasets/$(NAME)"
 	$(PY) -m datagen name=$(NAME) world=file world.path=$(BUILDING) flights=floor
-	$(PY) -m train name=$(NAME) dataset=outputs/datasets/$(NAME)
+	@echo "2/3 train: fine-tune the shipped generalist (models/generalist) on it, 9 epochs, into outputs/models/$(NAME)"
+	$(PY) -m train experiment=finetune name=$(NAME) dataset=outputs/datasets/$(NAME)
+	@echo "3/3 localize: the flights of outputs/datasets/$(NAME) with outputs/models/$(NAME)/segnet.onnx"
 	$(PY) -m localize name=$(NAME) dataset=outputs/datasets/$(NAME) onnx_model=outputs/models/$(NAME)/segnet.onnx
 	@echo "report: outputs/reports/$(NAME)/report.md"
 

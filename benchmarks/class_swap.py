@@ -3,8 +3,9 @@ set of classes taken from the truth.
 
 Usage::
 
-    python benchmarks/class_swap.py --swap floor onnx_model=outputs/models/usrhbw6/segnet.onnx \\
-        name=hw6 "modes=[cnn]" progress=false     # reports hw6_swap_floor, hw6_swap_floor_own
+    python benchmarks/class_swap.py --swap floor \\
+        onnx_model=outputs/models/best1_fullres/segnet.onnx name=hw6 "modes=[cnn]" \\
+        progress=false     # reports hw6_swap_floor, hw6_swap_floor_own
     python benchmarks/class_swap.py --swap door,window ...   # several classes at once
 
 This is ``benchmarks/flight_spread.py`` (same arguments after ``--swap``; its flights) with one

@@ -6,7 +6,7 @@ Usage::
     python benchmarks/segnet_speed.py --model segnet_small --height 240 --width 320
     python benchmarks/segnet_speed.py --model-dir outputs/models/demo --runs 50 --threads 2
     python benchmarks/segnet_speed.py --model-dir none model.downsample=2 model.stem=unshuffle \
-        model.head=sharpen      # the hr2 recipe's network, random weights
+        model.head=sharpen      # the best3_highres recipe's network, random weights
 
 With a trained model folder (checkpoint_best.pt + segnet.onnx) both runtimes use its weights;
 otherwise a randomly initialised model of the given config is exported to a temporary file
@@ -36,9 +36,9 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from core.classes import as_json
+from core.segmenter import OnnxSegmenter
 from train.checkpoint import load_checkpoint
 from train.export import GRAPH_POOLING, onnx_metadata, to_onnx_proto
-from train.predict import OnnxSegmenter
 from train.quantize import INT8_NAME, quantize_segnet
 from train.segnet import SegNet, build_segnet, count_parameters
 

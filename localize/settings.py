@@ -25,10 +25,10 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf, open_dict
 from omegaconf.errors import OmegaConfBaseException
 
+from core.model_folder import model_localize_settings
 from core.outputs import flatten
 from localize.config import LocalizeConfig
 from localize.frontend.segmenter import model_path
-from train.runtime import model_localize_settings
 
 log = logging.getLogger(__name__)
 

@@ -12,7 +12,7 @@ import sys
 import hydra
 from omegaconf import DictConfig
 
-from train.train import run
+from train.run import run
 
 #: Hydra overrides for the torchrun processes of rank > 0: no .hydra/ record, no log file,
 #: warnings and errors only.

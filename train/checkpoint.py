@@ -28,6 +28,10 @@ from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem, model_kwar
 log = logging.getLogger(__name__)
 
 
+#: The checkpoint a re-run resumes from (``save_last``), in the model folder.
+LAST_CHECKPOINT = "checkpoint_last.pt"
+
+
 class DiskFullError(OSError):
     """A write into a model folder failed for want of disk space (errno ENOSPC)."""
 
@@ -54,12 +58,14 @@ def disk_space_guard(folder: str | Path, what: str) -> Iterator[None]:
         if err.errno != errno.ENOSPC or isinstance(err, DiskFullError):
             raise
         folder = Path(folder)
+        rerun = ("training resumes from the last checkpoint" if (folder / LAST_CHECKPOINT).is_file()
+                 else "no checkpoint was written yet, so training starts again from its first "
+                 "epoch")
         raise DiskFullError(
             errno.ENOSPC,
             f"writing {what} into {folder} failed: the disk is full ({free_bytes(folder) / 1e6:.1f}"
             f" MB free there). Free space (old outputs/models/* folders, outputs/hydra/) or pass "
-            f"out_root= on a disk with room, then run the same command again: training resumes "
-            f"from the last checkpoint",
+            f"out_root= on a disk with room, then run the same command again: {rerun}",
         ) from err
 
 
@@ -79,7 +85,7 @@ def new_state(epochs: int) -> dict:
     """The run's state before its first epoch (saved in ``checkpoint_last.pt``).
 
     Args:
-        epochs: the schedule's span (``train.train.refit_schedule`` may change it later).
+        epochs: the schedule's span (``train.run.refit_schedule`` may change it later).
     """
     return {
         "epoch": 0,

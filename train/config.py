@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from core.config import register_schema
+from core.model_folder import MODELS_ROOT
 
 #: ImageNet statistics, the usual normalization for a VGG encoder.
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
@@ -263,7 +264,7 @@ class TrainConfig:
 
     name: str = "demo"
     dataset: str = "outputs/datasets/demo"
-    out_root: str = "outputs/models"
+    out_root: str = str(MODELS_ROOT)
     seed: int = 0
     precision: str = "auto"
     threads: int = 2

@@ -1,5 +1,5 @@
 """Data-parallel training under ``torchrun``: the process group, its rank, and the collectives
-``train.train`` needs (torch.distributed; docs/train.md, "Several processes: torchrun").
+``train.run`` needs (torch.distributed; docs/train.md, "Several processes: torchrun").
 
 ``torchrun`` starts N copies of ``python -m train`` and gives each the environment variables
 ``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK``, ``MASTER_ADDR``, ``MASTER_PORT``; with
@@ -8,7 +8,7 @@
 from the same seeded generator) and trains on its slice of ``batch_size / N`` images
 (``World.shard``); ``torch.nn.parallel.DistributedDataParallel`` averages the gradients, and
 the loss is scaled so that the average is the gradient of the whole batch's loss
-(``train.train.train_one_epoch``). Rank 0 alone validates and writes the model folder.
+(``train.epoch.train_one_epoch``). Rank 0 alone validates and writes the model folder.
 
 BatchNorm normalizes with each rank's own statistics (its ``batch_size / N`` images):
 ``torch.nn.SyncBatchNorm`` refuses CPU tensors in this torch ("SyncBatchNorm expected input

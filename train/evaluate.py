@@ -1,7 +1,7 @@
 """Scores on a split: the torch network's (validation) and the exported graph's (the test).
 
 The test score is that of the labels the localizer reads: the ``labels`` output of
-``segnet.onnx`` run by onnxruntime through ``train.predict.OnnxSegmenter``, the class reader of
+``segnet.onnx`` run by onnxruntime through ``core.segmenter.OnnxSegmenter``, the class reader of
 ``localize.edges.load_segmenter``. Validation, run after every epoch, scores the torch
 network's argmax (the export's parity check holds the two to the same labels).
 """
@@ -75,7 +75,7 @@ def evaluate_onnx(
     Returns:
         (C, C) int64, rows = truth.
     """
-    from train.predict import OnnxSegmenter
+    from core.segmenter import OnnxSegmenter
 
     seg = OnnxSegmenter(onnx_path, threads=threads)
     if seg.num_classes != num_classes:

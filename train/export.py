@@ -1,7 +1,7 @@
 """ONNX export of a SegNet with metadata, checked against torch with onnxruntime.
 
 The graph takes ``image`` (N, 3, H, W) float32 in [0, 1] and gives ``logits`` (N, C, H, W)
-and ``labels`` (N, H, W) uint8, their argmax (``train.runtime.add_label_output``); the batch
+and ``labels`` (N, H, W) uint8, their argmax (``add_label_output``); the batch
 size is dynamic, H and W are fixed to the size given at export (the dataset's camera size).
 Normalization and the padding to a multiple of ``2 ** stages`` happen inside the graph, so a
 consumer feeds plain [0, 1] images of the exported size. Metadata (``metadata_props``,
@@ -32,13 +32,40 @@ import torch
 from torch import nn
 
 from core.atomic import atomic_write
+from core.segmenter import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, ort_session
 from train.config import ExportConfig
-from train.runtime import INPUT_NAME, LABELS_NAME, OUTPUT_NAME, add_label_output, ort_session
 from train.segnet import SegNet
 
 OPSET = ExportConfig.opset
 #: How the exported graph pools (``train.segnet.WindowMaxPool``).
 GRAPH_POOLING = "window"
+
+
+def add_label_output(proto: onnx.ModelProto) -> onnx.ModelProto:
+    """Append a ``labels`` output, the argmax class of ``logits`` per pixel, to a SegNet graph.
+
+    (N, C, H, W) float32 logits -> (N, H, W) uint8 labels (ArgMax over C, the first class
+    winning a tie, as ``numpy.argmax``; then Cast). onnxruntime's ArgMax takes 0.35 ms on a
+    320x240 frame of 8 classes where ``numpy.argmax(axis=0)`` takes 2.1 ms (a strided
+    reduction), and the localizer reads labels only. Modifies and returns ``proto``.
+    """
+    graph = proto.graph
+    if any(o.name == LABELS_NAME for o in graph.output):
+        return proto
+    logits = next((o for o in graph.output if o.name == OUTPUT_NAME), None)
+    if logits is None:
+        raise ValueError(f"the graph has no {OUTPUT_NAME!r} output to take labels from")
+    dims = logits.type.tensor_type.shape.dim
+    shape = [d.dim_param or d.dim_value for i, d in enumerate(dims) if i != 1]
+    graph.node.extend([
+        onnx.helper.make_node("ArgMax", [OUTPUT_NAME], ["labels_int64"], axis=1, keepdims=0,
+                              select_last_index=0),
+        onnx.helper.make_node("Cast", ["labels_int64"], [LABELS_NAME],
+                              to=onnx.TensorProto.UINT8),
+    ])
+    graph.output.append(
+        onnx.helper.make_tensor_value_info(LABELS_NAME, onnx.TensorProto.UINT8, shape))
+    return proto
 
 
 class ParityError(RuntimeError):
@@ -170,7 +197,7 @@ def onnx_metadata(
         model: the exported network (for normalization, padding, architecture).
         classes: dataset.json's class list (id, name, color, structural).
         height, width: the graph's input size.
-        config_hash: hash of the training config and dataset (see train.train.config_hash).
+        config_hash: hash of the training config and dataset (see train.run_identity.config_hash).
         extra: more keys to record (values are JSON-encoded).
     """
     meta = {

@@ -5,7 +5,7 @@ channel, their inputs and outputs to uint8 with ranges calibrated on training im
 largest and smallest value each activation takes on them). onnxruntime then runs the
 convolutions as int8 kernels, which a CPU with AVX512-VNNI (or AVX-VNNI, ARM's dot product)
 runs several times faster than float ones; the graph's input and output stay float32, so
-the file is a drop-in replacement for ``segnet.onnx`` (``train.predict.OnnxSegmenter``,
+the file is a drop-in replacement for ``segnet.onnx`` (``core.segmenter.OnnxSegmenter``,
 ``python -m localize onnx_model=...``). The metadata is copied, with ``quantization`` added.
 
 What it costs is measured, not assumed: both graphs segment the test split and the file's
@@ -37,10 +37,9 @@ from tqdm import tqdm
 
 from core.atomic import atomic_write, atomic_write_json, read_png
 from core.dataset import open_datasets
+from core.segmenter import INPUT_NAME, OnnxSegmenter, network_input, read_metadata
 from train.config import ExportConfig
 from train.metrics import confusion_matrix, metrics_json
-from train.predict import OnnxSegmenter, network_input
-from train.runtime import INPUT_NAME, read_metadata
 
 INT8_NAME = "segnet_int8.onnx"
 REPORT_NAME = "quantize.json"

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.model_folder import MODELS_ROOT
 from localize.frontend.edge_image import check_rgb
 
 log = logging.getLogger(__name__)
@@ -16,8 +17,6 @@ log = logging.getLogger(__name__)
 #: The generalist SegNet that ships with the code, for buildings it never saw: trained on
 #: procedural floors (models/generalist/README.md).
 SHIPPED_MODEL = Path(__file__).resolve().parents[2] / "models" / "generalist" / "segnet.onnx"
-#: Where ``python -m train`` writes its model folders (its ``out_root``).
-MODELS_ROOT = Path("outputs/models")
 
 
 def model_path(onnx_model: str, dataset: str) -> Path:
@@ -53,7 +52,7 @@ def check_classes(model_classes: list[dict], dataset_classes: list[dict], where:
 
 
 def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int = 2):
-    """Open ``segnet.onnx`` with ``train.predict.OnnxSegmenter`` and check its class list.
+    """Open ``segnet.onnx`` with ``core.segmenter.OnnxSegmenter`` and check its class list.
 
     Raises:
         FileNotFoundError: the model file is missing (says how to make it).
@@ -65,7 +64,7 @@ def load_segmenter(path: str | Path, dataset_classes: list[dict], threads: int =
             f"segmentation model not found: {path}. Train and export one with `python -m train` "
             "(or set localize's `onnx_model=` to an existing segnet.onnx, or drop `cnn` from "
             "modes).")
-    from train.predict import OnnxSegmenter
+    from core.segmenter import OnnxSegmenter
 
     seg = OnnxSegmenter(str(path), threads=threads)
     classes = seg.classes

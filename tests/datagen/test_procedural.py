@@ -200,12 +200,13 @@ def test_tiny_dataset(tmp_path):
 
 
 def test_generalist_recipe_composes():
-    """experiment=generalist_floors: each floor of the sweep is its own dataset, with its own
-    seed and a field of view that cycles through 60-100 deg; the training recipe reads them
-    all through a glob pattern."""
+    """datagen_experiment=generalist_floors: each floor of the sweep is its own dataset, with
+    its own seed and a field of view that cycles through 60-100 deg; the training recipe reads
+    them all through a glob pattern."""
     fovs = []
     for seed in range(6):
-        cfg = compose_config("datagen", ["experiment=generalist_floors", f"world.seed={seed}"])
+        cfg = compose_config("datagen",
+                             ["datagen_experiment=generalist_floors", f"world.seed={seed}"])
         assert cfg["name"] == f"generalist/floor{seed}" and cfg["seed"] == seed
         assert cfg["world"]["kind"] == "procedural" and cfg["render_flights"] == []
         fovs.append(cfg["camera"]["hfov_deg"])

@@ -12,13 +12,13 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
+from core.segmenter import OnnxSegmenter
 from localize import settings as ls
 from localize.frontend.segmenter import SHIPPED_MODEL, load_segmenter, model_path
 from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
-from train.predict import OnnxSegmenter
 
-#: What conf/experiment/hr3c.yaml carries.
+#: What conf/experiment/best5_context.yaml carries.
 HR3C = {"filter": {"mode_likelihood": {"cnn": {"k": 50.0}}},
         "edges": {"cnn": {"prior_correction": 0.0, "snap_nearest": True, "refine": "none",
                           "snap_px": 1}}}
@@ -31,7 +31,7 @@ def composed(overrides: list[str]):
 
 @pytest.fixture
 def carrying(tmp_path: Path) -> Path:
-    """A model folder whose segnet.onnx carries hr3c's settings in its metadata only."""
+    """A model folder whose segnet.onnx carries best5_context's settings in its metadata only."""
     (tmp_path / "m").mkdir()
     return palette_segnet(tmp_path / "m" / "segnet.onnx", 12, 16,
                           extra_metadata={"localize": HR3C})

@@ -11,7 +11,7 @@ import torch
 
 import train.checkpoint as ck
 import train.export as ex
-import train.train as tt
+import train.run as tt
 
 
 def _enospc(*args, **kwargs):
@@ -27,6 +27,26 @@ class TestDiskFull:
         assert f"checkpoint_last.pt into {tmp_path}" in msg
         assert re.search(r"\d+\.\d MB free there", msg) and "out_root=" in msg
         assert info.value.errno == errno.ENOSPC and isinstance(info.value.__cause__, OSError)
+
+    def test_rerun_advice_follows_the_checkpoint(self, tmp_path: Path, monkeypatch) -> None:
+        """Before the first checkpoint a re-run starts over; after it, it resumes."""
+        monkeypatch.setattr(ck, "atomic_write_bytes", _enospc)
+        with pytest.raises(ck.DiskFullError) as info:
+            ck.save_torch(tmp_path / "checkpoint_best.pt", {})
+        assert "starts again from its first epoch" in str(info.value)
+        assert "resumes" not in str(info.value)
+        (tmp_path / ck.LAST_CHECKPOINT).write_bytes(b"")
+        with pytest.raises(ck.DiskFullError) as info:
+            ck.save_torch(tmp_path / "checkpoint_best.pt", {})
+        assert "training resumes from the last checkpoint" in str(info.value)
+
+    def test_first_epoch_starts_over(self, synthetic_dataset, compose_train, tmp_path,
+                                     monkeypatch) -> None:
+        """A full disk at the first epoch's checkpoint leaves nothing to resume from."""
+        monkeypatch.setattr(ck, "atomic_write_bytes", _enospc)
+        with pytest.raises(ck.DiskFullError, match="no checkpoint was written yet"):
+            tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1", "export.int8=false"))
+        assert not (tmp_path / "demo" / ck.LAST_CHECKPOINT).exists()
 
     def test_other_errors_pass(self, tmp_path: Path, monkeypatch) -> None:
         def denied(*args, **kwargs):
@@ -51,9 +71,11 @@ class TestDiskFull:
     def test_during_export(self, synthetic_dataset, compose_train, tmp_path, monkeypatch
                            ) -> None:
         monkeypatch.setattr(ex, "atomic_write", _enospc)
-        with pytest.raises(ck.DiskFullError, match=rf"segnet.onnx into {tmp_path / 'demo'}"):
+        with pytest.raises(ck.DiskFullError,
+                           match=rf"segnet.onnx into {tmp_path / 'demo'}") as info:
             tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1", "export.int8=false"))
         assert (tmp_path / "demo" / "checkpoint_best.pt").is_file()  # a re-run resumes
+        assert "training resumes from the last checkpoint" in str(info.value)
 
 
 @pytest.mark.slow

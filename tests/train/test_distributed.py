@@ -16,7 +16,8 @@ import torch.distributed as dist
 import torch.multiprocessing as mp
 import torch.nn.functional as F
 
-import train.train as tt
+import train.epoch as te
+import train.run as tt
 from core.dataset import Dataset
 from tests.train.conftest import TINY_OVERRIDES
 from train.config import AugmentConfig, ModelConfig, OptimConfig
@@ -24,6 +25,7 @@ from train.data import SplitData, augment_batch, batches, downsample_split, load
 from train.distributed import SINGLE, World, check_batch_size
 from train.losses import IGNORE, median_frequency_weights, pixel_loss_weights, segmentation_loss
 from train.optim import make_optimizer
+from train.run_identity import train_settings
 from train.segnet import build_segnet
 
 REPO = Path(__file__).resolve().parents[2]
@@ -61,11 +63,11 @@ def one_step(dataset: Path, same_pixels: bool, world: World = SINGLE,
     optimizer, scheduler = make_optimizer(model, OptimConfig(), 1)
     settings = {"augment": NO_AUGMENT if same_pixels else AugmentConfig().at_resolution(4),
                 "boundary_weight": 1.0 if same_pixels else 2.0}
-    res = tt.train_one_epoch(
+    res = te.train_one_epoch(
         model, data, weights, optimizer, scheduler, settings["augment"],
         torch.Generator().manual_seed(7), BATCH, world=world,
         boundary_weight=settings["boundary_weight"],
-        ddp=tt.data_parallel(model, False, False, world) if ddp else None)
+        ddp=te.data_parallel(model, False, False, world) if ddp else None)
     assert res.steps == 1
     settings["loss"] = res.loss
     return model, data, weights, settings
@@ -146,7 +148,7 @@ def test_two_processes_are_one_with_per_rank_batchnorm(two_process_step: list[di
     x, y = augment_batch(data.images[idx], data.labels[idx], settings["augment"], gen)
     w = pixel_loss_weights(y, weights, settings["boundary_weight"])
     numerator = sum(
-        (F.cross_entropy(tt.training_logits(model, x[h].contiguous(
+        (F.cross_entropy(te.training_logits(model, x[h].contiguous(
             memory_format=torch.channels_last), tuple(y.shape[-2:]), False, False), y[h],
             ignore_index=IGNORE, reduction="none") * w[h]).sum()
         for h in (slice(0, BATCH // 2), slice(BATCH // 2, BATCH)))
@@ -178,7 +180,7 @@ def test_batch_size_must_split(synthetic_dataset: Path, compose_train, tmp_path:
     check_batch_size(4, World(1, 2))
     with pytest.raises(ValueError, match=r"batch_size=4 .* multiple of 3"):
         check_batch_size(4, World(0, 3))
-    cfg = tt.train_settings(compose_train(synthetic_dataset, tmp_path))  # batch_size=4
+    cfg = train_settings(compose_train(synthetic_dataset, tmp_path))  # batch_size=4
     with pytest.raises(ValueError, match="batch_size=4"):
         tt.prepare(cfg, World(0, 3))
     assert not (tmp_path / "demo").exists()  # refused before anything is written

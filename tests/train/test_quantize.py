@@ -12,11 +12,11 @@ import numpy as np
 import onnx
 import pytest
 
-import train.train as tt
+import train.run as tt
 from core.atomic import read_png
 from core.dataset import Dataset
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME
-from train.predict import OnnxSegmenter
+from core.segmenter import OnnxSegmenter, read_metadata
 from train.quantize import (
     INT8_NAME,
     REPORT_NAME,
@@ -25,7 +25,6 @@ from train.quantize import (
     quantize_segnet,
     spread_indices,
 )
-from train.runtime import read_metadata
 
 
 def test_spread_indices() -> None:
@@ -98,7 +97,7 @@ KILLED = """
 import os, signal, sys
 import numpy as np
 import train.quantize as q
-from train.runtime import read_metadata
+from core.segmenter import read_metadata
 import onnx
 meta = read_metadata(onnx.load(sys.argv[1], load_external_data=False))
 frames = np.zeros((1, int(meta["input_height"]), int(meta["input_width"]), 3), np.uint8)

@@ -11,9 +11,16 @@ import pytest
 import torch
 
 from core.classes import as_json
-from train.export import ParityError, check_parity, export_checked, onnx_metadata, to_onnx_proto
-from train.predict import OnnxSegmenter, main
-from train.runtime import add_label_output, ort_session, read_metadata
+from core.segmenter import OnnxSegmenter, ort_session, read_metadata
+from train.export import (
+    ParityError,
+    add_label_output,
+    check_parity,
+    export_checked,
+    onnx_metadata,
+    to_onnx_proto,
+)
+from train.predict import main
 from train.segnet import SegNet
 
 H, W = 40, 56  # not multiples of the model's 8: the graph pads and crops

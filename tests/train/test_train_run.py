@@ -12,14 +12,17 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-import train.train as tt
+import train.run as tt
 from core.dataset import Dataset
+from core.segmenter import read_metadata
 from train.budget import MIN_FINISH_BY_SECONDS, fit_epochs, training_budget
 from train.checkpoint import load_init_weights
+from train.config_checks import resolve_precision
 from train.data import AugmentConfig, downsample_split, load_split, to_float
+from train.epoch import train_one_epoch
 from train.losses import median_frequency_weights, segmentation_loss
 from train.optim import make_ema, make_optimizer, make_scheduler
-from train.runtime import read_metadata
+from train.run_identity import training_config
 from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 
 
@@ -76,8 +79,8 @@ def test_train_one_epoch_downsampled(synthetic_dataset: Path, stem: str,
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
     gen = torch.Generator().manual_seed(0)
     aug = AugmentConfig().at_resolution(model.training_factor)
-    losses = [tt.train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
-                                 full_labels=full_labels).loss
+    losses = [train_one_epoch(model, data, None, opt, sched, aug, gen, 4,
+                              full_labels=full_labels).loss
               for _ in range(8)]
     assert all(math.isfinite(v) for v in losses) and losses[-1] < 0.8 * losses[0], losses
     if model.sharpen_head is not None:
@@ -110,17 +113,17 @@ def test_training_config_leaves_out_run_keys_only() -> None:
     cfg = OmegaConf.create({"seed": 0, "name": "x", "threads": 4, "init_from": None,
                             "eval": {"batch_size": 8, "select": "mean_iou"},
                             "model": {"stem": "average"}})
-    assert tt.training_config(cfg) == {"seed": 0, "init_from": None,
-                                       "eval": {"select": "mean_iou"},
-                                       "model": {"stem": "average"}}
+    assert training_config(cfg) == {"seed": 0, "init_from": None,
+                                    "eval": {"select": "mean_iou"},
+                                    "model": {"stem": "average"}}
 
 
 def test_resolve_precision() -> None:
-    assert tt.resolve_precision("bf16") is True
-    assert tt.resolve_precision("fp32") is False
-    assert isinstance(tt.resolve_precision("auto"), bool)
+    assert resolve_precision("bf16") is True
+    assert resolve_precision("fp32") is False
+    assert isinstance(resolve_precision("auto"), bool)
     with pytest.raises(ValueError, match="precision='half'"):
-        tt.resolve_precision("half")
+        resolve_precision("half")
 
 
 def test_fit_epochs() -> None:

@@ -22,31 +22,26 @@ train together (train/distributed.py) and rank 0 alone writes the folder.
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
-import json
 import logging
-import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
-import torch.nn.functional as F
 from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
-from tqdm import tqdm
 
 from core.atomic import atomic_write_json, atomic_write_text
-from core.config import as_config
 from core.dataset import Dataset, open_datasets
-from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
+from core.model_folder import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
+from core.outputs import releases_claims
 from datagen import camera_effects
 from datagen.config import load_realism
 from train.budget import fit_epochs, training_budget
 from train.checkpoint import (
+    LAST_CHECKPOINT,
     disk_space_guard,
     load_init_weights,
     new_state,
@@ -56,11 +51,9 @@ from train.checkpoint import (
     save_last,
 )
 from train.config import AugmentConfig, LossConfig, TrainConfig
+from train.config_checks import check_config
 from train.data import (
     SplitData,
-    augment_batch,
-    batches,
-    block_majority,
     check_classes,
     check_same_kind,
     downsample_split,
@@ -70,352 +63,20 @@ from train.data import (
     to_float,
 )
 from train.distributed import SINGLE, World, check_batch_size, process_group
+from train.epoch import data_parallel, train_one_epoch
 from train.evaluate import evaluate, evaluate_onnx
 from train.export import ParityError, export_checked, onnx_metadata, update_metadata
-from train.losses import (
-    IGNORE,
-    median_frequency_weights,
-    pixel_loss_weights,
-    segmentation_loss,
-)
+from train.losses import median_frequency_weights
 from train.metrics import metrics_json, plot_confusion, scores
 from train.optim import make_ema, make_optimizer, make_scheduler
 from train.quantize import INT8_NAME, int8_summary, quantize_model_dir
 from train.quantize import REPORT_NAME as QUANTIZE_REPORT
-from train.runtime import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
+from train.run_identity import config_hash, prepare_output, train_settings, training_config
 from train.segnet import SegNet, build_segnet, count_parameters
+from train.train_log import TRAIN_LOG, epoch_row, write_train_log
 
 log = logging.getLogger(__name__)
 
-#: Config keys that do not change what is trained (left out of the config hash).
-HASH_EXCLUDE = (
-    "name",
-    "out_root",
-    "threads",
-    "max_minutes",
-    "finish_by",
-    "overwrite",
-    "progress",
-    "eval.batch_size",
-    "localize",
-    "export",
-)
-#: A model folder belongs to its training config and dataset.json (core.outputs): config.json
-#: holds them; one run at a time.
-MODEL_POLICY = FolderPolicy(record="config.json", keys=("config", "dataset_digest"),
-                            results=("checkpoint_*.pt", "segnet.onnx", "metrics.json"))
-
-
-# ----------------------------------------------------------------------------- config
-
-
-def train_settings(cfg: DictConfig | Mapping | TrainConfig) -> TrainConfig:
-    """The typed settings of a composed conf/train.yaml (or of a mapping of some of its keys,
-    the others at their defaults); an unknown key or a wrong type raises ValueError."""
-    return as_config(TrainConfig, cfg, "train")
-
-
-def training_config(cfg: DictConfig | TrainConfig) -> dict:
-    """The part of the config that determines the trained weights (resolved, plain dict)."""
-    d = OmegaConf.to_container(cfg if OmegaConf.is_config(cfg) else OmegaConf.structured(cfg),
-                               resolve=True)
-    d.pop("hydra", None)
-    return without(d, HASH_EXCLUDE)
-
-
-def config_hash(train_cfg: dict, dataset_json: bytes) -> str:
-    """16 hex digits of sha256 over the training config and the dataset's dataset.json."""
-    h = hashlib.sha256(json.dumps(train_cfg, sort_keys=True).encode())
-    h.update(hashlib.sha256(dataset_json).digest())
-    return h.hexdigest()[:16]
-
-
-def resolve_precision(precision: str) -> bool:
-    """Whether to train in bfloat16 autocast for ``precision`` (the ``precision`` key).
-
-    "bf16" uses bfloat16 convolutions (oneDNN), "fp32" never does, "auto" does where the CPU
-    has AMX tiles. AVX512-BF16 alone is not enough: on such a 2-core CPU a demo training step
-    takes 1.3-1.4x longer in bfloat16 than in float32 (docs/train.md). Weights, optimizer
-    state, validation, the test metrics and the ONNX export stay float32.
-    """
-    if precision not in ("auto", "bf16", "fp32"):
-        raise ValueError(f"precision={precision!r}: use auto, bf16 or fp32")
-    if precision == "auto":
-        return bool(torch.cpu._is_amx_tile_supported())
-    return precision == "bf16"
-
-
-def prepare_output(out_dir: Path, info: dict, overwrite: bool) -> Claim:
-    """Claim ``out_dir`` for this config (``MODEL_POLICY``) and write its config.json.
-
-    Args:
-        out_dir: the model folder.
-        info: {"config_hash", "config", "dataset_digest"} of this run.
-        overwrite: empty a folder made with another config instead of failing.
-
-    Returns:
-        The claim: the folder stays locked until ``run`` returns.
-
-    Raises:
-        core.outputs.OutputFolderError: the folder holds another config's model (naming the
-            differing keys) and not ``overwrite``.
-        core.outputs.FolderBusy: another run writes the folder.
-    """
-    return claim_output(out_dir, info, MODEL_POLICY, overwrite=overwrite)
-
-
-# ----------------------------------------------------------------------------- one epoch
-
-
-@dataclass
-class EpochResult:
-    loss: float
-    steps: int
-    stopped: bool
-
-
-def network_logits(model: SegNet, x: torch.Tensor, head: bool, bf16: bool) -> torch.Tensor:
-    """The part of a training step's forward pass that holds the weights.
-
-    Args:
-        model: the network (train mode).
-        x: (B, 3, h, w) float32 augmented images at the training resolution.
-        head: also run ``model.to_input_resolution`` (the sharpen head).
-        bf16: in bfloat16 autocast.
-
-    Returns:
-        (B, C, h', w') logits, bfloat16 or float32.
-    """
-    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-        logits = model.forward_network_resolution(x)
-        if head:
-            logits = model.to_input_resolution(logits, x)
-    return logits
-
-
-class TrainingForward(torch.nn.Module):
-    """``network_logits`` as a module's ``forward``: what DistributedDataParallel wraps (it
-    syncs the gradients of the parameters used by its module's forward)."""
-
-    def __init__(self, model: SegNet, head: bool, bf16: bool) -> None:
-        super().__init__()
-        self.model, self.head, self.bf16 = model, head, bf16
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return network_logits(self.model, x, self.head, self.bf16)
-
-
-def uses_head(model: SegNet, full_labels: bool) -> bool:
-    """Whether training runs the sharpen head (full-resolution x, unshuffle stem)."""
-    return full_labels and model.sharpen_head is not None
-
-
-def data_parallel(model: SegNet, full_labels: bool, bf16: bool, world: World
-                  ) -> torch.nn.parallel.DistributedDataParallel | None:
-    """The training forward pass (``TrainingForward``) in DistributedDataParallel, which
-    averages the gradients over the ranks (rank 0's weights and buffers copied to all at
-    construction); None for one process."""
-    if not world.active:
-        return None
-    return torch.nn.parallel.DistributedDataParallel(
-        TrainingForward(model, uses_head(model, full_labels), bf16))
-
-
-def training_logits(model: SegNet, x: torch.Tensor, label_size: tuple[int, int],
-                    full_labels: bool, bf16: bool,
-                    ddp: torch.nn.parallel.DistributedDataParallel | None = None
-                    ) -> torch.Tensor:
-    """The logits a training step's loss is taken on, float32.
-
-    Args:
-        model: the network (train mode).
-        x: (B, 3, h, w) float32 augmented images at the training resolution.
-        label_size: (H, W) of the step's labels.
-        full_labels: ``loss.resolution: input``: the logits brought to the labels' (input)
-            resolution as at inference (bilinear, then the sharpen head where there is one;
-            the head costs 1.5x a step's time); else at the network's resolution.
-        bf16: the forward pass in bfloat16 autocast.
-        ddp: ``data_parallel(model, ...)`` under torchrun (it runs the forward pass), or None.
-
-    Returns:
-        (B, C, H, W) logits at the labels' resolution.
-    """
-    head = uses_head(model, full_labels)
-    logits = network_logits(model, x, head, bf16) if ddp is None else ddp(x)
-    logits = logits.float()
-    if full_labels and not head:  # as at inference: bilinear to the input's resolution
-        logits = F.interpolate(logits, size=label_size, mode="bilinear", align_corners=False)
-    return logits
-
-
-def train_one_epoch(
-    model: SegNet,
-    data: SplitData,
-    class_weights: torch.Tensor | None,
-    optimizer: torch.optim.Optimizer,
-    scheduler: torch.optim.lr_scheduler.LRScheduler,
-    augment: AugmentConfig,
-    generator: torch.Generator,
-    batch_size: int,
-    deadline: float = math.inf,
-    progress: bool = False,
-    desc: str = "train",
-    bf16: bool = False,
-    ema: AveragedModel | None = None,
-    boundary_weight: float = 1.0,
-    full_labels: bool = False,
-    world: World = SINGLE,
-    ddp: torch.nn.parallel.DistributedDataParallel | None = None,
-) -> EpochResult:
-    """One pass over the training split with augmentation, at the network's resolution (the
-    loss at the input's with ``full_labels``).
-
-    Args:
-        model: network in train mode after the call.
-        data: the training split in memory, already at the network's resolution
-            (``downsample_split``).
-        class_weights: (C,) cross-entropy weights or None.
-        optimizer, scheduler: stepped every batch.
-        augment: augmentation parameters.
-        generator: shuffling and augmentation randomness.
-        batch_size: images per step.
-        deadline: ``time.monotonic()`` value after which the epoch stops early.
-        progress: show a progress bar.
-        desc: progress bar label.
-        bf16: run the forward pass in bfloat16 autocast (the loss is taken in float32).
-        ema: moving average of the weights, updated after every step (``make_ema``), or None.
-        boundary_weight: loss factor on pixels next to a class change (``segmentation_loss``).
-        full_labels: ``data`` holds the input-resolution labels; the loss is taken on the
-            logits upsampled to them as at inference (``loss.resolution: input``) instead of
-            on block-majority labels at the network's resolution.
-        world: the torchrun processes: every rank draws the same global batch of
-            ``batch_size`` images and trains on its ``world.shard``, the loss scaled so that
-            DDP's gradient average is the whole batch's gradient; the deadline is checked
-            by all together.
-        ddp: ``data_parallel(model, ...)`` when ``world.active``.
-
-    Returns:
-        Mean loss (of the global batches), number of steps done, and whether the deadline
-        stopped the epoch.
-    """
-    if world.active and ddp is None:
-        raise ValueError("train_one_epoch: world.active needs ddp=data_parallel(model, ...)")
-    model.train()
-    total, steps, stopped = 0.0, 0, False
-    n_steps = num_batches(len(data), batch_size, drop_last=True)
-    bar = tqdm(
-        batches(len(data), batch_size, generator, drop_last=True),
-        total=n_steps,
-        desc=desc,
-        disable=not (progress and world.is_main),
-        leave=False,
-    )
-    for idx in bar:
-        if world.any(time.monotonic() > deadline):  # every rank stops at the same step
-            stopped = True
-            break
-        x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
-        x, y = world.shard(x), world.shard(y)
-        if not full_labels and model.training_factor != model.downsample:
-            y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
-        x = x.contiguous(memory_format=torch.channels_last)
-        logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16, ddp)
-        loss, value = batch_loss(logits, y, class_weights, boundary_weight, world)
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        optimizer.step()
-        scheduler.step()
-        if ema is not None:
-            ema.update_parameters(model)
-        total += value
-        steps += 1
-        bar.set_postfix(loss=f"{total / steps:.3f}")
-    bar.close()
-    if world.active:  # the global batches' loss: the ranks' shares summed
-        total = float(world.sum(torch.tensor([total], dtype=torch.float64)))
-    return EpochResult(total / max(steps, 1), steps, stopped)
-
-
-def batch_loss(logits: torch.Tensor, y: torch.Tensor, class_weights: torch.Tensor | None,
-               boundary_weight: float, world: World) -> tuple[torch.Tensor, float]:
-    """The loss this rank backpropagates, and its share of the global batch's loss value.
-
-    One process: ``segmentation_loss`` and its value. Under torchrun the loss of a global
-    batch is sum(numerators) / sum(denominators) over its pixels (``pixel_loss_weights``);
-    rank r backpropagates N * numerator_r / denominator (the denominator summed over the
-    ranks), so DDP's average of the N gradients is the gradient of the global batch's loss, as
-    one process computes it (up to float rounding and BatchNorm's per-rank statistics;
-    train/distributed.py); its share of the value is numerator_r / denominator.
-
-    Args:
-        logits: (B, C, H, W) float32 at the labels' resolution (this rank's images).
-        y: (B, H, W) int64 labels, 255 ignored.
-        class_weights, boundary_weight: as for ``segmentation_loss``.
-        world: the training processes.
-    """
-    if not world.active:
-        loss = segmentation_loss(logits, y, class_weights, boundary_weight)
-        return loss, float(loss.detach())
-    pixel_weights = pixel_loss_weights(y, class_weights, boundary_weight)
-    denominator = float(world.sum(pixel_weights.sum(dtype=torch.float64)).clamp(min=1e-12))
-    numerator = (F.cross_entropy(logits, y, ignore_index=IGNORE, reduction="none")
-                 * pixel_weights).sum()
-    return numerator * (world.size / denominator), float(numerator.detach()) / denominator
-
-
-def _write_log(path: Path, history: list[dict]) -> None:
-    """``train_log.csv``: one row per epoch (``epoch_row``)."""
-    if not history:
-        return
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(history[0]))
-    writer.writeheader()
-    writer.writerows(history)
-    with disk_space_guard(path.parent, path.name):
-        atomic_write_text(path, buf.getvalue())
-
-
-# ----------------------------------------------------------------------------- config checks
-
-
-def check_counts(cfg: TrainConfig) -> None:
-    """Raise ValueError naming the key when a count or the time budget is out of range (before
-    any loading: ``batch_size=0`` would otherwise end in a division by zero mid-run)."""
-    counts = {"epochs": cfg.epochs, "batch_size": cfg.batch_size,
-              "eval.batch_size": cfg.eval.batch_size, "threads": cfg.threads}
-    for key, value in counts.items():
-        if value < 1:
-            raise ValueError(f"{key}={value!r} must be an integer >= 1")
-    if cfg.max_minutes is not None and not cfg.max_minutes >= 0:
-        raise ValueError(f"max_minutes={cfg.max_minutes:g} must be >= 0 (null: no time budget)")
-
-
-def check_loss(loss: LossConfig) -> None:
-    """Raise ValueError naming the ``loss.*`` key out of range."""
-    if loss.resolution not in ("network", "input"):
-        raise ValueError(f"loss.resolution={loss.resolution!r}: use network or input")
-    if not loss.boundary_weight > 0:
-        raise ValueError(f"loss.boundary_weight={loss.boundary_weight:g} must be positive "
-                         "(1 = off)")
-
-
-def check_config(cfg: TrainConfig) -> bool:
-    """Every setting ``run`` can check before loading anything, each error naming its key.
-
-    Returns:
-        Whether to train in bfloat16 autocast (``precision``).
-    """
-    check_counts(cfg)
-    bf16 = resolve_precision(cfg.precision)
-    check_loss(cfg.loss)
-    if cfg.model.head == "sharpen" and cfg.loss.resolution != "input":
-        raise ValueError(
-            "model.head=sharpen learns at the input's resolution: add loss.resolution=input"
-        )
-    return bf16
-
-
-# ----------------------------------------------------------------------------- the run
 
 
 @dataclass
@@ -571,20 +232,6 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
     return job
 
 
-def epoch_row(epoch: int, res: EpochResult, lr: float, val: dict, seconds: float) -> dict:
-    """One row of ``train_log.csv`` (and of the checkpoint's history)."""
-    return {
-        "epoch": epoch,
-        "steps": res.steps,
-        "train_loss": round(res.loss, 5),
-        "lr": lr,
-        "val_pixel_accuracy": round(val["pixel_accuracy"], 5),
-        "val_class_accuracy": round(val["class_accuracy"], 5),
-        "val_mean_iou": round(val["mean_iou"], 5),
-        "seconds": round(seconds, 1),
-    }
-
-
 def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -> None:
     """Re-span the one-cycle schedule over the epochs that fit the budget left
     (``fit_epochs``), in place (``job.scheduler``, ``state["epochs"]``): a run the budget cuts
@@ -648,9 +295,9 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
         refit_schedule(job, state, budget, dt)
     if not main:
         return True
-    save_last(job.out_dir / "checkpoint_last.pt", job.model, job.optimizer, job.scheduler,
+    save_last(job.out_dir / LAST_CHECKPOINT, job.model, job.optimizer, job.scheduler,
               job.ema, state, job.info["config_hash"])
-    _write_log(job.out_dir / "train_log.csv", state["history"])
+    write_train_log(job.out_dir / TRAIN_LOG, state["history"])
     log.info("epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f%s (%.0f s)%s", epoch + 1,
              state["epochs"], res.loss, val["pixel_accuracy"], val["mean_iou"],
              " *" if improved else "", dt,
@@ -668,7 +315,7 @@ def fit(job: Job) -> dict:
         The run's state (``checkpoint.new_state``'s keys).
     """
     state = new_state(job.requested)
-    last = job.out_dir / "checkpoint_last.pt"
+    last = job.out_dir / LAST_CHECKPOINT
     # under torchrun rank 0 reads the checkpoint and the clock, and sends both to the others
     resume(last, job.model, job.optimizer, job.scheduler, job.ema, state,
            job.world.from_main(lambda: read_last(last)))

@@ -1,0 +1,60 @@
+"""The checks of a training config that need no data, each error naming its key."""
+
+from __future__ import annotations
+
+import torch
+
+from train.config import LossConfig, TrainConfig
+
+
+def resolve_precision(precision: str) -> bool:
+    """Whether to train in bfloat16 autocast for ``precision`` (the ``precision`` key).
+
+    "bf16" uses bfloat16 convolutions (oneDNN), "fp32" never does, "auto" does where the CPU
+    has AMX tiles. AVX512-BF16 alone is not enough: on such a 2-core CPU a demo training step
+    takes 1.3-1.4x longer in bfloat16 than in float32 (docs/train.md). Weights, optimizer
+    state, validation, the test metrics and the ONNX export stay float32.
+    """
+    if precision not in ("auto", "bf16", "fp32"):
+        raise ValueError(f"precision={precision!r}: use auto, bf16 or fp32")
+    if precision == "auto":
+        return bool(torch.cpu._is_amx_tile_supported())
+    return precision == "bf16"
+
+
+
+def check_counts(cfg: TrainConfig) -> None:
+    """Raise ValueError naming the key when a count or the time budget is out of range (before
+    any loading: ``batch_size=0`` would otherwise end in a division by zero mid-run)."""
+    counts = {"epochs": cfg.epochs, "batch_size": cfg.batch_size,
+              "eval.batch_size": cfg.eval.batch_size, "threads": cfg.threads}
+    for key, value in counts.items():
+        if value < 1:
+            raise ValueError(f"{key}={value!r} must be an integer >= 1")
+    if cfg.max_minutes is not None and not cfg.max_minutes >= 0:
+        raise ValueError(f"max_minutes={cfg.max_minutes:g} must be >= 0 (null: no time budget)")
+
+
+def check_loss(loss: LossConfig) -> None:
+    """Raise ValueError naming the ``loss.*`` key out of range."""
+    if loss.resolution not in ("network", "input"):
+        raise ValueError(f"loss.resolution={loss.resolution!r}: use network or input")
+    if not loss.boundary_weight > 0:
+        raise ValueError(f"loss.boundary_weight={loss.boundary_weight:g} must be positive "
+                         "(1 = off)")
+
+
+def check_config(cfg: TrainConfig) -> bool:
+    """Every setting ``run`` can check before loading anything, each error naming its key.
+
+    Returns:
+        Whether to train in bfloat16 autocast (``precision``).
+    """
+    check_counts(cfg)
+    bf16 = resolve_precision(cfg.precision)
+    check_loss(cfg.loss)
+    if cfg.model.head == "sharpen" and cfg.loss.resolution != "input":
+        raise ValueError(
+            "model.head=sharpen learns at the input's resolution: add loss.resolution=input"
+        )
+    return bf16
