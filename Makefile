@@ -72,14 +72,14 @@ best: setup
 	$(PY) -m localize name=best onnx_model=outputs/models/best5_context/segnet.onnx
 	@echo "report: outputs/reports/best/report.md"
 
-# The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist"): 24
+# The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist, then the fine-tune"): 24
 # procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them), then 14 epochs
 # of training (23 min). A copy ships in models/generalist/; interrupted, `make generalist` resumes.
 generalist: setup
 	$(PY) -m datagen -m datagen_experiment=generalist_floors
 	$(PY) -m train experiment=generalist
 
-# Your building, the recommended path (docs/recipes.md, "The generalist"): a whole floor of a
+# Your building, the recommended path (docs/recipes.md, "The generalist, then the fine-tune"): a whole floor of a
 # model file rendered (docs/importers.md; .world/.sdf, .glb/.gltf, .obj, .ply, .dae, .stl,
 # .ifc) with two ~45 m flights along routes planned through its free space
 # (conf/flights/floor.yaml); the shipped generalist SegNet (models/generalist/) fine-tuned on it
