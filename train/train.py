@@ -39,12 +39,12 @@ from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
 from tqdm import tqdm
 
+from core import camera_effects
 from core.atomic import atomic_write_json, atomic_write_text
 from core.config import as_config
 from core.dataset import Dataset, open_datasets
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims, without
-from datagen import camera_effects
-from datagen.config import load_realism
+from core.realism import load_realism
 from train.budget import fit_epochs, training_budget
 from train.checkpoint import (
     disk_space_guard,

@@ -28,7 +28,7 @@ CHILD = """
 import json, sys, time
 from pathlib import Path
 import datagen.generate as gen
-from tests.helpers import compose_config
+from core.config import compose_config
 try:
     import core.outputs
     core.outputs.RUN_WAIT_S = 1.0

@@ -11,8 +11,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
+from core.config import CONF
 from localize.segmenter import SHIPPED_MODEL, load_segmenter, model_path
-from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
 from train.predict import OnnxSegmenter
 
