@@ -164,7 +164,10 @@ def val_flights(cfg: DatagenConfig) -> list[str]:
 
 
 def _check_counts(cfg: DatagenConfig) -> None:
-    """Counts, sizes and shards: positive where they must be."""
+    """Seed, counts, sizes and shards: positive where they must be."""
+    if cfg.seed < 0:
+        raise ValueError(f"seed = {cfg.seed} must be >= 0 (numpy's SeedSequence takes "
+                         "non-negative integers); pass seed=0 or another non-negative one")
     for split in SPLITS:
         n = getattr(cfg.splits, split)
         if n < 0:

@@ -138,6 +138,7 @@ class TestDeterminismAndResume:
 
 class TestBadConfig:
     @pytest.mark.parametrize("override,match", [
+        ("seed=-1", r"seed = -1 must be >= 0"),
         ("camera.width=-320", "camera.width"),
         ("splits.train=-1", "splits.train"),
         ("world.length=-10", "world.length"),
