@@ -1,6 +1,6 @@
 """Wall time of a small dataset: one process vs 2 shards through Hydra's launchers.
 
-Runs `python -m datagen` of the tests' tiny dataset (tests/helpers.py TINY_DATAGEN: 128x96,
+Runs `python -m datagen` of the tests' tiny dataset (core/config.py TINY_DATAGEN: 128x96,
 20 images and three 30-frame flights) as a user does, from the repository's root, once as one
 process and once per launcher as `-m shard=0,1 num_shards=2 hydra/launcher=<launcher>`, each
 into a new folder, and prints the wall time of each command (start-up, Ray's cluster start
@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.helpers import TINY_DATAGEN  # noqa: E402
+from core.config import TINY_DATAGEN  # noqa: E402
 
 
 def run(args: list[str], out: Path) -> float:

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = r"""
 import json, sys, time
 sys.path.insert(0, {root!r})
-from tests.helpers import compose_config
+from core.config import compose_config
 import datagen.generate as gen
 from core.variant import choose_variant
 variant = choose_variant({variant!r})

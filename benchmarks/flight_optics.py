@@ -34,9 +34,9 @@ SETTINGS = {"ideal": [], "lens": LENS, "blur": BLUR, "rolling": ROLLING,
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
     import datagen  # noqa: F401  (registers the config schema)
+    from core.config import compose_config
     from datagen import generate as gen
     from datagen import optics
-    from tests.helpers import compose_config
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--frames", type=int, default=20)

@@ -67,7 +67,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=None, help="num_frames of every preset")
     ap.add_argument("--speed", type=float, nargs=2, default=None, help="speed [min, max]")
     a = ap.parse_args()
-    from tests.helpers import compose_config
+    from core.config import compose_config
 
     cfg = typed(DatagenConfig, compose_config("datagen"), "datagen")
     from datagen.site import build_site

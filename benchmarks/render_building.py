@@ -76,12 +76,12 @@ def main() -> None:
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--spacing", type=float, default=3.0, help="lattice light spacing, m")
     a = ap.parse_args()
+    from core.config import compose_config
     from core.occupancy import OccupancyMap
     from core.variant import choose_variant
     from datagen.importers import load_building
     from datagen.scene import building_scene, corridor_scene
     from datagen.world import build_world
-    from tests.helpers import compose_config
 
     variant = choose_variant(a.variant)
     cfg = compose_config("datagen")

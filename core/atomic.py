@@ -1,12 +1,19 @@
-"""Atomic file writes: write to a temporary file in the same folder, then rename."""
+"""Atomic file writes: write to a temporary file in the same folder, then rename.
+
+A write that fails for want of disk space raises ``DiskFullError`` naming the file, its folder,
+the free space there and the fix.
+"""
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
+import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import cv2
@@ -21,23 +28,68 @@ TEMP_NAME = re.compile(r"^\..+\.[a-z0-9_]{8}(\.[A-Za-z0-9]+)?$")
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
+#: What to do about a full disk, unless a stage says better.
+DISK_FULL_FIX = ("Free space (old outputs/ folders, outputs/hydra/) or write to a disk with "
+                 "room (out_dir=), then run the same command again")
+
+
+class DiskFullError(OSError):
+    """A write failed for want of disk space (errno ENOSPC); its message names the file, the
+    folder, the free space there and the fix."""
+
+
+def free_bytes(folder: str | Path) -> int:
+    """Free space (bytes) on the file system of ``folder`` (or of its nearest existing parent)."""
+    folder = Path(folder).absolute()
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return shutil.disk_usage(folder).free
+
+
+@contextmanager
+def disk_full_guard(folder: str | Path, what: str, fix: str = DISK_FULL_FIX) -> Iterator[None]:
+    """Turn an OSError ENOSPC raised inside into a ``DiskFullError`` that says where and what
+    to do.
+
+    Args:
+        folder: the folder written to.
+        what: the files being written (for the message), e.g. ``"rgb/000001.png"``.
+        fix: what the user does about it (the message's last sentence).
+    """
+    try:
+        yield
+    except OSError as err:
+        if err.errno != errno.ENOSPC or isinstance(err, DiskFullError):
+            raise
+        folder = Path(folder)
+        raise DiskFullError(
+            errno.ENOSPC,
+            f"writing {what} into {folder} failed: the disk is full "
+            f"({free_bytes(folder) / 1e6:.1f} MB free there). {fix}",
+        ) from err
+
+
 def atomic_write(path: str | Path, write: Callable[[Path], None], suffix: str = "") -> None:
     """Call ``write(tmp_path)`` and rename the result onto ``path``.
 
     A crash leaves either the old file or none, never half a file.
+
+    Raises:
+        DiskFullError: the disk is full (naming ``path``'s folder); nothing is left behind.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix,
-                               dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the usual file mode
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with disk_full_guard(path.parent, path.name):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix,
+                                   dir=path.parent)
+        os.close(fd)
+        try:
+            write(Path(tmp))
+            os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the usual file mode
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:

@@ -4,19 +4,33 @@ Each stage's settings are dataclasses (``datagen/config.py``, ``train/config.py`
 ``localize/config.py``): their field defaults are the only defaults, and Hydra composes the
 YAML presets of ``conf/`` onto them (``register_schema``), so a typo or a wrong type in a YAML
 file or on the command line fails at start-up, naming the key. ``typed`` does the same check
-for a plain mapping (library use, tests, settings read back from a model folder).
+for a plain mapping (library use, tests, settings read back from a model folder);
+``compose_config`` composes a conf/ file as a stage's command line would (benchmarks, tests).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, TypeVar
 
+from hydra import compose, initialize_config_dir
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 T = TypeVar("T")
+#: The repository's Hydra config folder.
+CONF = Path(__file__).resolve().parents[1] / "conf"
+#: Overrides that shrink conf/datagen.yaml to seconds of rendering (128x96, 20 images, three
+#: 30-frame flights): the tests' and benchmarks' tiny dataset.
+TINY_DATAGEN = [
+    "camera.width=128", "camera.height=96",
+    "splits.train=12", "splits.val=4", "splits.test=4",
+    "render.spp=2", "training.chunk=6",
+    "flights.paper.num_frames=30", "flights.cluttered.num_frames=30",
+    "render_flights=[paper,cluttered]", "val_flights=[paper]",
+]
 
 
 def _cycle(index: int, values: list) -> Any:
@@ -70,3 +84,11 @@ def as_config(cls: type[T], cfg: Any, where: str) -> T:
     """``cfg`` if it is a ``cls`` already, else ``typed(cls, cfg, where)`` (a mapping or a
     DictConfig, possibly partial; None: the defaults)."""
     return cfg if isinstance(cfg, cls) else typed(cls, cfg, where)
+
+
+def compose_config(name: str, overrides: list[str] | None = None) -> dict:
+    """Compose ``conf/<name>.yaml`` with ``overrides`` (Hydra's command-line syntax), resolved
+    to plain containers."""
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name=name, overrides=overrides or [])
+    return OmegaConf.to_container(cfg, resolve=True)

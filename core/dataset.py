@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import glob
 import json
+import shlex
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
@@ -253,12 +254,17 @@ class Dataset:
 
     def datagen_command(self, frames: np.ndarray, n: int) -> str:
         """The datagen command that renders ``frames`` (indices) of a split or flight of ``n``
-        frames: the command the dataset was made with (dataset.json's ``command``), for the
-        shards holding those frames if it was rendered in shards (``stats/``)."""
+        frames: the command the dataset was made with (dataset.json's ``command``) writing into
+        this folder (its ``out_dir=`` is the folder loaded, wherever the dataset was made or
+        copied from), for the shards holding those frames if it was rendered in shards
+        (``stats/``)."""
         base = self.meta.get("command")
         if not base:
             return (f"`python -m datagen out_dir={self.root}` with the config in "
                     f"{self.root / 'dataset.json'} ('generator')")
+        here = f"out_dir={shlex.quote(str(self.root))}"
+        words = [w for w in base.split(" ") if not w.startswith("out_dir=")]
+        base = " ".join([*words, here]) if here not in base.split(" ") else base
         totals = {int(p.stem.rsplit("-", 1)[-1])
                   for p in (self.root / "stats").glob("shard-*-of-*.json")}
         if len(totals) != 1 or totals == {1} or n == 0:

@@ -4,7 +4,9 @@ A stage's output folder (a dataset, a model folder, a localization report) holds
 (``config.json``, or the stage's own file such as a dataset's ``dataset.json``) with the
 settings its results depend on. ``claim_output`` is called before anything is written:
 
-- no results there yet (none of the stage's ``results`` paths exists): a fresh folder;
+- no results there yet (none of the stage's ``results`` paths exists): a fresh folder,
+  unless a live run holds it: then its record is compared as below (a run that has written
+  its record but no result yet owns the folder);
 - the same settings: the run resumes (the stage skips what is done);
 - other settings only in keys the stage lets grow (a count that rises, a list that gains
   entries, an unset value that is set): the folder grows;
@@ -301,6 +303,17 @@ def _claim_locked(folder: Path, fd: int, record: Mapping, policy: FolderPolicy,
                     f"{describe(comparison.differ)} (folder -> this run; from {path}). Pass "
                     "overwrite=true to replace them, or pick another name=... for this run.")
     alone = _lock(fd, fcntl.LOCK_EX, 0.0)
+    if not alone and status == "new" and path.is_file():
+        # a live run's record, before its first result: the folder is that run's already
+        comparison = compare(_read_record(path), record, policy)
+        if comparison.differ and not overwrite:
+            raise OutputFolderError(
+                f"{folder} is being written by another run (pid {holder_pid(folder)}) with "
+                f"another config: {describe(comparison.differ)} (folder -> this run; from "
+                f"{path}). Wait for it and pass overwrite=true to replace its results, or "
+                "pick another name=... for this run.")
+        if not comparison.same:
+            status = "grow" if not comparison.differ else "overwrite"
     if not alone:
         if policy.concurrent and status in ("resume", "new"):
             if not _lock(fd, fcntl.LOCK_SH, wait_s):

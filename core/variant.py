@@ -1,4 +1,5 @@
-"""Pick Mitsuba's variant at run time: ``llvm_ad_rgb`` when LLVM works, else ``scalar_rgb``.
+"""Pick Mitsuba's variant at run time: ``llvm_ad_rgb`` when LLVM works, else ``scalar_rgb``;
+and ``shape_index``, the id a variant's ``aov`` integrator gives a shape.
 
 Dr.Jit's LLVM backend needs libLLVM >= 16 (LLVM 15 crashes the process, 14 is refused), so the
 check runs in a child process and, where several libLLVM versions are installed, points
@@ -66,3 +67,18 @@ def choose_variant(requested: str = "auto") -> str:
                     "`apt-get install libllvm19`); rendering with scalar_rgb, about 2x slower.")
     mi.set_variant(variant)
     return variant
+
+
+def shape_index(mi, shape, pos: int) -> int:
+    """The value the ``aov`` integrator's ``shape_index`` gives for a shape of a loaded scene.
+
+    Args:
+        mi: the mitsuba module (variant set).
+        shape: a shape of ``scene.shapes()``.
+        pos: its position in ``scene.shapes()``.
+    """
+    if hasattr(mi, "ShapePtr"):  # JIT variants: the shape's registry id
+        import drjit as dr
+
+        return int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+    return pos + 1  # scalar: position in scene.shapes(), counted from 1

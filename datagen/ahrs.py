@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation
 
 from core.config import as_config
 from core.poses import pose_from_xyz_rpy
-from datagen.config import AhrsConfig
+from core.realism import AhrsConfig
 
 WHERE = "realism.ahrs"
 STD_KEYS = ("bias_deg", "noise_deg", "drift_deg")

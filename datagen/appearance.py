@@ -22,6 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from core.colour import LINEAR_LUT, srgb_to_linear
 from core.config import as_config
 from datagen.config import AppearanceConfig
 
@@ -100,18 +101,6 @@ def _style(rng: np.random.Generator, table: Mapping[str, float], key: str,
 # --------------------------------------------------------------------------- colour & noise
 
 
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] to linear values (IEC 61966-2-1)."""
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
-
-
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """Linear values in [0, 1] to sRGB-encoded values (IEC 61966-2-1)."""
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
-
-
 def _hsv(rng: np.random.Generator, h: tuple[float, float], s: tuple[float, float],
          v: tuple[float, float]) -> np.ndarray:
     """Random sRGB colour (3,) with hue, saturation and value drawn in the given ranges."""
@@ -177,9 +166,6 @@ def _speckle(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     return (rng.random((h, w), dtype=np.float32) - np.float32(0.5)) * np.float32(12**0.5)
 
 
-_LINEAR_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
-
-
 def _to_linear(img: np.ndarray) -> np.ndarray:
     """Quantize an sRGB float image to 8 bits (like any texture file) and linearize it.
 
@@ -190,7 +176,7 @@ def _to_linear(img: np.ndarray) -> np.ndarray:
         (H, W, 3) float32 linear values in [0, 1].
     """
     u8 = cv2.convertScaleAbs(np.maximum(img, 0), alpha=255.0)  # rounds, saturates to 0..255
-    return cv2.LUT(u8, _LINEAR_LUT)
+    return cv2.LUT(u8, LINEAR_LUT)
 
 
 def _c(colour: np.ndarray | float) -> np.ndarray:

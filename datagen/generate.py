@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from core import camera_effects
 from core import classes as C
 from core.atomic import (
     atomic_write_json,
@@ -49,24 +50,18 @@ from core.config import as_config, typed
 from core.dataset import SCHEMA_VERSION, SPLITS, Camera, World, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
+from core.realism import MapErrorConfig, realism_label
 from datagen import (
     ahrs,
     appearance,
     calibration,
-    camera_effects,
     distractors,
     map_error,
     optics,
     timing,
     trajectories,
 )
-from datagen.config import (
-    CameraConfig,
-    DatagenConfig,
-    DistractorPreset,
-    MapErrorConfig,
-    realism_label,
-)
+from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
 from datagen.scene import Scene
@@ -169,7 +164,10 @@ def val_flights(cfg: DatagenConfig) -> list[str]:
 
 
 def _check_counts(cfg: DatagenConfig) -> None:
-    """Counts, sizes and shards: positive where they must be."""
+    """Seed, counts, sizes and shards: positive where they must be."""
+    if cfg.seed < 0:
+        raise ValueError(f"seed = {cfg.seed} must be >= 0 (numpy's SeedSequence takes "
+                         "non-negative integers); pass seed=0 or another non-negative one")
     for split in SPLITS:
         n = getattr(cfg.splits, split)
         if n < 0:

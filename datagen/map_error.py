@@ -37,7 +37,8 @@ from core import classes as C
 from core.config import as_config
 from core.dataset import World
 from core.occupancy import OccupancyMap
-from datagen.config import DoorSize, MapErrorConfig, WindowSize
+from core.realism import MapErrorConfig
+from datagen.config import DoorSize, WindowSize
 from datagen.edges import extract_edges
 from datagen.scene import TEXTURE_EXTENT, Surface, box_uv, ceiling_above
 

@@ -22,7 +22,7 @@ A flight frame at time t (frame i at t = i / fps) is made of S sub-frames:
   nearest its mid-exposure time t_r - exposure_s / 2 (``pick_rows``), so labels match the
   image.
 
-The result is the rendered frame the camera effects (datagen/camera_effects.py) then take.
+The result is the rendered frame the camera effects (core/camera_effects.py) then take.
 The distractors stay where they are at frame i during its sub-frames (people walk 1-2 cm in a
 blur window). A frame's sub-frames depend only on the flight's true poses and i, and their
 render seeds are drawn from the frame's own generator: resume and shards give the same bytes.
@@ -39,11 +39,12 @@ import numpy as np
 
 from core import classes as C
 from core import lens
+from core.colour import linear_to_srgb8
 from core.config import as_config
 from core.dataset import Camera
 from core.poses import interpolate_poses
-from datagen.config import RealismConfig
-from datagen.render import Traced, linear_to_srgb8
+from core.realism import RealismConfig
+from datagen.render import Traced
 
 WHERE = "realism"
 #: m, the depth the sub-frame count assumes for the nearest surfaces in view: the image

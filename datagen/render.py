@@ -24,7 +24,9 @@ import trimesh
 
 from core import classes as C
 from core.camera import mitsuba_to_world
+from core.colour import linear_to_srgb8
 from core.dataset import Camera
+from core.variant import shape_index
 from datagen.config import RenderConfig
 from datagen.denoise import denoise, segment_ids
 from datagen.scene import QUAD, Scene
@@ -43,21 +45,6 @@ class Traced:
     aux: np.ndarray
     rgb: np.ndarray
     albedo: np.ndarray | None
-
-
-def shape_index(mi, shape, pos: int) -> int:
-    """The value the ``aov`` integrator's ``shape_index`` gives for a shape of a loaded scene.
-
-    Args:
-        mi: the mitsuba module (variant set).
-        shape: a shape of ``scene.shapes()``.
-        pos: its position in ``scene.shapes()``.
-    """
-    if hasattr(mi, "ShapePtr"):  # JIT variants: the shape's registry id
-        import drjit as dr
-
-        return int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-    return pos + 1  # scalar: position in scene.shapes(), counted from 1
 
 
 def _set(params, key: str, value: np.ndarray) -> None:
@@ -437,13 +424,6 @@ class Developer:
             rgb = denoise(rgb, traced.albedo, segment_ids(index, aux[..., 2:5]), keep,
                           denoise_sigma_px)
         return rgb * exposure, label, (t / self.ray_norm).astype(np.float32)
-
-
-def linear_to_srgb8(img: np.ndarray) -> np.ndarray:
-    """Linear RGB (any shape, float) to 8-bit sRGB with clipping."""
-    x = np.clip(np.nan_to_num(img, nan=0.0), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.rint(s * 255.0).astype(np.uint8)
 
 
 #: The name datagen.generate and older callers use.

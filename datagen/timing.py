@@ -31,7 +31,8 @@ from scipy.spatial.transform import Rotation, RotationSpline
 
 from core.config import as_config
 from core.poses import pose_from_xyz_rpy
-from datagen.config import OdometryConfig, TimingConfig
+from core.realism import TimingConfig
+from datagen.config import OdometryConfig
 
 WHERE = "realism.timing"
 MAX_DROP_RATE = 0.5  # a link that loses more than half its frames is broken, not imperfect

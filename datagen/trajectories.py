@@ -20,13 +20,8 @@ from scipy.spatial.transform import Rotation
 from core.config import as_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy, wrap_angle
-from datagen.config import (
-    FlightConfig,
-    HarderFlightConfig,
-    OdometryConfig,
-    TrainingConfig,
-    TrajectoryConfig,
-)
+from core.realism import HarderFlightConfig
+from datagen.config import FlightConfig, OdometryConfig, TrainingConfig, TrajectoryConfig
 from datagen.free_axes import axis_at
 from datagen.routes import (
     find_turns,

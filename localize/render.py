@@ -40,7 +40,7 @@ class ModelRenderer:
         choose_variant(variant)
         import mitsuba as mi
 
-        from datagen.render import shape_index
+        from core.variant import shape_index
 
         self.mi, self.camera = mi, camera
         K = camera.K

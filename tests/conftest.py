@@ -9,7 +9,7 @@ import pytest
 import datagen  # noqa: F401  (each stage's package registers its config schema)
 import localize  # noqa: F401
 import train  # noqa: F401
-from tests.helpers import TINY_DATAGEN, compose_config
+from core.config import TINY_DATAGEN, compose_config
 
 
 @pytest.fixture(scope="session")

@@ -33,12 +33,12 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
 
+from core import camera_effects
 from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset, open_datasets
 from core.model_folder import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from core.outputs import releases_claims
-from datagen import camera_effects
-from datagen.config import load_realism
+from core.realism import load_realism
 from train.budget import fit_epochs, training_budget
 from train.checkpoint import (
     LAST_CHECKPOINT,

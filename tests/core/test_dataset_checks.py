@@ -43,14 +43,14 @@ class TestSplit:
             Dataset(root).split("train")
         msg = str(err.value)
         assert "split 'train' has 3 of the 6 frames" in msg and "frames 3-5" in msg
-        assert f"`{COMMAND} shard=1 num_shards=2`" in msg
+        assert f"`{COMMAND} out_dir={root} shard=1 num_shards=2`" in msg
         assert "shard=0" not in msg
 
     def test_missing_label(self, tmp_path: Path) -> None:
         root = mini_dataset(tmp_path, shards=1)
         (root / "train" / "label" / "000001.png").unlink()
         with pytest.raises(FileNotFoundError, match=r"5 of the 6 .*label/000001.png.*"
-                                                    rf"`{COMMAND}`"):
+                                                    rf"`{COMMAND} out_dir={root}`"):
             Dataset(root).split("train")
 
     def test_temp_files_are_ignored(self, tmp_path: Path) -> None:
@@ -66,6 +66,21 @@ class TestSplit:
         bad.write_bytes(bad.read_bytes()[:-20])
         with pytest.raises(ValueError, match=rf"cut-short PNG.*{bad}.*shard=1 num_shards=2"):
             Dataset(root).split("train")
+
+    def test_copied_dataset_names_the_folder_loaded(self, tmp_path: Path) -> None:
+        """A dataset made in one folder and copied to another: the repair command writes into
+        the copy."""
+        made = mini_dataset(tmp_path / "made")
+        meta = json.loads((made / "dataset.json").read_text())
+        atomic_write_json(made / "dataset.json", {**meta, "command": f"{COMMAND} out_dir={made}"})
+        copy = tmp_path / "copy"
+        made.rename(copy)
+        (copy / "train" / "rgb" / "000004.png").unlink()
+        with pytest.raises(FileNotFoundError) as err:
+            Dataset(copy).split("train")
+        msg = str(err.value)
+        assert f"`{COMMAND} out_dir={copy} shard=1 num_shards=2`" in msg, msg
+        assert str(made) not in msg.split("`")[1]
 
     def test_without_command(self, tmp_path: Path) -> None:
         root = mini_dataset(tmp_path)

@@ -12,9 +12,9 @@ from core import classes as C
 from core import lens
 from core.atomic import read_png
 from core.camera import intrinsics
+from core.config import compose_config
 from core.dataset import Camera, Dataset
 from datagen import generate as gen
-from tests.helpers import compose_config
 
 #: EuRoC MAV cam0's plumb_bob coefficients (the realism=real lens).
 EUROC = [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05, 0.0]

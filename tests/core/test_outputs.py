@@ -169,6 +169,23 @@ class TestLock:
         a.release()
         b.release()
 
+    def test_live_run_without_results_refuses_another_config(self, tmp_path: Path) -> None:
+        """Two runs of one folder started together: the first has written its record, not
+        yet a result; the second, of another seed, is refused and never shares the lock."""
+        shared = FolderPolicy(results=("out/*",), grow=("splits",), concurrent=True)
+        first = claim_output(tmp_path, record(), shared)
+        with pytest.raises(OutputFolderError, match=r"being written by another run \(pid \d+\)"
+                                                    r" with another config: seed \(0 -> 1\)"):
+            claim_output(tmp_path, record(seed=1), shared, wait_s=0)
+        with pytest.raises(FolderBusy):  # a grow waits for the folder alone
+            claim_output(tmp_path, record(splits__train=9), shared, wait_s=0.1)
+        with claim_output(tmp_path, record(), shared, wait_s=0) as shard:  # its own config
+            assert shard.status == "new" and not shard.alone
+        assert json.loads((tmp_path / "config.json").read_text())["seed"] == 0
+        first.release()
+        with claim_output(tmp_path, record(seed=1), shared, wait_s=0) as claim:  # ended
+            assert claim.status == "new"
+
     def test_other_process_named_by_pid(self, tmp_path: Path) -> None:
         code = ("import sys, time; from core.outputs import FolderPolicy, claim_output; "
                 "c = claim_output(sys.argv[1], {}, FolderPolicy()); print('held', flush=True); "

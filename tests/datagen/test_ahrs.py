@@ -13,13 +13,13 @@ from hydra.errors import ConfigCompositionException
 from scipy.spatial.transform import Rotation
 
 import datagen.generate as gen
-from core.config import typed
+from core.config import CONF, compose_config, typed
 from core.dataset import Dataset
 from core.poses import pose_from_xyz_rpy, read_tum
+from core.realism import AhrsConfig, RealismConfig
 from datagen import ahrs
 from datagen import trajectories as TR
-from datagen.config import AhrsConfig, DatagenConfig, RealismConfig
-from tests.helpers import CONF, compose_config
+from datagen.config import DatagenConfig
 
 FPS = 10.0
 N_LONG = 200_000  # samples: 20,000 s at 10 fps, 2,000 drift correlation times

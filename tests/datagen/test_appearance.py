@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from core import colour
 from datagen import appearance as A
 from datagen.config import AppearanceConfig
 
@@ -19,7 +20,7 @@ def cfg():
 
 def edge_fraction(img: np.ndarray) -> float:
     """Fraction of Canny edge pixels (strong: thresholds 50 / 150) of a linear texture."""
-    u8 = (A.linear_to_srgb(img) * 255 + 0.5).astype(np.uint8)
+    u8 = (colour.linear_to_srgb(img) * 255 + 0.5).astype(np.uint8)
     return float((cv2.Canny(cv2.cvtColor(u8, cv2.COLOR_RGB2GRAY), 50, 150) > 0).mean())
 
 
@@ -159,7 +160,7 @@ class TestMaterials:
 
 def test_srgb_round_trip():
     x = np.linspace(0, 1, 101)
-    np.testing.assert_allclose(A.linear_to_srgb(A.srgb_to_linear(x)), x, atol=1e-9)
+    np.testing.assert_allclose(colour.linear_to_srgb(colour.srgb_to_linear(x)), x, atol=1e-9)
 
 
 # --------------------------------------------------------------------------- wider variety
@@ -182,7 +183,7 @@ NEW_FAMILIES = {"floor_styles": ("_vinyl", "_concrete", "_terrazzo"),
 @pytest.fixture(scope="module")
 def varied(cfg):
     """The conf/appearance/varied.yaml preset over the defaults."""
-    from tests.helpers import CONF
+    from core.config import CONF
 
     return OmegaConf.merge(cfg, OmegaConf.load(CONF / "appearance" / "varied.yaml"))
 
@@ -217,7 +218,7 @@ class TestDefaultsUnchanged:
                 np.testing.assert_array_equal(a[name], b[name])
 
     def test_preset_default_is_the_defaults(self, cfg):
-        from tests.helpers import compose_config
+        from core.config import compose_config
 
         plain = compose_config("datagen")["appearance"]
         named = compose_config("datagen", ["appearance=default"])["appearance"]
@@ -297,7 +298,7 @@ class TestVaried:
         plain = OmegaConf.merge(cfg, {"posters": [0, 0]})
 
         def saturation(img):
-            u8 = (A.linear_to_srgb(img[:64]) * 255).astype(np.uint8)  # above the dado
+            u8 = (colour.linear_to_srgb(img[:64]) * 255).astype(np.uint8)  # above the dado
             return float(cv2.cvtColor(u8, cv2.COLOR_RGB2HSV)[..., 1].mean())
 
         s_accent = [saturation(draw(accent, s, 128)["wall"]) for s in range(8)]
@@ -366,9 +367,9 @@ def test_tiny_render_varied(tmp_path):
     scene): images and labels written, the preset recorded with the dataset, the same seed
     the same images."""
     from core.atomic import read_png
+    from core.config import compose_config
     from core.dataset import Dataset
     from datagen.generate import run
-    from tests.helpers import compose_config
 
     def render(out):
         cfg = compose_config("datagen", [

@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from core.config import typed
+from core.config import compose_config, typed
 from core.occupancy import OccupancyMap
 from datagen import distractors as D
 from datagen.config import DatagenConfig
-from tests.helpers import compose_config
 
 # the default corridor floor (x in [-1, 1], y in [0, 10]) with a side opening on the left
 BOXES = np.array([[-1.0, 0.0, 1.0, 10.0], [-3.0, 5.4, -1.0, 7.0]])

@@ -22,13 +22,14 @@ from tests.datagen.test_generate import SMALL, small_cfg
 
 REPO = Path(__file__).resolve().parents[2]
 
-#: A datagen run in its own process: argv[1] = JSON {out, overrides, gate}. With a gate it
-#: stops after its first frame until ``<gate>.go`` exists (``<gate>.started`` says so).
+#: A datagen run in its own process: argv[1] = JSON {out, overrides, gate, before}. With a
+#: gate it stops after its first frame (``before``: before writing it) until ``<gate>.go``
+#: exists (``<gate>.started`` says so).
 CHILD = """
 import json, sys, time
 from pathlib import Path
 import datagen.generate as gen
-from tests.helpers import compose_config
+from core.config import compose_config
 try:
     import core.outputs
     core.outputs.RUN_WAIT_S = 1.0
@@ -39,17 +40,22 @@ cfg = compose_config("datagen", args["overrides"])
 if args["gate"]:
     real, gate = gen.write_frame, args["gate"]
     def paused(*a, **k):
-        real(*a, **k)
+        if not args["before"]:
+            real(*a, **k)
         Path(gate + ".started").touch()
         while not Path(gate + ".go").exists():
             time.sleep(0.05)
+        if args["before"]:
+            real(*a, **k)
     gen.write_frame = paused
 gen.run(cfg, progress=False)
 """
 
 
-def child(out: Path, *extra: str, gate: Path | None = None) -> subprocess.Popen:
-    args = {"overrides": [*SMALL, f"out_dir={out}", *extra], "gate": str(gate or "")}
+def child(out: Path, *extra: str, gate: Path | None = None,
+          before: bool = False) -> subprocess.Popen:
+    args = {"overrides": [*SMALL, f"out_dir={out}", *extra], "gate": str(gate or ""),
+            "before": before}
     return subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(args)], cwd=REPO,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -92,6 +98,26 @@ class TestTwoRuns:
         assert sorted(got) == sorted(ref)
         for k in ref:  # LLVM's threads may move a pixel by one level (docs/datagen.md)
             np.testing.assert_allclose(got[k], ref[k], atol=1, err_msg=k)
+
+    def test_other_seed_refused_before_the_first_frame(self, tmp_path: Path) -> None:
+        """Two runs started together on an empty folder: the first has claimed it (its
+        dataset.json written, no frame yet); the second, of another seed, is refused naming
+        the key, and the data never mixes."""
+        out, gate = tmp_path / "ds", tmp_path / "gate"
+        first = child(out, gate=gate, before=True)
+        try:
+            wait_started(gate, first)
+            assert not list(out.glob("*/rgb/*.png"))
+            second = child(out, "seed=1")
+            _, err = second.communicate(timeout=300)
+            assert second.returncode != 0, "the second run must not write"
+            assert re.search(rf"being written by another run \(pid {first.pid}\) with another "
+                             r"config: seed \(0 -> 1\)", err), err[-2000:]
+        finally:
+            Path(f"{gate}.go").touch()
+            _, err = first.communicate(timeout=300)
+        assert first.returncode == 0, err[-2000:]
+        assert json.loads((out / "dataset.json").read_text())["seed"] == 0
 
     def test_shards_of_one_config_write_side_by_side(self, tmp_path: Path) -> None:
         out, gate = tmp_path / "ds", tmp_path / "gate"
@@ -151,3 +177,21 @@ def test_resume_mends_killed_writes(tmp_path: Path) -> None:
     np.testing.assert_array_equal(again, cv2.imdecode(np.frombuffer(good, np.uint8),
                                                       cv2.IMREAD_UNCHANGED))
     assert len(Dataset(out).split("train")[0]) == 4
+
+
+def test_full_disk_names_the_folder_and_the_fix(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """ENOSPC on a write (simulated): a DiskFullError naming the dataset's folder, the file
+    and the fix, not a bare OSError."""
+    import errno
+
+    from core import atomic
+
+    def replace(src, dst):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(atomic.os, "replace", replace)
+    out = tmp_path / "ds"
+    with pytest.raises(atomic.DiskFullError, match=rf"writing \S+ into {out}(/\S+)? failed: "
+                                                   r"the disk is full .* Free space"):
+        gen.run(small_cfg(out), progress=False)

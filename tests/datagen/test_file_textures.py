@@ -9,6 +9,7 @@ import pytest
 import trimesh
 
 from core import classes as C
+from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy
 from datagen import appearance
@@ -17,7 +18,6 @@ from datagen.importers import load_building
 from datagen.importers.meshfile import Y_UP_TO_Z_UP
 from datagen.scene import building_scene
 from tests.datagen.building_files import open_room, write_dae
-from tests.helpers import compose_config
 
 #: The poster's image: top-left red, top-right green, bottom-left blue, bottom-right white.
 QUADRANTS = np.zeros((32, 32, 3), np.uint8)

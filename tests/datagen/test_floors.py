@@ -222,11 +222,10 @@ def test_hospital_flights():
     with >= 2 turns of >= 60 deg."""
     if not HOSPITAL.is_file():
         pytest.skip(f"{HOSPITAL} is absent (../shared/worlds not here)")
-    from core.config import typed
+    from core.config import compose_config, typed
     from datagen.config import DatagenConfig
     from datagen.importers import load_building
     from datagen.importers.__main__ import free_space_and_route
-    from tests.helpers import compose_config
 
     occ = free_space_and_route(load_building(HOSPITAL), 40.0, 0)[0]
     flights = typed(DatagenConfig, compose_config("datagen"), "datagen").flights

@@ -13,11 +13,11 @@ from hydra.errors import ConfigCompositionException
 import datagen.generate as gen
 from core import classes as C
 from core.atomic import read_png
+from core.config import compose_config
 from core.dataset import Dataset
 from core.occupancy import PATH_RGB
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME, OutputFolderError
 from datagen.pipeline import Pipeline
-from tests.helpers import compose_config
 
 SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",
          "splits.test=0", "render.spp=1", "training.chunk=2", "render_flights=[cluttered]",
@@ -138,6 +138,7 @@ class TestDeterminismAndResume:
 
 class TestBadConfig:
     @pytest.mark.parametrize("override,match", [
+        ("seed=-1", r"seed = -1 must be >= 0"),
         ("camera.width=-320", "camera.width"),
         ("splits.train=-1", "splits.train"),
         ("world.length=-10", "world.length"),

@@ -16,8 +16,8 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from core.atomic import read_png
+from core.config import CONF, TINY_DATAGEN
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME
-from tests.helpers import CONF, TINY_DATAGEN
 
 ROOT = Path(__file__).resolve().parents[2]
 #: No usage reports from Ray (no network in tests).

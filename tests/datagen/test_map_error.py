@@ -12,14 +12,14 @@ import pytest
 import datagen.generate as gen
 from core import classes as C
 from core.atomic import read_png
+from core.config import compose_config
 from core.dataset import Dataset
+from core.realism import CalibrationConfig, MapErrorConfig
 from datagen import calibration as CAL
 from datagen import map_error as M
-from datagen.config import CalibrationConfig, MapErrorConfig
 from datagen.generate import make_camera, rng_for
 from datagen.site import build_site
 from tests.datagen.test_site import write_ring_glb
-from tests.helpers import compose_config
 
 MAP = ["realism.map.wall_std_m=0.03", "realism.map.ceiling_std_m=0.03",
        "realism.map.missing_openings=1", "realism.map.extra_openings=1"]

@@ -11,11 +11,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from core.atomic import read_png
+from core.config import compose_config
+from core.realism import RealismConfig
 from datagen import generate as gen
 from datagen import optics
-from datagen.config import RealismConfig
 from tests.core.test_lens import EUROC, LENS, SMALL, camera
-from tests.helpers import compose_config
 
 
 class TestTime:

@@ -13,13 +13,13 @@ from scipy import ndimage
 import datagen.generate as gen
 from core import classes as C
 from core.atomic import read_png
+from core.config import compose_config
 from core.dataset import Dataset
 from core.occupancy import OccupancyMap
 from datagen.config import ProceduralWorldConfig, world_config
 from datagen.procedural import build_floor, draw_plan, main
 from datagen.routes import find_turns, plan_route, route_length
 from datagen.site import build_site
-from tests.helpers import compose_config
 
 #: A smaller floor than the default (a 3 x 2 or 2 x 2 corridor grid): fast.
 SMALL = ProceduralWorldConfig(size=[26.0, 22.0], grid_spacing=[6.0, 7.0])

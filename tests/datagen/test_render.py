@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.config import compose_config
 from core.poses import pose_from_xyz_rpy
 from datagen import appearance
 from datagen.generate import make_camera
 from datagen.scene import corridor_scene
 from datagen.world import build_world
-from tests.helpers import compose_config
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +146,8 @@ def test_render_is_develop_of_trace():
 def test_denoiser_keeps_only_emitters_raw():
     """The denoiser leaves the emitters as rendered (the ceiling lights, the window's outdoor
     view) and smooths every diffuse surface, the window's frame faces too (labelled window)."""
-    from datagen.render import Renderer, shape_index
+    from core.variant import shape_index
+    from datagen.render import Renderer
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
@@ -165,7 +166,8 @@ def test_denoiser_keeps_only_emitters_raw():
 
 def test_develop_smooths_all_but_the_raw_shapes():
     """A noisy flat view, shape 1 on the left (diffuse), shape 2 on the right (kept raw)."""
-    from datagen.render import Developer, Traced, linear_to_srgb8
+    from core.colour import linear_to_srgb8
+    from datagen.render import Developer, Traced
 
     H, W = 16, 32
     aux = np.zeros((H, W, 5), np.float32)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy
 from datagen import appearance
@@ -25,7 +26,6 @@ from datagen.world import build_world
 from tests import buildings
 from tests.datagen import building_files as files
 from tests.datagen.building_files import ROOM
-from tests.helpers import compose_config
 
 CABINET_RGB = (0.8, 0.1, 0.1)
 

@@ -7,10 +7,10 @@ import pytest
 import trimesh
 
 from core import classes as C
+from core.config import compose_config
 from datagen.config import FileWorldConfig, WorldConfig, world_config
 from datagen.site import STANDING_BAND, build_site
 from tests.buildings import BAND, MARGIN, ring, ring_area
-from tests.helpers import compose_config
 
 
 def write_ring_glb(path, width: float = 2.0) -> str:

@@ -11,12 +11,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import datagen.generate as gen
+from core.config import compose_config
 from core.dataset import Dataset
 from core.poses import read_tum, xyzyaw_from_pose
+from core.realism import HarderFlightConfig, TimingConfig
 from datagen import timing as TM
 from datagen import trajectories as TR
-from datagen.config import HarderFlightConfig, TimingConfig
-from tests.helpers import compose_config
 
 FPS = 10.0
 FLIGHT = ["splits.train=0", "splits.val=0", "splits.test=0", "render_flights=[paper]",

@@ -7,9 +7,9 @@ import pytest
 import trimesh
 
 from core import classes as C
+from core.config import compose_config
 from datagen.edges import extract_edges
 from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces
-from tests.helpers import compose_config
 
 
 @pytest.fixture(scope="module")

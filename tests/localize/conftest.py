@@ -17,9 +17,9 @@ from onnx import TensorProto, helper
 from core import classes as C
 from core.atomic import read_png, write_png
 from core.camera import intrinsics
+from core.config import CONF, compose_config
 from core.dataset import Camera
 from datagen.world import build_world
-from tests.helpers import CONF, compose_config
 
 #: body x forward -> camera z, body y left -> camera -x, body z up -> camera -y; 10 cm ahead.
 BODY_FROM_CAM = np.array([[0.0, 0.0, 1.0, 0.1], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0],

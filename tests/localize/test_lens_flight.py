@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from core.atomic import read_png
+from core.config import compose_config
 from core.dataset import Dataset
 from datagen import generate as gen
 from localize.frontend.sources import LabelFunction
@@ -18,7 +19,6 @@ from localize.recording import read_recording
 from localize.recording_export import export_folder
 from localize.runner import run
 from tests.core.test_lens import EUROC, LENS
-from tests.helpers import compose_config
 from tests.localize.conftest import QUICK, localize_cfg
 
 FRAMES = 12

@@ -12,10 +12,10 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import localize.__main__ as lm
+from core.config import CONF
 from core.segmenter import OnnxSegmenter
 from localize import settings as ls
 from localize.frontend.segmenter import SHIPPED_MODEL, load_segmenter, model_path
-from tests.helpers import CONF
 from tests.localize.conftest import palette_segnet
 
 #: What conf/experiment/best5_context.yaml carries.

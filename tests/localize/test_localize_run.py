@@ -51,8 +51,8 @@ def test_presets_per_mode_k(preset):
     sigma = 0.3 in every mode, though its mode_likelihood merges into the default's."""
     from hydra import compose, initialize_config_dir
 
+    from core.config import CONF
     from localize.runner import settings_of
-    from tests.helpers import CONF
 
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose("localize", overrides=[f"filter={preset}"])

@@ -12,9 +12,9 @@ import torch
 
 from core import classes as C
 from core.atomic import read_png
+from core.config import TINY_DATAGEN, compose_config
 from core.dataset import Dataset
 from localize.frontend.segmenter import SHIPPED_MODEL, load_segmenter
-from tests.helpers import TINY_DATAGEN, compose_config
 from train.metrics import confusion_matrix, scores
 
 FOLDER = SHIPPED_MODEL.parent

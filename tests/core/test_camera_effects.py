@@ -1,4 +1,4 @@
-"""Tests of datagen.camera_effects: sensor noise, exposure changes, JPEG and dropouts on the
+"""Tests of core.camera_effects: sensor noise, exposure changes, JPEG and dropouts on the
 flights' images, and their wiring into datagen (realism=real)."""
 
 from __future__ import annotations
@@ -12,18 +12,12 @@ import pytest
 import yaml
 
 import datagen.generate as gen
+from core import camera_effects as E
+from core import colour
 from core.atomic import read_png
-from core.config import typed
-from datagen import camera_effects as E
-from datagen.config import (
-    DatagenConfig,
-    DropoutConfig,
-    ExposureConfig,
-    JpegConfig,
-    RealismConfig,
-    SensorNoiseConfig,
-)
-from tests.helpers import CONF, compose_config
+from core.config import CONF, compose_config, typed
+from core.realism import DropoutConfig, ExposureConfig, JpegConfig, RealismConfig, SensorNoiseConfig
+from datagen.config import DatagenConfig
 
 FPS = 10.0
 
@@ -81,13 +75,13 @@ class TestFrames:
 
     def test_zero_noise_and_exposure_round_trip(self):
         """Through linear light and back without a change: every 8-bit level comes back."""
-        from datagen.render import linear_to_srgb8
+        from core.colour import linear_to_srgb8
 
         levels = np.arange(256, dtype=np.uint8).reshape(16, 16, 1).repeat(3, axis=2)
-        np.testing.assert_array_equal(linear_to_srgb8(E.to_linear(levels)), levels)
+        np.testing.assert_array_equal(linear_to_srgb8(colour.to_linear(levels)), levels)
         np.testing.assert_array_equal(E.sensor_noise(np.random.default_rng(0),
-                                                     E.to_linear(levels), None),
-                                      E.to_linear(levels))
+                                                     colour.to_linear(levels), None),
+                                      colour.to_linear(levels))
 
     @pytest.mark.parametrize("full_well,read", [(500.0, 3.0), (2000.0, 0.0), (200.0, 4.0)])
     def test_noise_variance_is_poisson_gaussian(self, full_well, read):
@@ -110,9 +104,9 @@ class TestFrames:
         measured, model = [], []
         for level in (40, 90, 140, 200):
             out = E.apply_effects(flat(level), np.random.default_rng(level), c)
-            x = float(E.LINEAR_LUT[level])
-            step = E.LINEAR_LUT[min(level + 1, 255)] - E.LINEAR_LUT[level]
-            measured.append(E.to_linear(out).var())
+            x = float(colour.LINEAR_LUT[level])
+            step = colour.LINEAR_LUT[min(level + 1, 255)] - colour.LINEAR_LUT[level]
+            measured.append(colour.to_linear(out).var())
             model.append(x / 300.0 + (2.0 / 300.0) ** 2 + step**2 / 12)
         np.testing.assert_allclose(measured, model, rtol=0.15)
         assert np.all(np.diff(measured) > 0)
@@ -120,10 +114,10 @@ class TestFrames:
     def test_exposure_gain(self):
         """ev = 1 doubles linear light, ev = -1 halves it."""
         img = flat(90)
-        x = E.LINEAR_LUT[90]
+        x = colour.LINEAR_LUT[90]
         for ev, factor in ((1.0, 2.0), (-1.0, 0.5)):
             out = E.apply_effects(img, np.random.default_rng(0), None, ev=ev)
-            np.testing.assert_allclose(E.to_linear(out).mean(), factor * x, rtol=0.02)
+            np.testing.assert_allclose(colour.to_linear(out).mean(), factor * x, rtol=0.02)
 
     def test_jpeg_quality(self):
         img = textured(1, 96, 128)

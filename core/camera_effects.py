@@ -29,24 +29,21 @@ from typing import TypeVar
 import cv2
 import numpy as np
 
+from core.colour import linear_to_srgb8, to_linear
 from core.config import as_config
-from datagen.appearance import srgb_to_linear
-from datagen.config import (
+from core.realism import (
     DropoutConfig,
     ExposureConfig,
     JpegConfig,
     RealismConfig,
     SensorNoiseConfig,
 )
-from datagen.render import linear_to_srgb8
 
 WHERE = "realism"
 KINDS = ("black", "noise", "covered")  # the dropout kinds
 COVERED_GAIN = 0.05  # linear light reaching the sensor through a covered lens
 COVERED_BLUR = 0.05  # Gaussian blur std of a covered lens, a fraction of the image's larger side
 MAX_EV = 8.0  # EV stops; an exposure setting beyond is a mistake, not an imperfection
-#: (256,) float32 linear value of each 8-bit sRGB level.
-LINEAR_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 T = TypeVar("T")
 
 
@@ -316,10 +313,6 @@ def _check_image(rgb: np.ndarray) -> None:
         raise ValueError("an image must be an (H, W, 3) uint8 array, got "
                          f"{getattr(rgb, 'shape', None)} {getattr(rgb, 'dtype', type(rgb))}")
 
-
-def to_linear(rgb: np.ndarray) -> np.ndarray:
-    """(H, W, 3) uint8 sRGB -> (H, W, 3) float32 linear light in [0, 1]."""
-    return LINEAR_LUT[rgb]
 
 
 def sensor_noise(rng: np.random.Generator, linear: np.ndarray,
