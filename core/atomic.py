@@ -35,7 +35,19 @@ DISK_FULL_FIX = ("Free space (old outputs/ folders, outputs/hydra/) or write to 
 
 class DiskFullError(OSError):
     """A write failed for want of disk space (errno ENOSPC); its message names the file, the
-    folder, the free space there and the fix."""
+    folder, the free space there and the fix.
+
+    Attributes:
+        where: what was being written where, and the free space (the message without the fix).
+        fix: what the user does about it.
+    """
+
+    def __init__(self, where: str, fix: str):
+        super().__init__(errno.ENOSPC, f"{where}. {fix}")
+        self.where, self.fix = where, fix
+
+    def __reduce__(self):
+        return type(self), (self.where, self.fix)
 
 
 def free_bytes(folder: str | Path) -> int:
@@ -49,7 +61,8 @@ def free_bytes(folder: str | Path) -> int:
 @contextmanager
 def disk_full_guard(folder: str | Path, what: str, fix: str = DISK_FULL_FIX) -> Iterator[None]:
     """Turn an OSError ENOSPC raised inside into a ``DiskFullError`` that says where and what
-    to do.
+    to do; a ``DiskFullError`` from an inner guard keeps its where and takes this ``fix`` (the
+    stage's advice over a generic writer's).
 
     Args:
         folder: the folder written to.
@@ -58,15 +71,16 @@ def disk_full_guard(folder: str | Path, what: str, fix: str = DISK_FULL_FIX) -> 
     """
     try:
         yield
+    except DiskFullError as err:
+        if err.fix == fix:
+            raise
+        raise DiskFullError(err.where, fix) from err.__cause__  # the outer writer's advice
     except OSError as err:
-        if err.errno != errno.ENOSPC or isinstance(err, DiskFullError):
+        if err.errno != errno.ENOSPC:
             raise
         folder = Path(folder)
-        raise DiskFullError(
-            errno.ENOSPC,
-            f"writing {what} into {folder} failed: the disk is full "
-            f"({free_bytes(folder) / 1e6:.1f} MB free there). {fix}",
-        ) from err
+        raise DiskFullError(f"writing {what} into {folder} failed: the disk is full "
+                            f"({free_bytes(folder) / 1e6:.1f} MB free there)", fix) from err
 
 
 def atomic_write(path: str | Path, write: Callable[[Path], None], suffix: str = "") -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import TINY_DATAGEN, compose_config
+from core.config import TINY_DATAGEN, compose_config
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -9,11 +9,9 @@ average, the run's state: epochs done, best score, history, time trained);
 
 from __future__ import annotations
 
-import errno
 import io
 import logging
 import math
-import shutil
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,7 +19,7 @@ from pathlib import Path
 import torch
 from torch.optim.swa_utils import AveragedModel
 
-from core.atomic import atomic_write_bytes
+from core.atomic import atomic_write_bytes, disk_full_guard
 from train.config import ModelConfig
 from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem, model_kwargs
 
@@ -32,41 +30,23 @@ log = logging.getLogger(__name__)
 LAST_CHECKPOINT = "checkpoint_last.pt"
 
 
-class DiskFullError(OSError):
-    """A write into a model folder failed for want of disk space (errno ENOSPC)."""
-
-
-def free_bytes(folder: Path) -> int:
-    """Free space (bytes) on the file system of ``folder`` (or of its nearest existing parent)."""
-    folder = Path(folder).absolute()
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
-    return shutil.disk_usage(folder).free
-
-
 @contextmanager
 def disk_space_guard(folder: str | Path, what: str) -> Iterator[None]:
-    """Turn a write's OSError ENOSPC into a ``DiskFullError`` that says where and what to do.
+    """``core.atomic.disk_full_guard`` for a model folder: a full disk raises ``DiskFullError``
+    naming the folder, its free space and what a re-run does (resume from ``LAST_CHECKPOINT``
+    where there is one, else start again).
 
     Args:
         folder: the model folder written to.
         what: the files being written (for the message), e.g. "checkpoint_last.pt".
     """
-    try:
+    folder = Path(folder)
+    rerun = ("training resumes from the last checkpoint" if (folder / LAST_CHECKPOINT).is_file()
+             else "no checkpoint was written yet, so training starts again from its first epoch")
+    with disk_full_guard(folder, what, fix="Free space (old outputs/models/* folders, "
+                         "outputs/hydra/) or pass out_root= on a disk with room, then run the "
+                         f"same command again: {rerun}"):
         yield
-    except OSError as err:
-        if err.errno != errno.ENOSPC or isinstance(err, DiskFullError):
-            raise
-        folder = Path(folder)
-        rerun = ("training resumes from the last checkpoint" if (folder / LAST_CHECKPOINT).is_file()
-                 else "no checkpoint was written yet, so training starts again from its first "
-                 "epoch")
-        raise DiskFullError(
-            errno.ENOSPC,
-            f"writing {what} into {folder} failed: the disk is full ({free_bytes(folder) / 1e6:.1f}"
-            f" MB free there). Free space (old outputs/models/* folders, outputs/hydra/) or pass "
-            f"out_root= on a disk with room, then run the same command again: {rerun}",
-        ) from err
 
 
 def save_torch(path: Path, obj: dict) -> None:

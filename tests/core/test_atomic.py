@@ -46,3 +46,22 @@ def test_guard_takes_a_stage_fix(tmp_path: Path) -> None:
     with pytest.raises(DiskFullError, match=r"writing x into .* MB free there\)\. Do this\.$"):
         with atomic.disk_full_guard(tmp_path, "x", fix="Do this."):
             raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_stage_guard_gives_its_advice_over_the_writer_s(tmp_path, monkeypatch):
+    """A DiskFullError of an inner writer keeps where it failed and takes the outer fix; it
+    survives pickling (a worker process's error)."""
+    import pickle
+
+    from core import atomic
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomic.tempfile, "mkstemp", full)
+    with pytest.raises(DiskFullError) as info, atomic.disk_full_guard(tmp_path, "x", "Do Y"):
+        atomic_write_json(tmp_path / "a.json", {})
+    assert f"writing a.json into {tmp_path} failed" in str(info.value)
+    assert str(info.value).endswith("Do Y") and info.value.errno == errno.ENOSPC
+    back = pickle.loads(pickle.dumps(info.value))
+    assert str(back) == str(info.value) and back.fix == "Do Y"

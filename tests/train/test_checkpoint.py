@@ -12,6 +12,7 @@ import torch
 import train.checkpoint as ck
 import train.export as ex
 import train.run as tt
+from core.atomic import DiskFullError, free_bytes
 
 
 def _enospc(*args, **kwargs):
@@ -21,7 +22,7 @@ def _enospc(*args, **kwargs):
 class TestDiskFull:
     def test_save_torch(self, tmp_path: Path, monkeypatch) -> None:
         monkeypatch.setattr(ck, "atomic_write_bytes", _enospc)
-        with pytest.raises(ck.DiskFullError) as info:
+        with pytest.raises(DiskFullError) as info:
             ck.save_torch(tmp_path / "checkpoint_last.pt", {"w": torch.zeros(3)})
         msg = str(info.value)
         assert f"checkpoint_last.pt into {tmp_path}" in msg
@@ -31,12 +32,12 @@ class TestDiskFull:
     def test_rerun_advice_follows_the_checkpoint(self, tmp_path: Path, monkeypatch) -> None:
         """Before the first checkpoint a re-run starts over; after it, it resumes."""
         monkeypatch.setattr(ck, "atomic_write_bytes", _enospc)
-        with pytest.raises(ck.DiskFullError) as info:
+        with pytest.raises(DiskFullError) as info:
             ck.save_torch(tmp_path / "checkpoint_best.pt", {})
         assert "starts again from its first epoch" in str(info.value)
         assert "resumes" not in str(info.value)
         (tmp_path / ck.LAST_CHECKPOINT).write_bytes(b"")
-        with pytest.raises(ck.DiskFullError) as info:
+        with pytest.raises(DiskFullError) as info:
             ck.save_torch(tmp_path / "checkpoint_best.pt", {})
         assert "training resumes from the last checkpoint" in str(info.value)
 
@@ -44,7 +45,7 @@ class TestDiskFull:
                                      monkeypatch) -> None:
         """A full disk at the first epoch's checkpoint leaves nothing to resume from."""
         monkeypatch.setattr(ck, "atomic_write_bytes", _enospc)
-        with pytest.raises(ck.DiskFullError, match="no checkpoint was written yet"):
+        with pytest.raises(DiskFullError, match="no checkpoint was written yet"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1", "export.int8=false"))
         assert not (tmp_path / "demo" / ck.LAST_CHECKPOINT).exists()
 
@@ -57,12 +58,12 @@ class TestDiskFull:
             ck.save_torch(tmp_path / "x.pt", {})
 
     def test_free_bytes_of_a_folder_not_made_yet(self, tmp_path: Path) -> None:
-        assert ck.free_bytes(tmp_path / "a" / "b") == ck.free_bytes(tmp_path) > 0
+        assert free_bytes(tmp_path / "a" / "b") == free_bytes(tmp_path) > 0
 
     def test_during_training(self, synthetic_dataset, compose_train, tmp_path, monkeypatch
                              ) -> None:
         monkeypatch.setattr(ck, "atomic_write_bytes", _enospc)
-        with pytest.raises(ck.DiskFullError, match=rf"checkpoint_best.pt into "
+        with pytest.raises(DiskFullError, match=rf"checkpoint_best.pt into "
                                                    rf"{tmp_path / 'demo'} failed: the disk is "
                                                    r"full \(.* MB free there\)"):
             tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1", "export.int8=false"))
@@ -71,7 +72,7 @@ class TestDiskFull:
     def test_during_export(self, synthetic_dataset, compose_train, tmp_path, monkeypatch
                            ) -> None:
         monkeypatch.setattr(ex, "atomic_write", _enospc)
-        with pytest.raises(ck.DiskFullError,
+        with pytest.raises(DiskFullError,
                            match=rf"segnet.onnx into {tmp_path / 'demo'}") as info:
             tt.run(compose_train(synthetic_dataset, tmp_path, "epochs=1", "export.int8=false"))
         assert (tmp_path / "demo" / "checkpoint_best.pt").is_file()  # a re-run resumes
