@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from core.atomic import atomic_write_json, atomic_write_text
+from core.atomic import atomic_write_json, atomic_write_text, disk_full_guard
 from core.dataset import Dataset
 from core.outputs import FolderPolicy, releases_claims
 from core.poses import xyzyaw_from_pose
@@ -45,6 +45,7 @@ from localize.overlay import camera_poses, overlay_strip
 from localize.recording import Recording, read_recording
 from localize.report import model_of, results_sections, summarize
 from localize.runner import (
+    REPORT_DISK_FULL_FIX,
     RESULT_KEYS,
     SPEED_ONLY,
     Context,
@@ -52,6 +53,7 @@ from localize.runner import (
     check_resume,
     check_run_lists,
     prepare,
+    report_folder,
     run_pass,
     settings_of,
 )
@@ -167,16 +169,17 @@ def run_recording(cfg: DictConfig) -> Path:
                          topics=settings.recording_topics,
                          body_from_cam=None if mount is None else np.asarray(mount,
                                                                              dtype=np.float64))
-    ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
-    check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY)
-    start = start_state(cfg, rec)
-    how = ("global (uniform)" if start is None else
-           f"tracking from x {start[0]:.2f}, y {start[1]:.2f}, z {start[2]:.2f} m, "
-           f"yaw {np.degrees(start[3]):.1f} deg")
-    init = "global" if start is None else "tracking"
-    for mode in modes:
-        # a flight's run of the same name and seed draws the same numbers
-        run = RunSpec(rec.name, mode, init, int(cfg.seeds[0]), recording=True)
-        if cfg.overwrite or not run.done(ctx.out_dir):
-            run_pass(ctx, rec, mode, [run], start=start)
-    return write_recording_report(ctx, rec, how)
+    with disk_full_guard(report_folder(cfg), "the report", REPORT_DISK_FULL_FIX):
+        ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
+        check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY)
+        start = start_state(cfg, rec)
+        how = ("global (uniform)" if start is None else
+               f"tracking from x {start[0]:.2f}, y {start[1]:.2f}, z {start[2]:.2f} m, "
+               f"yaw {np.degrees(start[3]):.1f} deg")
+        init = "global" if start is None else "tracking"
+        for mode in modes:
+            # a flight's run of the same name and seed draws the same numbers
+            run = RunSpec(rec.name, mode, init, int(cfg.seeds[0]), recording=True)
+            if cfg.overwrite or not run.done(ctx.out_dir):
+                run_pass(ctx, rec, mode, [run], start=start)
+        return write_recording_report(ctx, rec, how)

@@ -31,7 +31,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
-from core.atomic import atomic_write_json
+from core.atomic import atomic_write_json, disk_full_guard
 from core.config import typed
 from core.dataset import FLIGHT_SETS, Camera, Dataset, World
 from core.frames import Frame, FrameSource, frame_count
@@ -221,7 +221,7 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     if recording is None:
         select_flights(dataset, cfg.flight_names, cfg.flight_set)
     world = dataset.world()
-    out_dir = Path(cfg.out_root) / str(cfg.name)
+    out_dir = report_folder(cfg)
     if recording is not None:
         out_dir = out_dir / "recordings" / recording.name
     settings = settings_of(cfg)
@@ -378,20 +378,26 @@ def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
     """
     from localize.report import write_report
 
-    ctx = prepare(cfg, source_wrappers)
-    out = ctx.out_dir
-    check_resume(out, cfg)
-    for name in select_flights(ctx.dataset, cfg.flight_names, cfg.flight_set):
-        flight = ctx.dataset.flight(name)
-        for mode in cfg.modes:
-            runs = [RunSpec(name, mode, init, int(seed)) for init in cfg.inits
-                    for seed in cfg.seeds]
-            todo = [r for r in runs if cfg.overwrite or not r.done(out)]
-            if len(todo) < len(runs):
-                log.info("%s/%s: %d of %d runs already done", name, mode,
-                         len(runs) - len(todo), len(runs))
-            run_pass(ctx, flight, mode, todo)
-    return write_report(ctx)
+    with disk_full_guard(report_folder(cfg), "the report", REPORT_DISK_FULL_FIX):
+        ctx = prepare(cfg, source_wrappers)
+        out = ctx.out_dir
+        check_resume(out, cfg)
+        for name in select_flights(ctx.dataset, cfg.flight_names, cfg.flight_set):
+            flight = ctx.dataset.flight(name)
+            for mode in cfg.modes:
+                runs = [RunSpec(name, mode, init, int(seed)) for init in cfg.inits
+                        for seed in cfg.seeds]
+                todo = [r for r in runs if cfg.overwrite or not r.done(out)]
+                if len(todo) < len(runs):
+                    log.info("%s/%s: %d of %d runs already done", name, mode,
+                             len(runs) - len(todo), len(runs))
+                run_pass(ctx, flight, mode, todo)
+        return write_report(ctx)
+
+
+def report_folder(cfg: DictConfig) -> Path:
+    """``<out_root>/<name>``: the report folder of a run."""
+    return Path(cfg.out_root) / str(cfg.name)
 
 
 # Settings a finished run's trajectory depends on; the others (modes, seeds, inits, flights)
@@ -401,6 +407,10 @@ RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_
                "visibility", "onnx_sha256")
 # settings under RESULT_KEYS that change only how fast the results come, not the results
 SPEED_ONLY = ("filter.likelihood.workers", "filter.likelihood.chunk")
+#: What to do when the disk fills during a run (``core.atomic.DiskFullError``'s advice).
+REPORT_DISK_FULL_FIX = ("Free space (old outputs/reports/* folders, outputs/hydra/) or pass "
+                        "out_root= on a disk with room, then run the same command again: the "
+                        "finished runs are kept and the others resume")
 #: A report folder belongs to its result settings (core.outputs); one run at a time.
 REPORT_POLICY = FolderPolicy(record="config.json", keys=RESULT_KEYS, grow=("onnx_sha256",),
                              speed_only=SPEED_ONLY, results=("runs",))

@@ -254,3 +254,22 @@ class TestFlightSets:
             run(localize_cfg([*base, "flight_set=train"]))
         with pytest.raises(ValueError, match=r"flight_names: \['paper'\] are not val flights"):
             run(localize_cfg([*base, "flight_set=val", "flight_names=[paper]"]))
+
+
+def test_full_disk_names_the_folder_and_the_key(flat_dataset, tmp_path, monkeypatch):
+    """ENOSPC on a write (simulated) ends in a DiskFullError naming the file, the report
+    folder, ``out_root=`` and that finished runs are kept."""
+    import errno
+
+    from core import atomic
+
+    def full(src, dst):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomic.os, "replace", full)
+    cfg = localize_cfg([*QUICK, f"dataset={flat_dataset}", f"out_root={tmp_path}", "name=full",
+                        "modes=[oracle]", "inits=[tracking]", "max_frames=2",
+                        "flight_names=[cluttered]"])
+    with pytest.raises(atomic.DiskFullError, match=rf"into {tmp_path / 'full'}\S* failed: the "
+                       r"disk is full .* out_root= .* the finished runs are kept"):
+        run(cfg)
