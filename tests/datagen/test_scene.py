@@ -198,7 +198,9 @@ def test_room_render_draws_clutter_in_its_file_colour(room_view):
 
 def test_corridor_render_unchanged():
     """A fixed corridor view renders as before ``Scene`` existed (figures recorded with the
-    renderer that read the CorridorModel; 1 sRGB level of LLVM noise allowed)."""
+    renderer that read the CorridorModel). 1 sRGB level is allowed on the mean colour: LLVM
+    compiles the renderer for the CPU's vector width, and an AVX2 CPU's mean differs by up to
+    0.8 level from the AVX-512 one the figures were recorded on."""
     from core.variant import choose_variant
     from datagen.render import Renderer
 
@@ -212,7 +214,7 @@ def test_corridor_render_unchanged():
     r.set_camera(body @ camera.body_from_cam)
     rgb, label, depth = r.render(spp=4, seed=0)
     assert np.bincount(label.ravel(), minlength=8).tolist() == CORRIDOR_LABELS
-    np.testing.assert_allclose(rgb.reshape(-1, 3).mean(axis=0), CORRIDOR_RGB, atol=0.05)
+    np.testing.assert_allclose(rgb.reshape(-1, 3).mean(axis=0), CORRIDOR_RGB, atol=1.0)
     assert float(depth.mean()) == pytest.approx(CORRIDOR_DEPTH, abs=1e-4)
 
 
