@@ -5,7 +5,7 @@ so a frame's bytes do not depend on which shard renders it or on what was render
 a stopped run re-run with the same config skips finished frames and ends byte-identical to an
 uninterrupted run (up to rare one-level pixel differences from the LLVM variant's multithreaded
 kernels; docs/datagen.md). A flight's keys under its stream: 0 trajectory and odometry,
-1 scene, (2, i) frame i's render seed (its sub-frames' seeds in turn, datagen/optics.py),
+1 scene, (2, i) frame i's render seed (its sub-frames' seeds in turn, datagen/realism/optics.py),
 3 route, 4 AHRS, (5, i) frame i's camera effects, 6 exposure series, 7 dropouts, 8 harder
 flight (``realism.flight``), 9 odometry jumps, (10, i) frame i's drop and timestamp jitter
 (``realism.timing``) (SeedSequence pads a short key with zeros: (k,) is (k, 0), so no k is used
@@ -51,19 +51,11 @@ from core.dataset import SCHEMA_VERSION, SPLITS, Camera, World, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from core.realism import MapErrorConfig, realism_label
-from datagen import (
-    ahrs,
-    appearance,
-    calibration,
-    distractors,
-    map_error,
-    optics,
-    timing,
-    trajectories,
-)
+from datagen import appearance, distractors, trajectories
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
+from datagen.realism import ahrs, calibration, map_error, optics, timing
 from datagen.scene import Scene
 from datagen.site import Site, build_site
 
@@ -310,7 +302,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
 
 def _make_map(job: Job, c: MapErrorConfig) -> None:
     """The map the localizer reads and the built-in objects the flights show
-    (``realism.map``, datagen/map_error.py), onto ``job``."""
+    (``realism.map``, datagen/realism/map_error.py), onto ``job``."""
     t0 = time.perf_counter()
     site, cfg = job.site, job.cfg
     paths = [(f["groundtruth"] @ job.camera.body_from_cam)[:, :2, 3]
