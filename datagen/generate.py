@@ -51,7 +51,10 @@ from core.dataset import SCHEMA_VERSION, SPLITS, Camera, World, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from core.realism import MapErrorConfig, realism_label
-from datagen import appearance, distractors, trajectories
+from datagen import distractors, trajectories
+from datagen.appearance.lights import sample_lights
+from datagen.appearance.materials import object_colours, sample_floor_gloss
+from datagen.appearance.textures import sample_textures
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
@@ -546,9 +549,9 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
            body_pose: np.ndarray) -> None:
     """Randomize textures, lights and distractors of one training image."""
     look = job.cfg.appearance
-    renderer.set_textures(appearance.sample_textures(rng, None, look))
-    renderer.set_lights(appearance.sample_lights(rng, renderer.num_lights, look)[1])
-    gloss = appearance.sample_floor_gloss(rng, look)  # None (and no draw) when never glossy
+    renderer.set_textures(sample_textures(rng, None, look))
+    renderer.set_lights(sample_lights(rng, renderer.num_lights, look)[1])
+    gloss = sample_floor_gloss(rng, look)  # None (and no draw) when never glossy
     if gloss is not None:
         renderer.set_floor_gloss(*gloss)
     n_clutter, n_people = distractors.preset_counts(rng, preset)
@@ -566,7 +569,7 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
             rng, radii, job.site.floor, keep, against_walls=preset.against_walls,
             wall_margin=preset.wall_margin)
         poses[use] = xy_yaw
-    renderer.set_objects(poses, appearance.object_colours(rng, len(slots)))
+    renderer.set_objects(poses, object_colours(rng, len(slots)))
 
 
 def render_split(job: Job, split: str, progress: bool = True) -> int:
@@ -590,7 +593,7 @@ def render_split(job: Job, split: str, progress: bool = True) -> int:
             if loaded != c:
                 crng = rng_for(cfg.seed, stream, c, 1)
                 clutter, people = _slot_meshes(crng, presets)
-                tex = appearance.sample_textures(crng, None, cfg.appearance)
+                tex = sample_textures(crng, None, cfg.appearance)
                 renderer, loaded = _new_renderer(job, tex, clutter, people), c
             rng = rng_for(cfg.seed, stream, i, 2)
             preset = presets[rng.choice(len(presets), p=weights / weights.sum())]
@@ -690,9 +693,9 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     clutter = [distractors.make_clutter_mesh(k, rng)
                for k in distractors.sample_kinds(rng, n_clutter, dp)]
     people = [distractors.make_person_mesh(rng) for _ in range(n_people)]
-    textures = appearance.sample_textures(rng, None, cfg.appearance)
-    lights = appearance.sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
-    colours = appearance.object_colours(rng, n_clutter + n_people)
+    textures = sample_textures(rng, None, cfg.appearance)
+    lights = sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
+    colours = object_colours(rng, n_clutter + n_people)
     cam_xy = (gt @ job.camera.body_from_cam)[:, :2, 3]
     flown = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cam_xy, axis=0), axis=1))])
     step = max(dp.camera_keepout_m / 2, 0.05)  # keep-out circles along the path, overlapping
@@ -715,7 +718,7 @@ def flight_scene(job: Job, name: str) -> FlightScene:
         avoid_radius=dp.person_camera_keepout, max_turn_deg_s=dp.person_max_turn_deg_s,
         patience_s=dp.person_patience_s,
     ) if n_people else np.zeros((0, len(gt), 3))
-    gloss = appearance.sample_floor_gloss(rng, cfg.appearance)
+    gloss = sample_floor_gloss(rng, cfg.appearance)
     return FlightScene(clutter, people, textures, lights, colours, placed, tracks, gloss)
 
 
