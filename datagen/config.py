@@ -345,7 +345,7 @@ class CountRange:
 @dataclass
 class DistractorPreset:
     """A distractors preset (``distractor_presets.<name>``, the ``conf/distractors/`` group;
-    datagen/distractors.py): furniture-like objects (class clutter) and walking people. The
+    datagen/distractors/): furniture-like objects (class clutter) and walking people. The
     defaults are the ``none`` preset: no distractors."""
 
     clutter: CountRange = field(default_factory=CountRange)  # furniture-like objects

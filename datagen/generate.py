@@ -51,11 +51,15 @@ from core.dataset import SCHEMA_VERSION, SPLITS, Camera, World, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from core.realism import MapErrorConfig, realism_label
-from datagen import distractors, trajectories
+from datagen import trajectories
 from datagen.appearance.lights import sample_lights
 from datagen.appearance.materials import object_colours, sample_floor_gloss
 from datagen.appearance.textures import sample_textures
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
+from datagen.distractors.crowd import person_tracks
+from datagen.distractors.meshes import footprint_radius, make_clutter_mesh, make_person_mesh
+from datagen.distractors.placement import place_objects
+from datagen.distractors.presets import check_preset, preset_counts, sample_kinds
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
 from datagen.realism import ahrs, calibration, map_error, optics, timing
@@ -187,7 +191,7 @@ def _check_presets(cfg: DatagenConfig) -> None:
     """The presets a run uses exist and are sound."""
     presets = cfg.distractor_presets
     for name, preset in presets.items():
-        distractors.check_preset(preset, f"distractor_presets.{name}")
+        check_preset(preset, f"distractor_presets.{name}")
     for name in cfg.training.distractors:
         if name not in presets:
             raise ValueError(f"training.distractors: unknown preset {name!r}; "
@@ -524,9 +528,9 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
     n_clutter = max(p.clutter.max for p in presets)
     n_people = max(p.people.max for p in presets)
     kinds_from = next((p for p in presets if p.clutter.max), presets[0])
-    kinds = distractors.sample_kinds(chunk_rng, n_clutter, kinds_from)
-    clutter = [distractors.make_clutter_mesh(k, chunk_rng) for k in kinds]
-    people = [distractors.make_person_mesh(chunk_rng) for _ in range(n_people)]
+    kinds = sample_kinds(chunk_rng, n_clutter, kinds_from)
+    clutter = [make_clutter_mesh(k, chunk_rng) for k in kinds]
+    people = [make_person_mesh(chunk_rng) for _ in range(n_people)]
     return clutter, people
 
 
@@ -554,7 +558,7 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
     gloss = sample_floor_gloss(rng, look)  # None (and no draw) when never glossy
     if gloss is not None:
         renderer.set_floor_gloss(*gloss)
-    n_clutter, n_people = distractors.preset_counts(rng, preset)
+    n_clutter, n_people = preset_counts(rng, preset)
     slots = renderer.slots
     clutter_ids = [i for i, (_, c) in enumerate(slots) if c == C.CLUTTER]
     people_ids = [i for i, (_, c) in enumerate(slots) if c == C.PERSON]
@@ -562,10 +566,10 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
            + list(rng.permutation(people_ids)[:n_people]))
     poses = np.full((len(slots), 3), np.nan)
     if use:
-        radii = np.array([distractors.footprint_radius(slots[i][0]) for i in use])
+        radii = np.array([footprint_radius(slots[i][0]) for i in use])
         cam = (body_pose @ job.camera.body_from_cam)[:3, 3]
         keep = np.array([[cam[0], cam[1], preset.camera_keepout_m]])
-        xy_yaw, _ = distractors.place_objects(
+        xy_yaw, _ = place_objects(
             rng, radii, job.site.floor, keep, against_walls=preset.against_walls,
             wall_margin=preset.wall_margin)
         poses[use] = xy_yaw
@@ -689,10 +693,10 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     gt, preset = f["groundtruth"], f["preset"]
     rng = rng_for(cfg.seed, flight_stream(name), 1)
     dp = cfg.distractor_presets[preset.distractors]
-    n_clutter, n_people = distractors.preset_counts(rng, dp)
-    clutter = [distractors.make_clutter_mesh(k, rng)
-               for k in distractors.sample_kinds(rng, n_clutter, dp)]
-    people = [distractors.make_person_mesh(rng) for _ in range(n_people)]
+    n_clutter, n_people = preset_counts(rng, dp)
+    clutter = [make_clutter_mesh(k, rng)
+               for k in sample_kinds(rng, n_clutter, dp)]
+    people = [make_person_mesh(rng) for _ in range(n_people)]
     textures = sample_textures(rng, None, cfg.appearance)
     lights = sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
     colours = object_colours(rng, n_clutter + n_people)
@@ -704,15 +708,15 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     builtins = np.array([b.footprint_circle() for b in job.builtins]).reshape(-1, 3)
     if len(builtins):
         keep = np.concatenate([keep, builtins])
-    radii = np.array([distractors.footprint_radius(m) for m in clutter])
+    radii = np.array([footprint_radius(m) for m in clutter])
     floor = job.site.floor
-    placed = distractors.place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
+    placed = place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
                                        wall_margin=dp.wall_margin)[0]
     ok = ~np.isnan(placed[:, 0])
     obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
     if len(builtins):
         obstacles = np.concatenate([obstacles, builtins])
-    tracks = distractors.person_tracks(
+    tracks = person_tracks(
         rng, n_people, len(gt), preset.fps, floor, speed=tuple(dp.person_speed),
         radius=dp.person_radius, obstacles=obstacles, avoid=cam_xy,
         avoid_radius=dp.person_camera_keepout, max_turn_deg_s=dp.person_max_turn_deg_s,
