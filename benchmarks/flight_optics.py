@@ -1,5 +1,5 @@
-"""What the flights' optics (realism.lens, .motion_blur, .rolling_shutter; datagen/optics.py)
-cost in render time, and what they look like.
+"""What the flights' optics (realism.lens, .motion_blur, .rolling_shutter;
+datagen/realism/optics.py) cost in render time, and what they look like.
 
 Usage::
 
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     import datagen  # noqa: F401  (registers the config schema)
     from core.config import compose_config
     from datagen import generate as gen
-    from datagen import optics
+    from datagen.realism import optics
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--frames", type=int, default=20)

@@ -40,7 +40,8 @@ def views(free, n: int, seed: int, height: float) -> list[np.ndarray]:
 def run(name: str, scene, poses: list[np.ndarray], cfg: dict, near_lights: bool = False
         ) -> None:
     """Load the scene, render the views; print the figures."""
-    from datagen import appearance
+    from datagen.appearance.lights import sample_lights
+    from datagen.appearance.textures import sample_textures
     from datagen.generate import make_camera
     from datagen.render import Renderer
 
@@ -48,13 +49,13 @@ def run(name: str, scene, poses: list[np.ndarray], cfg: dict, near_lights: bool 
     look, r = cfg["appearance"], cfg["render"]
     rng = np.random.default_rng(0)
     t = time.perf_counter()
-    renderer = Renderer(scene, camera, appearance.sample_textures(rng, None, look),
+    renderer = Renderer(scene, camera, sample_textures(rng, None, look),
                         max_depth=r["max_depth"], near_lights=near_lights)
     load = time.perf_counter() - t
     stamps, means, noise = [], [], []
     for i, body in enumerate(poses):
-        renderer.set_textures(appearance.sample_textures(rng, None, look))
-        renderer.set_lights(appearance.sample_lights(rng, renderer.num_lights, look)[1])
+        renderer.set_textures(sample_textures(rng, None, look))
+        renderer.set_lights(sample_lights(rng, renderer.num_lights, look)[1])
         renderer.set_camera(body @ camera.body_from_cam)
         rgb, _, _ = renderer.render(r["spp"], i, r["exposure"], r["denoise_sigma_px"])
         stamps.append(time.perf_counter())

@@ -134,7 +134,7 @@ def check_settings(settings: RealismConfig | Mapping | None,
                    where: str = WHERE) -> RealismConfig:
     """The realism settings typed (``RealismConfig``, or a mapping of the keys that differ
     from its defaults; None: the defaults) with their image effects checked (the AHRS's:
-    ``datagen.ahrs.check_settings``).
+    ``datagen.realism.ahrs.check_settings``).
 
     Raises:
         ValueError: a bad setting, naming ``where.<key>`` and the fix.

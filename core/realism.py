@@ -18,9 +18,9 @@ from omegaconf import OmegaConf
 @dataclass
 class AhrsConfig:
     """The roll and pitch a drone's AHRS (IMU and attitude filter) reports, written into the
-    flights' odometry (``realism.ahrs``, datagen/ahrs.py): per axis the truth plus a constant
-    bias, white noise and a slow drift (a first-order Gauss-Markov process). Every std 0 (the
-    defaults, ``realism=ideal``): the true roll and pitch. ``realism=real``: a small drone's
+    flights' odometry (``realism.ahrs``, datagen/realism/ahrs.py): per axis the truth plus a
+    constant bias, white noise and a slow drift (a first-order Gauss-Markov process). Every std 0
+    (the defaults, ``realism=ideal``): the true roll and pitch. ``realism=real``: a small drone's
     MEMS IMU (docs/datagen.md)."""
 
     bias_deg: float = 0.0  # std of the constant error, drawn once per flight and axis
@@ -88,12 +88,12 @@ class DropoutConfig:
 @dataclass
 class LensConfig:
     """Lens distortion of the flights' camera (``realism.lens``, core/lens.py,
-    datagen/optics.py): OpenCV's plumb_bob model, a normalized image point (x, y), r^2 = x^2 +
-    y^2, goes to x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2) (y likewise,
-    p1 and p2 swapped), with the camera's K. The frames are rendered through it; flight.json's
+    datagen/realism/optics.py): OpenCV's plumb_bob model, a normalized image point (x, y), r^2 = x^2
+    + y^2, goes to x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2) (y likewise, p1
+    and p2 swapped), with the camera's K. The frames are rendered through it; flight.json's
     ``camera`` holds the calibration and the localizer undistorts each frame back to K. Every
-    coefficient 0 (the defaults, ``realism=ideal``): a pinhole. ``realism=real``: a wide MAV
-    lens (docs/datagen.md)."""
+    coefficient 0 (the defaults, ``realism=ideal``): a pinhole. ``realism=real``: a wide MAV lens
+    (docs/datagen.md)."""
 
     k1: float = 0.0
     k2: float = 0.0
@@ -104,7 +104,7 @@ class LensConfig:
 
 @dataclass
 class MotionBlurConfig:
-    """Motion blur of the flights' frames (``realism.motion_blur``, datagen/optics.py): the
+    """Motion blur of the flights' frames (``realism.motion_blur``, datagen/realism/optics.py): the
     frame at time t is the mean, in linear light, of sub-frames rendered at poses along the
     flight's true trajectory over its exposure [t - exposure_s, t] (with a rolling shutter,
     each row's own window). 0 (the default, ``realism=ideal``): no blur."""
@@ -114,7 +114,7 @@ class MotionBlurConfig:
 
 @dataclass
 class RollingShutterConfig:
-    """A rolling shutter (``realism.rolling_shutter``, datagen/optics.py): row r of an H-row
+    """A rolling shutter (``realism.rolling_shutter``, datagen/realism/optics.py): row r of an H-row
     frame at time t ends its exposure at t + (r / H - 0.5) * readout_s, so the top row is
     read readout_s / 2 before t and the bottom row about readout_s / 2 after. 0 (the default,
     ``realism=ideal``): a global shutter."""
@@ -125,7 +125,7 @@ class RollingShutterConfig:
 @dataclass
 class SubframeConfig:
     """How many sub-frames a blurred or rolling-shutter frame is rendered from
-    (``realism.subframes``, datagen/optics.py): enough that the image moves at most
+    (``realism.subframes``, datagen/realism/optics.py): enough that the image moves at most
     ``step_px`` between two (estimated from the motion over the frame's span), at most
     ``max_count``."""
 
@@ -135,12 +135,12 @@ class SubframeConfig:
 
 @dataclass
 class TimingConfig:
-    """The clocks of the camera and the odometry (``realism.timing``, datagen/timing.py): frames
-    the link drops, jitter on the images' timestamps, and odometry at its own rate with
+    """The clocks of the camera and the odometry (``realism.timing``, datagen/realism/timing.py):
+    frames the link drops, jitter on the images' timestamps, and odometry at its own rate with
     occasional jumps, so a flight's reader (``core.dataset.Dataset.flight``) interpolates the
-    odometry at each delivered image's timestamp, as for a user's recording. Every setting off
-    (the defaults, ``realism=ideal``): every frame delivered at i / fps, the odometry at the
-    frame times. ``realism=real``: docs/datagen.md."""
+    odometry at each delivered image's timestamp, as for a user's recording. Every setting off (the
+    defaults, ``realism=ideal``): every frame delivered at i / fps, the odometry at the frame times.
+    ``realism=real``: docs/datagen.md."""
 
     drop_rate: float = 0.0  # share of frames dropped (never delivered, not rendered), each
     # frame independently, in [0, 0.5]
@@ -183,7 +183,7 @@ class HarderFlightConfig:
 @dataclass
 class MapErrorConfig:
     """The map the localizer reads differs from the rendered world (``realism.map``,
-    datagen/map_error.py): the dataset's ``world/`` is the true world edited as below (its
+    datagen/realism/map_error.py): the dataset's ``world/`` is the true world edited as below (its
     edges and free space made from the edited mesh), the truth kept in ``world_truth/``; the
     edits are drawn from their own seeded stream and listed in dataset.json's ``map_error``.
     Rendering and the ground truth use the truth. Every setting 0 (the defaults,
@@ -214,7 +214,7 @@ class MapErrorConfig:
 @dataclass
 class CalibrationConfig:
     """The camera the localizer is told differs from the rendering's (``realism.calibration``,
-    datagen/calibration.py): dataset.json's ``camera`` (K, body_from_cam) is the rendering's
+    datagen/realism/calibration.py): dataset.json's ``camera`` (K, body_from_cam) is the rendering's
     camera with a calibration error drawn once per dataset from its own seeded stream; the
     truth is kept as ``camera_truth`` and the error in ``calibration_error``. Every std 0 (the
     defaults, ``realism=ideal``): the told camera is the truth. ``realism=real``: a checkerboard
@@ -243,16 +243,17 @@ class RealismConfig:
     jpeg: JpegConfig = field(default_factory=JpegConfig)
     dropout: DropoutConfig = field(default_factory=DropoutConfig)
     lens: LensConfig = field(default_factory=LensConfig)  # the flights' optics: lens
-    # distortion, motion blur and a rolling shutter (datagen/optics.py)
+    # distortion, motion blur and a rolling shutter (datagen/realism/optics.py)
     motion_blur: MotionBlurConfig = field(default_factory=MotionBlurConfig)
     rolling_shutter: RollingShutterConfig = field(default_factory=RollingShutterConfig)
     subframes: SubframeConfig = field(default_factory=SubframeConfig)
     timing: TimingConfig = field(default_factory=TimingConfig)  # dropped frames, timestamp
-    # jitter, the odometry's own rate and jumps (datagen/timing.py)
+    # jitter, the odometry's own rate and jumps (datagen/realism/timing.py)
     flight: HarderFlightConfig = field(default_factory=HarderFlightConfig)  # faster flights,
     # quicker yaw, back and forth from anywhere on the route
     map: MapErrorConfig = field(default_factory=MapErrorConfig)  # what the localizer reads:
-    # the map (datagen/map_error.py) and the camera's calibration (datagen/calibration.py)
+    # the map (datagen/realism/map_error.py) and the camera's calibration
+    # (datagen/realism/calibration.py)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
 
 

@@ -308,7 +308,7 @@ class Materials:
 @dataclass
 class AppearanceConfig:
     """Appearance randomization (``appearance``, the conf/appearance/ group: ``default``,
-    today's space, or ``varied``, the wide one; datagen/appearance.py): procedural textures,
+    today's space, or ``varied``, the wide one; datagen/appearance/): procedural textures,
     materials and lights. Every texture is (resolution, resolution, 3) linear RGB; 512 costs
     about 4x the time of 256 (sharper posters and grout). A style weight or probability of 0
     draws nothing, so the defaults draw what they always drew."""
@@ -345,7 +345,7 @@ class CountRange:
 @dataclass
 class DistractorPreset:
     """A distractors preset (``distractor_presets.<name>``, the ``conf/distractors/`` group;
-    datagen/distractors.py): furniture-like objects (class clutter) and walking people. The
+    datagen/distractors/): furniture-like objects (class clutter) and walking people. The
     defaults are the ``none`` preset: no distractors."""
 
     clutter: CountRange = field(default_factory=CountRange)  # furniture-like objects

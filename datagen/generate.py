@@ -5,7 +5,7 @@ so a frame's bytes do not depend on which shard renders it or on what was render
 a stopped run re-run with the same config skips finished frames and ends byte-identical to an
 uninterrupted run (up to rare one-level pixel differences from the LLVM variant's multithreaded
 kernels; docs/datagen.md). A flight's keys under its stream: 0 trajectory and odometry,
-1 scene, (2, i) frame i's render seed (its sub-frames' seeds in turn, datagen/optics.py),
+1 scene, (2, i) frame i's render seed (its sub-frames' seeds in turn, datagen/realism/optics.py),
 3 route, 4 AHRS, (5, i) frame i's camera effects, 6 exposure series, 7 dropouts, 8 harder
 flight (``realism.flight``), 9 odometry jumps, (10, i) frame i's drop and timestamp jitter
 (``realism.timing``) (SeedSequence pads a short key with zeros: (k,) is (k, 0), so no k is used
@@ -51,19 +51,18 @@ from core.dataset import SCHEMA_VERSION, SPLITS, Camera, World, frame_name
 from core.outputs import Claim, FolderPolicy, claim_output
 from core.poses import pose_from_xyz_rpy, write_tum
 from core.realism import MapErrorConfig, realism_label
-from datagen import (
-    ahrs,
-    appearance,
-    calibration,
-    distractors,
-    map_error,
-    optics,
-    timing,
-    trajectories,
-)
+from datagen import trajectories
+from datagen.appearance.lights import sample_lights
+from datagen.appearance.materials import object_colours, sample_floor_gloss
+from datagen.appearance.textures import sample_textures
 from datagen.config import CameraConfig, DatagenConfig, DistractorPreset
+from datagen.distractors.crowd import person_tracks
+from datagen.distractors.meshes import footprint_radius, make_clutter_mesh, make_person_mesh
+from datagen.distractors.placement import place_objects
+from datagen.distractors.presets import check_preset, preset_counts, sample_kinds
 from datagen.importers.plan import write_plan
 from datagen.pipeline import Pipeline
+from datagen.realism import ahrs, calibration, map_error, optics, timing
 from datagen.scene import Scene
 from datagen.site import Site, build_site
 
@@ -192,7 +191,7 @@ def _check_presets(cfg: DatagenConfig) -> None:
     """The presets a run uses exist and are sound."""
     presets = cfg.distractor_presets
     for name, preset in presets.items():
-        distractors.check_preset(preset, f"distractor_presets.{name}")
+        check_preset(preset, f"distractor_presets.{name}")
     for name in cfg.training.distractors:
         if name not in presets:
             raise ValueError(f"training.distractors: unknown preset {name!r}; "
@@ -310,7 +309,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
 
 def _make_map(job: Job, c: MapErrorConfig) -> None:
     """The map the localizer reads and the built-in objects the flights show
-    (``realism.map``, datagen/map_error.py), onto ``job``."""
+    (``realism.map``, datagen/realism/map_error.py), onto ``job``."""
     t0 = time.perf_counter()
     site, cfg = job.site, job.cfg
     paths = [(f["groundtruth"] @ job.camera.body_from_cam)[:, :2, 3]
@@ -529,9 +528,9 @@ def _slot_meshes(chunk_rng: np.random.Generator, presets: list[DistractorPreset]
     n_clutter = max(p.clutter.max for p in presets)
     n_people = max(p.people.max for p in presets)
     kinds_from = next((p for p in presets if p.clutter.max), presets[0])
-    kinds = distractors.sample_kinds(chunk_rng, n_clutter, kinds_from)
-    clutter = [distractors.make_clutter_mesh(k, chunk_rng) for k in kinds]
-    people = [distractors.make_person_mesh(chunk_rng) for _ in range(n_people)]
+    kinds = sample_kinds(chunk_rng, n_clutter, kinds_from)
+    clutter = [make_clutter_mesh(k, chunk_rng) for k in kinds]
+    people = [make_person_mesh(chunk_rng) for _ in range(n_people)]
     return clutter, people
 
 
@@ -554,12 +553,12 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
            body_pose: np.ndarray) -> None:
     """Randomize textures, lights and distractors of one training image."""
     look = job.cfg.appearance
-    renderer.set_textures(appearance.sample_textures(rng, None, look))
-    renderer.set_lights(appearance.sample_lights(rng, renderer.num_lights, look)[1])
-    gloss = appearance.sample_floor_gloss(rng, look)  # None (and no draw) when never glossy
+    renderer.set_textures(sample_textures(rng, None, look))
+    renderer.set_lights(sample_lights(rng, renderer.num_lights, look)[1])
+    gloss = sample_floor_gloss(rng, look)  # None (and no draw) when never glossy
     if gloss is not None:
         renderer.set_floor_gloss(*gloss)
-    n_clutter, n_people = distractors.preset_counts(rng, preset)
+    n_clutter, n_people = preset_counts(rng, preset)
     slots = renderer.slots
     clutter_ids = [i for i, (_, c) in enumerate(slots) if c == C.CLUTTER]
     people_ids = [i for i, (_, c) in enumerate(slots) if c == C.PERSON]
@@ -567,14 +566,14 @@ def _dress(job: Job, renderer, rng: np.random.Generator, preset: DistractorPrese
            + list(rng.permutation(people_ids)[:n_people]))
     poses = np.full((len(slots), 3), np.nan)
     if use:
-        radii = np.array([distractors.footprint_radius(slots[i][0]) for i in use])
+        radii = np.array([footprint_radius(slots[i][0]) for i in use])
         cam = (body_pose @ job.camera.body_from_cam)[:3, 3]
         keep = np.array([[cam[0], cam[1], preset.camera_keepout_m]])
-        xy_yaw, _ = distractors.place_objects(
+        xy_yaw, _ = place_objects(
             rng, radii, job.site.floor, keep, against_walls=preset.against_walls,
             wall_margin=preset.wall_margin)
         poses[use] = xy_yaw
-    renderer.set_objects(poses, appearance.object_colours(rng, len(slots)))
+    renderer.set_objects(poses, object_colours(rng, len(slots)))
 
 
 def render_split(job: Job, split: str, progress: bool = True) -> int:
@@ -598,7 +597,7 @@ def render_split(job: Job, split: str, progress: bool = True) -> int:
             if loaded != c:
                 crng = rng_for(cfg.seed, stream, c, 1)
                 clutter, people = _slot_meshes(crng, presets)
-                tex = appearance.sample_textures(crng, None, cfg.appearance)
+                tex = sample_textures(crng, None, cfg.appearance)
                 renderer, loaded = _new_renderer(job, tex, clutter, people), c
             rng = rng_for(cfg.seed, stream, i, 2)
             preset = presets[rng.choice(len(presets), p=weights / weights.sum())]
@@ -694,13 +693,13 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     gt, preset = f["groundtruth"], f["preset"]
     rng = rng_for(cfg.seed, flight_stream(name), 1)
     dp = cfg.distractor_presets[preset.distractors]
-    n_clutter, n_people = distractors.preset_counts(rng, dp)
-    clutter = [distractors.make_clutter_mesh(k, rng)
-               for k in distractors.sample_kinds(rng, n_clutter, dp)]
-    people = [distractors.make_person_mesh(rng) for _ in range(n_people)]
-    textures = appearance.sample_textures(rng, None, cfg.appearance)
-    lights = appearance.sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
-    colours = appearance.object_colours(rng, n_clutter + n_people)
+    n_clutter, n_people = preset_counts(rng, dp)
+    clutter = [make_clutter_mesh(k, rng)
+               for k in sample_kinds(rng, n_clutter, dp)]
+    people = [make_person_mesh(rng) for _ in range(n_people)]
+    textures = sample_textures(rng, None, cfg.appearance)
+    lights = sample_lights(rng, job.site.scene.num_lights, cfg.appearance)[1]
+    colours = object_colours(rng, n_clutter + n_people)
     cam_xy = (gt @ job.camera.body_from_cam)[:, :2, 3]
     flown = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cam_xy, axis=0), axis=1))])
     step = max(dp.camera_keepout_m / 2, 0.05)  # keep-out circles along the path, overlapping
@@ -709,21 +708,21 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     builtins = np.array([b.footprint_circle() for b in job.builtins]).reshape(-1, 3)
     if len(builtins):
         keep = np.concatenate([keep, builtins])
-    radii = np.array([distractors.footprint_radius(m) for m in clutter])
+    radii = np.array([footprint_radius(m) for m in clutter])
     floor = job.site.floor
-    placed = distractors.place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
+    placed = place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
                                        wall_margin=dp.wall_margin)[0]
     ok = ~np.isnan(placed[:, 0])
     obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
     if len(builtins):
         obstacles = np.concatenate([obstacles, builtins])
-    tracks = distractors.person_tracks(
+    tracks = person_tracks(
         rng, n_people, len(gt), preset.fps, floor, speed=tuple(dp.person_speed),
         radius=dp.person_radius, obstacles=obstacles, avoid=cam_xy,
         avoid_radius=dp.person_camera_keepout, max_turn_deg_s=dp.person_max_turn_deg_s,
         patience_s=dp.person_patience_s,
     ) if n_people else np.zeros((0, len(gt), 3))
-    gloss = appearance.sample_floor_gloss(rng, cfg.appearance)
+    gloss = sample_floor_gloss(rng, cfg.appearance)
     return FlightScene(clutter, people, textures, lights, colours, placed, tracks, gloss)
 
 

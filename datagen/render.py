@@ -126,7 +126,7 @@ class Renderer:
             ``building_scene``).
         camera: intrinsics and image size (K must be centred with square pixels).
         textures: name -> (R, R, 3) float32 linear RGB, row 0 = top, for every texture key
-            the scene's textured surfaces use (``appearance.sample_textures``).
+            the scene's textured surfaces use (``sample_textures``).
         clutter: distractor meshes labelled clutter (origin on the floor, z up).
         people: distractor meshes labelled person.
         max_depth: path length limit of the path tracer.

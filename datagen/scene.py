@@ -39,7 +39,7 @@ class Surface:
     """One part of the scene: unshared triangle soup of one class and one look.
 
     vertices (3T, 3) m; uv (3T, 2) texture coordinates (v up) into ``texture``: a key of
-    ``appearance.sample_textures`` (in repeats of its ``TEXTURE_EXTENT``) or of
+    ``sample_textures`` (in repeats of its ``TEXTURE_EXTENT``) or of
     ``Scene.images`` (the file's own image); colour: None, or (3T, 3) linear-RGB reflectance
     per vertex (the file's own colours), in which case ``texture`` is not used.
     """

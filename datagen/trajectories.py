@@ -520,7 +520,7 @@ def noisy_odometry(rng: np.random.Generator, groundtruth: np.ndarray, fps: float
     the gravity-aligned heading frame (translation and yaw increment), corrupted by white
     noise, a scale error (constant plus random walk), a heading-rate bias (constant plus
     random walk) and a random-walk velocity bias, so it drifts away from the truth. Roll
-    and pitch are the truth's (an IMU observes them; ``datagen.ahrs.ahrs_odometry`` puts an
+    and pitch are the truth's (an IMU observes them; ``datagen.realism.ahrs.ahrs_odometry`` puts an
     AHRS's error on them, ``realism.ahrs``).
 
     Args:

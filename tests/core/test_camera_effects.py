@@ -242,7 +242,7 @@ class TestSettings:
         assert real.realism.jpeg == JpegConfig(quality=85)
 
 
-#: realism=real's optics off (datagen/optics.py; tests/datagen/test_optics.py): the rendered
+#: realism=real's optics off (datagen/realism/optics.py; tests/datagen/test_optics.py): the rendered
 #: frames are the ideal's, the image effects alone change them.
 NO_OPTICS = ["realism.lens.k1=0", "realism.lens.k2=0", "realism.lens.p1=0", "realism.lens.p2=0",
              "realism.motion_blur.exposure_s=0", "realism.rolling_shutter.readout_s=0"]

@@ -1,4 +1,4 @@
-"""Tests of datagen.ahrs: the AHRS's roll and pitch, and the realism presets that put them
+"""Tests of datagen.realism.ahrs: the AHRS's roll and pitch, and the realism presets that put them
 into the flights' odometry."""
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from core.config import CONF, compose_config, typed
 from core.dataset import Dataset
 from core.poses import pose_from_xyz_rpy, read_tum
 from core.realism import AhrsConfig, RealismConfig
-from datagen import ahrs
 from datagen import trajectories as TR
 from datagen.config import DatagenConfig
+from datagen.realism import ahrs
 
 FPS = 10.0
 N_LONG = 200_000  # samples: 20,000 s at 10 fps, 2,000 drift correlation times

@@ -8,7 +8,12 @@ import pytest
 from omegaconf import OmegaConf
 
 from core import colour
-from datagen import appearance as A
+from datagen.appearance import floors, walls
+from datagen.appearance.choices import CEILING_STYLES, FLOOR_STYLES, TEXTURE_SPECS, WALL_STYLES
+from datagen.appearance.drawing import _noise
+from datagen.appearance.lights import kelvin_to_rgb, sample_lights
+from datagen.appearance.materials import object_colours, sample_floor_gloss, sample_materials
+from datagen.appearance.textures import sample_textures
 from datagen.config import AppearanceConfig
 
 
@@ -28,8 +33,8 @@ class TestSampleTextures:
     @pytest.mark.parametrize("resolution", [32, 96])
     def test_shapes_dtype_range(self, resolution, cfg):
         for seed in range(6):
-            tex = A.sample_textures(np.random.default_rng(seed), resolution, cfg)
-            assert set(tex) == set(A.TEXTURE_SPECS)
+            tex = sample_textures(np.random.default_rng(seed), resolution, cfg)
+            assert set(tex) == set(TEXTURE_SPECS)
             for name, img in tex.items():
                 assert img.shape == (resolution, resolution, 3), name
                 assert img.dtype == np.float32, name
@@ -37,25 +42,25 @@ class TestSampleTextures:
 
     def test_resolution_from_config(self, cfg):
         small = OmegaConf.merge(cfg, {"resolution": 40})
-        tex = A.sample_textures(np.random.default_rng(0), None, small)
+        tex = sample_textures(np.random.default_rng(0), None, small)
         assert tex["wall"].shape == (40, 40, 3)
 
     def test_deterministic(self, cfg):
-        a = A.sample_textures(np.random.default_rng(7), 64, cfg)
-        b = A.sample_textures(np.random.default_rng(7), 64, cfg)
+        a = sample_textures(np.random.default_rng(7), 64, cfg)
+        b = sample_textures(np.random.default_rng(7), 64, cfg)
         for name in a:
             np.testing.assert_array_equal(a[name], b[name])
 
     def test_seeds_differ(self, cfg):
-        a = A.sample_textures(np.random.default_rng(1), 64, cfg)
-        b = A.sample_textures(np.random.default_rng(2), 64, cfg)
+        a = sample_textures(np.random.default_rng(1), 64, cfg)
+        b = sample_textures(np.random.default_rng(2), 64, cfg)
         for name in a:
             assert np.abs(a[name] - b[name]).mean() > 1e-3, name
 
     def test_strong_edges(self, cfg):
         """Floors and walls carry many strong (non-model) edges: grout, seams, posters."""
         for seed in range(12):
-            tex = A.sample_textures(np.random.default_rng(seed), 256, cfg)
+            tex = sample_textures(np.random.default_rng(seed), 256, cfg)
             assert edge_fraction(tex["floor"]) > 0.01, seed
             assert edge_fraction(tex["wall"]) > 0.005, seed
             assert edge_fraction(tex["ceiling"]) > 0.01, seed
@@ -63,40 +68,40 @@ class TestSampleTextures:
     def test_every_floor_style_has_edges(self, cfg):
         """Grout, seams, saw cuts, flecks or chips; plain sheet vinyl has its welded seams
         only (one or two lines per 2 m)."""
-        for style in A.FLOOR_STYLES:
+        for style in FLOOR_STYLES:
             only = OmegaConf.merge(cfg, {"floor_styles": {s: float(s == style)
-                                                          for s in A.FLOOR_STYLES}})
+                                                          for s in FLOOR_STYLES}})
             for seed in range(3):
-                tex = A.sample_textures(np.random.default_rng(seed), 128, only)
+                tex = sample_textures(np.random.default_rng(seed), 128, only)
                 least = 0.005 if style == "vinyl" else 0.01
                 assert edge_fraction(tex["floor"]) > least, (style, seed)
 
     def test_skirting_at_the_bottom(self, cfg):
         """Wall v = 0 is the last row: a skirting band differs from the paint above it."""
         for seed in range(5):
-            wall = A.sample_textures(np.random.default_rng(seed), 256, cfg)["wall"]
+            wall = sample_textures(np.random.default_rng(seed), 256, cfg)["wall"]
             rows = wall.mean(axis=(1, 2))
             jump = np.abs(np.diff(rows[-int(0.2 / 2.8 * 256):]))  # the lowest 0.2 m
             assert jump.max() > 0.02, seed
 
     def test_extents_override(self, cfg):
-        tex = A.sample_textures(np.random.default_rng(0), 64, cfg,
+        tex = sample_textures(np.random.default_rng(0), 64, cfg,
                                 extents={"door": (1.0, 2.2), "wall": (4.0, 3.0)})
         assert tex["door"].shape == (64, 64, 3)
 
     def test_bad_input(self, cfg):
         rng = np.random.default_rng(0)
         with pytest.raises(ValueError, match="resolution"):
-            A.sample_textures(rng, 8, cfg)
+            sample_textures(rng, 8, cfg)
         with pytest.raises(ValueError, match="unknown texture"):
-            A.sample_textures(rng, 32, cfg, extents={"roof": (1, 1)})
+            sample_textures(rng, 32, cfg, extents={"roof": (1, 1)})
         with pytest.raises(ValueError, match="floor_styles"):
-            A.sample_textures(rng, 32, OmegaConf.merge(cfg, {"floor_styles": {"lava": 1.0}}))
+            sample_textures(rng, 32, OmegaConf.merge(cfg, {"floor_styles": {"lava": 1.0}}))
 
 
 class TestNoise:
     def test_periodic_and_normalized(self):
-        n = A._noise(np.random.default_rng(0), 128, 96, (6.0, 3.0))
+        n = _noise(np.random.default_rng(0), 128, 96, (6.0, 3.0))
         assert n.shape == (128, 96) and n.dtype == np.float32
         np.testing.assert_allclose([n.mean(), n.std()], [0.0, 1.0], atol=0.05)
         inner = np.abs(np.diff(n, axis=1)).max()
@@ -110,7 +115,7 @@ class TestLights:
     @pytest.mark.parametrize("slots", [1, 2, 5, 9])
     def test_at_least_one_on(self, slots, cfg):
         for seed in range(30):
-            on, radiance = A.sample_lights(np.random.default_rng(seed), slots, cfg)
+            on, radiance = sample_lights(np.random.default_rng(seed), slots, cfg)
             assert on.shape == (slots,) and on.dtype == bool and on.any()
             assert radiance.shape == (slots, 3) and radiance.dtype == np.float32
             assert np.all(radiance[~on] == 0) and np.all(radiance[on] > 0)
@@ -118,34 +123,34 @@ class TestLights:
     def test_intensity_range(self, cfg):
         fixed = OmegaConf.merge(cfg, {"lights": {"jitter": 0.0, "intensity": [2.0, 3.0]}})
         for seed in range(10):
-            on, radiance = A.sample_lights(np.random.default_rng(seed), 6, fixed)
+            on, radiance = sample_lights(np.random.default_rng(seed), 6, fixed)
             lum = radiance[on] @ np.array([0.2126, 0.7152, 0.0722])
             assert np.all((lum > 2.0 - 1e-4) & (lum < 3.0 + 1e-4))
             np.testing.assert_allclose(lum, lum[0], rtol=1e-4)
 
     def test_count_varies(self, cfg):
-        counts = {int(A.sample_lights(np.random.default_rng(s), 8, cfg)[0].sum())
+        counts = {int(sample_lights(np.random.default_rng(s), 8, cfg)[0].sum())
                   for s in range(40)}
         assert len(counts) >= 3
 
     def test_kelvin(self):
-        rgb = A.kelvin_to_rgb(np.array([2700.0, 6500.0]))
+        rgb = kelvin_to_rgb(np.array([2700.0, 6500.0]))
         np.testing.assert_allclose(rgb @ np.array([0.2126, 0.7152, 0.0722]), 1.0, rtol=1e-9)
         assert rgb[0, 0] > rgb[0, 2] * 2  # warm white is red-heavy
         np.testing.assert_allclose(rgb[1], 1.0, atol=0.1)  # 6500 K is about white
 
     def test_bad_input(self, cfg):
         with pytest.raises(ValueError, match="num_slots"):
-            A.sample_lights(np.random.default_rng(0), 0, cfg)
+            sample_lights(np.random.default_rng(0), 0, cfg)
         with pytest.raises(ValueError, match="intensity"):
-            A.sample_lights(np.random.default_rng(0), 3,
+            sample_lights(np.random.default_rng(0), 3,
                             OmegaConf.merge(cfg, {"lights": {"intensity": [5.0, 1.0]}}))
 
 
 class TestMaterials:
     def test_ranges(self, cfg):
         for seed in range(10):
-            mats = A.sample_materials(np.random.default_rng(seed), cfg)
+            mats = sample_materials(np.random.default_rng(seed), cfg)
             for name, m in mats.items():
                 lo, hi = cfg.materials.roughness[name]
                 assert lo <= m["roughness"] <= hi
@@ -153,7 +158,7 @@ class TestMaterials:
                 assert np.all((m["tint"] >= 0) & (m["tint"] <= 1)), name
 
     def test_object_colours(self):
-        c = A.object_colours(np.random.default_rng(0), 20)
+        c = object_colours(np.random.default_rng(0), 20)
         assert c.shape == (20, 3) and c.dtype == np.float32
         assert c.min() >= 0.02 and c.max() <= 0.8
 
@@ -178,6 +183,9 @@ DEFAULTS_BEFORE = {
 }
 NEW_FAMILIES = {"floor_styles": ("_vinyl", "_concrete", "_terrazzo"),
                 "wall_styles": ("_wall_cover", "_wall_lower"), "ceiling_styles": ("_plaster",)}
+#: The module of each: its callers look it up there.
+MODULE_OF = {"_vinyl": floors, "_concrete": floors, "_terrazzo": floors, "_plaster": floors,
+             "_wall_cover": walls, "_wall_lower": walls}
 
 
 @pytest.fixture(scope="module")
@@ -194,15 +202,15 @@ def only(cfg, key: str, names: tuple[str, ...], style: str):
 
 
 def draw(cfg, seed: int, resolution: int = 64) -> dict[str, np.ndarray]:
-    return A.sample_textures(np.random.default_rng(seed), resolution, cfg)
+    return sample_textures(np.random.default_rng(seed), resolution, cfg)
 
 
 class TestDefaultsUnchanged:
     def test_same_draw_as_before(self, cfg):
         for seed, (means, radiance, after) in DEFAULTS_BEFORE.items():
             rng = np.random.default_rng(seed)
-            tex = A.sample_textures(rng, 64, cfg)
-            rad = A.sample_lights(rng, 7, cfg)[1]
+            tex = sample_textures(rng, 64, cfg)
+            rad = sample_lights(rng, 7, cfg)[1]
             for name, mean in means.items():
                 assert tex[name].mean() == pytest.approx(mean, abs=2e-6), (seed, name)
             assert rad.sum() == pytest.approx(radiance, abs=1e-3), seed
@@ -232,7 +240,7 @@ class TestDefaultsUnchanged:
         called = []
         for fns in NEW_FAMILIES.values():
             for fn in fns:
-                monkeypatch.setattr(A, fn, lambda *a, _fn=fn, **k: called.append(_fn))
+                monkeypatch.setattr(MODULE_OF[fn], fn, lambda *a, _fn=fn, **k: called.append(_fn))
         for seed in range(20):
             draw(cfg, seed, 32)
         assert called == []
@@ -243,7 +251,7 @@ class TestVaried:
         for seed in range(12):
             tex = draw(varied, seed)
             again = draw(varied, seed)
-            assert set(tex) == set(A.TEXTURE_SPECS)
+            assert set(tex) == set(TEXTURE_SPECS)
             for name, img in tex.items():
                 assert img.shape == (64, 64, 3) and img.dtype == np.float32, name
                 top = varied.lights.daylight_gain[1] if name == "window" else 1.0
@@ -255,19 +263,19 @@ class TestVaried:
         seen = set()
         for fns in NEW_FAMILIES.values():
             for fn in fns:
-                real = getattr(A, fn)
-                monkeypatch.setattr(
-                    A, fn, lambda *a, _fn=fn, _real=real, **k: seen.add(_fn) or _real(*a, **k))
+                real = getattr(MODULE_OF[fn], fn)
+                monkeypatch.setattr(MODULE_OF[fn], fn, lambda *a, _fn=fn, _real=real, **k:
+                                    seen.add(_fn) or _real(*a, **k))
         for seed in range(40):
             draw(varied, seed, 32)
         assert seen == {fn for fns in NEW_FAMILIES.values() for fn in fns}
 
-    @pytest.mark.parametrize("style", A.WALL_STYLES[1:])
+    @pytest.mark.parametrize("style", WALL_STYLES[1:])
     def test_wall_styles(self, cfg, style):
         """Each wall style draws another wall than paint from the same seed, strong edges for
         block, brick and tiles (joints and grout)."""
         for seed in range(3):
-            mine = draw(only(cfg, "wall_styles", A.WALL_STYLES, style), seed, 128)["wall"]
+            mine = draw(only(cfg, "wall_styles", WALL_STYLES, style), seed, 128)["wall"]
             paint = draw(cfg, seed, 128)["wall"]
             assert np.abs(mine - paint).mean() > 1e-3, (style, seed)
             if style in ("block", "brick"):
@@ -276,14 +284,14 @@ class TestVaried:
     def test_wall_tiles_from_the_floor(self, cfg):
         """Wall tiles: a grout grid in the lowest metre (rows of pixels darker or lighter than
         the tiles at a fixed pitch)."""
-        tiles = only(cfg, "wall_styles", A.WALL_STYLES, "tiles")
+        tiles = only(cfg, "wall_styles", WALL_STYLES, "tiles")
         for seed in range(3):
             wall = draw(tiles, seed, 256)["wall"]
             low = wall[-int(1.0 / 2.8 * 256):-int(0.2 / 2.8 * 256)].mean(axis=(1, 2))
             assert np.abs(np.diff(low)).max() > 0.01, seed
 
     def test_plaster_ceiling_is_plain(self, cfg):
-        plaster = only(cfg, "ceiling_styles", A.CEILING_STYLES, "plaster")
+        plaster = only(cfg, "ceiling_styles", CEILING_STYLES, "plaster")
         for seed in range(4):
             assert edge_fraction(draw(plaster, seed, 256)["ceiling"]) < \
                 edge_fraction(draw(cfg, seed, 256)["ceiling"]), seed
@@ -316,49 +324,49 @@ class TestVaried:
     def test_dim_scenes(self, cfg):
         dim = OmegaConf.merge(cfg, {"lights": {"dim": 1.0, "dim_factor": [0.1, 0.1]}})
         for seed in range(5):
-            on_a, a = A.sample_lights(np.random.default_rng(seed), 6, dim)
-            on_b, b = A.sample_lights(np.random.default_rng(seed), 6, cfg)
+            on_a, a = sample_lights(np.random.default_rng(seed), 6, dim)
+            on_b, b = sample_lights(np.random.default_rng(seed), 6, cfg)
             np.testing.assert_array_equal(on_a, on_b)
             np.testing.assert_allclose(a, 0.1 * b, rtol=1e-5)
 
     def test_share_of_dim_scenes(self, cfg):
         dim = OmegaConf.merge(cfg, {"lights": {"dim": 0.3, "dim_factor": [0.1, 0.1],
                                                "intensity": [5.0, 5.0], "jitter": 0.0}})
-        lum = np.array([A.sample_lights(np.random.default_rng(s), 3, dim)[1].max()
+        lum = np.array([sample_lights(np.random.default_rng(s), 3, dim)[1].max()
                         for s in range(200)])
         assert 0.2 < float((lum < 1.0).mean()) < 0.4
 
     def test_floor_gloss(self, cfg):
         rng = np.random.default_rng(0)
         state = rng.bit_generator.state
-        assert A.sample_floor_gloss(rng, cfg) is None  # never glossy: the renderer's plain
+        assert sample_floor_gloss(rng, cfg) is None  # never glossy: the renderer's plain
         assert rng.bit_generator.state == state  # and no number drawn
         glossy = OmegaConf.merge(cfg, {"prob": {"glossy_floor": 1.0},
                                        "materials": {"floor_gloss": [0.4, 0.6],
                                                      "roughness": {"floor": [0.05, 0.1]}}})
         for seed in range(10):
-            weight, alpha = A.sample_floor_gloss(np.random.default_rng(seed), glossy)
+            weight, alpha = sample_floor_gloss(np.random.default_rng(seed), glossy)
             assert 0.4 <= weight <= 0.6 and 0.05 <= alpha <= 0.1
         some = OmegaConf.merge(glossy, {"prob": {"glossy_floor": 0.3}})
-        weights = [A.sample_floor_gloss(np.random.default_rng(s), some)[0] for s in range(100)]
+        weights = [sample_floor_gloss(np.random.default_rng(s), some)[0] for s in range(100)]
         assert 0.15 < np.mean(np.array(weights) > 0) < 0.45
         with pytest.raises(ValueError, match="materials.floor_gloss"):
-            A.sample_floor_gloss(rng, OmegaConf.merge(glossy, {"materials": {
+            sample_floor_gloss(rng, OmegaConf.merge(glossy, {"materials": {
                 "floor_gloss": [0.5, 1.5]}}))
 
     def test_bad_settings(self, cfg):
         rng = np.random.default_rng(0)
         with pytest.raises(ValueError, match="prob.accent_wall"):
-            A.sample_textures(rng, 32, OmegaConf.merge(cfg, {"prob": {"accent_wall": 1.5}}))
+            sample_textures(rng, 32, OmegaConf.merge(cfg, {"prob": {"accent_wall": 1.5}}))
         with pytest.raises(ValueError, match="wall_styles"):
-            A.sample_textures(rng, 32, OmegaConf.merge(cfg, {"wall_styles": {"marble": 1.0}}))
+            sample_textures(rng, 32, OmegaConf.merge(cfg, {"wall_styles": {"marble": 1.0}}))
         with pytest.raises(ValueError, match="ceiling_styles"):
-            A.sample_textures(rng, 32, OmegaConf.merge(cfg, {"ceiling_styles": {"tiles": 0.0}}))
+            sample_textures(rng, 32, OmegaConf.merge(cfg, {"ceiling_styles": {"tiles": 0.0}}))
         with pytest.raises(ValueError, match="lights.daylight_gain"):
-            A.sample_textures(rng, 32, OmegaConf.merge(
+            sample_textures(rng, 32, OmegaConf.merge(
                 cfg, {"lights": {"daylight": 1.0, "daylight_gain": [9.0, 2.0]}}))
         with pytest.raises(ValueError, match="lights.dim_factor"):
-            A.sample_lights(rng, 3, OmegaConf.merge(
+            sample_lights(rng, 3, OmegaConf.merge(
                 cfg, {"lights": {"dim": 1.0, "dim_factor": [-1.0, 0.5]}}))
 
 

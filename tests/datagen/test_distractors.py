@@ -8,8 +8,17 @@ import trimesh
 
 from core.config import compose_config, typed
 from core.occupancy import OccupancyMap
-from datagen import distractors as D
 from datagen.config import DatagenConfig
+from datagen.distractors.crowd import person_tracks
+from datagen.distractors.meshes import (
+    CLUTTER_KINDS,
+    MAX_HEIGHT,
+    footprint_radius,
+    make_clutter_mesh,
+    make_person_mesh,
+)
+from datagen.distractors.placement import object_poses, place_objects
+from datagen.distractors.presets import check_preset, preset_counts, sample_kinds
 
 # the default corridor floor (x in [-1, 1], y in [0, 10]) with a side opening on the left
 BOXES = np.array([[-1.0, 0.0, 1.0, 10.0], [-3.0, 5.4, -1.0, 7.0]])
@@ -30,27 +39,27 @@ def circles_inside(xy: np.ndarray, r: np.ndarray, boxes: np.ndarray) -> np.ndarr
 
 
 class TestMeshes:
-    @pytest.mark.parametrize("kind", D.CLUTTER_KINDS)
+    @pytest.mark.parametrize("kind", CLUTTER_KINDS)
     def test_clutter_bounds(self, kind):
         for seed in range(8):
-            mesh = D.make_clutter_mesh(kind, np.random.default_rng(seed))
+            mesh = make_clutter_mesh(kind, np.random.default_rng(seed))
             lo, hi = mesh.bounds
             assert isinstance(mesh, trimesh.Trimesh)
             assert abs(lo[2]) < 1e-9, "must stand on z = 0"
-            assert 0.2 < hi[2] <= D.MAX_HEIGHT + 1e-9
+            assert 0.2 < hi[2] <= MAX_HEIGHT + 1e-9
             np.testing.assert_allclose((lo[:2] + hi[:2]) / 2, 0.0, atol=1e-9)  # centred
-            assert D.footprint_radius(mesh) < 0.75  # fits in a 2 m corridor with room
+            assert footprint_radius(mesh) < 0.75  # fits in a 2 m corridor with room
             assert len(mesh.faces) < 2000
             assert np.isfinite(mesh.vertices).all()
 
     def test_person(self):
         for seed in range(8):
-            mesh = D.make_person_mesh(np.random.default_rng(seed))
+            mesh = make_person_mesh(np.random.default_rng(seed))
             lo, hi = mesh.bounds
             assert abs(lo[2]) < 1e-9
             assert 1.5 - 1e-9 <= hi[2] <= 1.95 + 1e-9
             assert len(mesh.faces) < 2000
-            assert D.footprint_radius(mesh) < 0.6
+            assert footprint_radius(mesh) < 0.6
             v = mesh.vertices
             feet = v[v[:, 2] < 0.05]
             assert abs(feet[:, 0].mean()) < 0.15  # origin between the feet
@@ -61,18 +70,18 @@ class TestMeshes:
             assert extent[1] > 1.3 * extent[0]  # shoulders across y: facing +/-x
 
     def test_deterministic(self):
-        a = D.make_clutter_mesh("chair", np.random.default_rng(3))
-        b = D.make_clutter_mesh("chair", np.random.default_rng(3))
+        a = make_clutter_mesh("chair", np.random.default_rng(3))
+        b = make_clutter_mesh("chair", np.random.default_rng(3))
         np.testing.assert_array_equal(a.vertices, b.vertices)
         np.testing.assert_array_equal(a.faces, b.faces)
 
     def test_unknown_kind(self):
         with pytest.raises(ValueError, match="unknown clutter kind"):
-            D.make_clutter_mesh("piano", np.random.default_rng(0))
+            make_clutter_mesh("piano", np.random.default_rng(0))
 
     def test_footprint_radius(self):
         box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
-        assert D.footprint_radius(box) == pytest.approx(np.sqrt(0.5))
+        assert footprint_radius(box) == pytest.approx(np.sqrt(0.5))
 
 
 class TestPlaceObjects:
@@ -81,7 +90,7 @@ class TestPlaceObjects:
         for seed in range(20):
             rng = np.random.default_rng(seed)
             radii = rng.uniform(0.15, 0.6, 10)
-            xy_yaw, placed = D.place_objects(rng, radii, FLOOR, keep, wall_margin=WALL_MARGIN)
+            xy_yaw, placed = place_objects(rng, radii, FLOOR, keep, wall_margin=WALL_MARGIN)
             assert xy_yaw.shape == (10, 3) and placed.shape == (10,)
             assert placed.sum() >= 6
             assert np.isnan(xy_yaw[~placed]).all()
@@ -95,13 +104,13 @@ class TestPlaceObjects:
             assert np.all(np.abs(xy_yaw[placed, 2]) <= np.pi)
 
     def test_too_big_is_unplaced(self):
-        xy_yaw, placed = D.place_objects(np.random.default_rng(0), np.array([0.3, 1.2]), FLOOR)
+        xy_yaw, placed = place_objects(np.random.default_rng(0), np.array([0.3, 1.2]), FLOOR)
         np.testing.assert_array_equal(placed, [True, False])
 
     def test_against_walls(self):
         rng = np.random.default_rng(1)
         radii = np.full(12, 0.3)
-        xy_yaw, placed = D.place_objects(rng, radii, MAIN, against_walls=1.0,
+        xy_yaw, placed = place_objects(rng, radii, MAIN, against_walls=1.0,
                                          wall_margin=WALL_MARGIN)
         assert placed.all()
         x, y, yaw = xy_yaw.T
@@ -115,16 +124,16 @@ class TestPlaceObjects:
 
     def test_deterministic(self):
         radii = np.array([0.4, 0.3, 0.2])
-        a = D.place_objects(np.random.default_rng(5), radii, FLOOR)
-        b = D.place_objects(np.random.default_rng(5), radii, FLOOR)
+        a = place_objects(np.random.default_rng(5), radii, FLOOR)
+        b = place_objects(np.random.default_rng(5), radii, FLOOR)
         np.testing.assert_array_equal(a[0], b[0])
 
     def test_bad_floor(self):
         with pytest.raises(TypeError, match="OccupancyMap"):
-            D.place_objects(np.random.default_rng(0), [0.2], np.array([[1.0, 0.0, 0.0, 1.0]]))
+            place_objects(np.random.default_rng(0), [0.2], np.array([[1.0, 0.0, 0.0, 1.0]]))
 
     def test_object_poses(self):
-        T = D.object_poses(np.array([[1.0, 2.0, np.pi / 2]]))
+        T = object_poses(np.array([[1.0, 2.0, np.pi / 2]]))
         np.testing.assert_allclose(T[0] @ [1, 0, 0, 1], [1, 3, 0, 1], atol=1e-12)
 
 
@@ -133,7 +142,7 @@ class TestPersonTracks:
         fps, radius = 10.0, 0.3
         for seed in range(4):
             rng = np.random.default_rng(seed)
-            tracks = D.person_tracks(rng, 3, 200, fps, MAIN, radius=radius)
+            tracks = person_tracks(rng, 3, 200, fps, MAIN, radius=radius)
             assert tracks.shape == (3, 200, 3)
             xy = tracks[..., :2]
             assert circles_inside(xy.reshape(-1, 2), np.full(600, radius), BOXES[:1]).all()
@@ -153,7 +162,7 @@ class TestPersonTracks:
         rng = np.random.default_rng(2)
         obstacles = np.array([[0.6, 3.0, 0.3], [-0.6, 7.0, 0.3]])
         camera = np.column_stack([np.zeros(150), np.linspace(1, 9, 150)])
-        tracks = D.person_tracks(rng, 2, 150, 10.0, MAIN, obstacles=obstacles,
+        tracks = person_tracks(rng, 2, 150, 10.0, MAIN, obstacles=obstacles,
                                  avoid=camera, avoid_radius=0.4)
         xy = tracks[..., :2]
         d_obs = np.linalg.norm(xy[:, :, None] - obstacles[None, None, :, :2], axis=-1)
@@ -162,10 +171,10 @@ class TestPersonTracks:
         assert (d_cam < 0.3 + 0.4 - 0.05).mean() < 0.02
 
     def test_deterministic_and_empty(self):
-        a = D.person_tracks(np.random.default_rng(9), 2, 50, 10.0, FLOOR)
-        b = D.person_tracks(np.random.default_rng(9), 2, 50, 10.0, FLOOR)
+        a = person_tracks(np.random.default_rng(9), 2, 50, 10.0, FLOOR)
+        b = person_tracks(np.random.default_rng(9), 2, 50, 10.0, FLOOR)
         np.testing.assert_array_equal(a, b)
-        assert D.person_tracks(np.random.default_rng(0), 0, 50, 10.0, FLOOR).shape == (0, 50, 3)
+        assert person_tracks(np.random.default_rng(0), 0, 50, 10.0, FLOOR).shape == (0, 50, 3)
 
 
 @pytest.fixture(scope="module")
@@ -180,12 +189,12 @@ class TestPresets:
         cfg = presets[name]
         rng = np.random.default_rng(0)
         for _ in range(20):
-            n_clutter, n_people = D.preset_counts(rng, cfg)
+            n_clutter, n_people = preset_counts(rng, cfg)
             assert cfg.clutter.min <= n_clutter <= cfg.clutter.max
             assert cfg.people.min <= n_people <= cfg.people.max
-            assert set(D.sample_kinds(rng, n_clutter, cfg)) <= set(cfg.kinds)
+            assert set(sample_kinds(rng, n_clutter, cfg)) <= set(cfg.kinds)
         if name == "none":
-            assert D.preset_counts(rng, cfg) == (0, 0)
+            assert preset_counts(rng, cfg) == (0, 0)
 
     def test_new_kinds_only_where_listed(self, presets):
         """The default presets draw today's five kinds; conf/distractors/varied.yaml, added
@@ -196,10 +205,10 @@ class TestPresets:
             "datagen", ["+distractors@distractor_presets.varied=varied",
                         "+training.distractors.varied=0.3"]), "datagen")
         varied = cfg.distractor_presets["varied"]
-        assert set(varied.kinds) == set(D.CLUTTER_KINDS)
-        D.check_preset(varied)
-        drawn = set(D.sample_kinds(np.random.default_rng(0), 200, varied))
-        assert drawn == set(D.CLUTTER_KINDS)
+        assert set(varied.kinds) == set(CLUTTER_KINDS)
+        check_preset(varied)
+        drawn = set(sample_kinds(np.random.default_rng(0), 200, varied))
+        assert drawn == set(CLUTTER_KINDS)
 
     def test_presets_grow(self, presets):
         load = [presets[n] for n in ("none", "paper", "cluttered")]
@@ -208,6 +217,6 @@ class TestPresets:
 
     def test_bad_preset(self):
         with pytest.raises(ValueError, match="clutter"):
-            D.preset_counts(np.random.default_rng(0), {"clutter": {"min": 3, "max": 1}})
+            preset_counts(np.random.default_rng(0), {"clutter": {"min": 3, "max": 1}})
         with pytest.raises(ValueError, match="kinds"):
-            D.sample_kinds(np.random.default_rng(0), 2, {"kinds": ["piano"]})
+            sample_kinds(np.random.default_rng(0), 2, {"kinds": ["piano"]})

@@ -12,7 +12,7 @@ from core import classes as C
 from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy
-from datagen import appearance
+from datagen.appearance.textures import sample_textures
 from datagen.generate import make_camera
 from datagen.importers import load_building
 from datagen.importers.meshfile import Y_UP_TO_Z_UP
@@ -123,7 +123,7 @@ def test_the_poster_renders_the_right_way_round(building):
     free = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class, (0.5, 2.2), 0.3, 0.1)
     cfg = compose_config("datagen", ["camera.width=96", "camera.height=72"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     r = Renderer(building_scene(b, free), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 20.0))
     r.set_camera(pose_from_xyz_rpy([1.0, 1.5, 1.3], [0, 0, 0])[0] @ camera.body_from_cam)

@@ -12,9 +12,10 @@ import pytest
 
 from core.occupancy import OccupancyMap
 from core.poses import xyzyaw_from_pose
-from datagen import distractors as D
 from datagen import trajectories as TR
 from datagen.config import FlightConfig, TrajectoryConfig
+from datagen.distractors.crowd import person_tracks
+from datagen.distractors.placement import place_objects
 from datagen.routes import find_turns, route_at, route_length
 from tests.buildings import BAND, MARGIN, assemble, occupancy, ring
 
@@ -178,15 +179,15 @@ class TestDistractorsOnFloors:
         for seed in range(6):
             rng = np.random.default_rng(seed)
             radii = rng.uniform(0.15, 0.5, 10)
-            xy_yaw, placed = D.place_objects(rng, radii, ring_floor, against_walls=0.6,
+            xy_yaw, placed = place_objects(rng, radii, ring_floor, against_walls=0.6,
                                              wall_margin=0.05)
             assert placed.sum() >= 8
             xy, r = xy_yaw[placed, :2], radii[placed]
             assert np.all(ring_wall_distance(xy) >= r + 0.05 - self.HALF_CELL)
             gap = np.linalg.norm(xy[:, None] - xy[None], axis=-1) - r[:, None] - r[None]
             assert np.all(gap[~np.eye(len(r), dtype=bool)] >= -1e-9)
-        a = D.place_objects(np.random.default_rng(7), [0.3, 0.2], ring_floor, against_walls=1)
-        b = D.place_objects(np.random.default_rng(7), [0.3, 0.2], ring_floor, against_walls=1)
+        a = place_objects(np.random.default_rng(7), [0.3, 0.2], ring_floor, against_walls=1)
+        b = place_objects(np.random.default_rng(7), [0.3, 0.2], ring_floor, against_walls=1)
         np.testing.assert_array_equal(a[0], b[0])
 
     def test_people_walk_the_ring(self, ring_floor):
@@ -194,10 +195,10 @@ class TestDistractorsOnFloors:
         for seed in range(3):
             rng = np.random.default_rng(seed)
             radii = rng.uniform(0.15, 0.4, 4)
-            xy_yaw, placed = D.place_objects(rng, radii, ring_floor, against_walls=1.0,
+            xy_yaw, placed = place_objects(rng, radii, ring_floor, against_walls=1.0,
                                              wall_margin=0.05)
             obstacles = np.column_stack([xy_yaw[placed, :2], radii[placed]])
-            tracks = D.person_tracks(rng, 3, 300, fps, ring_floor, radius=radius,
+            tracks = person_tracks(rng, 3, 300, fps, ring_floor, radius=radius,
                                      obstacles=obstacles)
             xy = tracks[..., :2]
             assert np.all(ring_wall_distance(xy.reshape(-1, 2)) >= radius - self.HALF_CELL)
@@ -210,8 +211,8 @@ class TestDistractorsOnFloors:
             # they go round: every person covers more than one side of the ring
             sides = np.stack([xy[..., 0] < 2, xy[..., 0] > 8, xy[..., 1] < 2, xy[..., 1] > 8])
             assert np.all(sides.any(axis=2).sum(axis=0) >= 2)
-        a = D.person_tracks(np.random.default_rng(5), 2, 50, fps, ring_floor)
-        b = D.person_tracks(np.random.default_rng(5), 2, 50, fps, ring_floor)
+        a = person_tracks(np.random.default_rng(5), 2, 50, fps, ring_floor)
+        b = person_tracks(np.random.default_rng(5), 2, 50, fps, ring_floor)
         np.testing.assert_array_equal(a, b)
 
 

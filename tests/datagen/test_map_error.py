@@ -15,9 +15,9 @@ from core.atomic import read_png
 from core.config import compose_config
 from core.dataset import Dataset
 from core.realism import CalibrationConfig, MapErrorConfig
-from datagen import calibration as CAL
-from datagen import map_error as M
 from datagen.generate import make_camera, rng_for
+from datagen.realism import calibration as CAL
+from datagen.realism import map_error as M
 from datagen.site import build_site
 from tests.datagen.test_site import write_ring_glb
 

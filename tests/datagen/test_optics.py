@@ -1,4 +1,4 @@
-"""The flights' optics (datagen/optics.py): sub-frame times and poses, motion blur and a
+"""The flights' optics (datagen/realism/optics.py): sub-frame times and poses, motion blur and a
 rolling shutter assembled from sub-frames, their checks, rendered frames (the lens itself:
 tests/core/test_lens.py)."""
 
@@ -14,7 +14,7 @@ from core.atomic import read_png
 from core.config import compose_config
 from core.realism import RealismConfig
 from datagen import generate as gen
-from datagen import optics
+from datagen.realism import optics
 from tests.core.test_lens import EUROC, LENS, SMALL, camera
 
 

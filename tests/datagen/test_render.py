@@ -9,7 +9,7 @@ import pytest
 from core import classes as C
 from core.config import compose_config
 from core.poses import pose_from_xyz_rpy
-from datagen import appearance
+from datagen.appearance.textures import sample_textures
 from datagen.generate import make_camera
 from datagen.scene import corridor_scene
 from datagen.world import build_world
@@ -25,7 +25,7 @@ def view():
     cfg = compose_config("datagen", ["camera.width=160", "camera.height=120"])
     model = build_world(cfg["world"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
     r = Renderer(corridor_scene(model), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 6.0))
     body = pose_from_xyz_rpy([0.25, 0.8, 1.3], [0.06, -0.08, np.pi / 2 + 0.25])[0]
@@ -116,7 +116,7 @@ def test_render_is_develop_of_trace():
 
     cfg = compose_config("datagen", ["camera.width=64", "camera.height=48"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     r = Renderer(corridor_scene(build_world(cfg["world"])), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 6.0))
     poses = [pose_from_xyz_rpy([0.2, y, 1.3], [0.0, 0.0, np.pi / 2])[0] @ camera.body_from_cam
@@ -151,7 +151,7 @@ def test_denoiser_keeps_only_emitters_raw():
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     model = build_world(cfg["world"])
     r = Renderer(corridor_scene(model), camera, tex)
     shapes = list(r.scene.shapes())
@@ -195,8 +195,8 @@ def test_set_textures_reaches_every_textured_surface():
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
-    first = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
-    second = appearance.sample_textures(np.random.default_rng(1), 16, cfg["appearance"])
+    first = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    second = sample_textures(np.random.default_rng(1), 16, cfg["appearance"])
     r = Renderer(corridor_scene(build_world(cfg["world"])), camera, first)
     r.set_textures(second)
     for name in ("door_frame", "window_frame", "wall"):
@@ -223,7 +223,7 @@ def test_glossy_floor():
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=80", "camera.height=60"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
     scene = corridor_scene(build_world(cfg["world"]))
     pose = pose_from_xyz_rpy([0.2, 0.8, 1.3], [0.0, 0.25, np.pi / 2])[0] @ camera.body_from_cam
 

@@ -10,7 +10,7 @@ from core import classes as C
 from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy
-from datagen import appearance
+from datagen.appearance.textures import sample_textures
 from datagen.generate import make_camera
 from datagen.importers import load_building
 from datagen.scene import (
@@ -169,7 +169,7 @@ def room_view(room):
     b, free = room
     cfg = compose_config("datagen", ["camera.width=64", "camera.height=48"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     r = Renderer(building_scene(b, free), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 20.0))
     world_from_cam = pose_from_xyz_rpy([0.8, 1.5, 1.2], [0, 0, 0])[0] @ camera.body_from_cam
@@ -207,7 +207,7 @@ def test_corridor_render_unchanged():
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=96", "camera.height=72"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 32, cfg["appearance"])
     r = Renderer(corridor_scene(build_world(cfg["world"])), camera, tex)
     r.set_lights(np.full((r.num_lights, 3), 6.0))
     body = pose_from_xyz_rpy([0.25, 0.8, 1.3], [0.0, -0.05, np.pi / 2 + 0.25])[0]
@@ -234,7 +234,7 @@ def test_near_lights_sampling_is_unbiased_and_skips_lights_off(room):
     scene = building_scene(b, free, light_spacing=1.0, file_lights=False)
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
-    tex = appearance.sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    tex = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
     means = []
     radiance = np.full((scene.num_lights, 3), 10.0)
     radiance[0] = 0.0

@@ -15,8 +15,8 @@ from core.config import compose_config
 from core.dataset import Dataset
 from core.poses import read_tum, xyzyaw_from_pose
 from core.realism import HarderFlightConfig, TimingConfig
-from datagen import timing as TM
 from datagen import trajectories as TR
+from datagen.realism import timing as TM
 
 FPS = 10.0
 FLIGHT = ["splits.train=0", "splits.val=0", "splits.test=0", "render_flights=[paper]",
