@@ -24,22 +24,24 @@ CHILD = r"""
 import json, sys, time
 sys.path.insert(0, {root!r})
 from core.config import compose_config
-import datagen.generate as gen
+import datagen.dataset_writer as writer
+import datagen.job as datagen_job
+import datagen.render_split as render_split
 from core.variant import choose_variant
 variant = choose_variant({variant!r})
 n = {images}
 cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "splits.test=0",
                                  "render_flights=[]", "training.chunk=%d" % (n + 1),
                                  "out_dir={out}", "render.variant=" + {variant!r}] + sys.argv[1:])
-job = gen.prepare(cfg)
-gen.write_metadata(job, variant)
+job = datagen_job.prepare(cfg)
+writer.write_metadata(job, variant)
 times = []
-real = gen.write_frame
+real = render_split.write_frame
 def timed(*a, **k):
     real(*a, **k)
     times.append(time.perf_counter())
-gen.write_frame = timed
-gen.render_split(job, "train", progress=False)
+render_split.write_frame = timed
+render_split.render_split(job, "train", progress=False)
 dt = times[-1] - times[0]
 print(json.dumps({{"variant": variant, "images": n, "seconds": dt, "images_per_second": n / dt}}))
 """

@@ -42,7 +42,7 @@ def run(name: str, scene, poses: list[np.ndarray], cfg: dict, near_lights: bool 
     """Load the scene, render the views; print the figures."""
     from datagen.appearance.lights import sample_lights
     from datagen.appearance.textures import sample_textures
-    from datagen.generate import make_camera
+    from datagen.job import make_camera
     from datagen.render import Renderer
 
     camera = make_camera(cfg["camera"])

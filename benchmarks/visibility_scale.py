@@ -68,7 +68,7 @@ def hospital_world(path: Path) -> tuple[World, OccupancyMap]:
 def camera() -> Camera:
     """The datagen default camera (320 x 240, 70 deg, forward)."""
     from datagen.config import CameraConfig
-    from datagen.generate import make_camera
+    from datagen.job import make_camera
 
     return make_camera(CameraConfig())
 

@@ -1,6 +1,6 @@
 """A one-worker pipeline: finish frame i on a background thread while the caller traces i+1.
 
-A training frame costs ~60 ms of Mitsuba passes (``CorridorRenderer.trace``, which the caller
+A training frame costs ~60 ms of Mitsuba passes (``Renderer.trace``, which the caller
 must run in order) and ~15 ms of numpy / OpenCV work on their arrays (the denoiser, sRGB
 encoding, PNG compression, the atomic writes) on the 2-core machine. The second half releases
 the GIL for most of its time, so running it beside the next frame's trace gains ~9 % images/s

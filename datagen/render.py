@@ -425,6 +425,3 @@ class Developer:
                           denoise_sigma_px)
         return rgb * exposure, label, (t / self.ray_norm).astype(np.float32)
 
-
-#: The name datagen.generate and older callers use.
-CorridorRenderer = Renderer

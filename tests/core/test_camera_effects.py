@@ -18,6 +18,7 @@ from core.atomic import read_png
 from core.config import CONF, compose_config, typed
 from core.realism import DropoutConfig, ExposureConfig, JpegConfig, RealismConfig, SensorNoiseConfig
 from datagen.config import DatagenConfig
+from datagen.render_flight import flight_effect
 
 FPS = 10.0
 
@@ -259,14 +260,14 @@ class TestDatagen:
                                                      "realism.dropout.at_s=[0.2]",
                                                      "realism.dropout.duration_s=[0.3,0.3]"]))
         images = [textured(i) for i in range(8)]
-        in_order = [gen.flight_effect(job, "paper", i)(images[i]) for i in range(8)]
-        alone = gen.flight_effect(job, "paper", 7)(images[7])
+        in_order = [flight_effect(job, "paper", i)(images[i]) for i in range(8)]
+        alone = flight_effect(job, "paper", 7)(images[7])
         np.testing.assert_array_equal(alone, in_order[7])
-        assert not np.array_equal(in_order[6], gen.flight_effect(job, "paper", 7)(images[6]))
+        assert not np.array_equal(in_order[6], flight_effect(job, "paper", 7)(images[6]))
         (d,) = job.flights["paper"]["dropout"]
         assert (d.first, d.stop) == (2, 5)
         ideal = gen.prepare(compose_config("datagen", self.FLIGHT))
-        assert gen.flight_effect(ideal, "paper", 7) is None
+        assert flight_effect(ideal, "paper", 7) is None
         assert ideal.flights["paper"]["dropout"] == []
 
     def test_flight_images_get_the_effects(self, tmp_path):
@@ -291,7 +292,7 @@ class TestDatagen:
             np.testing.assert_array_equal(read_png(a / "label" / name, rgb=False),
                                           read_png(b / "label" / name, rgb=False))
             rendered, written = read_png(a / "rgb" / name), read_png(b / "rgb" / name)
-            expected = gen.flight_effect(job, "cluttered", i)(rendered)
+            expected = flight_effect(job, "cluttered", i)(rendered)
             assert (written == expected).mean() > 0.99  # LLVM: rarely one level off
             assert not np.array_equal(written, rendered)
         assert read_png(b / "rgb" / "000001.png").max() == 0

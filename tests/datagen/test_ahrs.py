@@ -19,6 +19,8 @@ from core.poses import pose_from_xyz_rpy, read_tum
 from core.realism import AhrsConfig, RealismConfig
 from datagen import trajectories as TR
 from datagen.config import DatagenConfig
+from datagen.dataset_writer import write_metadata
+from datagen.job import flight_stream, rng_for
 from datagen.realism import ahrs
 
 FPS = 10.0
@@ -165,10 +167,10 @@ class TestRealismPreset:
         job = gen.prepare(cfg)
         free = job.site.world.free
         for name, f in job.flights.items():
-            preset, stream = cfg.flights[f["preset_name"]], gen.flight_stream(name)
+            preset, stream = cfg.flights[f["preset_name"]], flight_stream(name)
             route = TR.flight_route(preset, free, job.site.route,
-                                    gen.rng_for(cfg.seed, stream, 3), f"flights.{name}")
-            r = gen.rng_for(cfg.seed, stream, 0)
+                                    rng_for(cfg.seed, stream, 3), f"flights.{name}")
+            r = rng_for(cfg.seed, stream, 0)
             gt = TR.flight_trajectory(r, preset.num_frames, preset.fps, route, free,
                                       job.site.world.z_range, preset.trajectory)
             np.testing.assert_array_equal(f["groundtruth"], gt)
@@ -180,7 +182,7 @@ class TestRealismPreset:
         out = tmp_path / "ds"
         job = gen.prepare(compose_config("datagen", [*NO_SPLITS, "realism=real", *AHRS_ONLY,
                                                      f"out_dir={out}"]))
-        gen.write_metadata(job, "scalar_rgb")
+        write_metadata(job, "scalar_rgb")
         for name, f in job.flights.items():
             gt, odo = f["groundtruth"], f["odometry"]
             base = ideal.flights[name]["odometry"]

@@ -29,6 +29,7 @@ CHILD = """
 import json, sys, time
 from pathlib import Path
 import datagen.generate as gen
+import datagen.render_split as render_split
 from core.config import compose_config
 try:
     import core.outputs
@@ -38,7 +39,7 @@ except ImportError:
 args = json.loads(sys.argv[1])
 cfg = compose_config("datagen", args["overrides"])
 if args["gate"]:
-    real, gate = gen.write_frame, args["gate"]
+    real, gate = render_split.write_frame, args["gate"]
     def paused(*a, **k):
         if not args["before"]:
             real(*a, **k)
@@ -47,7 +48,7 @@ if args["gate"]:
             time.sleep(0.05)
         if args["before"]:
             real(*a, **k)
-    gen.write_frame = paused
+    render_split.write_frame = paused
 gen.run(cfg, progress=False)
 """
 

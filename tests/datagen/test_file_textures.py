@@ -13,9 +13,9 @@ from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
-from datagen.generate import make_camera
 from datagen.importers import load_building
 from datagen.importers.meshfile import Y_UP_TO_Z_UP
+from datagen.job import make_camera
 from datagen.scene import building_scene
 from tests.datagen.building_files import open_room, write_dae
 

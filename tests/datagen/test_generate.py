@@ -11,12 +11,15 @@ import pytest
 from hydra.errors import ConfigCompositionException
 
 import datagen.generate as gen
+import datagen.render_flight as render_flight
+import datagen.render_split as render_split
 from core import classes as C
 from core.atomic import read_png
 from core.config import compose_config
 from core.dataset import Dataset
 from core.occupancy import PATH_RGB
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME, OutputFolderError
+from datagen.job import shard_range
 from datagen.pipeline import Pipeline
 
 SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",
@@ -87,7 +90,7 @@ class TestDeterminismAndResume:
 
         # A run that dies after two frames, then is re-run.
         crashed = tmp_path / "crashed"
-        real_write, calls = gen.write_frame, {"n": 0}
+        real_write, calls = render_split.write_frame, {"n": 0}
 
         def dying_write(*args, **kwargs):
             if calls["n"] == 2:
@@ -95,10 +98,10 @@ class TestDeterminismAndResume:
             calls["n"] += 1
             return real_write(*args, **kwargs)
 
-        monkeypatch.setattr(gen, "write_frame", dying_write)
+        monkeypatch.setattr(render_split, "write_frame", dying_write)
         with pytest.raises(KeyboardInterrupt):
             gen.run(small_cfg(crashed), progress=False)
-        monkeypatch.setattr(gen, "write_frame", real_write)
+        monkeypatch.setattr(render_split, "write_frame", real_write)
         assert len(list((crashed / "train" / "rgb").glob("*.png"))) == 2
         gen.run(small_cfg(crashed), progress=False)
 
@@ -109,7 +112,9 @@ class TestDeterminismAndResume:
 
         # Developing and writing on the caller's thread instead of the worker: the same bytes.
         serial = tmp_path / "serial"
-        monkeypatch.setattr(gen, "Pipeline", functools.partial(Pipeline, enabled=False))
+        serial_pipeline = functools.partial(Pipeline, enabled=False)
+        monkeypatch.setattr(render_split, "Pipeline", serial_pipeline)
+        monkeypatch.setattr(render_flight, "Pipeline", serial_pipeline)
         gen.run(small_cfg(serial), progress=False)
         c = tree_bytes(serial)
         assert sorted(a) == sorted(c)
@@ -132,7 +137,7 @@ class TestDeterminismAndResume:
         assert not np.array_equal(a, b)
 
     def test_shards_cover_all_frames(self):
-        frames = [list(gen.shard_range(10, k, 3)) for k in range(3)]
+        frames = [list(shard_range(10, k, 3)) for k in range(3)]
         assert sum(frames, []) == list(range(10))
 
 

@@ -15,7 +15,7 @@ from core.atomic import read_png
 from core.config import compose_config
 from core.dataset import Dataset
 from core.realism import CalibrationConfig, MapErrorConfig
-from datagen.generate import make_camera, rng_for
+from datagen.job import CALIBRATION_STREAM, MAP_STREAM, make_camera, rng_for
 from datagen.realism import calibration as CAL
 from datagen.realism import map_error as M
 from datagen.site import build_site
@@ -47,7 +47,7 @@ class TestMap:
     def test_walls_and_ceiling_move_as_recorded(self, corridor):
         truth = corridor.world
         c = MapErrorConfig(wall_std_m=0.03, ceiling_std_m=0.03)
-        m, rec = M.make_map(truth, c, 20.0, rng_for(3, gen.MAP_STREAM))
+        m, rec = M.make_map(truth, c, 20.0, rng_for(3, MAP_STREAM))
         assert len(rec["walls"]) >= 6 and len(rec["ceilings"]) == 1
         for w in rec["walls"]:
             want = np.dot(w["normal"], w["point"]) + w["shift_m"]
@@ -81,7 +81,7 @@ class TestMap:
     def test_openings_missing_and_added(self, corridor):
         truth = corridor.world
         c = MapErrorConfig(missing_openings=2, extra_openings=2)
-        m, rec = M.make_map(truth, c, 20.0, rng_for(0, gen.MAP_STREAM))
+        m, rec = M.make_map(truth, c, 20.0, rng_for(0, MAP_STREAM))
         assert len(rec["missing_openings"]) == 2 and len(rec["extra_openings"]) == 2
 
         def classes_at(world, centre, reach=0.05):
@@ -191,7 +191,7 @@ class TestCalibration:
                               translation_std_m=0.005)
         scale, pp, angle, dt = [], [], [], []
         for seed in range(400):
-            told, err = CAL.told_camera(cam, c, rng_for(seed, gen.CALIBRATION_STREAM))
+            told, err = CAL.told_camera(cam, c, rng_for(seed, CALIBRATION_STREAM))
             scale.append(told.K[0, 0] / cam.K[0, 0])
             assert told.K[1, 1] / cam.K[1, 1] == pytest.approx(scale[-1])
             assert scale[-1] == pytest.approx(err["focal_scale"])

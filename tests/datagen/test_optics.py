@@ -15,6 +15,8 @@ from core.config import compose_config
 from core.realism import RealismConfig
 from datagen import generate as gen
 from datagen.realism import optics
+from datagen.render_flight import flight_scene
+from datagen.render_split import new_renderer
 from tests.core.test_lens import EUROC, LENS, SMALL, camera
 
 
@@ -156,7 +158,7 @@ class TestRender:
         cfg = compose_config("datagen", [*SMALL, "realism.rolling_shutter.readout_s=0.06",
                                          "realism.subframes.step_px=0.5"])
         job = gen.prepare(cfg)
-        scene = gen.flight_scene(job, "paper")
+        scene = flight_scene(job, "paper")
         rate = np.radians(90.0)  # rad/s, positive: to the left (z up)
         mid = job.flights["paper"]["groundtruth"][1]
         gt = np.stack([mid.copy() for _ in range(3)])
@@ -164,7 +166,7 @@ class TestRender:
             gt[k, :3, :3] = Rotation.from_rotvec([0, 0, rate * (k - 1) / 10.0]).as_matrix() \
                 @ mid[:3, :3]
         fo = optics.FlightOptics.build(job.cfg.realism, job.camera, gt, 10.0)
-        renderer = gen._new_renderer(job, scene.textures, scene.clutter, scene.people)
+        renderer = new_renderer(job, scene.textures, scene.clutter, scene.people)
         renderer.set_lights(scene.lights)
         renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, 1]], axis=0),
                              scene.colours)

@@ -10,7 +10,7 @@ from core import classes as C
 from core.config import compose_config
 from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
-from datagen.generate import make_camera
+from datagen.job import make_camera
 from datagen.scene import corridor_scene
 from datagen.world import build_world
 

@@ -11,8 +11,8 @@ from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
-from datagen.generate import make_camera
 from datagen.importers import load_building
+from datagen.job import make_camera
 from datagen.scene import (
     BUILDING_TEXTURE_EXTENT,
     DEFAULT_COLOUR,

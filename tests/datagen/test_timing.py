@@ -16,6 +16,8 @@ from core.dataset import Dataset
 from core.poses import read_tum, xyzyaw_from_pose
 from core.realism import HarderFlightConfig, TimingConfig
 from datagen import trajectories as TR
+from datagen.dataset_writer import write_metadata
+from datagen.job import check_inside, rng_for
 from datagen.realism import timing as TM
 
 FPS = 10.0
@@ -24,7 +26,7 @@ FLIGHT = ["splits.train=0", "splits.val=0", "splits.test=0", "render_flights=[pa
 
 
 def frame_rngs(seed: int):
-    return lambda i: gen.rng_for(seed, 77, 10, i)
+    return lambda i: rng_for(seed, 77, 10, i)
 
 
 class TestFrameDelivery:
@@ -119,7 +121,7 @@ class TestHarderFlights:
             gt = TR.flight_trajectory(np.random.default_rng(seed), 240, FPS, route, free,
                                       job.site.world.z_range, None, h,
                                       np.random.default_rng(100 + seed))
-            gen._check_inside(job.site, job.camera, gt, "harder")
+            check_inside(job.site, job.camera, gt, "harder")
             s = xyzyaw_from_pose(gt)
             v = np.linalg.norm(np.diff(s[:, :2], axis=0), axis=1) * FPS
             peak_v.append(v.max())
@@ -189,7 +191,7 @@ def test_ideal_clocks_are_todays(tmp_path):
     assert f["delivered"].all() and f["jumps"] == []
     np.testing.assert_array_equal(f["stamps"], TR.timestamps(20, FPS))
     np.testing.assert_array_equal(f["odometry_times"], TR.timestamps(20, FPS))
-    gen.write_metadata(job, "scalar_rgb")
+    write_metadata(job, "scalar_rgb")
     d = out / "flights" / "paper"
     assert not (d / "images.txt").exists()
     assert "timing" not in json.loads((d / "flight.json").read_text())
