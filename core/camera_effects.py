@@ -16,7 +16,7 @@ own generators (``exposure_ev``, ``dropout_stretches``); the sensor noise from e
 generator, so a frame's image depends only on the seed, the flight and the frame's index, not
 on which frames were rendered before (datagen resumes and shards). Every magnitude 0 (the
 defaults, ``realism=ideal``): ``is_active`` is False and the images are the rendered ones.
-Magnitudes of ``realism=real`` and their source: docs/datagen.md.
+Magnitudes of ``realism=real`` and their source: docs/realism.md.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ class AhrsConfig:
     flights' odometry (``realism.ahrs``, datagen/realism/ahrs.py): per axis the truth plus a
     constant bias, white noise and a slow drift (a first-order Gauss-Markov process). Every std 0
     (the defaults, ``realism=ideal``): the true roll and pitch. ``realism=real``: a small drone's
-    MEMS IMU (docs/datagen.md)."""
+    MEMS IMU (docs/realism.md)."""
 
     bias_deg: float = 0.0  # std of the constant error, drawn once per flight and axis
     noise_deg: float = 0.0  # std of the white noise of each frame's roll and pitch
@@ -93,7 +93,7 @@ class LensConfig:
     and p2 swapped), with the camera's K. The frames are rendered through it; flight.json's
     ``camera`` holds the calibration and the localizer undistorts each frame back to K. Every
     coefficient 0 (the defaults, ``realism=ideal``): a pinhole. ``realism=real``: a wide MAV lens
-    (docs/datagen.md)."""
+    (docs/realism.md)."""
 
     k1: float = 0.0
     k2: float = 0.0
@@ -140,7 +140,7 @@ class TimingConfig:
     occasional jumps, so a flight's reader (``core.dataset.Dataset.flight``) interpolates the
     odometry at each delivered image's timestamp, as for a user's recording. Every setting off (the
     defaults, ``realism=ideal``): every frame delivered at i / fps, the odometry at the frame times.
-    ``realism=real``: docs/datagen.md."""
+    ``realism=real``: docs/realism.md."""
 
     drop_rate: float = 0.0  # share of frames dropped (never delivered, not rendered), each
     # frame independently, in [0, 0.5]
@@ -188,7 +188,7 @@ class MapErrorConfig:
     edits are drawn from their own seeded stream and listed in dataset.json's ``map_error``.
     Rendering and the ground truth use the truth. Every setting 0 (the defaults,
     ``realism=ideal``): the map is the truth. ``realism=real``: a survey-grade floor plan's
-    errors (docs/datagen.md)."""
+    errors (docs/realism.md)."""
 
     wall_std_m: float = 0.0  # std of each wall's shift along its normal (a wall: a connected
     # flat piece of class wall; its doors' and windows' recesses move with it)
@@ -218,7 +218,7 @@ class CalibrationConfig:
     camera with a calibration error drawn once per dataset from its own seeded stream; the
     truth is kept as ``camera_truth`` and the error in ``calibration_error``. Every std 0 (the
     defaults, ``realism=ideal``): the told camera is the truth. ``realism=real``: a checkerboard
-    calibration's errors (docs/datagen.md)."""
+    calibration's errors (docs/realism.md)."""
 
     focal_std: float = 0.0  # relative std of the focal length (fx and fy scaled by one
     # factor 1 + N(0, focal_std))
