@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml
 	$(MAKE) llvm
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
 	$(PIP) install -q torch==2.14.1 torchvision==0.29.1
-	$(PIP) install -q -e '.[dev]'
+	$(PIP) install -q -e '.[dev,ros,viz]'
 	touch $(STAMP)
 
 test: setup
