@@ -36,6 +36,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     import datagen  # noqa: F401  (registers the config schema)
     from core.config import compose_config
     from datagen import generate as gen
+    from datagen.job import prepare
     from datagen.realism import optics
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         gen.run(cfg, progress=False)
         stats = json.loads((out / name / "stats.json").read_text())
         per_frame[name] = 1.0 / stats["images_per_second"]
-        job = gen.prepare(cfg)
+        job = prepare(cfg)
         subs, size = 1.0, (job.camera.width, job.camera.height)
         if optics.is_active(job.cfg.realism):
             fo = optics.FlightOptics.build(job.cfg.realism, job.camera,

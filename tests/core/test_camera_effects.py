@@ -18,6 +18,7 @@ from core.atomic import read_png
 from core.config import CONF, compose_config, typed
 from core.realism import DropoutConfig, ExposureConfig, JpegConfig, RealismConfig, SensorNoiseConfig
 from datagen.config import DatagenConfig
+from datagen.job import prepare
 from datagen.render_flight import flight_effect
 
 FPS = 10.0
@@ -255,7 +256,7 @@ class TestDatagen:
 
     def test_frames_independent_of_what_was_rendered(self):
         """Frame 7's effects are the same whether frames 0-6 were processed or not."""
-        job = gen.prepare(compose_config("datagen", [*self.FLIGHT, "realism=real",
+        job = prepare(compose_config("datagen", [*self.FLIGHT, "realism=real",
                                                      "realism.dropout.per_min=0",
                                                      "realism.dropout.at_s=[0.2]",
                                                      "realism.dropout.duration_s=[0.3,0.3]"]))
@@ -266,7 +267,7 @@ class TestDatagen:
         assert not np.array_equal(in_order[6], flight_effect(job, "paper", 7)(images[6]))
         (d,) = job.flights["paper"]["dropout"]
         assert (d.first, d.stop) == (2, 5)
-        ideal = gen.prepare(compose_config("datagen", self.FLIGHT))
+        ideal = prepare(compose_config("datagen", self.FLIGHT))
         assert flight_effect(ideal, "paper", 7) is None
         assert ideal.flights["paper"]["dropout"] == []
 
@@ -285,7 +286,7 @@ class TestDatagen:
         gen.run(compose_config("datagen", [*small, f"out_dir={ideal}"]), progress=False)
         cfg = compose_config("datagen", [*small, *effects, f"out_dir={real}"])
         gen.run(cfg, progress=False)
-        job = gen.prepare(cfg)
+        job = prepare(cfg)
         a, b = ideal / "flights" / "cluttered", real / "flights" / "cluttered"
         for i in range(3):
             name = f"{i:06d}.png"

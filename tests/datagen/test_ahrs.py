@@ -20,7 +20,7 @@ from core.realism import AhrsConfig, RealismConfig
 from datagen import trajectories as TR
 from datagen.config import DatagenConfig
 from datagen.dataset_writer import write_metadata
-from datagen.job import flight_stream, rng_for
+from datagen.job import flight_stream, prepare, rng_for
 from datagen.realism import ahrs
 
 FPS = 10.0
@@ -164,7 +164,7 @@ class TestRealismPreset:
     def test_ideal_odometry_is_todays(self):
         """Default preset: each flight's odometry is noisy_odometry's, bit for bit."""
         cfg = typed(DatagenConfig, compose_config("datagen", NO_SPLITS), "datagen")
-        job = gen.prepare(cfg)
+        job = prepare(cfg)
         free = job.site.world.free
         for name, f in job.flights.items():
             preset, stream = cfg.flights[f["preset_name"]], flight_stream(name)
@@ -178,9 +178,9 @@ class TestRealismPreset:
                 f["odometry"], TR.noisy_odometry(r, gt, preset.fps, preset.odometry))
 
     def test_real_reaches_the_flights_odometry(self, tmp_path):
-        ideal = gen.prepare(compose_config("datagen", NO_SPLITS))
+        ideal = prepare(compose_config("datagen", NO_SPLITS))
         out = tmp_path / "ds"
-        job = gen.prepare(compose_config("datagen", [*NO_SPLITS, "realism=real", *AHRS_ONLY,
+        job = prepare(compose_config("datagen", [*NO_SPLITS, "realism=real", *AHRS_ONLY,
                                                      f"out_dir={out}"]))
         write_metadata(job, "scalar_rgb")
         for name, f in job.flights.items():

@@ -19,7 +19,7 @@ from core.config import compose_config
 from core.dataset import Dataset
 from core.occupancy import PATH_RGB
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME, OutputFolderError
-from datagen.job import shard_range
+from datagen.job import prepare, shard_range
 from datagen.pipeline import Pipeline
 
 SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",
@@ -223,16 +223,16 @@ class TestBadConfig:
 
     def test_flight_views_share(self):
         cfg = small_cfg(Path("unused"), "splits.train=400", "training.flight_views=0")
-        base = gen.prepare(cfg).split_poses["train"]
+        base = prepare(cfg).split_poses["train"]
         cfg["training"]["flight_views"] = 0.5
-        mixed = gen.prepare(cfg).split_poses["train"]
+        mixed = prepare(cfg).split_poses["train"]
         kept = np.all(mixed == base, axis=(1, 2))
         assert kept.mean() == pytest.approx(0.5, abs=0.08), "the other frames are unchanged"
         heights = mixed[~kept, 2, 3]
         assert heights.min() >= 0.8 and heights.max() <= 1.7  # the flights' heights
         cfg["training"]["flight_views"] = 1.5
         with pytest.raises(ValueError, match="training.flight_views"):
-            gen.prepare(cfg)
+            prepare(cfg)
 
     def test_missing_dataset_error(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m datagen"):

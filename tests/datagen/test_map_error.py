@@ -15,7 +15,7 @@ from core.atomic import read_png
 from core.config import compose_config
 from core.dataset import Dataset
 from core.realism import CalibrationConfig, MapErrorConfig
-from datagen.job import CALIBRATION_STREAM, MAP_STREAM, make_camera, rng_for
+from datagen.job import CALIBRATION_STREAM, MAP_STREAM, make_camera, prepare, rng_for
 from datagen.realism import calibration as CAL
 from datagen.realism import map_error as M
 from datagen.site import build_site
@@ -223,7 +223,7 @@ class TestCalibration:
 
 class TestDatagen:
     def test_presets(self):
-        ideal = gen.prepare(compose_config("datagen", SMALL))
+        ideal = prepare(compose_config("datagen", SMALL))
         assert ideal.map_world is None and ideal.told_camera is None and not ideal.builtins
         real = compose_config("datagen", ["realism=real"])["realism"]
         assert M.is_active(M.check_settings(real["map"]))
@@ -231,11 +231,11 @@ class TestDatagen:
 
     def test_realism_name_says_what_was_changed(self):
         """A preset edited on the command line is recorded as such, not as the preset."""
-        assert gen.prepare(compose_config("datagen", SMALL)).cfg.realism.name == "ideal"
-        edited = gen.prepare(compose_config("datagen", [*SMALL, *MAP]))
+        assert prepare(compose_config("datagen", SMALL)).cfg.realism.name == "ideal"
+        edited = prepare(compose_config("datagen", [*SMALL, *MAP]))
         assert edited.cfg.realism.name == ("ideal + map.wall_std_m, map.ceiling_std_m, "
                                            "map.missing_openings, map.extra_openings")
-        named = gen.prepare(compose_config("datagen", [*SMALL, *MAP, "realism.name=my_map"]))
+        named = prepare(compose_config("datagen", [*SMALL, *MAP, "realism.name=my_map"]))
         assert named.cfg.realism.name == "my_map"
 
     def test_bad_settings_stop_before_anything(self, tmp_path):

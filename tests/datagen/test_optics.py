@@ -14,6 +14,7 @@ from core.atomic import read_png
 from core.config import compose_config
 from core.realism import RealismConfig
 from datagen import generate as gen
+from datagen.job import prepare
 from datagen.realism import optics
 from datagen.render_flight import flight_scene
 from datagen.render_split import new_renderer
@@ -97,7 +98,7 @@ class TestChecks:
 
     def test_defaults_off(self):
         assert not optics.is_active(RealismConfig())
-        real = gen.prepare(compose_config("datagen", [*SMALL, "realism=real",
+        real = prepare(compose_config("datagen", [*SMALL, "realism=real",
                                                       "realism.dropout.per_min=0"])).cfg.realism
         assert optics.is_active(real)
         np.testing.assert_allclose(optics.lens_coefficients(real), EUROC)
@@ -125,7 +126,7 @@ class TestRender:
         gen.run(compose_config("datagen", [*SMALL, *LENS, f"out_dir={sharp}"]), progress=False)
         cfg = compose_config("datagen", [*SMALL, *fx, f"out_dir={out}"])
         gen.run(cfg, progress=False)
-        job = gen.prepare(cfg)
+        job = prepare(cfg)
         fo = optics.FlightOptics.build(job.cfg.realism, job.camera,
                                        job.flights["paper"]["groundtruth"], 10.0)
         assert [len(fo.subframes(i)[0].times) for i in range(3)] != [1, 1, 1]
@@ -157,7 +158,7 @@ class TestRender:
         choose_variant("auto")
         cfg = compose_config("datagen", [*SMALL, "realism.rolling_shutter.readout_s=0.06",
                                          "realism.subframes.step_px=0.5"])
-        job = gen.prepare(cfg)
+        job = prepare(cfg)
         scene = flight_scene(job, "paper")
         rate = np.radians(90.0)  # rad/s, positive: to the left (z up)
         mid = job.flights["paper"]["groundtruth"][1]

@@ -17,7 +17,7 @@ from core.poses import read_tum, xyzyaw_from_pose
 from core.realism import HarderFlightConfig, TimingConfig
 from datagen import trajectories as TR
 from datagen.dataset_writer import write_metadata
-from datagen.job import check_inside, rng_for
+from datagen.job import check_inside, prepare, rng_for
 from datagen.realism import timing as TM
 
 FPS = 10.0
@@ -113,7 +113,7 @@ class TestSettings:
 
 class TestHarderFlights:
     def test_faster_quicker_both_ways(self):
-        job = gen.prepare(compose_config("datagen", FLIGHT))
+        job = prepare(compose_config("datagen", FLIGHT))
         free, route = job.site.world.free, job.site.route
         h = HarderFlightConfig(enabled=True)
         peak_v, peak_yaw, first_dir = [], [], []
@@ -155,7 +155,7 @@ def test_flight_files_and_reader(tmp_path):
         "realism.timing.drop_rate=0.3", "realism.timing.jitter_ms=15",
         "realism.timing.odometry_hz=37", *zero, f"out_dir={out}"])
     gen.run(cfg, progress=False)
-    job = gen.prepare(cfg)
+    job = prepare(cfg)
     f = job.flights["paper"]
     d = out / "flights" / "paper"
     dropped = np.flatnonzero(~f["delivered"])
@@ -185,7 +185,7 @@ def test_ideal_clocks_are_todays(tmp_path):
     """realism=ideal: every frame delivered at i / fps, the odometry at the frame times, no
     images.txt and no flight.json timing; the reader gives the files' poses as they are."""
     out = tmp_path / "ds"
-    job = gen.prepare(compose_config("datagen", [*FLIGHT, "flights.paper.num_frames=20",
+    job = prepare(compose_config("datagen", [*FLIGHT, "flights.paper.num_frames=20",
                                                  f"out_dir={out}"]))
     f = job.flights["paper"]
     assert f["delivered"].all() and f["jumps"] == []
