@@ -30,7 +30,7 @@ from hydra import compose, initialize_config_dir  # noqa: E402
 
 from core import classes as C  # noqa: E402
 from core.camera_effects import apply_effects  # noqa: E402
-from core.poses import odometry_increment, xyzyaw_from_pose  # noqa: E402
+from core.poses import xyzyaw_from_pose  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
 from localize.runner import RunSpec, prepare  # noqa: E402
 
@@ -62,16 +62,15 @@ def run_flight(ctx, flight, mode: str, kind: str, seed: int, starts, duration: f
                     RunSpec(flight.name, mode, "tracking", seed).rng(), model=ctx.model_for(mode))
     loc.reset(truth[0])
     err = np.zeros(len(t))
-    for i in range(len(t)):
-        rgb = flight.image(i) if front.source.needs_image else None
-        labels = flight.labels(i) if front.source.needs_truth else None
+    for step in flight.steps(images=front.source.needs_image, labels=front.source.needs_truth):
+        i, rgb, labels = step.index, step.image, step.labels
         if drop[i]:
             if rgb is not None:
                 rgb = apply_effects(rgb, np.random.default_rng([seed, i]), None, dropout=kind)
             if labels is not None:
                 labels = np.full_like(labels, C.VOID)
-        delta = odometry_increment(flight.odometry[i - 1], flight.odometry[i]) if i else None
-        est = loc.step(front.frame(rgb, labels), delta, flight.odometry[i], t[i])
+        est = loc.step(front.frame(rgb, labels), step.odometry_increment, step.attitude,
+                       step.timestamp)
         err[i] = np.linalg.norm(est.state[:3] - truth[i, :3])
     return {"during_max_m": float(err[drop].max()) if drop.any() else 0.0,
             "back_s": [back_after(t, err, s + duration, within) for s in starts],

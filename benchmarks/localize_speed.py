@@ -36,8 +36,7 @@ from threadpoolctl import threadpool_limits
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core.atomic import read_png  # noqa: E402
-from core.poses import odometry_increment, xyzyaw_from_pose  # noqa: E402
+from core.poses import xyzyaw_from_pose  # noqa: E402
 from localize.frontend.segmenter import model_path  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
 from localize.projection import tilt_from_pose  # noqa: E402
@@ -61,18 +60,16 @@ def time_frames(loc: Localizer, flight, T: int) -> tuple[dict[str, list[float]],
         estimates; ``frame``: the whole step, front end included) and, per frame, its edge
         image, its tracking observation and tilt (for ``compare_likelihoods``).
     """
-    frames = [read_png(flight.rgb[t]) for t in range(T)]
-    labels = [read_png(flight.label[t], rgb=False) for t in range(T)]
+    steps = list(flight.steps(T, labels=True))  # read beforehand: decoding is not timed
     times = {k: [] for k in ("segmentation", "preprocessing", "filter", "frame")}
     seen = []
-    for t in range(T):
+    for t, step in enumerate(steps):
         a = time.perf_counter()
-        frame = loc.front_end.frame(frames[t], labels[t])
-        delta = odometry_increment(flight.odometry[t - 1], flight.odometry[t]) if t else None
-        est = loc.step(frame, delta, flight.odometry[t], flight.timestamps[t])
+        frame = loc.front_end.frame(step.image, step.labels)
+        est = loc.step(frame, step.odometry_increment, step.attitude, step.timestamp)
         d = time.perf_counter()
         seen.append((frame.edge, frame.observation(loc.likelihood)[0],
-                     tilt_from_pose(flight.odometry[t])))
+                     tilt_from_pose(step.attitude)))
         if t == 0:
             continue  # warm-up (onnxruntime and numpy first calls)
         for k, v in est.timing_ms.items():
