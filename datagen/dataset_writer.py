@@ -33,7 +33,7 @@ from datagen.job import (
     content_config,
     flight_stream,
 )
-from datagen.realism import calibration, map_error, optics, timing
+from datagen.realism import builtin_objects, calibration, optics, timing
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +76,7 @@ def write_metadata(job: Job, variant: str) -> None:
         meta["calibration_error"] = job.calibration_error
     save_world(out / "world", job.site.world if job.map_world is None else job.map_world)
     if job.map_world is not None:  # world/ is the map; the truth, with its built-ins, beside
-        save_world(out / "world_truth", map_error.with_builtins(
+        save_world(out / "world_truth", builtin_objects.with_builtins(
             job.site.world, job.builtins, float(cfg.world.crease_deg)))
         meta["map_error"] = job.map_error
     write_plan(job.site.building, out / "world" / "plan.png", free=job.site.world.free,

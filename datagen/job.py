@@ -44,7 +44,7 @@ from core.realism import MapErrorConfig, realism_label
 from datagen import trajectories
 from datagen.config import CameraConfig, DatagenConfig
 from datagen.distractors.presets import check_preset
-from datagen.realism import ahrs, calibration, map_error, optics, timing
+from datagen.realism import ahrs, builtin_objects, calibration, map_error, optics, timing
 from datagen.scene import Scene
 from datagen.site import Site, build_site
 
@@ -127,8 +127,8 @@ class Job:
     map_world: World | None = None  # the map the localizer reads (realism.map; None: the
     # truth, ``site.world``)
     map_error: dict | None = None  # the map's edits (map_error.make_map) and built-ins
-    builtins: list[map_error.Builtin] = field(default_factory=list)  # unmodelled objects in
-    # the flights' renders (realism.map.builtins)
+    builtins: list[builtin_objects.Builtin] = field(default_factory=list)  # unmodelled
+    # objects in the flights' renders (realism.map.builtins)
 
     @property
     def flight_render_scene(self) -> Scene:
@@ -136,8 +136,8 @@ class Job:
         scene = self.site.scene
         if not self.builtins:
             return scene
-        return Scene(scene.surfaces + map_error.builtin_surfaces(self.builtins), scene.lights,
-                     scene.images)
+        return Scene(scene.surfaces + builtin_objects.builtin_surfaces(self.builtins),
+                     scene.lights, scene.images)
 
 
 def val_flights(cfg: DatagenConfig) -> list[str]:
@@ -299,7 +299,7 @@ def _make_map(job: Job, c: MapErrorConfig) -> None:
              for f in job.flights.values()]
     floor_z = float(site.building.info.get("floor_z", 0.0))
     w = site.world
-    job.builtins = map_error.place_builtins(c, site.floor, paths, w.vertices, w.faces,
+    job.builtins = builtin_objects.place_builtins(c, site.floor, paths, w.vertices, w.faces,
                                             w.face_class, floor_z,
                                             rng_for(cfg.seed, MAP_STREAM, 1))
     if len(job.builtins) < c.builtins:

@@ -16,6 +16,7 @@ from core.config import compose_config
 from core.dataset import Dataset
 from core.realism import CalibrationConfig, MapErrorConfig
 from datagen.job import CALIBRATION_STREAM, MAP_STREAM, make_camera, prepare, rng_for
+from datagen.realism import builtin_objects as B
 from datagen.realism import calibration as CAL
 from datagen.realism import map_error as M
 from datagen.site import build_site
@@ -134,7 +135,7 @@ class TestMap:
             offsets, _ = face_planes(m, w["normal"])
             assert np.min(np.abs(offsets - np.dot(w["normal"], w["point"]) - w["shift_m"])) < 1e-4
         path = np.array([[1.0, 1.0], [1.0, 9.0], [9.0, 9.0]])
-        (b,) = M.place_builtins(c, site.floor, [path], truth.vertices, truth.faces,
+        (b,) = B.place_builtins(c, site.floor, [path], truth.vertices, truth.faces,
                                 truth.face_class, 0.0, rng_for(0, 10, 1))
         self.check_builtin(b, site.floor, path, c.builtin_clearance_m)
 
@@ -146,13 +147,13 @@ class TestMap:
         assert floor.distance(back[None] - 0.06 * np.array([np.cos(b.yaw), np.sin(b.yaw)]))[0] \
             == 0  # its back is at a wall
         edge = np.concatenate([xy, (xy + np.roll(xy, -1, 0)) / 2])
-        assert M._segment_distance(edge, path[:-1], path[1:]).min() >= clearance
+        assert B._segment_distance(edge, path[:-1], path[1:]).min() >= clearance
 
     def test_builtins_in_the_corridor(self, corridor):
         c = MapErrorConfig(builtins=3, builtin_kinds=["pillar", "cabinet"])
         path = np.array([[0.0, 0.3], [0.0, 9.7]])
         w = corridor.world
-        bs = M.place_builtins(c, corridor.floor, [path], w.vertices, w.faces, w.face_class,
+        bs = B.place_builtins(c, corridor.floor, [path], w.vertices, w.faces, w.face_class,
                               0.0, rng_for(0, 10, 1))
         assert len(bs) == 3
         opening = np.isin(w.face_class, [C.DOOR, C.WINDOW])
@@ -161,12 +162,12 @@ class TestMap:
             self.check_builtin(b, corridor.floor, path, c.builtin_clearance_m)
             # not in front of a door or window
             low = at_openings[at_openings[:, 2] < b.size[2], :2]
-            assert not M._inside(low, b.corners(behind=0.15, inset=0.01)).any()
+            assert not B._inside(low, b.corners(behind=0.15, inset=0.01)).any()
             if b.kind == "pillar":
                 assert b.size[2] == pytest.approx(2.8)  # floor to ceiling
         for i, a in enumerate(bs):
-            assert not any(M._overlap(a.corners(), o.corners()) for o in bs[i + 1:])
-        world = M.with_builtins(corridor.world, bs, 20.0)
+            assert not any(B._overlap(a.corners(), o.corners()) for o in bs[i + 1:])
+        world = B.with_builtins(corridor.world, bs, 20.0)
         assert len(world.faces) == len(corridor.world.faces) + 12 * len(bs)
         assert len(world.segments) == len(corridor.world.segments) + 12 * len(bs)
 
