@@ -9,7 +9,7 @@ every value a JSON string): classes, input_height, input_width, normalization, p
 model, config_hash.
 
 Pooling in the graph: the encoder's max-pooling indices are kept as window-local codes
-(``train.segnet.WindowMaxPool``) and unpooled with masks and DepthToSpace, which computes
+(``train.window_pool.WindowMaxPool``) and unpooled with masks and DepthToSpace, which computes
 exactly what ``nn.MaxPool2d(return_indices=True)`` + ``nn.MaxUnpool2d`` compute (the torch
 network's pooling) and runs about twice as fast in onnxruntime. ``external_data=False`` keeps
 the weights inside the one file.
@@ -37,7 +37,7 @@ from train.config import ExportConfig
 from train.segnet import SegNet
 
 OPSET = ExportConfig.opset
-#: How the exported graph pools (``train.segnet.WindowMaxPool``).
+#: How the exported graph pools (``train.window_pool.WindowMaxPool``).
 GRAPH_POOLING = "window"
 
 

@@ -9,14 +9,16 @@ from torch import nn
 from train.segnet import (
     STEM_CONV_KEY,
     SegNet,
-    WindowMaxPool,
-    WindowMaxUnpool,
     build_segnet,
-    code_to_plane_index,
     finer_unshuffle_stem,
     pad_to_multiple,
-    plane_index_to_code,
     vgg_stages,
+)
+from train.window_pool import (
+    WindowMaxPool,
+    WindowMaxUnpool,
+    code_to_plane_index,
+    plane_index_to_code,
     window_element,
 )
 
