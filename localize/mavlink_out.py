@@ -12,8 +12,10 @@ ENU, x east and y north) turns the world axes, ``BODY_FRD_FROM_FLU`` the body ax
 ``R' = local_from_model @ R @ BODY_FRD_FROM_FLU.T``, ``p' = local_from_model @ p``. The
 covariance's angular block is a small rotation about the world axes (as in ROS'
 PoseWithCovariance) and turns with the same world rotation as the position.
-``MavlinkSender`` owns the connection (pymavlink, the ``ros`` extra), the rate limit and the
-reset counter.
+``MavlinkSender`` owns the connection (pymavlink, the ``ros`` extra), the rate limit, the
+reset counter and the answers to the autopilot's ``TIMESYNC`` requests (PX4 maps
+``time_usec`` onto its own clock once they converge; ``clock`` must be the clock of the
+capture times).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -161,11 +164,14 @@ class MavlinkSender:
             ``ned`` (``MAV_FRAME_LOCAL_NED``, the model taken as ENU: PX4 only).
         system_id: MAVLink system id of the sender (the vehicle's, usually 1).
         component_id: its component id (``MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY``).
+        clock: seconds now on the clock of the capture times (``time.time``: ROS wall time);
+            the ``TIMESYNC`` answers carry it.
     """
 
     def __init__(self, url: str, rate_hz: float, *, message: str = "odometry",
                  frame: str = "frd", system_id: int = 1,
-                 component_id: int = MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY):
+                 component_id: int = MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY,
+                 clock: Callable[[], float] = time.time):
         if message not in MESSAGES:
             raise ValueError(f"mavlink message {message!r}: use one of {MESSAGES}")
         local_from_model(frame)
@@ -184,6 +190,7 @@ class MavlinkSender:
         # ODOMETRY needs MAVLink 2 (message id 331); pymavlink starts with MAVLink 1
         self._mav = mavlink2.MAVLink(self._conn, srcSystem=system_id, srcComponent=component_id)
         self._mavlink2 = mavlink2
+        self._clock = clock
         self.reset_counter = 0
         self.sent = 0
         self._last_sent: float | None = None
@@ -208,6 +215,7 @@ class MavlinkSender:
         """
         usec = time_usec(capture_time_s)
         quality = check_quality(quality)
+        self.poll()
         if not due(self._last_sent, float(capture_time_s), self.rate_hz):
             return False
         position, rotation = mavlink_pose(world_from_body, self.frame)
@@ -229,6 +237,16 @@ class MavlinkSender:
         self._last_sent = float(capture_time_s)
         self.sent += 1
         return True
+
+    def poll(self) -> int:
+        """Answer the ``TIMESYNC`` requests waiting on the link (without blocking): ``tc1`` =
+        ``clock()`` in ns, ``ts1`` echoed. Returns how many were answered."""
+        answered = 0
+        while (m := self._conn.recv_match(type="TIMESYNC", blocking=False)) is not None:
+            if m.tc1 == 0:
+                self._mav.timesync_send(int(round(self._clock() * 1e9)), m.ts1)
+                answered += 1
+        return answered
 
     def _heartbeat(self) -> None:
         """A HEARTBEAT once per ``HEARTBEAT_PERIOD_S`` of wall time."""
