@@ -13,8 +13,9 @@ ENU, x east and y north) turns the world axes, ``BODY_FRD_FROM_FLU`` the body ax
 covariance's angular block is a small rotation about the world axes (as in ROS'
 PoseWithCovariance) and turns with the same world rotation as the position.
 ``MavlinkSender`` owns the connection (pymavlink, the ``ros`` extra), the rate limit, the
-reset counter and the answers to the autopilot's ``TIMESYNC`` requests (PX4 maps
-``time_usec`` onto its own clock once they converge; ``clock`` must be the clock of the
+reset counter, and a link thread that sends a ``HEARTBEAT`` each second and answers the
+autopilot's ``TIMESYNC`` requests at once (PX4 maps ``time_usec`` onto its own clock once
+they converge, and drops round trips that take long; ``clock`` must be the clock of the
 capture times).
 """
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from collections.abc import Callable
 
@@ -44,6 +46,8 @@ MAV_ESTIMATOR_TYPE_VISION = 2
 MESSAGES = ("odometry", "vision_position_estimate")
 #: Seconds between the HEARTBEATs the sender adds (MAVLink routers learn a component by them).
 HEARTBEAT_PERIOD_S = 1.0
+#: Seconds the link thread waits for a message before it looks at the heartbeat and the stop.
+LINK_POLL_S = 0.05
 #: A frame this fraction of the period early still goes (camera timestamps jitter).
 RATE_SLACK = 0.05
 
@@ -166,12 +170,14 @@ class MavlinkSender:
         component_id: its component id (``MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY``).
         clock: seconds now on the clock of the capture times (``time.time``: ROS wall time);
             the ``TIMESYNC`` answers carry it.
+        link_thread: run the link thread (heartbeat, ``TIMESYNC`` answers); False: none
+            (``poll`` answers the waiting requests when called).
     """
 
     def __init__(self, url: str, rate_hz: float, *, message: str = "odometry",
                  frame: str = "frd", system_id: int = 1,
                  component_id: int = MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY,
-                 clock: Callable[[], float] = time.time):
+                 clock: Callable[[], float] = time.time, link_thread: bool = True):
         if message not in MESSAGES:
             raise ValueError(f"mavlink message {message!r}: use one of {MESSAGES}")
         local_from_model(frame)
@@ -195,6 +201,13 @@ class MavlinkSender:
         self.sent = 0
         self._last_sent: float | None = None
         self._last_heartbeat = -math.inf
+        self._lock = threading.Lock()  # one sender at a time on the MAVLink object
+        self._stop = threading.Event()
+        self._thread = None
+        if link_thread:
+            self._thread = threading.Thread(target=self._link, name="mavlink-link",
+                                            daemon=True)
+            self._thread.start()
 
     def reset(self) -> None:
         """Count a jump of the estimate (a re-localization): the autopilot resets its fused
@@ -215,48 +228,66 @@ class MavlinkSender:
         """
         usec = time_usec(capture_time_s)
         quality = check_quality(quality)
-        self.poll()
         if not due(self._last_sent, float(capture_time_s), self.rate_hz):
             return False
         position, rotation = mavlink_pose(world_from_body, self.frame)
         cov = upper_triangle(None if covariance is None
                              else rotate_covariance(covariance, self.frame))
-        self._heartbeat()
         x, y, z = (float(v) for v in position)
         if self.message == "odometry":
             nan = float("nan")
             unknown = upper_triangle(None).tolist()
-            self._mav.odometry_send(usec, LOCAL_FRAMES[self.frame][0], MAV_FRAME_BODY_FRD,
-                                    x, y, z, quaternion_wxyz(rotation).tolist(),
-                                    nan, nan, nan, nan, nan, nan, cov.tolist(), unknown,
-                                    self.reset_counter, MAV_ESTIMATOR_TYPE_VISION, quality)
+            with self._lock:
+                self._mav.odometry_send(usec, LOCAL_FRAMES[self.frame][0], MAV_FRAME_BODY_FRD,
+                                        x, y, z, quaternion_wxyz(rotation).tolist(),
+                                        nan, nan, nan, nan, nan, nan, cov.tolist(), unknown,
+                                        self.reset_counter, MAV_ESTIMATOR_TYPE_VISION, quality)
         else:
             roll, pitch, yaw = (float(v) for v in euler_rpy(rotation))
-            self._mav.vision_position_estimate_send(usec, x, y, z, roll, pitch, yaw,
-                                                    cov.tolist(), self.reset_counter)
+            with self._lock:
+                self._mav.vision_position_estimate_send(usec, x, y, z, roll, pitch, yaw,
+                                                        cov.tolist(), self.reset_counter)
         self._last_sent = float(capture_time_s)
         self.sent += 1
         return True
 
-    def poll(self) -> int:
-        """Answer the ``TIMESYNC`` requests waiting on the link (without blocking): ``tc1`` =
-        ``clock()`` in ns, ``ts1`` echoed. Returns how many were answered."""
+    def poll(self, timeout_s: float = 0.0) -> int:
+        """Answer the ``TIMESYNC`` requests on the link, waiting up to ``timeout_s`` for the
+        first: ``tc1`` = ``clock()`` in ns, ``ts1`` echoed. Returns how many were answered."""
         answered = 0
-        while (m := self._conn.recv_match(type="TIMESYNC", blocking=False)) is not None:
+        m = self._conn.recv_match(type="TIMESYNC", blocking=timeout_s > 0, timeout=timeout_s)
+        while m is not None:
             if m.tc1 == 0:
-                self._mav.timesync_send(int(round(self._clock() * 1e9)), m.ts1)
+                with self._lock:
+                    self._mav.timesync_send(int(round(self._clock() * 1e9)), m.ts1)
                 answered += 1
+            m = self._conn.recv_match(type="TIMESYNC", blocking=False)
         return answered
 
-    def _heartbeat(self) -> None:
-        """A HEARTBEAT once per ``HEARTBEAT_PERIOD_S`` of wall time."""
+    def heartbeat(self) -> None:
+        """A HEARTBEAT, at most once per ``HEARTBEAT_PERIOD_S`` of wall time."""
         now = time.monotonic()
         if now - self._last_heartbeat >= HEARTBEAT_PERIOD_S:
             m = self._mavlink2
-            self._mav.heartbeat_send(m.MAV_TYPE_ONBOARD_CONTROLLER, m.MAV_AUTOPILOT_INVALID,
-                                     0, 0, m.MAV_STATE_ACTIVE)
+            with self._lock:
+                self._mav.heartbeat_send(m.MAV_TYPE_ONBOARD_CONTROLLER,
+                                         m.MAV_AUTOPILOT_INVALID, 0, 0, m.MAV_STATE_ACTIVE)
             self._last_heartbeat = now
 
+    def _link(self) -> None:
+        """The link thread: heartbeats and ``TIMESYNC`` answers until ``close``."""
+        while not self._stop.is_set():
+            try:
+                self.heartbeat()
+                self.poll(LINK_POLL_S)
+            except (OSError, ValueError) as err:  # the link closed under us
+                if not self._stop.is_set():
+                    log.warning("mavlink %s: the link thread stops: %s", self.url, err)
+                return
+
     def close(self) -> None:
-        """Close the connection."""
+        """Stop the link thread and close the connection."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
         self._conn.close()
