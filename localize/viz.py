@@ -14,13 +14,15 @@ timeline (seconds). Entities:
   ``image``, ``labels`` (class colours of ``core.classes``) and ``edges``, the model's edges
   projected at the estimate (``overlay.project_segments``). Without a camera the image and
   labels go to ``camera/`` alone.
-- ``status/confidence``, ``status/position_std``: the estimate's, over time.
+- ``status/confidence``, ``status/position_std``: the estimate's, over time;
+  ``status/log``: the filter's status (tracking, coasting, lost, global) when it changes.
 
 The core never imports rerun: only ``open_viewer("rerun", ...)`` does.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import uuid
 from pathlib import Path
@@ -39,6 +41,10 @@ ESTIMATE_RGB = (0, 255, 0)
 TRUTH_RGB = (255, 0, 255)
 EDGE_RGB = (160, 160, 160)
 PARTICLE_RGB = (255, 160, 0)
+#: Seconds ``close`` waits for the logged data to reach the file or the viewer.
+FLUSH_TIMEOUT_S = 10.0
+
+log = logging.getLogger(__name__)
 
 
 def open_viewer(kind: str, world: World, out_path: str | Path, *, camera: Camera | None = None,
@@ -73,6 +79,8 @@ class Viewer:
         self._rr, self.camera, self.world = rr, camera, world
         self.out_path = Path(out_path)
         self._part = None
+        self._connect = connect
+        self._status: str | None = None
         rec = rr.RecordingStream("localize", recording_id=str(uuid.uuid4()))
         if connect:
             rec.connect_grpc(connect)
@@ -158,15 +166,28 @@ class Viewer:
                                     colors=TRUTH_RGB, radii=0.02))
         rec.log("status/confidence", rr.Scalars(float(estimate.confidence)))
         rec.log("status/position_std", rr.Scalars(float(estimate.position_std)))
+        if estimate.status != self._status:
+            self._status = estimate.status
+            rec.log("status/log", rr.TextLog(f"{estimate.status} (confidence "
+                                             f"{estimate.confidence:.2f})"))
 
     def close(self, keep: bool = True) -> None:
         """Flush and end the recording: the .rrd gets its name (``keep``) or is deleted.
         Closing twice does nothing."""
         if self._rec is None:
             return
-        self._rec.flush()
-        self._rec.disconnect()
-        self._rec = None
+        rec, self._rec = self._rec, None
+        try:
+            rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+        except RuntimeError as err:  # a viewer that cannot be reached: the run goes on
+            if self._part is None:
+                log.warning("viz_connect=%s: the viewer was not reached (%s); start it "
+                            "(`rerun`) or log to a file (viz_connect=null)", self._connect,
+                            err)
+            else:
+                keep = False
+                log.warning("viz: %s could not be written (%s)", self.out_path, err)
+        rec.disconnect()
         if self._part is not None:
             if keep:
                 os.replace(self._part, self.out_path)

@@ -60,7 +60,7 @@ def test_viewer_logs_a_run(small_world, camera, renderer, tmp_path):
         assert {"/world/model/mesh", "/world/model/edges", "/world/camera/image",
                 "/world/camera/labels", "/world/camera/edges", "/world/particles",
                 "/world/trajectory/estimate", "/world/trajectory/truth",
-                "/status/confidence"} <= entities
+                "/status/confidence", "/status/log"} <= entities
 
 
 def test_viewer_discards_a_failed_pass(small_world, tmp_path):
@@ -68,6 +68,18 @@ def test_viewer_discards_a_failed_pass(small_world, tmp_path):
     out = tmp_path / "run.rrd"
     with pytest.raises(RuntimeError), open_viewer("rerun", small_world, out):
         raise RuntimeError("the pass failed")
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.slow
+def test_unreachable_viewer_is_a_warning(small_world, tmp_path, caplog):
+    """viz_connect to a viewer that is not running (a closed port on 127.0.0.1): a warning
+    at close, no file, no error."""
+    pytest.importorskip("rerun")
+    with open_viewer("rerun", small_world, tmp_path / "x.rrd",
+                     connect="rerun+http://127.0.0.1:9/proxy"):
+        pass
+    assert "was not reached" in caplog.text
     assert not any(tmp_path.iterdir())
 
 
