@@ -137,6 +137,12 @@ class Viewer:
             truth: (4, 4) true world_from_body, or None.
         """
         rr, rec = self._rr, self._rec
+        if rec is None:
+            raise RuntimeError(f"Viewer.log_step after close ({self.out_path})")
+        if image is not None and (image.ndim != 3 or image.shape[2] != 3
+                                  or image.dtype != np.uint8):
+            raise ValueError(f"image must be (H, W, 3) uint8 RGB, got {image.shape} "
+                             f"{image.dtype}")
         rec.set_time("time", duration=float(t_s))
         state = np.asarray(estimate.state, dtype=np.float64)
         self._estimate.append(state[:3])
@@ -151,7 +157,7 @@ class Viewer:
             rec.log(f"{root}/edges", rr.LineStrips2D(lines.astype(np.float32),
                                                      colors=ESTIMATE_RGB))
         if image is not None:
-            _, jpeg = cv2.imencode(".jpg", np.ascontiguousarray(np.asarray(image)[..., ::-1]),
+            _, jpeg = cv2.imencode(".jpg", np.ascontiguousarray(image[..., ::-1]),
                                     [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
             rec.log(f"{root}/image", rr.EncodedImage(contents=jpeg.tobytes(),
                                                      media_type="image/jpeg"))

@@ -54,6 +54,8 @@ def test_viewer_logs_a_run(small_world, camera, renderer, tmp_path):
             viewer.log_step(0.1 * k, C.colorize(labels), labels, est, loc.filter.particles,
                             attitude=truth, truth=truth)
         assert not out.exists()  # written under a temporary name until closed
+        with pytest.raises(ValueError, match=r"\(H, W, 3\) uint8"):
+            viewer.log_step(1.0, labels, labels, est, None)
     entities = rrd_entities(out)
     assert list(out.parent.iterdir()) == [out]
     if entities is not None:
