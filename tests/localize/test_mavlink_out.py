@@ -217,6 +217,16 @@ class TestSender:
         tx.close()
         assert not tx._thread.is_alive()
 
+    def test_ids_are_the_dialects(self):
+        m = pytest.importorskip("pymavlink.dialects.v20.common")
+        from localize import mavlink_out as mo
+
+        assert mo.LOCAL_FRAMES["frd"][0] == m.MAV_FRAME_LOCAL_FRD
+        assert mo.LOCAL_FRAMES["ned"][0] == m.MAV_FRAME_LOCAL_NED
+        assert mo.MAV_FRAME_BODY_FRD == m.MAV_FRAME_BODY_FRD
+        assert mo.MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY == m.MAV_COMP_ID_VISUAL_INERTIAL_ODOMETRY
+        assert mo.MAV_ESTIMATOR_TYPE_VISION == m.MAV_ESTIMATOR_TYPE_VISION
+
     def test_bad_settings(self):
         pytest.importorskip("pymavlink")
         from localize.mavlink_out import MavlinkSender
