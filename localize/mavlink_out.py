@@ -216,8 +216,9 @@ class MavlinkSender:
 
     def send(self, capture_time_s: float, world_from_body: np.ndarray,
              covariance: np.ndarray | None, quality: int) -> bool:
-        """Send one estimate; False (nothing sent) when the rate limit holds it back or its
-        capture time is not after the last one sent.
+        """Send one estimate; False (nothing sent) when the rate limit holds it back, its
+        capture time is not after the last one sent, or (``VISION_POSITION_ESTIMATE``, which
+        has no quality field) its quality is -1.
 
         Args:
             capture_time_s: the frame's capture time, seconds (``time_usec``).
@@ -229,6 +230,8 @@ class MavlinkSender:
         usec = time_usec(capture_time_s)
         quality = check_quality(quality)
         if not due(self._last_sent, float(capture_time_s), self.rate_hz):
+            return False
+        if quality < 0 and self.message == "vision_position_estimate":
             return False
         position, rotation = mavlink_pose(world_from_body, self.frame)
         cov = upper_triangle(None if covariance is None

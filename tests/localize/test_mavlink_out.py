@@ -173,6 +173,7 @@ class TestSender:
         rx, url = link
         tx = MavlinkSender(url, rate_hz=0.0, message="vision_position_estimate", frame="ned")
         C = np.diag([0.01, 0.02, 0.03, 0.001, 0.002, 0.004])
+        assert not tx.send(6.0, pose(0.0), C, -1)  # a failed estimate: the message cannot say so
         assert tx.send(7.0, pose(0.0), C, 50)
         tx.close()
         (m,) = receive(rx, "VISION_POSITION_ESTIMATE")
