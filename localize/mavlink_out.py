@@ -183,8 +183,12 @@ class MavlinkSender:
         local_from_model(frame)
         if not rate_hz >= 0:
             raise ValueError(f"mavlink rate_hz must be >= 0 (0: every frame), got {rate_hz}")
-        from pymavlink import mavutil
-        from pymavlink.dialects.v20 import common as mavlink2
+        try:
+            from pymavlink import mavutil
+            from pymavlink.dialects.v20 import common as mavlink2
+        except ImportError:
+            raise ImportError("the MAVLink sender needs pymavlink: pip install -e '.[ros]'"
+                              ) from None
 
         self.url, self.rate_hz, self.message, self.frame = url, float(rate_hz), message, frame
         try:
@@ -294,3 +298,9 @@ class MavlinkSender:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
         self._conn.close()
+
+    def __enter__(self) -> MavlinkSender:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()

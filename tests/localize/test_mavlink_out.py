@@ -171,11 +171,11 @@ class TestSender:
         from localize.mavlink_out import MavlinkSender
 
         rx, url = link
-        tx = MavlinkSender(url, rate_hz=0.0, message="vision_position_estimate", frame="ned")
         C = np.diag([0.01, 0.02, 0.03, 0.001, 0.002, 0.004])
-        assert not tx.send(6.0, pose(0.0), C, -1)  # a failed estimate: the message cannot say so
-        assert tx.send(7.0, pose(0.0), C, 50)
-        tx.close()
+        with MavlinkSender(url, rate_hz=0.0, message="vision_position_estimate",
+                           frame="ned") as tx:
+            assert not tx.send(6.0, pose(0.0), C, -1)  # failed: the message cannot say so
+            assert tx.send(7.0, pose(0.0), C, 50)
         (m,) = receive(rx, "VISION_POSITION_ESTIMATE")
         assert m.usec == 7_000_000 and m.reset_counter == 0
         np.testing.assert_allclose([m.x, m.y, m.z], [2.0, 1.0, -3.0])
