@@ -20,6 +20,8 @@ from core.config import register_schema
 MODES = ("none", "cnn", "oracle")
 #: ``edges.cnn.refine`` choices.
 REFINES = ("none", "union")
+#: ``viz`` choices (``localize.viz``).
+VIZ_KINDS = ("none", "rerun")
 
 
 @dataclass
@@ -452,6 +454,11 @@ class LocalizeConfig(Settings):
         threads: onnxruntime intra-op threads.
         overwrite: re-run trajectories that already exist.
         progress: tqdm progress bars.
+        viz: ``rerun``: log each pass (frames, labels, model edges at the estimate, particles,
+            trajectory, the model in 3D) to ``<report>/viz/<source>_<mode>.rrd``
+            (``localize.viz``); ``none``: no viewer.
+        viz_connect: with ``viz=rerun``, a running rerun viewer to stream to instead of the
+            file, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
         metrics, report: the report's settings.
         set_by: written by ``python -m localize`` (``localize.settings.resolve``), not read:
             for each setting whose value differs from its default, the layer that set it
@@ -475,9 +482,15 @@ class LocalizeConfig(Settings):
     threads: int = 2
     overwrite: bool = False
     progress: bool = True
+    viz: str = "none"
+    viz_connect: str | None = None
     metrics: MetricsSettings = field(default_factory=MetricsSettings)
     report: ReportSettings = field(default_factory=ReportSettings)
     set_by: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.viz not in VIZ_KINDS:
+            raise ValueError(f"viz={self.viz!r}: use one of {', '.join(VIZ_KINDS)}")
 
 
 register_schema("localize_schema", LocalizeConfig)

@@ -7,6 +7,7 @@ Layout of ``outputs/reports/<name>/``::
     trajectories/<flight>/<mode>_global_seed<k>.txt   global init
     runs/<flight>/<mode>_<init>_seed<k>.json          per-frame errors, timings, diagnostics
     cache/visibility_<hash>.npz                       occlusion grid of the world
+    viz/<flight>_<mode>.rrd                           with viz=rerun: the pass for the viewer
 
 One pass per (flight, mode) reads each frame once, makes its edges once (``FrontEnd.frame``)
 and steps every (init, seed) ``Localizer`` that is not finished yet with that frame
@@ -24,6 +25,7 @@ import logging
 import time
 import zlib
 from collections.abc import Callable, Mapping
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,6 +51,7 @@ from localize.localizer import (
     mode_likelihood_params,
 )
 from localize.metrics import position_errors, yaw_errors_deg
+from localize.viz import open_viewer
 
 log = logging.getLogger(__name__)
 
@@ -315,6 +318,9 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
         num_particles: override of the filter's particle count (both inits).
         start: (4,) x, y, z (m), yaw (rad) the tracking runs start from; None: the source's
             first true pose.
+
+    With ``viz=rerun`` the pass's first run (its frames, labels, estimate, particles) is
+    logged to ``<out_dir>/viz/<source>_<mode>.rrd`` (``localize.viz``).
     """
     if not runs:
         return
@@ -341,8 +347,11 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
     desc = f"{source.name}/{mode}" + (f"/{runs[0].likelihood}"
                                       if runs[0].likelihood != "vectorized" else "")
     frames = source.steps(T, images=front.source.needs_image, labels=front.source.needs_truth)
-    with tqdm(total=T, desc=desc, disable=not cfg.progress, leave=False,
-              mininterval=2.0) as bar:
+    viewer = open_viewer(ctx.settings.viz, ctx.world,
+                         ctx.out_dir / "viz" / f"{source.name}_{mode}.rrd", camera=ctx.camera,
+                         connect=ctx.settings.viz_connect)
+    with (viewer or nullcontext()), tqdm(total=T, desc=desc, disable=not cfg.progress,
+                                         leave=False, mininterval=2.0) as bar:
         while True:
             t0 = time.perf_counter()
             f = next(frames, None)
@@ -354,6 +363,9 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
             for i, loc in enumerate(localizers):
                 est = loc.step(frame, f.odometry_increment, f.attitude, f.timestamp)
                 record.add(i, row, est, acquisition_ms)
+                if viewer is not None and i == 0:
+                    viewer.log_step(f.timestamp, f.image, frame.labels, est,
+                                    loc.filter.particles, attitude=f.attitude, truth=f.truth)
             bar.update(f.index + 1 - bar.n)
     if not record.index:
         raise ValueError(f"{source.name}: none of its {T} frames could be read")
