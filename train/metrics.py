@@ -1,4 +1,5 @@
-"""Segmentation scores as the SegNet paper reports them, from one confusion matrix.
+"""Segmentation scores as the SegNet paper reports them, from one confusion matrix, and the
+boundary F-score (what the edge likelihood needs: class boundaries where the truth has them).
 
 Rows of the confusion matrix are the true class, columns the predicted class. Pixels whose
 label is 255 (ignore) are not counted.
@@ -9,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 
@@ -142,3 +144,47 @@ def plot_confusion(
     fig.tight_layout()
     atomic_write(path, lambda p: fig.savefig(p, format="png"))
     plt.close(fig)
+
+
+def class_boundaries(labels: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose right or lower neighbour has another class, neither of the
+    two ignored (255)."""
+    lab = np.asarray(labels)
+    out = np.zeros(lab.shape, dtype=bool)
+    for a, b, at in ((lab[:, :-1], lab[:, 1:], out[:, :-1]), (lab[:-1], lab[1:], out[:-1])):
+        at |= (a != b) & (a != IGNORE) & (b != IGNORE)
+    return out
+
+
+def boundary_counts(pred: np.ndarray, truth: np.ndarray, tolerance_px: float = 2.0
+                    ) -> np.ndarray:
+    """(4,) int64 counts for ``boundary_f``: predicted boundary pixels within
+    ``tolerance_px`` of a true one, predicted boundary pixels, true boundary pixels within
+    ``tolerance_px`` of a predicted one, true boundary pixels (``class_boundaries``; pixels
+    where the truth is ignored count for neither).
+
+    Args:
+        pred, truth: (H, W) class ids of one image.
+    """
+    valid = np.asarray(truth) != IGNORE
+    bp, bt = class_boundaries(pred) & valid, class_boundaries(truth)
+
+    def near(b: np.ndarray) -> np.ndarray:  # distance (px) to the nearest pixel of b
+        if not b.any():
+            return np.full(b.shape, np.inf)
+        return cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+
+    return np.array([(near(bt)[bp] <= tolerance_px).sum(), bp.sum(),
+                     (near(bp)[bt] <= tolerance_px).sum(), bt.sum()], dtype=np.int64)
+
+
+def boundary_f(counts: np.ndarray) -> dict:
+    """Boundary precision, recall and F-score from summed ``boundary_counts``: precision NaN
+    without predicted boundaries, recall NaN without true ones, F NaN without either (0
+    where one of them is missing or none is matched)."""
+    hit_p, n_p, hit_t, n_t = (float(c) for c in counts)
+    p = hit_p / n_p if n_p else float("nan")
+    r = hit_t / n_t if n_t else float("nan")
+    pp, rr = (p if n_p else 0.0), (r if n_t else 0.0)
+    f = float("nan") if not (n_p or n_t) else (2 * pp * rr / (pp + rr) if pp + rr else 0.0)
+    return {"boundary_precision": p, "boundary_recall": r, "boundary_f": f}

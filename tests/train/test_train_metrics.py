@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 import torch
 
-from train.metrics import confusion_matrix, metrics_json, plot_confusion, scores
+from train.metrics import (
+    IGNORE,
+    boundary_counts,
+    boundary_f,
+    class_boundaries,
+    confusion_matrix,
+    metrics_json,
+    plot_confusion,
+    scores,
+)
 
 
 class TestConfusionMatrix:
@@ -66,3 +75,35 @@ class TestScores:
             assert 0.0 <= d[k] <= 1.0
         plot_confusion(cm, ["a", "b", "c"], tmp_path / "cm.png", title="t")
         assert (tmp_path / "cm.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+class TestBoundaryF:
+    @staticmethod
+    def halves(col: int, shape=(20, 30)) -> np.ndarray:
+        """Class 1 left of column ``col``, class 2 from it on."""
+        lab = np.full(shape, 2, np.uint8)
+        lab[:, :col] = 1
+        return lab
+
+    def test_boundaries_where_the_class_changes(self):
+        b = class_boundaries(self.halves(10))
+        assert b[:, 9].all() and b.sum() == 20
+        ignored = self.halves(10)
+        ignored[:, 10] = IGNORE
+        assert not class_boundaries(ignored).any()
+
+    def test_perfect_shifted_and_missing(self):
+        truth = self.halves(10)
+        assert boundary_f(boundary_counts(truth, truth))["boundary_f"] == 1.0
+        near = boundary_f(boundary_counts(self.halves(12), truth, tolerance_px=2))
+        far = boundary_f(boundary_counts(self.halves(14), truth, tolerance_px=2))
+        assert near["boundary_f"] == 1.0 and far["boundary_f"] == 0.0
+        none = boundary_f(boundary_counts(np.full_like(truth, 1), truth))
+        assert math.isnan(none["boundary_precision"]) and none["boundary_recall"] == 0.0
+
+    def test_spurious_edges_lower_precision_only(self):
+        truth = self.halves(10)
+        pred = truth.copy()
+        pred[5:8, 20:25] = 3  # a blob where the truth is plain
+        f = boundary_f(boundary_counts(pred, truth))
+        assert f["boundary_recall"] == 1.0 and 0.3 < f["boundary_precision"] < 1.0
