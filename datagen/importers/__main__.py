@@ -20,6 +20,7 @@ from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, RouteConfig
 from datagen.importers.building import Building
 from datagen.importers.load import EXTENSIONS, load_building
+from datagen.importers.orient import AXES
 from datagen.importers.plan import write_plan
 from datagen.importers.settings import ImportSettings
 from datagen.routes import find_turns, plan_route, route_length
@@ -36,7 +37,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--model-path", action="append", default=[], help="a Gazebo model folder "
                    "(repeatable)")
     p.add_argument("--units", type=float, default=1.0, help="metres per file unit (OBJ/PLY/STL)")
-    p.add_argument("--up-axis", choices=("z", "y"), default="z")
+    p.add_argument("--up-axis", choices=("auto", *AXES, "x", "y", "z"), default="auto",
+                   help="the file's up axis (OBJ/PLY/STL/DAE; default auto: found from the mesh)")
     p.add_argument("--storey", default=None, help="IFC storey name (default: the ground storey)")
     p.add_argument("--doors", choices=("open", "closed"), default="open")
     p.add_argument("--ceiling", choices=("auto", "none"), default="auto")

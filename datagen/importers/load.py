@@ -12,13 +12,14 @@ from core import classes as C
 from core.config import as_config
 from datagen.importers.building import Building, Part, assemble, face_areas_normals
 from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
+from datagen.importers.orient import axis_name
 from datagen.importers.settings import ImportSettings
 
 SDF_EXTENSIONS = (".world", ".sdf")
 MESH_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
 IFC_EXTENSIONS = (".ifc",)
 EXTENSIONS = SDF_EXTENSIONS + MESH_EXTENSIONS + IFC_EXTENSIONS
-CHOICES = {"up_axis": ("z", "y"), "doors": ("open", "closed"), "ceiling": ("auto", "none")}
+CHOICES = {"doors": ("open", "closed"), "ceiling": ("auto", "none")}
 
 
 def check_settings(s: ImportSettings) -> None:
@@ -26,6 +27,8 @@ def check_settings(s: ImportSettings) -> None:
     for key, allowed in CHOICES.items():
         if getattr(s, key) not in allowed:
             raise ValueError(f"{key}: {getattr(s, key)!r} is not one of {', '.join(allowed)}")
+    if s.up_axis != "auto":
+        axis_name(s.up_axis)
     if not s.units > 0:
         raise ValueError(f"units: {s.units} must be > 0 (metres per file unit)")
     if not s.floor_tolerance >= 0:
