@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -15,10 +16,13 @@ from datagen.importers.classify import add_ceiling, ceiling_height, class_shares
 from datagen.importers.orient import axis_name
 from datagen.importers.settings import ImportSettings
 
+log = logging.getLogger(__name__)
 SDF_EXTENSIONS = (".world", ".sdf")
 MESH_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
 IFC_EXTENSIONS = (".ifc",)
 EXTENSIONS = SDF_EXTENSIONS + MESH_EXTENSIONS + IFC_EXTENSIONS
+FAR_FACTOR, FAR_M = 10.0, 100.0  # a part this many times the model's size away, and at
+# least these metres, is left out (far_parts)
 CHOICES = {"doors": ("open", "closed"), "ceiling": ("auto", "none")}
 
 
@@ -42,6 +46,26 @@ def has_ceiling(b: Building, floor_z: float, top: float) -> bool:
     z = b.vertices[b.faces][:, :, 2].mean(axis=1)
     high = (b.face_class == C.CEILING) & (z > (floor_z + top) / 2)
     return bool(area[high].sum() >= 0.5 * area[b.face_class == C.FLOOR].sum())
+
+
+def far_parts(parts: list[Part], factor: float = FAR_FACTOR, least: float = FAR_M
+               ) -> dict[str, float]:
+    """Parts lying far from the rest (a model left at z = 343 km): name -> distance (m) of
+    its nearest vertex from the box of the middle 96 % of all vertices, for those farther
+    than ``factor`` times that box's diagonal and at least ``least`` metres."""
+    parts = [p for p in parts if len(p.faces)]
+    if len(parts) < 2:
+        return {}
+    pts = np.concatenate([p.vertices for p in parts])
+    lo, hi = np.percentile(pts, [2, 98], axis=0)
+    limit = max(least, factor * float(np.linalg.norm(hi - lo)))
+    out: dict[str, float] = {}
+    for p in parts:
+        gap = np.maximum(np.maximum(lo - p.vertices, p.vertices - hi), 0.0)
+        d = float(np.linalg.norm(gap, axis=1).min())
+        if d > limit:
+            out[p.name] = round(d, 1)
+    return out
 
 
 def read_parts(path: Path, s: ImportSettings) -> tuple[list[Part], dict]:
@@ -76,8 +100,10 @@ def load_building(path: str | Path | None = None,
         settings: ``ImportSettings`` or a mapping of the keys that differ (None: defaults).
 
     Returns:
-        the Building (metres, Z up); ``info`` holds format, counts, missing models, class area
-        shares, floor and ceiling heights, units and the import time (s).
+        the Building (metres, Z up); ``info`` holds format, counts, missing models and
+        meshes, parts left out as far from the rest (``far_parts``), class area shares, the
+        faces classed by format / name / geometry over a name / geometry (``classed_by``),
+        floor and ceiling heights, units, the up axis and the import time (s).
 
     Raises:
         FileNotFoundError: the file does not exist.
@@ -96,6 +122,12 @@ def load_building(path: str | Path | None = None,
         raise FileNotFoundError(f"{path}: no such file (path / world.path must name a "
                                 f"building model file: {', '.join(EXTENSIONS)})")
     parts, info = read_parts(path, s)
+    far = far_parts(parts)
+    if far:
+        log.warning("%s: %d parts lie far from the rest and are left out: %s", path,
+                    len(far), ", ".join(f"{n} ({d:.0f} m)" for n, d in far.items()))
+        parts = [p for p in parts if p.name not in far]
+    info["far_parts"] = far
     if not any(len(p.faces) for p in parts):
         raise ValueError(f"{path}: no triangles found (nothing to import)")
     b = assemble(parts)
@@ -111,7 +143,8 @@ def load_building(path: str | Path | None = None,
         "vertices": int(len(b.vertices)), "faces": int(len(b.faces)),
         "faces_per_class": {C.NAMES[i]: int(counts[i]) for i in range(C.NUM_CLASSES)
                             if counts[i]},
-        "class_shares": class_shares(b), "floor_z": round(floor_z, 4),
+        "class_shares": class_shares(b), "classed_by": b.info["classed_by"],
+        "floor_z": round(floor_z, 4),
         "wall_top_z": round(top, 4), "ceiling_added": added,
         "bounds": [lo.round(4).tolist(), hi.round(4).tolist()],
         "seconds": round(time.perf_counter() - t0, 3),

@@ -7,7 +7,8 @@ Rx(roll), as SDF defines it), the ``<visual>`` geometry only: ``<mesh>`` (with `
 ``<light>``s (of the world, of links and of included light-only files). A horizontal plane (a
 ground plane) is cut to the rest of the world's XY extent. A mesh URI that is relative
 (``file://models/...``, ``meshes/a.dae``) is found next to the file naming it, else on the
-resource path (``resource_roots``: the world's repository root first). A model or mesh that
+resource path (``resource_roots``: the world's repository root first), else as a file name
+differing only in case. A model or mesh that
 cannot be found is counted, reported once and skipped.
 """
 
@@ -153,7 +154,21 @@ class _Walk:
             path = d / rel
             if path.exists():
                 return path
+        for d in (base, *self.roots):
+            path = _other_case(d / rel)
+            if path is not None:
+                self.note(f"{uri}: found as {path.name} (the name differs in case)")
+                return path
         return None
+
+
+def _other_case(path: Path) -> Path | None:
+    """The file in ``path``'s folder whose name equals ``path``'s but for case (a model made
+    on a case-blind system), or None."""
+    if not path.parent.is_dir():
+        return None
+    name = path.name.lower()
+    return next((p for p in sorted(path.parent.iterdir()) if p.name.lower() == name), None)
 
 
 def _model_sdf(folder: Path) -> Path:
