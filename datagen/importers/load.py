@@ -12,7 +12,13 @@ import numpy as np
 from core import classes as C
 from core.config import as_config
 from datagen.importers.building import Building, Part, assemble, face_areas_normals
-from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
+from datagen.importers.classify import (
+    add_ceiling,
+    ceiling_height,
+    class_shares,
+    classify,
+    weighted_quantile,
+)
 from datagen.importers.orient import axis_name
 from datagen.importers.settings import ImportSettings
 
@@ -51,13 +57,17 @@ def has_ceiling(b: Building, floor_z: float, top: float) -> bool:
 def far_parts(parts: list[Part], factor: float = FAR_FACTOR, least: float = FAR_M
                ) -> dict[str, float]:
     """Parts lying far from the rest (a model left at z = 343 km): name -> distance (m) of
-    its nearest vertex from the box of the middle 96 % of all vertices, for those farther
-    than ``factor`` times that box's diagonal and at least ``least`` metres."""
+    its nearest vertex from the box of the middle 96 % of the surface area (per axis), for
+    those farther than ``factor`` times that box's diagonal and at least ``least`` metres."""
     parts = [p for p in parts if len(p.faces)]
     if len(parts) < 2:
         return {}
-    pts = np.concatenate([p.vertices for p in parts])
-    lo, hi = np.percentile(pts, [2, 98], axis=0)
+    tri = [np.asarray(p.vertices, np.float64)[p.faces] for p in parts]
+    centre = np.concatenate([t.mean(axis=1) for t in tri])
+    area = np.concatenate([face_areas_normals(np.asarray(p.vertices, np.float64), p.faces)[0]
+                           for p in parts]) + 1e-12
+    lo = np.array([weighted_quantile(centre[:, a], area, 0.02) for a in range(3)])
+    hi = np.array([weighted_quantile(centre[:, a], area, 0.98) for a in range(3)])
     limit = max(least, factor * float(np.linalg.norm(hi - lo)))
     out: dict[str, float] = {}
     for p in parts:

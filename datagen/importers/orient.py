@@ -75,7 +75,8 @@ class UpAxis:
                 "sign_cues": {k: round(v, 4) for k, v in self.cues.items()}}
 
 
-def sign_cues(h: np.ndarray, n: np.ndarray, area: np.ndarray) -> dict[str, tuple[float, float]]:
+def sign_cues(h: np.ndarray, n: np.ndarray, area: np.ndarray, lo: float, hi: float
+              ) -> dict[str, tuple[float, float]]:
     """The cues that +h is up: name -> (vote in [-1, 1], positive: +h is up; mass, the area
     share of the total behind the vote).
 
@@ -88,10 +89,9 @@ def sign_cues(h: np.ndarray, n: np.ndarray, area: np.ndarray) -> dict[str, tuple
 
     Args:
         h: (F,) face centres along the axis; n: (F,) normals' component along it;
-        area: (F,) face areas.
+        area: (F,) face areas; lo, hi: the model's low and high ends along the axis.
     """
     total = max(float(area.sum()), 1e-12)
-    lo, hi = np.percentile(h, [1, 99])
     t = np.clip((h - lo) / max(hi - lo, 1e-9), 0, 1)  # 0 at the low end, 1 at the high end
     up, down = n >= HORIZONTAL, n <= -HORIZONTAL
     inner = (t >= END) & (t <= 1 - END)
@@ -137,7 +137,8 @@ def find_up_axis(vertices: np.ndarray, faces: np.ndarray) -> UpAxis:
     order = np.argsort(score)[::-1]
     best = int(order[0])
     margin = float((score[best] - score[order[1]]) / max(score[best], 1e-12))
-    cues = sign_cues(centre[:, best], normal[:, best], area)
+    lo, hi = np.percentile(vertices[:, best], [1, 99])
+    cues = sign_cues(centre[:, best], normal[:, best], area, float(lo), float(hi))
     weights = {k: min(1.0, mass / CUE_MASS) for k, (_, mass) in cues.items()}
     vote = sum(weights[k] * v for k, (v, _) in cues.items())
     sign = "+" if vote >= 0 else "-"
