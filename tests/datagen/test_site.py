@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import trimesh
@@ -53,6 +55,10 @@ class TestFile:
         summary = w.info["import_summary"]  # also world/import_summary.json
         assert summary["free_area_m2"] == pytest.approx(w.free.area, abs=0.1)
         assert summary["vertical_edges"] > 0 and summary["up_axis"]["axis"] == "+y"
+        from datagen.save import save_world
+
+        save_world(tmp_path / "world", w)
+        assert json.loads((tmp_path / "world" / "import_summary.json").read_text()) == summary
 
     def test_hydra_world_file(self, tmp_path):
         path = write_ring_glb(tmp_path / "ring.glb")
