@@ -40,7 +40,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    "(repeatable)")
     p.add_argument("--units", type=float, default=1.0, help="metres per file unit (OBJ/PLY/STL)")
     p.add_argument("--up-axis", choices=("auto", *AXES, "x", "y", "z"), default="auto",
-                   help="the file's up axis (OBJ/PLY/STL/DAE; default auto: found from the mesh)")
+                   help="the file's up axis (OBJ/PLY/STL/DAE; default auto: found from the mesh); "
+                   "a minus sign needs '=': --up-axis=-y")
     p.add_argument("--storey", default=None, help="IFC storey name (default: the ground storey)")
     p.add_argument("--doors", choices=("open", "closed"), default="open")
     p.add_argument("--ceiling", choices=("auto", "none"), default="auto")
