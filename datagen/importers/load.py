@@ -55,26 +55,27 @@ def has_ceiling(b: Building, floor_z: float, top: float) -> bool:
 
 
 def far_parts(parts: list[Part], factor: float = FAR_FACTOR, least: float = FAR_M
-               ) -> dict[str, float]:
-    """Parts lying far from the rest (a model left at z = 343 km): name -> distance (m) of
-    its nearest vertex from the box of the middle 96 % of the surface area (per axis), for
-    those farther than ``factor`` times that box's diagonal and at least ``least`` metres."""
-    parts = [p for p in parts if len(p.faces)]
-    if len(parts) < 2:
+               ) -> dict[int, float]:
+    """Parts lying far from the rest (a model left at z = 343 km): index into ``parts`` ->
+    distance (m) of its nearest vertex from the box of the middle 96 % of the surface area
+    (per axis), for those farther than ``factor`` times that box's diagonal and at least
+    ``least`` metres."""
+    full = [i for i, p in enumerate(parts) if len(p.faces)]
+    if len(full) < 2:
         return {}
-    tri = [np.asarray(p.vertices, np.float64)[p.faces] for p in parts]
+    tri = [np.asarray(parts[i].vertices, np.float64)[parts[i].faces] for i in full]
     centre = np.concatenate([t.mean(axis=1) for t in tri])
-    area = np.concatenate([face_areas_normals(np.asarray(p.vertices, np.float64), p.faces)[0]
-                           for p in parts]) + 1e-12
+    area = np.concatenate([np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]),
+                                          axis=1) / 2 for t in tri]) + 1e-12
     lo = np.array([weighted_quantile(centre[:, a], area, 0.02) for a in range(3)])
     hi = np.array([weighted_quantile(centre[:, a], area, 0.98) for a in range(3)])
     limit = max(least, factor * float(np.linalg.norm(hi - lo)))
-    out: dict[str, float] = {}
-    for p in parts:
-        gap = np.maximum(np.maximum(lo - p.vertices, p.vertices - hi), 0.0)
-        d = float(np.linalg.norm(gap, axis=1).min())
+    out: dict[int, float] = {}
+    for i in full:
+        v = parts[i].vertices
+        d = float(np.linalg.norm(np.maximum(np.maximum(lo - v, v - hi), 0.0), axis=1).min())
         if d > limit:
-            out[p.name] = round(d, 1)
+            out[i] = round(d, 1)
     return out
 
 
@@ -133,11 +134,12 @@ def load_building(path: str | Path | None = None,
                                 f"building model file: {', '.join(EXTENSIONS)})")
     parts, info = read_parts(path, s)
     far = far_parts(parts)
+    info["far_parts"] = {parts[i].name: d for i, d in far.items()}
     if far:
         log.warning("%s: %d parts lie far from the rest and are left out: %s", path,
-                    len(far), ", ".join(f"{n} ({d:.0f} m)" for n, d in far.items()))
-        parts = [p for p in parts if p.name not in far]
-    info["far_parts"] = far
+                    len(far), ", ".join(f"{n} ({d:.0f} m)" for n, d in
+                                        info["far_parts"].items()))
+        parts = [p for i, p in enumerate(parts) if i not in far]
     if not any(len(p.faces) for p in parts):
         raise ValueError(f"{path}: no triangles found (nothing to import)")
     b = assemble(parts)
