@@ -17,7 +17,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from core import classes as C
-from datagen.importers.building import UNSET, Building, face_areas_normals
+from datagen.importers.building import UNSET, Building, face_areas_normals, weighted_quantile
 from datagen.importers.settings import NameRule
 
 HORIZONTAL = 0.9  # |normal z| from which a face is horizontal (within ~25 deg)
@@ -70,13 +70,6 @@ def name_classes(names: list[str], rules: list[NameRule]) -> np.ndarray:
     """(len(names),) uint8: the class each name gives (``name_evidence``), UNSET where no
     rule matches."""
     return name_evidence(names, rules)[0]
-
-
-def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
-    """The ``q`` quantile (0..1) of ``values`` weighted by ``weights``."""
-    order = np.argsort(values)
-    cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, q * cum[-1])])
 
 
 def floor_height(z: np.ndarray, area: np.ndarray, normal: np.ndarray,

@@ -11,14 +11,14 @@ import numpy as np
 
 from core import classes as C
 from core.config import as_config
-from datagen.importers.building import Building, Part, assemble, face_areas_normals
-from datagen.importers.classify import (
-    add_ceiling,
-    ceiling_height,
-    class_shares,
-    classify,
+from datagen.importers.building import (
+    Building,
+    Part,
+    assemble,
+    face_areas_normals,
     weighted_quantile,
 )
+from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
 from datagen.importers.orient import axis_name
 from datagen.importers.settings import ImportSettings
 

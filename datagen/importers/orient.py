@@ -10,8 +10,8 @@ upward-facing plane at the low end with the walls standing on it and the furnitu
 ceiling may be larger than the floor (a scan sees the floor under furniture less), so the
 sign is a vote of three cues (``sign_cues``): floor against ceiling at the two ends, the
 support surfaces in between (desk tops, seats, shelves: low in a room and facing up), and the
-vertical faces weighted by how low they are (furniture sides; walls span the whole height
-and weigh nothing); a cue resting on little area counts less.
+vertical faces standing on the low end without reaching the high one (furniture; walls span
+the whole height and vote neither way); a cue resting on little area counts less.
 """
 
 from __future__ import annotations
@@ -57,9 +57,9 @@ class UpAxis:
     """An up axis found from a mesh.
 
     axis: one of AXES. sureness: 0..1, how sure: the axis's margin (2 (best - second) / best
-    score, the perpendicular area times ``side_balance``, at most 1) times the sign cues'
-    agreement (|sum of weighted votes| / sum of their sizes: 1 when all agree, 0 when they
-    cancel).
+    score, the perpendicular area times ``side_balance``, at most 1) times the sign's net
+    vote (|sum of weighted votes| / sum of the weights: 1 when every cue votes fully one
+    way, 0 when they cancel or say nothing).
     perpendicular: area share (of the total) perpendicular to x, y, z. cues: the sign's votes
     (``sign_cues``) for the axis's + direction (positive: + is up).
     """
@@ -75,7 +75,7 @@ class UpAxis:
                 "sign_cues": {k: round(v, 4) for k, v in self.cues.items()}}
 
 
-def sign_cues(h: np.ndarray, n: np.ndarray, area: np.ndarray, lo: float, hi: float
+def sign_cues(corners: np.ndarray, n: np.ndarray, area: np.ndarray, lo: float, hi: float
               ) -> dict[str, tuple[float, float]]:
     """The cues that +h is up: name -> (vote in [-1, 1], positive: +h is up; mass, the area
     share of the total behind the vote).
@@ -84,15 +84,17 @@ def sign_cues(h: np.ndarray, n: np.ndarray, area: np.ndarray, lo: float, hi: flo
     (floor against ceiling; a model without a ceiling votes strongly). support: up-facing
     area in the lower half against down-facing area in the upper half, between the ends
     (desk tops, seats, shelves sit low and face up; a flipped model shows them as undersides
-    high up). vertical: the vertical faces' area weighted by how far below mid-height it is
-    (furniture sides; walls of the full height weigh nothing).
+    high up). stand: the vertical faces reaching the low end but not the high one against
+    those reaching the high end but not the low one (furniture stands on the floor; a wall
+    of the full height reaches both and votes neither way).
 
     Args:
-        h: (F,) face centres along the axis; n: (F,) normals' component along it;
-        area: (F,) face areas; lo, hi: the model's low and high ends along the axis.
+        corners: (F, 3) the faces' corners along the axis; n: (F,) normals' component
+        along it; area: (F,) face areas; lo, hi: the model's low and high ends along it.
     """
     total = max(float(area.sum()), 1e-12)
-    t = np.clip((h - lo) / max(hi - lo, 1e-9), 0, 1)  # 0 at the low end, 1 at the high end
+    span = max(hi - lo, 1e-9)
+    t = np.clip((corners.mean(axis=1) - lo) / span, 0, 1)  # 0 at the low end, 1 the high end
     up, down = n >= HORIZONTAL, n <= -HORIZONTAL
     inner = (t >= END) & (t <= 1 - END)
 
@@ -100,12 +102,14 @@ def sign_cues(h: np.ndarray, n: np.ndarray, area: np.ndarray, lo: float, hi: flo
         return (pro - con) / max(pro + con, 1e-12), (pro + con) / total
 
     vertical = np.abs(n) < VERTICAL
-    weight = area[vertical] * (0.5 - t[vertical])
+    low = (corners.min(axis=1) - lo) / span < END
+    high = (hi - corners.max(axis=1)) / span < END
     return {"ends": vote(float(area[up & (t < END)].sum()),
                          float(area[down & (t > 1 - END)].sum())),
             "support": vote(float(area[up & inner & (t < 0.5)].sum()),
                             float(area[down & inner & (t > 0.5)].sum())),
-            "vertical": vote(float(weight[weight > 0].sum()), float(-weight[weight < 0].sum()))}
+            "stand": vote(float(area[vertical & low & ~high].sum()),
+                          float(area[vertical & high & ~low].sum()))}
 
 
 def side_balance(facing: np.ndarray) -> float:
@@ -127,7 +131,6 @@ def find_up_axis(vertices: np.ndarray, faces: np.ndarray) -> UpAxis:
         vertices (V, 3), faces (F, 3) int: the mesh, in any unit.
     """
     area, normal = face_areas_normals(vertices, faces)
-    centre = vertices[faces].mean(axis=1)
     total = max(float(area.sum()), 1e-12)
     perp = np.array([area[np.abs(normal[:, a]) >= HORIZONTAL].sum() / total for a in range(3)])
     facing = np.array([[area[s * normal[:, a] >= HORIZONTAL].sum() for s in (1, -1)]
@@ -138,11 +141,10 @@ def find_up_axis(vertices: np.ndarray, faces: np.ndarray) -> UpAxis:
     best = int(order[0])
     margin = float((score[best] - score[order[1]]) / max(score[best], 1e-12))
     lo, hi = np.percentile(vertices[:, best], [1, 99])
-    cues = sign_cues(centre[:, best], normal[:, best], area, float(lo), float(hi))
+    cues = sign_cues(vertices[faces][:, :, best], normal[:, best], area, float(lo), float(hi))
     weights = {k: min(1.0, mass / CUE_MASS) for k, (_, mass) in cues.items()}
     vote = sum(weights[k] * v for k, (v, _) in cues.items())
     sign = "+" if vote >= 0 else "-"
-    agreement = abs(vote) / max(sum(weights[k] * abs(v) for k, (v, _) in cues.items()), 1e-12)
-    sure = min(1.0, 2 * margin) * agreement
+    sure = min(1.0, 2 * margin) * abs(vote) / max(sum(weights.values()), 1e-12)
     return UpAxis(f"{sign}{'xyz'[best]}", float(sure), perp.tolist(),
                   {k: v for k, (v, _) in cues.items()})

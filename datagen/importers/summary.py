@@ -20,7 +20,9 @@ STOREY = (2.0, 6.0)  # m, a plausible floor-to-top height of a storey
 EXTENT = (1.5, 2000.0)  # m, a plausible horizontal size of a building model
 MIN_FLOOR_SHARE = 0.05  # of the surface area: less is a tiny floor
 MIN_FREE_RATIO = 0.25  # free space over the floor's footprint: less is far smaller
-UNSURE = 0.3  # an up axis found with less sureness is flagged
+UNSURE = 0.1  # an up axis found (auto) with less sureness is flagged
+CONTRADICT = 0.3  # a mesh looking like another up axis than the one applied, this sure, is
+# flagged
 VERTICAL_EDGE = 0.9  # |direction z| from which a model edge is vertical
 
 
@@ -126,7 +128,7 @@ def flags(s: dict, units: float) -> list[dict]:
         out.append({"what": what, "key": key})
 
     up = s["up_axis"]
-    if up.get("check", "+z") != "+z" and up["sureness"] >= UNSURE:
+    if up.get("check", "+z") != "+z" and up["sureness"] >= CONTRADICT:
         flag(f"the model looks like its up axis is {up['check']} (sureness "
              f"{up['sureness']:.2f}), not the {up['axis']} applied ({up['from']})",
              "world.up_axis")
