@@ -190,3 +190,17 @@ def test_far_parts_left_out(tmp_path):
     b = load_building(sketchup_world(tmp_path, [*pieces, ("Book_far", v, f)]))
     assert list(b.info["far_parts"]) == ["office/walls/visual/piece5/Book_far"]
     assert b.vertices[:, 2].max() < 3.0
+
+
+def test_ambiguous_box_flagged(tmp_path):
+    """A closed empty corridor narrower than high gives the cues nothing to tell its floor
+    from its walls: whatever axis comes out, the summary says to set world.up_axis."""
+    box = trimesh.creation.box(extents=[2.0, 10.0, 2.8])
+    box.apply_translation([0.0, 5.0, 1.4])
+    box.invert()  # faces looking in
+    path = tmp_path / "corridor.ply"
+    box.export(path)
+    b = load_building(path)
+    assert b.info["up_axis_found"]["sureness"] < 0.1
+    assert "world.up_axis" in {f["key"] for f in import_summary(b)["flags"]}
+    assert load_building(path, {"up_axis": "z"}).info["wall_top_z"] == pytest.approx(2.8)
