@@ -20,7 +20,8 @@ def _npz_bytes(**arrays: np.ndarray) -> bytes:
 
 
 def save_world(d: str | Path, w: World) -> None:
-    """model.npz, edges.npz, free.npz, world.json and model.ply (face colour = class colour)."""
+    """model.npz, edges.npz, free.npz, world.json, model.ply (face colour = class colour) and,
+    for an imported building, import_summary.json."""
     d = Path(d)
     atomic_write_bytes(d / "model.npz", _npz_bytes(
         vertices=w.vertices, faces=w.faces.astype(np.int64), face_class=w.face_class))
@@ -28,6 +29,8 @@ def save_world(d: str | Path, w: World) -> None:
         segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg))
     w.free.save(d / "free.npz")
     atomic_write_json(d / "world.json", w.info)
+    if "import_summary" in w.info:
+        atomic_write_json(d / "import_summary.json", w.info["import_summary"])
     colors = np.concatenate([C.palette()[w.face_class],
                              np.full((len(w.faces), 1), 255, np.uint8)], axis=1)
     mesh = trimesh.Trimesh(w.vertices, w.faces, face_colors=colors, process=False)

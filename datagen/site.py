@@ -22,6 +22,7 @@ from datagen.config import FileWorldConfig, ProceduralWorldConfig, WorldConfig, 
 from datagen.edges import extract_edges
 from datagen.importers import Building, load_building
 from datagen.importers.classify import class_shares
+from datagen.importers.summary import import_summary, summary_lines, vertical_edges
 from datagen.scene import Scene, building_scene, corridor_scene
 from datagen.world import FREE_CELL, MAIN, OPENING, CorridorModel, build_world
 
@@ -138,14 +139,23 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
 
 
 def file_site(spec: FileWorldConfig) -> Site:
-    """A building model file (``world.path``): import, model edges, free space.
+    """A building model file (``world.path``): import, model edges, free space, and the
+    import summary (logged, its flags as warnings; ``world.info["import_summary"]``, saved
+    as ``world/import_summary.json``).
 
     Raises:
         FileNotFoundError, ValueError: from the import (unknown extension, no floor, no walls,
             a storey that does not exist, ...) or no free space left, naming the file or key.
     """
     t0 = time.perf_counter()
-    return building_site(load_building(settings=spec), spec, spec.path, t0)
+    site = building_site(load_building(settings=spec), spec, spec.path, t0)
+    w = site.world
+    report = import_summary(site.building, w.free.area, vertical_edges(w.segments))
+    w.info["import_summary"] = report
+    log.info("%s: import summary:\n  %s", spec.path, "\n  ".join(summary_lines(report)))
+    for f in report["flags"]:
+        log.warning("%s: %s%s", spec.path, f["what"], f" (set {f['key']})" if f["key"] else "")
+    return site
 
 
 def procedural_site(spec: ProceduralWorldConfig) -> Site:

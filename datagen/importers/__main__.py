@@ -1,9 +1,10 @@
 """Check a building import: ``python -m datagen.importers FILE [--out DIR]``.
 
-Prints the counts, class area shares, missing models and the time, the free space and a
-planned route, and writes ``DIR/<name>_plan.png`` (top-down plan of the classes),
-``DIR/<name>_free.png`` (the free space of the flyable heights, with the route) and
-``DIR/<name>_import.json`` (info).
+Prints the counts, class area shares, missing models and the time, the import summary (its
+figures and what looks wrong, each with the key to set: datagen/importers/summary.py), the
+free space and a planned route, and writes ``DIR/<name>_plan.png`` (top-down plan of the
+classes), ``DIR/<name>_free.png`` (the free space of the flyable heights, with the route),
+``DIR/<name>_import.json`` (info) and ``DIR/<name>_summary.json`` (the summary).
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, RouteConfig
 from datagen.importers.building import Building
 from datagen.importers.load import EXTENSIONS, load_building
+from datagen.importers.orient import AXES
 from datagen.importers.plan import write_plan
 from datagen.importers.settings import ImportSettings
+from datagen.importers.summary import import_summary, summary_lines, vertical_edges
 from datagen.routes import find_turns, plan_route, route_length
 from datagen.site import camera_free_space
 
@@ -36,7 +39,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--model-path", action="append", default=[], help="a Gazebo model folder "
                    "(repeatable)")
     p.add_argument("--units", type=float, default=1.0, help="metres per file unit (OBJ/PLY/STL)")
-    p.add_argument("--up-axis", choices=("z", "y"), default="z")
+    p.add_argument("--up-axis", choices=("auto", *AXES, "x", "y", "z"), default="auto",
+                   help="the file's up axis (OBJ/PLY/STL/DAE; default auto: found from the mesh); "
+                   "a minus sign needs '=': --up-axis=-y")
     p.add_argument("--storey", default=None, help="IFC storey name (default: the ground storey)")
     p.add_argument("--doors", choices=("open", "closed"), default="open")
     p.add_argument("--ceiling", choices=("auto", "none"), default="auto")
@@ -111,8 +116,14 @@ def main(argv: list[str] | None = None) -> int:
     plan = write_plan(b, out / f"{stem}_plan.png", args.px, args.cut, occ,
                       [] if route is None else [route])
     write_png(out / f"{stem}_free.png", occ.plot([] if route is None else [route], scale=2))
+    from datagen.edges import extract_edges
+
+    segments = extract_edges(b.vertices, b.faces, b.face_class, FileWorldConfig.crease_deg)[0]
+    report = import_summary(b, occ.area, vertical_edges(segments))
     atomic_write_json(out / f"{stem}_import.json", {**b.info, **figures})
+    atomic_write_json(out / f"{stem}_summary.json", report)
     print(summary(b.info))
+    print("\n".join(summary_lines(report)))
     print(f"free space {figures['free_area_m2']} m2; " + (
         f"route {figures['route_m']} m, turns {figures['route_turns_deg']} deg" if route is not None
         else f"no route: {figures['route_error']}"))

@@ -147,6 +147,13 @@ def _textures(parts: list[Part]) -> tuple[list[np.ndarray], np.ndarray, np.ndarr
     return images, np.concatenate(face_texture), np.concatenate(face_uv)
 
 
+def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+    """The ``q`` quantile (0..1) of ``values`` weighted by ``weights``."""
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cum, q * cum[-1])])
+
+
 def face_areas_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Areas (F,) m^2 and unit normals (F, 3) (right-hand rule) of triangles."""
     tri = vertices[faces]

@@ -1,8 +1,11 @@
 """Classes for every face of an imported building, and the open-top ceiling.
 
-Order: the format's class (IFC type, set by the reader), then the name rules (regex on the
-face's name), then geometry: a horizontal up-facing face within ``floor_tolerance`` of the
-storey floor is floor, a horizontal down-facing one ceiling, the rest wall.
+Order: the format's class (IFC type, set by the reader); then the name rules on the most
+specific part of the face's name that any rule matches (the material before the node,
+visual, link and model: ``name_evidence``); geometry overrules a name where a large horizontal
+surface is plainly floor or ceiling (``overruled``); the faces still without a class by
+geometry: a horizontal up-facing face within ``floor_tolerance`` of the storey floor is floor,
+a horizontal down-facing one ceiling, the rest wall.
 """
 
 from __future__ import annotations
@@ -10,12 +13,16 @@ from __future__ import annotations
 import re
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from core import classes as C
-from datagen.importers.building import UNSET, Building, face_areas_normals
+from datagen.importers.building import UNSET, Building, face_areas_normals, weighted_quantile
 from datagen.importers.settings import NameRule
 
 HORIZONTAL = 0.9  # |normal z| from which a face is horizontal (within ~25 deg)
+LARGE_M2 = 1.0  # m^2, a connected horizontal surface from which geometry overrules a name
+MIN_STOREY = 1.8  # m, the least floor-to-top height for a ceiling by geometry
 
 
 def compile_rules(rules: list[NameRule]) -> list[tuple[re.Pattern, int]]:
@@ -33,32 +40,47 @@ def compile_rules(rules: list[NameRule]) -> list[tuple[re.Pattern, int]]:
     return out
 
 
-def name_classes(names: list[str], rules: list[NameRule]) -> np.ndarray:
-    """(len(names),) uint8: the class of the first rule whose pattern occurs in each name,
-    UNSET where none does."""
+def name_evidence(names: list[str], rules: list[NameRule]) -> tuple[np.ndarray, np.ndarray]:
+    """The class each name gives and how specific the deciding part is.
+
+    A name is split at ``/`` into parts (SDF ``model/.../link/visual/geometry/material``, a
+    mesh file's ``node/material``); the parts are tried from the last (the material, the
+    most specific) to the first (the model), and the first part in which a rule's pattern
+    occurs decides, by the first such rule (so a material ``Carpet_...`` decides before a
+    link ``walls``, and ``..._floor_01_walls`` is still wall).
+
+    Returns:
+        (len(names),) uint8 classes, UNSET where no rule occurs in any part; (len(names),)
+        int16 depth of the deciding part (0: the last part, 1: the one before, ...; -1
+        where none).
+    """
     compiled = compile_rules(rules)
-    out = np.full(len(names), UNSET, np.uint8)
+    cls = np.full(len(names), UNSET, np.uint8)
+    depth = np.full(len(names), -1, np.int16)
     for i, name in enumerate(names):
-        out[i] = next((cls for rx, cls in compiled if rx.search(name)), UNSET)
-    return out
+        for d, part in enumerate(reversed(name.split("/"))):
+            hit = next((c for rx, c in compiled if rx.search(part)), None)
+            if hit is not None:
+                cls[i], depth[i] = hit, d
+                break
+    return cls, depth
 
 
-def weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
-    """The ``q`` quantile (0..1) of ``values`` weighted by ``weights``."""
-    order = np.argsort(values)
-    cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, q * cum[-1])])
+def name_classes(names: list[str], rules: list[NameRule]) -> np.ndarray:
+    """(len(names),) uint8: the class each name gives (``name_evidence``), UNSET where no
+    rule matches."""
+    return name_evidence(names, rules)[0]
 
 
 def floor_height(z: np.ndarray, area: np.ndarray, normal: np.ndarray,
                  face_class: np.ndarray, bin_m: float = 0.1) -> float | None:
-    """The storey floor's height (m): the area-weighted median height of floor faces if any
-    are classed already, else of the lowest 0.1 m band holding at least half the area of the
-    largest band of up-facing horizontal faces; None without either."""
-    floor = face_class == C.FLOOR
+    """The storey floor's height (m): the area-weighted median height of the up-facing
+    horizontal faces classed floor if any, else of the lowest 0.1 m band holding at least
+    half the area of the largest band of up-facing horizontal faces; None without either."""
+    up = normal[:, 2] >= HORIZONTAL
+    floor = up & (face_class == C.FLOOR)
     if floor.any():
         return weighted_quantile(z[floor], area[floor], 0.5)
-    up = normal[:, 2] >= HORIZONTAL
     if not up.any():
         return None
     band = np.floor(z[up] / bin_m).astype(np.int64)
@@ -67,6 +89,37 @@ def floor_height(z: np.ndarray, area: np.ndarray, normal: np.ndarray,
     lowest = bands[np.flatnonzero(band_area >= 0.5 * band_area.max())[0]]
     sel = band == lowest
     return weighted_quantile(z[up][sel], area[up][sel], 0.5)
+
+
+def storey_top(vertices: np.ndarray, faces: np.ndarray, normal: np.ndarray,
+               keep: np.ndarray) -> float | None:
+    """Height (m) of the storey's top: the 98th area-weighted percentile of the highest
+    vertices of the vertical faces (|normal z| < 0.3) in ``keep`` (F,) bool; None without."""
+    vertical = keep & (np.abs(normal[:, 2]) < 0.3)
+    if not vertical.any():
+        return None
+    area, _ = face_areas_normals(vertices, faces[vertical])
+    return weighted_quantile(vertices[faces[vertical]][:, :, 2].max(axis=1), area, 0.98)
+
+
+def surface_areas(faces: np.ndarray, face_name: np.ndarray, area: np.ndarray,
+                  sel: np.ndarray) -> np.ndarray:
+    """(F,) the area (m^2) of the connected surface (faces of one name sharing a vertex) of
+    the faces in ``sel`` (F,) bool that each face belongs to; 0 outside ``sel``."""
+    out = np.zeros(len(faces))
+    if not sel.any():
+        return out
+    pairs = np.stack([faces[sel].ravel(), np.repeat(face_name[sel], 3)], axis=1)
+    _, node = np.unique(pairs, axis=0, return_inverse=True)
+    f = node.reshape(-1, 3)
+    n = int(node.max()) + 1
+    graph = coo_matrix((np.ones(2 * len(f)), (np.concatenate([f[:, 0], f[:, 1]]),
+                                              np.concatenate([f[:, 1], f[:, 2]]))),
+                       shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    per = np.bincount(label[f[:, 0]], weights=area[sel], minlength=label.max() + 1)
+    out[sel] = per[label[f[:, 0]]]
+    return out
 
 
 def geometry_classes(z: np.ndarray, normal: np.ndarray, floor_z: float,
@@ -79,21 +132,63 @@ def geometry_classes(z: np.ndarray, normal: np.ndarray, floor_z: float,
     return out
 
 
+def overruled(b: Building, z: np.ndarray, area: np.ndarray, normal: np.ndarray,
+              named: np.ndarray, depth: np.ndarray, floor_z: float,
+              tolerance: float) -> np.ndarray:
+    """(F,) uint8 the class geometry gives over a name, UNSET where it gives none.
+
+    A large (``LARGE_M2``, one connected surface of one name) up-facing horizontal surface within
+    ``tolerance`` of the floor is floor, a large down-facing one within ``tolerance`` of the
+    storey's top (``storey_top`` of the faces not named door, window or clutter, at least
+    ``MIN_STOREY`` above the floor) is ceiling; either overrules a name unless the name is
+    the material's (the last part) and says door, window or clutter.
+
+    Args:
+        named: (F,) bool, faces classed by a name; depth: (F,) the deciding part's depth.
+    """
+    out = np.full(len(z), UNSET, np.uint8)
+    kept = named & ~((depth == 0) & np.isin(b.face_class, (C.DOOR, C.WINDOW, C.CLUTTER)))
+    up = (normal[:, 2] >= HORIZONTAL) & (np.abs(z - floor_z) <= tolerance)
+    out[kept & up & (b.face_class != C.FLOOR)
+        & (surface_areas(b.faces, b.face_name, area, up) >= LARGE_M2)] = C.FLOOR
+    structure = ~np.isin(b.face_class, (C.DOOR, C.WINDOW, C.CLUTTER))
+    top = storey_top(b.vertices, b.faces, normal, structure)
+    if top is None or top - floor_z < MIN_STOREY:
+        return out
+    down = (normal[:, 2] <= -HORIZONTAL) & (np.abs(z - top) <= tolerance)
+    out[kept & down & (b.face_class != C.CEILING)
+        & (surface_areas(b.faces, b.face_name, area, down) >= LARGE_M2)] = C.CEILING
+    return out
+
+
 def classify(b: Building, rules: list[NameRule], tolerance: float, source: str) -> float:
-    """Fill the UNSET classes of ``b`` in place (name rules, then geometry) and check that
-    the result has a floor below walls. Returns the floor height (m)."""
+    """Fill the UNSET classes of ``b`` in place (names, geometry over names, then geometry
+    for the rest) and check that the result has a floor below walls. Sets
+    ``b.info["classed_by"]``: faces classed by the format, by a name, by geometry over a
+    name, by geometry alone. Returns the floor height (m)."""
     area, normal = face_areas_normals(b.vertices, b.faces)
     z = b.vertices[b.faces][:, :, 2].mean(axis=1)
     unset = b.face_class == UNSET
-    b.face_class[unset] = name_classes(b.names, rules)[b.face_name[unset]]
+    by_format = int((~unset).sum())
+    cls, depth = name_evidence(b.names, rules)
+    b.face_class[unset] = cls[b.face_name[unset]]
+    named = unset & (b.face_class != UNSET)
+    depth = np.where(named, depth[b.face_name], -1)
     floor_z = floor_height(z, area, normal, b.face_class)
     fix = ("add a floor model, a name rule `pattern -> floor` for its name, or check "
            "up_axis / units")
     if floor_z is None:
         raise ValueError(f"{source}: no floor found (no face classed floor and no up-facing "
                          f"horizontal face); {fix}")
+    over = overruled(b, z, area, normal, named, depth, floor_z, tolerance)
+    b.face_class[over != UNSET] = over[over != UNSET]
+    if (over == C.FLOOR).any():
+        floor_z = floor_height(z, area, normal, b.face_class)
     unset = b.face_class == UNSET
     b.face_class[unset] = geometry_classes(z[unset], normal[unset], floor_z, tolerance)
+    n_over = int((over != UNSET).sum())
+    b.info["classed_by"] = {"format": by_format, "name": int(named.sum()) - n_over,
+                            "geometry_over_name": n_over, "geometry": int(unset.sum())}
     walls = b.face_class == C.WALL
     if not walls.any():
         raise ValueError(f"{source}: no wall faces found; add a name rule `pattern -> wall` "

@@ -1,7 +1,8 @@
 """Single mesh files: glTF/GLB, OBJ, PLY, STL through trimesh, COLLADA through ``dae``.
 
 Units: glTF is metres by its spec, COLLADA says its ``<unit>``; OBJ/PLY/STL take ``units``
-(metres per file unit). Up axis: glTF is Y-up by its spec; the others take ``up_axis``.
+(metres per file unit). Up axis: glTF is Y-up by its spec; the others take ``up_axis`` (one
+of ``orient.AXES``, or ``auto``: found from the mesh, ``orient.find_up_axis``).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 from datagen.importers.building import Part
 from datagen.importers.dae import load_dae
 from datagen.importers.images import linear_image
+from datagen.importers.orient import axis_name, find_up_axis, to_z_up
 
 #: Y-up to Z-up: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], np.float64)
@@ -83,23 +85,45 @@ def load_mesh_file(path: Path, units: float = 1.0, up_axis: str = "z"
     Args:
         path: a .glb/.gltf/.obj/.ply/.dae/.stl file.
         units: metres per file unit for OBJ/PLY/STL.
-        up_axis: "z" or "y", the file's up axis for OBJ/PLY/STL/DAE.
+        up_axis: the file's up axis for OBJ/PLY/STL/DAE: one of ``orient.AXES`` (``x``,
+            ``y``, ``z`` mean +x, +y, +z) or ``auto`` (found from the mesh).
 
     Returns:
-        parts (face_class UNSET) and info: ``units`` (metres per file unit applied) and
-        ``up_axis`` (the axis converted from).
+        parts (face_class UNSET) and info: ``units`` (metres per file unit applied),
+        ``up_axis`` (the axis turned to +Z), ``up_axis_from`` (``format``, ``setting`` or
+        ``auto``) and, for ``auto``, ``up_axis_found`` (``orient.UpAxis.as_info``).
     """
     ext = path.suffix.lower()
+    info: dict = {}
     if ext == ".dae":
         parts, scale = load_dae(path)
-        up = up_axis
     else:
         parts = _load_trimesh(path)
         gltf = ext in (".glb", ".gltf")
         scale = 1.0 if gltf else units
-        up = "y" if gltf else up_axis
         for p in parts:
             p.vertices = p.vertices * scale
-    if up == "y":
-        parts = [p.moved(Y_UP_TO_Z_UP) for p in parts]
-    return parts, {"units": scale, "up_axis": up}
+    if ext in (".glb", ".gltf"):
+        up, source = "+y", "format"
+    elif up_axis == "auto":
+        found = _find_up(parts)
+        up, source = found["axis"], "auto"
+        info["up_axis_found"] = found
+    else:
+        up, source = axis_name(up_axis), "setting"
+    if up != "+z":
+        m = to_z_up(up)
+        parts = [p.moved(m) for p in parts]
+    return parts, {"units": scale, "up_axis": up, "up_axis_from": source, **info}
+
+
+def _find_up(parts: list[Part]) -> dict:
+    """``orient.find_up_axis`` of the parts together (``+z`` for no triangles)."""
+    parts = [p for p in parts if len(p.faces)]
+    if not parts:
+        return {"axis": "+z", "sureness": 0.0}
+    offsets = np.cumsum([0] + [len(p.vertices) for p in parts])[:-1]
+    vertices = np.concatenate([p.vertices for p in parts])
+    faces = np.concatenate([np.asarray(p.faces, np.int64) + o
+                            for p, o in zip(parts, offsets, strict=True)])
+    return find_up_axis(vertices, faces).as_info()

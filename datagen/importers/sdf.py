@@ -5,8 +5,11 @@ search path), link and visual ``<pose>`` (x y z roll pitch yaw, R = Rz(yaw) Ry(p
 Rx(roll), as SDF defines it), the ``<visual>`` geometry only: ``<mesh>`` (with ``<scale>``),
 ``<box>``, ``<cylinder>``, ``<sphere>``, ``<plane>``, and the positions of the point and spot
 ``<light>``s (of the world, of links and of included light-only files). A horizontal plane (a
-ground plane) is cut to the rest of the world's XY extent. A model that cannot be found is
-counted, reported once and skipped.
+ground plane) is cut to the rest of the world's XY extent. A mesh URI that is relative
+(``file://models/...``, ``meshes/a.dae``) is found next to the file naming it, else on the
+resource path (``resource_roots``: the world's repository root first), else as a file name
+differing only in case. A model or mesh that
+cannot be found is counted, reported once and skipped.
 """
 
 from __future__ import annotations
@@ -46,6 +49,19 @@ def model_search_path(source: Path, extra: list[str]) -> list[Path]:
     return out
 
 
+def resource_roots(source: Path, search: list[Path]) -> list[Path]:
+    """Folders a relative ``file://`` or plain mesh URI is resolved against after the
+    referring file's own folder, as Gazebo's resource path does: the world's repository root
+    (the parent of the world file's folder), the world file's folder, then each model search
+    folder's parent and the folder itself."""
+    here = source.resolve().parent
+    out: list[Path] = []
+    for d in (here.parent, here, *[x for s in search for x in (s.parent, s)]):
+        if d.is_dir() and d not in out:
+            out.append(d)
+    return out
+
+
 def parse_xml(path: Path) -> ET.Element:
     """The root element of an XML file; a clear error if it is not well-formed."""
     try:
@@ -72,6 +88,7 @@ class _Walk:
 
     source: Path
     search: list[Path]
+    roots: list[Path] = field(default_factory=list)  # resource_roots, for file:// URIs
     parts: list[Part] = field(default_factory=list)
     planes: list[int] = field(default_factory=list)  # indexes into parts
     missing: Counter = field(default_factory=Counter)  # model name -> includes not found
@@ -121,8 +138,9 @@ class _Walk:
         return m
 
     def resolve(self, uri: str, base: Path) -> Path | None:
-        """A file or folder for a ``model://``, ``package://``, ``file://`` or relative URI;
-        None if it does not exist."""
+        """A file or folder for a ``model://``, ``package://``, ``file://`` or relative URI
+        (relative to ``base``, the referring file's folder, else to ``roots``); None if it
+        does not exist."""
         for scheme in ("model://", "package://"):
             if uri.startswith(scheme):
                 name, _, rest = uri[len(scheme):].partition("/")
@@ -131,8 +149,26 @@ class _Walk:
                         target = d / name / rest
                         return target if target.exists() else None
                 return None
-        path = base / (uri[len("file://"):] if uri.startswith("file://") else uri)
-        return path if path.exists() else None
+        rel = uri[len("file://"):] if uri.startswith("file://") else uri
+        for d in (base, *self.roots):
+            path = d / rel
+            if path.exists():
+                return path
+        for d in (base, *self.roots):
+            path = _other_case(d / rel)
+            if path is not None:
+                self.note(f"{uri}: found as {path.name} (the name differs in case)")
+                return path
+        return None
+
+
+def _other_case(path: Path) -> Path | None:
+    """The file in ``path``'s folder whose name equals ``path``'s but for case (a model made
+    on a case-blind system), or None."""
+    if not path.parent.is_dir():
+        return None
+    name = path.name.lower()
+    return next((p for p in sorted(path.parent.iterdir()) if p.name.lower() == name), None)
 
 
 def _model_sdf(folder: Path) -> Path:
@@ -289,7 +325,8 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
     if root.tag != "sdf":
         raise ValueError(f"{path}: the root element is <{root.tag}>, not <sdf>; is this a "
                          f"Gazebo world or model file?")
-    w = _Walk(path, model_search_path(path, model_path))
+    search = model_search_path(path, model_path)
+    w = _Walk(path, search, resource_roots(path, search))
     tops = root.findall("world") + root.findall("model")
     if not tops:
         raise ValueError(f"{path}: no <world> or <model> in the file")

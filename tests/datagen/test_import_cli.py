@@ -25,6 +25,9 @@ def test_cli_and_plan(tmp_path, capsys):
     info = json.loads((tmp_path / "out" / "room_import.json").read_text())
     assert info["free_area_m2"] > 0 and "route_error" in info  # one room: no two turns
     assert cv2.imread(str(tmp_path / "out" / "room_free.png")) is not None
+    summary = json.loads((tmp_path / "out" / "room_summary.json").read_text())
+    assert summary["up_axis"]["axis"] == "+z" and summary["wall_height_m"] == 2.5
+    assert summary["vertical_edges"] >= 4 and "up axis +z (auto" in out
     assert main([str(tmp_path / "none.obj"), "--out", str(tmp_path)]) == 2
     assert "no such file" in capsys.readouterr().err
 

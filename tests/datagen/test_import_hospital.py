@@ -51,6 +51,21 @@ def test_hospital_import(hospital):
     assert (b.face_class[named(b, "floor_01_ceiling")] == C.CEILING).all()
     assert b.info["ceiling_added"] == 0 and abs(b.info["floor_z"]) < 0.05
     assert abs(b.info["wall_top_z"] - 3.0) < 0.1
+    # names decide everywhere (the material first); geometry overrules none of them
+    assert b.info["classed_by"]["geometry_over_name"] == 0
+    shares = b.info["class_shares"]
+    for name, share in {"floor": 0.216, "wall": 0.483, "ceiling": 0.216, "door": 0.011,
+                        "window": 0.002, "clutter": 0.072}.items():
+        assert abs(shares[name] - share) < 0.002, shares
+
+
+def test_hospital_summary(hospital):
+    from datagen.importers.summary import import_summary
+
+    s = import_summary(hospital[0], 1021.0, 1)
+    assert s["up_axis"]["axis"] == "+z" and s["up_axis"].get("check") == "+z"
+    assert s["wall_height_m"] == pytest.approx(3.0, abs=0.05)
+    assert {f["key"] for f in s["flags"]} == {"world.model_path"}  # the online models
 
 
 def test_hospital_plan(hospital):

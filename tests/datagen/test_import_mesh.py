@@ -46,7 +46,8 @@ def test_gltf_is_y_up_metres_with_material_names(tmp_path):
     door_rgb = b.face_colour[b.face_name == b.names.index(
         next(n for n in b.names if "oak_door" in n))]
     np.testing.assert_allclose(door_rgb, np.tile(DOOR_RGBA[:3], (len(door_rgb), 1)), atol=0.01)
-    assert b.info["format"] == "glb" and b.info["up_axis"] == "y"
+    assert b.info["format"] == "glb" and b.info["up_axis"] == "+y"
+    assert b.info["up_axis_from"] == "format"
 
 
 def obj_text(mesh: trimesh.Trimesh) -> str:
@@ -68,7 +69,11 @@ def test_obj_units_and_up_axis(tmp_path):
     # geometry fallback: the name "shell" matches no rule
     assert set(b.face_class) == {C.FLOOR, C.WALL, C.CEILING}
     assert b.info["ceiling_added"] > 0
-    on_side = load_building(path, {"units": 0.001})  # read as Z-up: the room on its side
+    assert b.info["up_axis"] == "+y" and b.info["up_axis_from"] == "setting"
+    found = load_building(path, {"units": 0.001})  # up_axis: auto
+    assert found.info["up_axis"] == "+y" and found.info["up_axis_from"] == "auto"
+    np.testing.assert_allclose(found.vertices.max(axis=0), ROOM, atol=1e-6)
+    on_side = load_building(path, {"units": 0.001, "up_axis": "z"})  # the room on its side
     np.testing.assert_allclose(on_side.vertices.max(axis=0) - on_side.vertices.min(axis=0),
                                [4, 2.5, 3], atol=1e-6)
 
@@ -134,7 +139,7 @@ def test_bad_input(tmp_path):
     with pytest.raises(ValueError, match="unknown extension '.xyz'"):
         load_building(odd)
     with pytest.raises(ValueError, match="up_axis"):
-        load_building(odd, {"up_axis": "x"})
+        load_building(odd, {"up_axis": "sideways"})
     with pytest.raises(ValueError, match="units"):
         load_building(odd, {"units": 0.0})
     with pytest.raises(ValueError, match="world.unknown"):

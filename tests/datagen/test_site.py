@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import trimesh
@@ -50,6 +52,13 @@ class TestFile:
         assert C.FLOOR in classes and C.WALL in classes and C.CEILING in classes
         assert len(w.segments) >= 16  # at least the ring's 8 wall/floor and 8 wall/ceiling
         assert site.floor.area > w.free.area
+        summary = w.info["import_summary"]  # also world/import_summary.json
+        assert summary["free_area_m2"] == pytest.approx(w.free.area, abs=0.1)
+        assert summary["vertical_edges"] > 0 and summary["up_axis"]["axis"] == "+y"
+        from datagen.save import save_world
+
+        save_world(tmp_path / "world", w)
+        assert json.loads((tmp_path / "world" / "import_summary.json").read_text()) == summary
 
     def test_hydra_world_file(self, tmp_path):
         path = write_ring_glb(tmp_path / "ring.glb")
@@ -58,6 +67,7 @@ class TestFile:
         spec = world_config(cfg["world"])
         assert isinstance(spec, FileWorldConfig)
         assert spec.path == path and spec.camera_margin == 0.25 and spec.ceiling == "auto"
+        assert spec.up_axis == "auto"
         assert isinstance(world_config(compose_config("datagen", [])["world"]), WorldConfig)
 
     @pytest.mark.parametrize("settings,error,match", [

@@ -1,0 +1,182 @@
+"""The import summary: the figures of an imported building that show whether it came in
+right, and flags for what looks wrong, each naming the ``world.*`` key to set.
+
+Printed by ``python -m datagen.importers`` and by ``world=file`` runs, and saved as JSON
+(``<name>_summary.json`` next to the CLI's ``<name>_import.json``; ``world/import_summary.json``
+of a dataset).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core import classes as C
+from datagen.importers.building import Building, face_areas_normals
+from datagen.importers.orient import find_up_axis
+
+#: Metres per file unit of the units a model is commonly drawn in (``world.units``).
+UNITS = {"mm": 0.001, "cm": 0.01, "inch": 0.0254, "foot": 0.3048, "m": 1.0}
+STOREY = (2.0, 6.0)  # m, a plausible floor-to-top height of a storey
+EXTENT = (1.5, 2000.0)  # m, a plausible horizontal size of a building model
+MIN_FLOOR_SHARE = 0.05  # of the surface area: less is a tiny floor
+MIN_FREE_RATIO = 0.25  # free space over the floor's footprint: less is far smaller
+UNSURE = 0.1  # an up axis found (auto) with less sureness is flagged
+CONTRADICT = 0.3  # a mesh looking like another up axis than the one applied, this sure, is
+# flagged
+VERTICAL_EDGE = 0.9  # |direction z| from which a model edge is vertical
+
+
+def vertical_edges(segments: np.ndarray) -> int:
+    """How many (M, 2, 3) model edge segments run within ~25 deg of vertical."""
+    if not len(segments):
+        return 0
+    d = segments[:, 1] - segments[:, 0]
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    return int((np.abs(d[:, 2]) / length >= VERTICAL_EDGE).sum())
+
+
+def unit_guess(height: float, units: float) -> tuple[str, float] | None:
+    """The common unit (name, metres per file unit) that makes a storey ``height`` m
+    (read with ``units`` metres per file unit) plausible, nearest to 2.8 m; None if none."""
+    raw = height / units
+    fits = [(abs(np.log(raw * u / 2.8)), name, u) for name, u in UNITS.items()
+            if STOREY[0] <= raw * u <= STOREY[1] and u != units]
+    return min(fits)[1:] if fits else None
+
+
+def footprint(points: np.ndarray) -> float:
+    """Area (m^2) of the convex hull of (n, 3) points seen from above (holes and furniture
+    in a floor do not shrink it); 0 for fewer than three or collinear points."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    if len(points) < 3:
+        return 0.0
+    try:
+        return float(ConvexHull(points[:, :2]).volume)
+    except QhullError:
+        return 0.0
+
+
+def file_units(info: dict) -> float:
+    """Metres per file unit the import applied: a mesh file's, or the most common of an SDF
+    world's meshes (1 without)."""
+    units = info.get("units", 1.0)
+    if isinstance(units, dict):
+        return float(max(units, key=units.get)) if units else 1.0
+    return float(units)
+
+
+def import_summary(b: Building, free_area_m2: float | None = None,
+                   vertical: int | None = None) -> dict:
+    """The summary of an import (``load_building``'s ``b.info`` and the mesh).
+
+    Args:
+        b: the imported building.
+        free_area_m2: the camera free space's area (``datagen.site.camera_free_space``), or
+            None if not built.
+        vertical: the number of vertical model edges (``vertical_edges``), or None.
+
+    Returns:
+        figures (floor share, area and footprint, free area, wall height, up axis and how
+        sure, faces classed by name / by geometry, missing meshes and models, far parts) and
+        ``flags``:
+        [{"what": ..., "key": ...}], ``key`` the ``world.*`` setting to look at.
+    """
+    info = b.info
+    area, _ = face_areas_normals(b.vertices, b.faces)
+    floor = b.face_class == C.FLOOR
+    floor_area = float(area[floor].sum())
+    shares = info.get("class_shares", {})
+    height = float(info["wall_top_z"] - info["floor_z"])
+    lo, hi = np.asarray(info["bounds"][0]), np.asarray(info["bounds"][1])
+    extent = float(max(hi[:2] - lo[:2]))
+    up = up_axis_figures(b)
+    out = {
+        "floor_share": shares.get("floor", 0.0), "floor_area_m2": round(floor_area, 1),
+        "floor_footprint_m2": round(footprint(b.vertices[np.unique(b.faces[floor])]), 1),
+        "free_area_m2": None if free_area_m2 is None else round(float(free_area_m2), 1),
+        "wall_height_m": round(height, 2), "extent_m": round(extent, 2), "up_axis": up,
+        "classed_by": info.get("classed_by", {}), "vertical_edges": vertical,
+        "missing_meshes": len(info.get("missing_meshes", {})),
+        "missing_models": int(sum(info.get("missing_models", {}).values())),
+        "far_parts": len(info.get("far_parts", {})),
+    }
+    out["flags"] = flags(out, file_units(info))
+    return out
+
+
+def up_axis_figures(b: Building) -> dict:
+    """The up axis applied, where it came from and how sure; for an axis the import did not
+    find itself (format, setting), the check of the imported mesh (``check``: the axis
+    ``find_up_axis`` sees in it, +z when it agrees)."""
+    info = b.info
+    out = {"axis": info.get("up_axis", "+z"), "from": info.get("up_axis_from", "format")}
+    found = info.get("up_axis_found")
+    if found is not None:
+        out["sureness"] = found["sureness"]
+        return out
+    check = find_up_axis(b.vertices, b.faces)
+    out.update(check=check.axis, sureness=round(check.sureness, 3))
+    return out
+
+
+def flags(s: dict, units: float) -> list[dict]:
+    """What looks wrong in a summary's figures, each with the key to set."""
+    out = []
+
+    def flag(what: str, key: str | None) -> None:
+        out.append({"what": what, "key": key})
+
+    up = s["up_axis"]
+    if up.get("check", "+z") != "+z" and up["sureness"] >= CONTRADICT:
+        flag(f"the model looks like its up axis is {up['check']} (sureness "
+             f"{up['sureness']:.2f}), not the {up['axis']} applied ({up['from']})",
+             "world.up_axis")
+    elif up["sureness"] < UNSURE and up["from"] == "auto":
+        flag(f"up axis {up['axis']} found with low sureness ({up['sureness']:.2f})",
+             "world.up_axis")
+    if s["floor_share"] < MIN_FLOOR_SHARE:
+        flag(f"tiny floor share ({100 * s['floor_share']:.1f} % of the surface): the floor "
+             f"may be classed as something else, or the model is on its side",
+             "world.name_rules")
+    free, floor = s["free_area_m2"], s["floor_footprint_m2"]
+    if free is not None and free < MIN_FREE_RATIO * floor:
+        flag(f"free space {free:.1f} m2 is far smaller than the floor's footprint "
+             f"{floor:.1f} m2 (holes, furniture or low ceilings in the camera heights)",
+             "world.z_range / world.camera_margin")
+    if s["vertical_edges"] == 0:
+        flag("no vertical model edges (no wall corners, door or window jambs)",
+             "world.up_axis")
+    height, extent = s["wall_height_m"], s["extent_m"]
+    if not STOREY[0] <= height <= STOREY[1] or not EXTENT[0] <= extent <= EXTENT[1]:
+        guess = unit_guess(height, units)
+        hint = (f"; in {guess[0]} it would be {height / units * guess[1]:.2f} m: "
+                f"world.units={guess[1]}" if guess else "")
+        flag(f"implausible size: walls {height:.2f} m high, {extent:.1f} m across, read at "
+             f"{units} m per file unit{hint}", "world.units")
+    if s["missing_meshes"]:
+        flag(f"{s['missing_meshes']} mesh files not found", "world.model_path")
+    if s["missing_models"]:
+        flag(f"{s['missing_models']} included models not found", "world.model_path")
+    if s["far_parts"]:
+        flag(f"{s['far_parts']} parts far from the rest were left out", None)
+    return out
+
+
+def summary_lines(s: dict) -> list[str]:
+    """The printed lines of a summary: its figures, then one line per flag."""
+    up = s["up_axis"]
+    by = s["classed_by"]
+    free = "not built" if s["free_area_m2"] is None else f"{s['free_area_m2']:.1f} m2"
+    lines = [f"up axis {up['axis']} ({up['from']}, sureness {up['sureness']:.2f}"
+             + (f", the mesh looks {up['check']}" if up.get("check", "+z") != "+z" else "")
+             + f"); walls {s['wall_height_m']:.2f} m high, {s['extent_m']:.1f} m across",
+             f"floor {100 * s['floor_share']:.1f} % of the surface, {s['floor_area_m2']:.1f} m2 "
+             f"(footprint {s['floor_footprint_m2']:.1f} m2); free space {free}"
+             + ("" if s["vertical_edges"] is None else
+                f"; {s['vertical_edges']} vertical model edges"),
+             "faces classed by " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                             for k, v in by.items())]
+    lines += [f"check: {f['what']}" + (f" (set {f['key']})" if f["key"] else "")
+              for f in s["flags"]]
+    return lines
