@@ -1,0 +1,222 @@
+"""The third-party table: buildings and images nobody on the project made, with the defaults.
+
+Usage::
+
+    python benchmarks/thirdparty.py                                # every building, all modes
+    python benchmarks/thirdparty.py --buildings icl_scan floor101 --frames 300 --seeds 0
+    python benchmarks/thirdparty.py --onnx outputs/models/mine/segnet.onnx --name mine
+
+Per building, with no per-building setting: ``python -m datagen`` renders its test flights
+(``flights=floor``: two 115 s passes along routes planned through its free space; the scan:
+``flights=handheld``, camera 1.0-1.6 m, tilts up to ~8 deg, yaw swings up to ~90 deg/s),
+no training images and no validation flights (this table is test data: no setting is chosen
+on it); then the SegNet (``--onnx``, default the shipped generalist) is scored on every
+delivered flight frame (pixel accuracy, mean IoU, boundary F at 2 px: what the likelihood
+needs), and ``python -m localize`` tracks each flight from its true start in the given modes
+and seeds. The scan's first test flight is also exported as a folder recording
+(``localize.recording_export``: JPEG frames, odometry) and localized as a user's recording.
+
+Buildings: the AWS hospital and bookstore (Gazebo worlds) and the ICL office scan from
+``../shared/worlds`` (skipped where absent), and three procedural floors whose seeds (101-103)
+no shipped SegNet was trained on (the generalist: seeds 0-23).
+
+Writes ``<out-root>/<name>/``: one dataset and one localize report per building
+(``datasets/<building>``, ``reports/<building>``), ``thirdparty.json`` and ``thirdparty.md``
+(the table). Finished datasets, scores and runs are kept, so a second call only collects and
+an interrupted one resumes. Lost: a run whose error stayed above 1 m for more than 1 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+SHARED = ROOT.parent / "shared" / "worlds"
+
+from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
+
+#: building -> (the model file under ../shared/worlds or None, datagen overrides)
+BUILDINGS: dict[str, tuple[str | None, list[str]]] = {
+    "hospital": ("aws_hospital/worlds/hospital.world", ["world=file", "flights=floor"]),
+    "bookstore": ("aws_bookstore/worlds/bookstore.world", ["world=file", "flights=floor"]),
+    "icl_scan": ("icl_office_scan/of_kt2_planeopt.obj", ["world=file", "flights=handheld"]),
+    **{f"floor{s}": (None, ["world=procedural", f"world.seed={s}", "flights=floor"])
+       for s in (101, 102, 103)},
+}
+RECORDING_OF = {"icl_scan"}  # buildings whose first test flight is also run as a recording
+GENERALIST = ROOT / "models" / "generalist" / "segnet.onnx"
+
+
+def parse_args() -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--buildings", nargs="+", default=list(BUILDINGS), choices=list(BUILDINGS))
+    ap.add_argument("--onnx", type=Path, default=GENERALIST, help="the SegNet of cnn mode")
+    ap.add_argument("--modes", nargs="+", default=["none", "cnn", "oracle"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
+    ap.add_argument("--frames", type=int, default=None,
+                    help="frames per flight (default: the flight preset's)")
+    ap.add_argument("--out-root", type=Path, default=ROOT / "outputs" / "benchmarks")
+    ap.add_argument("--name", default="thirdparty")
+    return ap.parse_args()
+
+
+def run(cmd: list[str]) -> None:
+    print("+ " + " ".join(str(c) for c in cmd[1:]), flush=True)
+    subprocess.run([str(c) for c in cmd], check=True, cwd=ROOT)
+
+
+def datagen(building: str, out: Path, frames: int | None) -> Path | None:
+    """The building's test flights (rendered once); None where its model is absent."""
+    model, overrides = BUILDINGS[building]
+    if model is not None and not (SHARED / model).is_file():
+        print(f"{building}: skipped, {SHARED / model} not found", flush=True)
+        return None
+    ds = out / "datasets" / building
+    cmd = [sys.executable, "-m", "datagen", f"name={building}", f"out_dir={ds}",
+           "splits.train=0", "splits.val=0", "splits.test=0", "val_flights=[]", *overrides]
+    if model is not None:
+        cmd.append(f"world.path={SHARED / model}")
+    if frames:
+        cmd += [f"flights.{p}.num_frames={frames}" for p in ("paper", "cluttered")]
+    run(cmd)  # a finished dataset is resumed: nothing rendered again
+    return ds
+
+
+def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
+    """Pixel accuracy, mean IoU, per-class IoU and boundary F of ``onnx`` on every delivered
+    test-flight frame of ``ds`` (kept in ``cache``)."""
+    key = f"{onnx.resolve()}"
+    done = json.loads(cache.read_text()) if cache.is_file() else {}
+    if key in done:
+        return done[key]
+    import torch
+
+    from benchmarks.segnet_flights import BATCH, flight_frames
+    from core.dataset import Dataset
+    from localize.frontend.segmenter import load_segmenter
+    from train.metrics import boundary_counts, boundary_f, confusion_matrix, metrics_json
+
+    dataset = Dataset(ds)
+    seg = load_segmenter(onnx, dataset.classes)
+    cm = torch.zeros(seg.num_classes, seg.num_classes, dtype=torch.int64)
+    bc = np.zeros(4, np.int64)
+    for name in dataset.flight_names("test"):
+        flight = dataset.flight(name)
+        index = np.flatnonzero(flight_frames(flight))
+        for start in range(0, len(index), BATCH):
+            batch = index[start:start + BATCH]
+            truth = np.stack([flight.labels(int(t)) for t in batch])
+            pred = seg.labels(np.stack([flight.image(int(t)) for t in batch]))
+            cm += confusion_matrix(torch.from_numpy(pred.astype(np.int64)),
+                                   torch.from_numpy(truth.astype(np.int64)), seg.num_classes)
+            bc += sum(boundary_counts(p, t) for p, t in zip(pred, truth, strict=True))
+    m = metrics_json(cm, [c["name"] for c in dataset.classes])
+    res = {k: m[k] for k in ("pixel_accuracy", "mean_iou", "per_class_iou")} | boundary_f(bc)
+    atomic_write_json(cache, {**done, key: res})
+    return res
+
+
+def localize(ds: Path, report: Path, args: argparse.Namespace, rec: Path | None = None
+             ) -> dict:
+    """``python -m localize`` on the test flights, or on the recording ``rec``; its
+    metrics."""
+    lst = lambda xs: "[" + ",".join(str(x) for x in xs) + "]"  # noqa: E731
+    run([sys.executable, "-m", "localize", f"dataset={ds}", f"onnx_model={args.onnx}",
+         f"out_root={report.parent}", f"name={report.name}", f"modes={lst(args.modes)}",
+         f"seeds={lst(args.seeds)}", "inits=[tracking]", "progress=false",
+         *([f"recording={rec}"] if rec else [])])
+    folder = report / "recordings" / rec.name if rec else report
+    return json.loads((folder / "metrics.json").read_text())
+
+
+def recording(ds: Path, out: Path) -> Path:
+    """The dataset's first test flight exported as a folder recording (once)."""
+    from core.dataset import Dataset
+
+    name = Dataset(ds).flight_names("test")[0]
+    rec = out / "recordings" / ds.name
+    if not (rec / "images.txt").is_file():
+        run([sys.executable, "-m", "localize.recording_export", ds, name, rec])
+    return rec
+
+
+def tracking(metrics: dict) -> dict:
+    """Per mode: mean error over the flights (m), lost runs, frame ms."""
+    out = {}
+    for per_mode in metrics["flights"].values():
+        for mode, e in per_mode.items():
+            if "mean_position_error_m" not in e:
+                continue
+            o = out.setdefault(mode, {"errors": [], "lost": 0, "runs": 0})
+            runs = len(e["per_seed_mean_m"])
+            o["errors"].append(e["mean_position_error_m"])
+            o["runs"] += runs
+            o["lost"] += int(round(e["lost_rate"] * runs))
+    timing = metrics.get("timing_ms_by_mode", {})
+    for mode, o in out.items():
+        o["mean_m"] = float(np.mean(o.pop("errors")))
+        o["frame_ms"] = timing.get(mode, {}).get("total", {}).get("avg")
+    return out
+
+
+def table(results: dict, modes: list[str]) -> str:
+    """The markdown table of ``results`` (one row per building)."""
+    head = ["building", "floor / free m²", "flags", "SegNet acc / mIoU / bF"]
+    head += [f"{m} m (lost)" for m in modes] + ["cnn frame ms", "recording cnn / none m"]
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for b, r in results.items():
+        s = r.get("import") or {}
+        seg = r.get("segnet") or {}
+        tr = r.get("tracking") or {}
+        rec = r.get("recording") or {}
+        cells = [b, f"{s.get('floor_footprint_m2', '-')} / {s.get('free_area_m2', '-')}",
+                 str(len(s.get("flags", []))) if s else "-",
+                 (f"{seg['pixel_accuracy']:.3f} / {seg['mean_iou']:.3f} / "
+                  f"{seg['boundary_f']:.3f}") if seg else "-"]
+        cells += [f"{tr[m]['mean_m']:.3f} ({tr[m]['lost']}/{tr[m]['runs']})" if m in tr else "-"
+                  for m in modes]
+        ms = tr.get("cnn", {}).get("frame_ms")
+        cells.append(f"{ms:.0f}" if ms else "-")
+        cells.append(" / ".join(f"{rec[m]['mean_m']:.3f}" if m in rec else "-"
+                                for m in ("cnn", "none")) if rec else "-")
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join(rows) + "\n"
+
+
+def main() -> int:
+    args = parse_args()
+    out = args.out_root / args.name
+    results: dict = {}
+    for b in args.buildings:
+        ds = datagen(b, out, args.frames)
+        if ds is None:
+            continue
+        summary = ds / "world" / "import_summary.json"
+        r = {"import": json.loads(summary.read_text()) if summary.is_file() else None}
+        if "cnn" in args.modes:
+            r["segnet"] = segnet_scores(ds, args.onnx, out / "segnet" / f"{b}.json")
+        r["tracking"] = tracking(localize(ds, out / "reports" / b, args))
+        if b in RECORDING_OF:
+            rec = recording(ds, out)
+            r["recording"] = tracking(localize(ds, out / "reports" / b, args, rec))
+        results[b] = r
+        print(f"{b}: " + json.dumps({k: v for k, v in r.items() if k != "import"}), flush=True)
+        for f in (r["import"] or {}).get("flags", []):
+            print(f"  import flag: {f['what']} (key: {f['key']})")
+    md = table(results, args.modes)
+    atomic_write_json(out / "thirdparty.json", {"onnx": str(args.onnx), "modes": args.modes,
+                                                "seeds": args.seeds, "results": results})
+    atomic_write_text(out / "thirdparty.md", md)
+    print(md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
