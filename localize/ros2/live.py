@@ -31,6 +31,7 @@ from omegaconf import DictConfig
 
 from core.config import typed
 from core.dataset import Dataset
+from core.frames import FrameSource
 from core.poses import odometry_increment
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.localizer import EdgeModel, Estimate, Localizer
@@ -129,12 +130,15 @@ class LiveLocalizer:
         cfg: the node's config (``localize.ros2.config.Ros2Config``).
         ctx: ``load_context(cfg)``.
         publish: called with each frame's ``Output`` on the worker thread.
+        report: called on the worker thread after each frame is published and counted,
+            with its stamp (the node publishes the status there); None: nothing.
         clock: the capture stamps' clock, seconds (the system clock, as ROS stamps).
     """
 
     cfg: DictConfig
     ctx: Context
     publish: Callable[[Output], None]
+    report: Callable[[float], None] | None = None
     clock: Callable[[], float] = time.time
     counts: Counts = field(default_factory=Counts)
     latency: LatencyWindow = field(default_factory=LatencyWindow)
@@ -156,7 +160,8 @@ class LiveLocalizer:
         self._last_odometry: np.ndarray | None = None
         self._last_status = ""
         self._front = self.ctx.front_end(self.cfg.mode)
-        self._rng = np.random.default_rng(int(self.cfg.seed))
+        self._rng = np.random.default_rng(int(self.cfg.seed))  # the filter's alone
+        self._display_rng = np.random.default_rng([int(self.cfg.seed), 1])
         self._start = start_state(self.cfg.start)
         self._worker: threading.Thread | None = None
         self._stop = threading.Event()
@@ -286,6 +291,8 @@ class LiveLocalizer:
         self.last_latency = self.clock() - item.stamp
         self.latency.add(self.last_latency)
         self.counts.processed += 1
+        if self.report is not None:
+            self.report(out.stamp)
         if self.mavlink is not None and out.status in ("tracking", "ambiguous"):
             self.mavlink.send(out.stamp, out.pose, out.covariance,
                               int(round(100 * out.estimate.confidence)))
@@ -323,7 +330,7 @@ class LiveLocalizer:
         f = loc.filter
         out = Output(stamp, est, world_from_body(est, attitude),
                      particle_covariance(f.particles, f.logw, f.tilt, est.state),
-                     shown_particles(f.particles, SHOWN_PARTICLES, self._rng),
+                     shown_particles(f.particles, SHOWN_PARTICLES, self._display_rng),
                      live_status(est, self.settings.realtime.ambiguous_std_m), image,
                      frame.labels)
         self.last_output = out
@@ -363,3 +370,19 @@ def _same_camera(a: SourceCamera, b: SourceCamera | None) -> bool:
             and np.allclose(a.K, b.K) and np.allclose(np.resize(a.distortion, 8),
                                                       np.resize(b.distortion, 8)))
 
+
+
+def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
+                      limit: int | None = None) -> np.ndarray:
+    """The node's filter run offline over a frame source: the same settings, seed and start
+    (``start``; None: a global start), every frame in order, as the live node would with
+    nothing dropped; the reference of the tests and benchmarks/live.py.
+
+    Returns:
+        (T, 4) x, y, z, yaw estimates of the first ``limit`` frames (all: None).
+    """
+    loc = Localizer(ctx.world, ctx.camera, ctx.front_end(cfg.mode), ctx.settings,
+                    np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
+    loc.reset(start_state(cfg.start))
+    return np.stack([loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp).state
+                     for f in source.steps(limit)])

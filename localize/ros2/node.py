@@ -67,11 +67,13 @@ class LocalizerNode(Node):
         cfg: the node's config (conf/ros2.yaml).
         ctx: the loaded context (``live.load_context``).
         start_s: seconds the start-up took (reported in the status).
+        context: the rclpy context (None: the default one).
     """
 
-    def __init__(self, cfg: DictConfig, ctx: Context, start_s: float = float("nan")):
-        super().__init__(str(cfg.node_name))
-        self.live = LiveLocalizer(cfg, ctx, self._publish)
+    def __init__(self, cfg: DictConfig, ctx: Context, start_s: float = float("nan"),
+                 context=None):
+        super().__init__(str(cfg.node_name), context=context)
+        self.live = LiveLocalizer(cfg, ctx, self._publish, self._publish_status)
         s = self.live.settings
         self.topics, self.frames, self.start_s = s.topics, s.frames, start_s
         t, q = s.topics, s.qos
@@ -162,7 +164,6 @@ class LocalizerNode(Node):
         self.pose_pub.publish(pose)
         self.odometry_pub.publish(odo)
         self.particles_pub.publish(cloud)
-        self._publish_status(out.stamp)
 
     def _publish_status(self, stamp: float) -> None:
         status, values = self.live.status()
