@@ -6,7 +6,8 @@ PATH is a rendered flight (``<dataset>/flights/<name>``, ``core.dataset.Flight``
 undistorted to the dataset's camera), a recording folder or a ROS 1 / ROS 2 bag
 (``localize.recording.read_recording``: its frames as recorded, with their own calibration,
 which the node undistorts and rescales). Per frame, at its time on the wall clock: the
-odometry (nav_msgs/Odometry, frame ``odom`` to ``base_link``, at the frame's time), the
+odometry (nav_msgs/Odometry, frame ``odom`` to ``base_link``, or PoseStamped with
+``topics.odometry_type=pose``, at the frame's time), the
 CameraInfo and the image (sensor_msgs/Image rgb8, or CompressedImage JPEG with
 ``topics.image_transport=compressed``), all stamped with the wall-clock time the frame is
 published at (a live camera's capture time), and the true pose (PoseStamped, map frame) when
@@ -94,7 +95,7 @@ def open_playback(path: str | Path) -> Playback:
 
         return Playback(flight.name, flight.timestamps, flight.odometry, flight.groundtruth,
                         source, frames)
-    rec = read_recording(path)
+    rec = read_recording(path, body_from_cam=np.eye(4))  # the mount is the node's business
     return Playback(rec.name, rec.timestamps, rec.odometry, rec.groundtruth,
                     rec.rectifier.source, rec.frames.iter)
 
@@ -112,11 +113,13 @@ class Player:
         t = settings.topics
         q = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
         self.compressed = t.image_transport == "compressed"
+        self.odometry_as_pose = t.odometry_type == "pose"
         self._types = {"image": CompressedImage if self.compressed else Image,
                        "info": CameraInfo, "odometry": Odometry, "pose": PoseStamped}
         self.image_pub = node.create_publisher(self._types["image"], t.image, q)
         self.info_pub = node.create_publisher(CameraInfo, t.camera_info, q)
-        self.odometry_pub = node.create_publisher(Odometry, t.odometry, q)
+        self.odometry_pub = node.create_publisher(
+            PoseStamped if self.odometry_as_pose else Odometry, t.odometry, q)
         self.truth_pub = (node.create_publisher(PoseStamped, t.groundtruth, q)
                           if t.groundtruth else None)
 
@@ -153,11 +156,7 @@ class Player:
 
     def _publish(self, pb: Playback, i: int, image: np.ndarray | None, stamp: float) -> None:
         T = self._types
-        odo = T["odometry"]()
-        self._header(odo, stamp, self.s.odom_frame)
-        odo.child_frame_id = self.s.base_frame
-        _set_pose(odo.pose.pose, pb.odometry[i])
-        self.odometry_pub.publish(odo)
+        self.odometry_pub.publish(self.odometry_message(pb.odometry[i], stamp))
         if self.truth_pub is not None and pb.groundtruth is not None:
             gt = T["pose"]()
             self._header(gt, stamp, self.s.map_frame)
@@ -167,6 +166,19 @@ class Player:
         if image is None:  # a frame the recording cannot decode: the camera dropped it
             return
         self.image_pub.publish(self.image_message(image, stamp))
+
+    def odometry_message(self, pose: np.ndarray, stamp: float):
+        """nav_msgs/Odometry (``odom`` to ``base_link``) or, with ``topics.odometry_type=pose``,
+        PoseStamped (``odom``) of a (4, 4) odometry pose."""
+        if self.odometry_as_pose:
+            msg = self._types["pose"]()
+            _set_pose(msg.pose, pose)
+        else:
+            msg = self._types["odometry"]()
+            msg.child_frame_id = self.s.base_frame
+            _set_pose(msg.pose.pose, pose)
+        self._header(msg, stamp, self.s.odom_frame)
+        return msg
 
     def _header(self, msg, stamp: float, frame: str) -> None:
         msg.header.stamp.sec, msg.header.stamp.nanosec = stamp_parts(stamp)

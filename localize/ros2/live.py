@@ -144,7 +144,7 @@ class LiveLocalizer:
     latency: LatencyWindow = field(default_factory=LatencyWindow)
 
     def __post_init__(self):
-        self.settings: Ros2Config = self.ctx.settings
+        self.settings: Ros2Config = typed(Ros2Config, self.cfg, "ros2 config")
         rt = self.settings.realtime
         self.odometry_buffer = OdometryBuffer(rt.odometry_keep_s)
         self.slot = LatestSlot()
