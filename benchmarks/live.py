@@ -120,20 +120,10 @@ def main() -> None:
     flight = Dataset(cfg.dataset).flight(args.flight)
     truth = xyzyaw_from_pose(flight.groundtruth[:n])
 
-    import rclpy
-    from geometry_msgs.msg import PoseWithCovarianceStamped
-    from rclpy.executors import SingleThreadedExecutor
+    from localize.ros2.listen import Session
 
-    from localize.ros2.listen import Listener
-    from localize.ros2_play import _set_pose
-
-    rclpy.init()
-    node = rclpy.create_node("live_bench")
-    listener = Listener(node, topics)
-    init_pub = node.create_publisher(PoseWithCovarianceStamped, topics.initial_pose, 1)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    session = Session(topics, "live_bench")
+    listener = session.listener
     try:
         if not wait_until(lambda: listener.statuses or proc.poll() is not None, 180.0):
             raise SystemExit("the node sent no status within 180 s:\n" + "".join(lines[-30:]))
@@ -146,14 +136,11 @@ def main() -> None:
               f"{TARGET_START_S:.0f} s)")
         runs = []
         for rate in args.rates:
-            msg = PoseWithCovarianceStamped()
-            msg.header.frame_id = "map"
-            _set_pose(msg.pose.pose, flight.groundtruth[0])
-            init_pub.publish(msg)
+            session.initial_pose(flight.groundtruth[0])
             time.sleep(0.5)
             before = dict(listener.status_values())
             listener.clear()
-            player = Player(node, PlaySettings(rate=rate, max_frames=n))
+            player = Player(session.node, PlaySettings(rate=rate, max_frames=n, topics=topics))
             player.wait_for_subscriber()
             stamps = np.array(player.play(pb))
             wait_until(lambda last=stamps[-1]: (listener.poses and listener.stamps().max()
@@ -163,9 +150,7 @@ def main() -> None:
                          np.array(listener.arrivals), before, listener.status_values(),
                          split_medians(listener)))
     finally:
-        executor.shutdown(timeout_sec=2.0)
-        node.destroy_node()
-        rclpy.shutdown()
+        session.close()
         proc.terminate()
         try:
             proc.wait(10)

@@ -1,8 +1,10 @@
 """A listener of the node's outputs (rclpy): every pose and status message with the wall-clock
-time it arrived, for the tests and benchmarks/live.py."""
+time it arrived, for the tests and benchmarks/live.py; ``Session``: rclpy in a process with such
+a listener."""
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -10,7 +12,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from localize.ros2.config import NodeTopics
-from localize.ros2.convert import stamp_seconds
+from localize.ros2.convert import position_quaternion, stamp_seconds
 
 
 class Listener:
@@ -53,3 +55,41 @@ class Listener:
         self.poses.clear()
         self.arrivals.clear()
         self.statuses.clear()
+
+
+class Session:
+    """rclpy started in this process with one node holding a ``Listener`` and an initial-pose
+    publisher, spinning on a thread (benchmarks/live.py; a player can publish on ``node``).
+    Set the DDS environment (``localize.ros2.loopback``) before making one."""
+
+    def __init__(self, topics: NodeTopics, name: str = "edgeloc_listener"):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        rclpy.init()
+        self.node = rclpy.create_node(name)
+        self.listener = Listener(self.node, topics)
+        self._initial_pose = self.node.create_publisher(PoseWithCovarianceStamped,
+                                                        topics.initial_pose, 1)
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self.node)
+        threading.Thread(target=self._executor.spin, daemon=True).start()
+
+    def initial_pose(self, world_from_body: np.ndarray, frame: str = "map") -> None:
+        """Publish an initial pose (4, 4) in ``frame``."""
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = frame
+        p, q = position_quaternion(world_from_body)
+        pose = msg.pose.pose
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in p)
+        (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+         pose.orientation.w) = (float(v) for v in q)
+        self._initial_pose.publish(msg)
+
+    def close(self) -> None:
+        import rclpy
+
+        self._executor.shutdown(timeout_sec=2.0)
+        self.node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()

@@ -44,7 +44,7 @@ from localize.runner import Context, report_folder
 log = logging.getLogger(__name__)
 
 #: Particles an ``Output`` carries for display at most.
-SHOWN_PARTICLES = 500
+SHOWN_PARTICLES = 200
 
 
 def load_context(cfg: DictConfig) -> Context:
@@ -130,15 +130,16 @@ class LiveLocalizer:
         cfg: the node's config (``localize.ros2.config.Ros2Config``).
         ctx: ``load_context(cfg)``.
         publish: called with each frame's ``Output`` on the worker thread.
-        report: called on the worker thread after each frame is published and counted,
-            with its stamp (the node publishes the status there); None: nothing.
+        report: called on the worker thread with each frame's ``Output`` once its pose is
+            published and its latency counted (the node publishes the particles and the status
+            there); None: nothing.
         clock: the capture stamps' clock, seconds (the system clock, as ROS stamps).
     """
 
     cfg: DictConfig
     ctx: Context
     publish: Callable[[Output], None]
-    report: Callable[[float], None] | None = None
+    report: Callable[[Output], None] | None = None
     clock: Callable[[], float] = time.time
     counts: Counts = field(default_factory=Counts)
     latency: LatencyWindow = field(default_factory=LatencyWindow)
@@ -302,7 +303,7 @@ class LiveLocalizer:
         self.latency.add(self.last_latency)
         self.counts.processed += 1
         if self.report is not None:
-            self.report(out.stamp)
+            self.report(out)
         if self.mavlink is not None and out.status in ("tracking", "ambiguous"):
             self.mavlink.send(out.stamp, out.pose, out.covariance,
                               int(round(100 * out.estimate.confidence)))

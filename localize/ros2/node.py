@@ -18,7 +18,14 @@ import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import (
+    Point,
+    Pose,
+    PoseArray,
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    Quaternion,
+)
 from nav_msgs.msg import Odometry
 from omegaconf import DictConfig
 from rclpy.node import Node
@@ -73,7 +80,7 @@ class LocalizerNode(Node):
     def __init__(self, cfg: DictConfig, ctx: Context, start_s: float = float("nan"),
                  context=None):
         super().__init__(str(cfg.node_name), context=context)
-        self.live = LiveLocalizer(cfg, ctx, self._publish, self._publish_status)
+        self.live = LiveLocalizer(cfg, ctx, self._publish, self._publish_after)
         s = self.live.settings
         self.topics, self.frames, self.start_s = s.topics, s.frames, start_s
         t, q = s.topics, s.qos
@@ -91,7 +98,7 @@ class LocalizerNode(Node):
         self.particles_pub = self.create_publisher(PoseArray, t.particles, outputs)
         self.status_pub = self.create_publisher(DiagnosticArray, t.status, outputs)
         self._status_lock = threading.Lock()
-        self._last_publish = 0.0
+        self._last_publish = self._last_particles = 0.0
         self.create_timer(s.realtime.status_period_s, self._on_timer)
         self.live.start()
         log.info("node %s ready (start-up %.1f s): camera %s (%s), %s, odometry %s; pose out "
@@ -153,17 +160,23 @@ class LocalizerNode(Node):
         self._header(odo, out.stamp)
         odo.child_frame_id = self.frames.base
         odo.pose = pose.pose
-        cloud = PoseArray()
-        self._header(cloud, out.stamp)
-        q = yaw_quaternions(out.particles[:, 3])
-        for p, qq in zip(out.particles, q, strict=True):
-            m = Pose()
-            m.position.x, m.position.y, m.position.z = float(p[0]), float(p[1]), float(p[2])
-            m.orientation.z, m.orientation.w = float(qq[2]), float(qq[3])
-            cloud.poses.append(m)
         self.pose_pub.publish(pose)
         self.odometry_pub.publish(odo)
-        self.particles_pub.publish(cloud)
+
+    def _publish_after(self, out: Output) -> None:
+        """The particles (at most every ``realtime.particles_period_s``) and the status, once
+        the pose is out (not in its latency)."""
+        now = time.monotonic()
+        if now - self._last_particles >= self.live.settings.realtime.particles_period_s:
+            self._last_particles = now
+            cloud = PoseArray()
+            self._header(cloud, out.stamp)
+            q = yaw_quaternions(out.particles[:, 3])[:, 2:].tolist()
+            cloud.poses = [Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(z=qz, w=qw))
+                           for (x, y, z, _), (qz, qw) in zip(out.particles.tolist(), q,
+                                                             strict=True)]
+            self.particles_pub.publish(cloud)
+        self._publish_status(out.stamp)
 
     def _publish_status(self, stamp: float) -> None:
         status, values = self.live.status()

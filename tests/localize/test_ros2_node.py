@@ -108,6 +108,8 @@ def test_the_flight_through_the_node_tracks_as_offline(ros, setup):
         assert wait_until(lambda: node.live.counts.processed + node.live.counts.dropped
                           >= len(stamps))
         wait_until(lambda: len(got.poses) >= node.live.counts.processed, 3.0)
+        wait_until(lambda: got.status_values().get("frames_processed")
+                   == str(node.live.counts.processed), 3.0)
     finally:
         stop(node, executor, player_node, listener)
     counts = node.live.counts
