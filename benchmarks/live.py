@@ -169,11 +169,12 @@ def main() -> None:
 SPLIT = ("wait_ms", "prepare_ms", "step_ms", "publish_ms")
 
 
-def split_medians(listener) -> dict[str, float]:
-    """Median over a run's statuses of each part of the node's latency (``SPLIT``)."""
+def split_medians(listener) -> dict[str, np.ndarray]:
+    """Per status of a run (one per frame processed), the node's capture-to-publish latency
+    (``latency_ms``) and its parts (``SPLIT``), ms."""
     values = [{kv.key: kv.value for kv in m.status[0].values} for m in listener.statuses]
-    return {k: float(np.median([float(v[k]) for v in values if k in v] or [np.nan]))
-            for k in SPLIT}
+    return {k: np.array([float(v[k]) for v in values if k in v and v[k] != "nan"])
+            for k in ("latency_ms", *SPLIT)}
 
 
 def report(rate, stamps, got, live, arrivals, before, after, split, offline, truth,
@@ -200,10 +201,12 @@ def report(rate, stamps, got, live, arrivals, before, after, split, offline, tru
     print(f"  latency capture -> subscriber: median {np.median(lat):.0f} ms, p95 "
           f"{np.percentile(lat, 95):.0f} ms, max {lat.max():.0f} ms (targets "
           f"{TARGET_LATENCY_MEDIAN_MS:.0f} / {TARGET_LATENCY_P95_MS:.0f} ms at 10 Hz)")
-    print(f"  the node's own capture -> publish (its last <= 200 frames): median "
-          f"{after.get('latency_median_ms')} ms, p95 {after.get('latency_p95_ms')} ms")
-    print("  the node's latency in parts (median): " + ", ".join(
-        f"{k.removesuffix('_ms')} {v:.0f} ms" for k, v in split.items()))
+    own = split["latency_ms"]
+    if len(own):
+        print(f"  the node's own capture -> publish: median {np.median(own):.0f} ms, p95 "
+              f"{np.percentile(own, 95):.0f} ms; in parts (median): " + ", ".join(
+                  f"{k.removesuffix('_ms')} {np.median(split[k]):.0f} ms" for k in SPLIT
+                  if len(split[k])))
     first, last = lat[: max(1, len(lat) // 4)], lat[-max(1, len(lat) // 4):]
     print(f"  backlog: latency of the first quarter {np.median(first):.0f} ms, last quarter "
           f"{np.median(last):.0f} ms (median)")
