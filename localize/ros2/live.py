@@ -285,10 +285,10 @@ class LiveLocalizer:
                             self.settings.topics.odometry)
             return None
         try:
-            image = self.rectifier(item.decode())
+            image = self.rectifier(self._checked_size(item.decode(), item.where))
         except ValueError as err:
             self.counts.rejected += 1
-            if self.warn(f"decode {type(err).__name__}"):
+            if self.warn(f"decode {str(err)[-40:]}"):
                 log.warning("frame dropped: %s", err)
             return None
         stepped_at = self.clock()
@@ -310,6 +310,16 @@ class LiveLocalizer:
         if self.viewer is not None:
             self.viewer.log_step(out.stamp, out.image, out.labels, out.estimate, out.particles)
         return out
+
+    def _checked_size(self, image: np.ndarray, where: str) -> np.ndarray:
+        """The decoded frame, if it has the CameraInfo's size (ValueError naming both)."""
+        cam = self.source_camera
+        if image.shape[:2] != (cam.height, cam.width):
+            raise ValueError(f"{where}: the image is {image.shape[1]}x{image.shape[0]}, the "
+                             f"CameraInfo ({self.settings.topics.camera_info}) says "
+                             f"{cam.width}x{cam.height}; publish the calibration of this "
+                             "camera at this resolution")
+        return image
 
     def _apply_reset(self) -> None:
         with self._lock:

@@ -134,7 +134,7 @@ def test_the_flight_through_the_node_tracks_as_offline(ros, setup):
     assert float(values["latency_median_ms"]) > 0
 
 
-def publish_frames(player, pb, n, stamps, encoding=None, info=True):
+def publish_frames(player, pb, n, stamps, encoding=None, info=True, crop=0):
     """Frames 0..n-1 of the playback at the given stamps (odometry, CameraInfo, image;
     the CameraInfo once before them too)."""
     if info:
@@ -147,7 +147,7 @@ def publish_frames(player, pb, n, stamps, encoding=None, info=True):
         player.odometry_pub.publish(player.odometry_message(pb.odometry[i], stamp))
         if info:
             player.info_pub.publish(player.camera_info(pb.camera, stamp))
-        msg = player.image_message(image, stamp)
+        msg = player.image_message(image[crop:], stamp)
         if encoding is not None:
             msg.encoding = encoding
         player.image_pub.publish(msg)
@@ -193,7 +193,18 @@ class TestBadInput:
         with caplog.at_level(logging.WARNING):
             node, got = run_node(ros, setup, feed)
         assert "image encoding '16UC1' is not supported; use one of" in caplog.text
+        assert "(or a CompressedImage topic)" in caplog.text
         assert node.live.counts.rejected >= 1 and node.live.counts.processed >= 1
+
+    def test_image_of_another_size(self, ros, setup, caplog):
+        def feed(player, pb, node, got):
+            publish_frames(player, pb, 2, time.time() + 0.1 * np.arange(2), crop=8)
+            wait_until(lambda: node.live.counts.rejected >= 1)
+
+        with caplog.at_level(logging.WARNING):
+            node, got = run_node(ros, setup, feed)
+        assert "the CameraInfo (/camera/camera_info) says 128x96" in caplog.text
+        assert node.live.counts.processed == 0
 
     def test_no_camera_info(self, ros, setup, caplog):
         def feed(player, pb, node, got):
