@@ -38,6 +38,10 @@ def serve(cfg: DictConfig, args: list[str] | None = None) -> None:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        # Ctrl-C shut the context down while the executor was taking a message
     finally:
         node.destroy_node()
         if rclpy.ok():

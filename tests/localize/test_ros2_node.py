@@ -9,6 +9,7 @@ Every participant runs with ``localize.ros2.loopback.loopback_env`` (UDPv4 on 12
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 
@@ -20,10 +21,10 @@ rclpy = pytest.importorskip("rclpy")
 from hydra import compose, initialize_config_dir  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
-from core.config import CONF  # noqa: E402
+from core.config import CONF, typed  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
-from localize.ros2 import config as _config  # noqa: E402, F401
+from localize.ros2.config import Ros2Config  # noqa: E402
 from localize.ros2.live import load_context, offline_estimates  # noqa: E402
 from localize.ros2.loopback import loopback_env  # noqa: E402
 from localize.ros2_play import Player, PlaySettings, open_playback  # noqa: E402
@@ -303,3 +304,50 @@ class TestInputsAndResets:
         assert "re-localization (initial pose): reset counter 2" in caplog.text
         truth = xyzyaw_from_pose(setup[2].groundtruth[:3])
         assert np.linalg.norm(got.positions()[-1] - truth[:, :3], axis=1).min() < 0.5
+
+
+@pytest.mark.slow
+def test_python_m_localize_ros2(ros, setup, tmp_path):
+    """``python -m localize.ros2`` starts from the command line, reports its status on the
+    loopback DDS of this test, tracks the frames played to it and stops cleanly on Ctrl-C."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from localize.ros2.listen import Listener
+
+    cfg, ctx, pb = setup
+    root = Path(__file__).resolve().parents[2]
+    args = [f"dataset={cfg.dataset}", "mode=none", f"out_root={cfg.out_root}",
+            f"start={list(cfg.start)}", f"hydra.run.dir={tmp_path}",
+            *[o for o in QUICK if not o.startswith(("seeds", "progress"))]]
+    proc = subprocess.Popen([sys.executable, "-m", "localize.ros2", *args], cwd=root,
+                            env=os.environ.copy(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    node = rclpy.create_node("cli_listener", context=ros)
+    from rclpy.executors import SingleThreadedExecutor
+
+    got = Listener(node, typed(Ros2Config, cfg, "ros2 config").topics)
+    executor = SingleThreadedExecutor(context=ros)
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    try:
+        assert wait_until(lambda: got.statuses or proc.poll() is not None, 120.0)
+        assert proc.poll() is None, proc.stdout.read()
+        assert got.status_values()["status"] == "waiting"
+        player = Player(node, PlaySettings(max_frames=5))
+        assert player.wait_for_subscriber()
+        player.play(pb)
+        assert wait_until(lambda: len(got.poses) >= 3, 20.0)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            out, _ = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, _ = proc.communicate()
+        executor.shutdown(timeout_sec=2.0)
+        node.destroy_node()
+    assert proc.returncode == 0, out
+    assert "ready" in out
