@@ -104,7 +104,8 @@ def _connections(reader: AnyReader, topic: str, key: str, types: tuple[str, ...]
     return conns
 
 
-def _camera_info(msg, where: str) -> SourceCamera:
+def source_camera(msg, where: str) -> SourceCamera:
+    """The recorded camera of a sensor_msgs/CameraInfo (ROS 1 or ROS 2 field names)."""
     ros2 = hasattr(msg, "k")  # ROS 2 names the fields k, d; ROS 1 K, D
     K = np.asarray(msg.k if ros2 else msg.K, dtype=np.float64).reshape(3, 3)
     D = np.asarray(msg.d if ros2 else msg.D, dtype=np.float64)
@@ -221,8 +222,8 @@ def read_bag(path: Path, target: Camera | None, *, topics: Mapping | BagTopics |
         first = next(reader.messages(connections=info), None)
         if first is None:
             raise ValueError(f"{path}: camera_info topic {topics.camera_info!r} has no messages")
-        source = _camera_info(reader.deserialize(first[2], first[0].msgtype),
-                              f"{path} topic {topics.camera_info}")
+        source = source_camera(reader.deserialize(first[2], first[0].msgtype),
+                               f"{path} topic {topics.camera_info}")
         t, log_times, ranks = _read_images(reader, img, path, topics.image)
         streams = {"odometry": _read_poses(reader, odo, path, topics.odometry)}
         if topics.groundtruth is not None:

@@ -57,6 +57,33 @@ def violations() -> list[str]:
     return found
 
 
+#: The ROS 2 client library and the message packages: only the live node's rclpy side imports
+#: them (the core, the stages and the node's pure parts run without the ``ros`` extra).
+ROS_PACKAGES = {"rclpy", "sensor_msgs", "geometry_msgs", "nav_msgs", "std_srvs",
+                "diagnostic_msgs", "std_msgs", "builtin_interfaces"}
+ROS_FILES = {"localize/ros2/node.py", "localize/ros2/listen.py", "localize/ros2/__main__.py",
+             "localize/ros2_play.py"}
+
+
+def ros_imports() -> list[str]:
+    """``file:line imports module`` of every import of a ROS package outside ``ROS_FILES``."""
+    found = []
+    for package in ALLOWED:
+        for file in sorted((ROOT / package).rglob("*.py")):
+            rel = file.relative_to(ROOT).as_posix()
+            tree = ast.parse(file.read_text(encoding="utf-8"), filename=rel)
+            for line, module in imported_modules(tree, package, file):
+                if module.split(".")[0] in ROS_PACKAGES and rel not in ROS_FILES:
+                    found.append(f"{rel}:{line} imports {module}")
+    return found
+
+
+def test_only_the_live_node_imports_rclpy() -> None:
+    bad = ros_imports()
+    assert not bad, ("ROS imports outside " + ", ".join(sorted(ROS_FILES)) + ":\n"
+                     + "\n".join(bad))
+
+
 def test_stages_import_only_downward() -> None:
     bad = violations()
     assert not bad, "upward or sideways imports:\n" + "\n".join(bad)

@@ -1,0 +1,216 @@
+"""The live node in real time: accuracy against the offline run of the same frames, capture to
+publish latency, frames dropped, start-up time, at 10 Hz and 30 Hz camera input.
+
+Usage::
+
+    python benchmarks/live.py --dataset outputs/datasets/demo            # mode cnn, paper
+    python benchmarks/live.py --mode none --frames 60 filter.num_particles=300
+
+Starts ``python -m localize.ros2`` as a subprocess (tracking from the flight's first true
+pose; extra ``key=value`` arguments go to it) and plays the flight into it with
+``localize.ros2_play``'s player at ``--rates`` times its own frame rate (the rendered flights
+are 10 fps: rates 1 and 3 are 10 Hz and 30 Hz input), all on loopback only
+(``localize.ros2.loopback``). Before each rate an ``/initialpose`` at the first true pose
+restarts the filter. Per rate it prints:
+
+- accuracy: the mean position error against the truth of the frames the node processed, and
+  of the offline run (``localize.ros2.live.offline_estimates``: the node's filter, seed and
+  start over every frame), and their ratio; the mean gap between the two estimates;
+- latency: capture stamp to the pose's arrival at a subscriber, median and p95, ms (the
+  node's own capture-to-publish figures are in its status, ``latency_*_ms``);
+- frames processed and dropped (the node's counts);
+- the node's start time: start-up inside it (dataset, SegNet, visibility grid) and from the
+  process start to its first status message.
+
+Targets (issue 71): at 10 Hz the offline run's accuracy within 10 %, latency <= 60 ms median,
+<= 100 ms p95; at 30 Hz no backlog (latency bounded), drops counted, accuracy within 25 %; the
+node ready in <= 20 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.ros2.loopback import loopback_env  # noqa: E402
+
+TARGET_LATENCY_MEDIAN_MS = 60.0
+TARGET_LATENCY_P95_MS = 100.0
+TARGET_START_S = 20.0
+
+
+def node_overrides(args, start: list[float], out_root: Path) -> list[str]:
+    return [f"dataset={args.dataset}", f"onnx_model={args.onnx_model}", f"mode={args.mode}",
+            f"start={start}", f"out_root={out_root}", f"hydra.run.dir={out_root / 'hydra'}",
+            *args.overrides]
+
+
+def compose_node_config(overrides: list[str]):
+    from hydra import compose, initialize_config_dir
+
+    import localize  # noqa: F401
+    from core.config import CONF
+    from localize.ros2 import config as _config  # noqa: F401
+    from localize.settings import resolve
+
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="ros2", overrides=[o for o in overrides
+                                                      if not o.startswith("hydra.")])
+    resolve(cfg, overrides)
+    return cfg
+
+
+def wait_until(cond, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--dataset", default="outputs/datasets/demo")
+    ap.add_argument("--onnx-model", default="auto")
+    ap.add_argument("--flight", default="paper")
+    ap.add_argument("--mode", default="cnn")
+    ap.add_argument("--frames", type=int, default=120, help="first N frames of the flight")
+    ap.add_argument("--rates", type=float, nargs="+", default=[1.0, 3.0])
+    ap.add_argument("overrides", nargs="*", help="node settings, key=value")
+    args = ap.parse_args()
+
+    tmp = Path(tempfile.mkdtemp(prefix="live_bench_"))
+    os.environ.update(loopback_env(tmp))  # before rclpy.init: loopback only
+    from localize.ros2.live import load_context, offline_estimates
+    from localize.ros2_play import Player, PlaySettings, open_playback
+
+    flight_dir = Path(args.dataset) / "flights" / args.flight
+    pb = open_playback(flight_dir)
+    n = min(args.frames, len(pb))
+    s = xyzyaw_from_pose(pb.groundtruth[0])[0]
+    start = [float(s[0]), float(s[1]), float(s[2]), float(np.degrees(s[3]))]
+    overrides = node_overrides(args, start, tmp / "out")
+
+    t_spawn = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "localize.ros2", *overrides], cwd=ROOT,
+                            env=os.environ.copy(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True).start()
+
+    cfg = compose_node_config(overrides)
+    from core.config import typed
+    from core.dataset import Dataset
+    from localize.ros2.config import Ros2Config
+
+    topics = typed(Ros2Config, cfg, "ros2 config").topics
+    flight = Dataset(cfg.dataset).flight(args.flight)
+    truth = xyzyaw_from_pose(flight.groundtruth[:n])
+
+    from localize.ros2.listen import Session
+
+    session = Session(topics, "live_bench")
+    listener = session.listener
+    try:
+        if not wait_until(lambda: listener.statuses or proc.poll() is not None, 180.0):
+            raise SystemExit("the node sent no status within 180 s:\n" + "".join(lines[-30:]))
+        if proc.poll() is not None:
+            raise SystemExit("the node exited:\n" + "".join(lines[-30:]))
+        ready_s = time.perf_counter() - t_spawn
+        startup_s = float(listener.status_values().get("start_s", "nan"))
+        print(f"node start: {startup_s:.1f} s inside (dataset, model edges, visibility, "
+              f"SegNet), {ready_s:.1f} s from process start to its first status (target <= "
+              f"{TARGET_START_S:.0f} s)")
+        runs = []
+        for rate in args.rates:
+            session.initial_pose(flight.groundtruth[0])
+            time.sleep(0.5)
+            before = dict(listener.status_values())
+            listener.clear()
+            player = Player(session.node, PlaySettings(rate=rate, max_frames=n, topics=topics))
+            player.wait_for_subscriber()
+            stamps = np.array(player.play(pb))
+            wait_until(lambda last=stamps[-1]: (listener.poses and listener.stamps().max()
+                                                >= last - 1e-6), 5.0)
+            time.sleep(1.5)  # the node's periodic status counts the last drops
+            runs.append((rate, stamps, listener.stamps(), listener.positions(),
+                         np.array(listener.arrivals), before, listener.status_values(),
+                         split_medians(listener)))
+    finally:
+        session.close()
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    print(f"offline run of {n} frames of {args.flight} (mode {args.mode}) ...", flush=True)
+    ctx = load_context(cfg)
+    offline = offline_estimates(ctx, cfg, flight, n)
+    offline_err = np.linalg.norm(offline[:, :3] - truth[:, :3], axis=1)
+    print(f"offline: mean position error {offline_err.mean():.3f} m over {n} frames")
+    fps = 1.0 / np.median(np.diff(flight.timestamps[:n]))
+    for run in runs:
+        report(*run, offline, truth, offline_err, fps)
+
+
+SPLIT = ("wait_ms", "prepare_ms", "step_ms", "publish_ms")
+
+
+def split_medians(listener) -> dict[str, np.ndarray]:
+    """Per status of a run (one per frame processed), the node's capture-to-publish latency
+    (``latency_ms``) and its parts (``SPLIT``), ms."""
+    values = [{kv.key: kv.value for kv in m.status[0].values} for m in listener.statuses]
+    return {k: np.array([float(v[k]) for v in values if k in v and v[k] != "nan"])
+            for k in ("latency_ms", *SPLIT)}
+
+
+def report(rate, stamps, got, live, arrivals, before, after, split, offline, truth,
+           offline_err, fps) -> None:
+    if not len(got):
+        print(f"rate {rate}: no pose came back")
+        return
+    rows = np.array([int(np.argmin(abs(stamps - s))) for s in got])
+    err = np.linalg.norm(live - truth[rows, :3], axis=1)
+    gap = np.linalg.norm(live - offline[rows, :3], axis=1)
+    lat = 1e3 * (arrivals - got)
+
+    def delta(key):
+        return int(after.get(key, 0)) - int(before.get(key, 0))
+
+    hz = fps * rate
+    ratio = err.mean() / offline_err.mean()
+    print(f"\n{hz:.0f} Hz input (rate {rate:g}): {len(stamps)} frames sent, "
+          f"{delta('frames_processed')} processed, {delta('frames_dropped')} dropped "
+          f"(superseded {delta('dropped_superseded')}, stale {delta('dropped_stale')}, "
+          f"no odometry {delta('dropped_no_odometry')}, rejected {delta('frames_rejected')})")
+    print(f"  accuracy: live {err.mean():.3f} m vs offline {offline_err.mean():.3f} m (ratio "
+          f"{ratio:.2f}); live - offline estimate gap {gap.mean():.3f} m mean")
+    print(f"  latency capture -> subscriber: median {np.median(lat):.0f} ms, p95 "
+          f"{np.percentile(lat, 95):.0f} ms, max {lat.max():.0f} ms (targets "
+          f"{TARGET_LATENCY_MEDIAN_MS:.0f} / {TARGET_LATENCY_P95_MS:.0f} ms at 10 Hz)")
+    own = split["latency_ms"]
+    if len(own):
+        print(f"  the node's own capture -> publish: median {np.median(own):.0f} ms, p95 "
+              f"{np.percentile(own, 95):.0f} ms; in parts (median): " + ", ".join(
+                  f"{k.removesuffix('_ms')} {np.median(split[k]):.0f} ms" for k in SPLIT
+                  if len(split[k])))
+    first, last = lat[: max(1, len(lat) // 4)], lat[-max(1, len(lat) // 4):]
+    print(f"  backlog: latency of the first quarter {np.median(first):.0f} ms, last quarter "
+          f"{np.median(last):.0f} ms (median)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,353 @@
+"""The live node over the real middleware (rclpy, Fast DDS), on loopback only: the tiny
+dataset's flight played through ``localize.ros2_play`` into ``localize.ros2``'s node tracks as
+the offline run of the same frames; bad input is logged clearly, without a crash or a backlog.
+
+Every participant runs with ``localize.ros2.loopback.loopback_env`` (UDPv4 on 127.0.0.1 only,
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, a random domain), set before ``rclpy.init``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from hydra import compose, initialize_config_dir  # noqa: E402
+from omegaconf import OmegaConf  # noqa: E402
+
+from core.config import CONF, typed  # noqa: E402
+from core.dataset import Dataset  # noqa: E402
+from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.ros2.config import Ros2Config  # noqa: E402
+from localize.ros2.live import load_context, offline_estimates  # noqa: E402
+from localize.ros2.loopback import loopback_env  # noqa: E402
+from localize.ros2_play import Player, PlaySettings, open_playback  # noqa: E402
+from tests.localize.conftest import QUICK  # noqa: E402
+
+FLIGHT = "paper"
+
+
+@pytest.fixture(scope="module")
+def ros(tmp_path_factory):
+    """An rclpy context confined to loopback (the environment set before init)."""
+    env = loopback_env(tmp_path_factory.mktemp("dds"))
+    with pytest.MonkeyPatch.context() as mp:
+        for k, v in env.items():
+            mp.setenv(k, v)
+        context = rclpy.Context()
+        rclpy.init(context=context)
+        yield context
+        rclpy.shutdown(context=context)
+
+
+@pytest.fixture(scope="module")
+def setup(tiny_dataset, tmp_path_factory):
+    """The node's config (mode none, quick filter, tracking from the flight's first true
+    pose), its loaded context and the flight's playback."""
+    flight_dir = tiny_dataset / "flights" / FLIGHT
+    pb = open_playback(flight_dir)
+    s = xyzyaw_from_pose(pb.groundtruth[0])[0]
+    start = [float(s[0]), float(s[1]), float(s[2]), float(np.degrees(s[3]))]
+    overrides = [o for o in QUICK if not o.startswith(("seeds", "progress"))]
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="ros2", overrides=[
+            *overrides, f"dataset={tiny_dataset}", "mode=none",
+            f"out_root={tmp_path_factory.mktemp('out')}", f"start={start}",
+            "realtime.max_age_s=2.0"])
+    return cfg, load_context(cfg), pb
+
+
+def start(context, cfg, ctx):
+    """(node, listener, executor, player node, listener node): the node with its worker and
+    a listener of the pose and the status, spinning on a thread."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    from localize.ros2.listen import Listener
+    from localize.ros2.node import LocalizerNode
+
+    node = LocalizerNode(cfg, ctx, context=context)
+    listener_node = rclpy.create_node("listener", context=context)
+    got = Listener(listener_node, node.topics)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(listener_node)
+    player_node = rclpy.create_node("player", context=context)
+    executor.add_node(player_node)  # its service calls' answers
+    threading.Thread(target=executor.spin, daemon=True).start()
+    return node, got, executor, player_node, listener_node
+
+
+def stop(node, executor, *others):
+    executor.shutdown(timeout_sec=2.0)
+    node.destroy_node()
+    for n in others:
+        n.destroy_node()
+
+
+def wait_until(cond, timeout_s: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def test_the_flight_through_the_node_tracks_as_offline(ros, setup):
+    cfg, ctx, pb = setup
+    node, got, executor, player_node, listener = start(ros, cfg, ctx)
+    try:
+        player = Player(player_node, PlaySettings(rate=0.5))  # 5 Hz: room on a busy machine
+        assert player.wait_for_subscriber()
+        stamps = player.play(pb)
+        assert wait_until(lambda: node.live.counts.processed + node.live.counts.dropped
+                          >= len(stamps))
+        wait_until(lambda: len(got.poses) >= node.live.counts.processed, 3.0)
+        wait_until(lambda: got.status_values().get("frames_processed")
+                   == str(node.live.counts.processed), 3.0)
+    finally:
+        stop(node, executor, player_node, listener)
+    counts = node.live.counts
+    assert counts.received == len(pb) and counts.processed >= 0.8 * len(pb), counts
+    sent = np.array(stamps)
+    got_stamps = got.stamps()
+    rows = [int(np.argmin(abs(sent - s))) for s in got_stamps]
+    # stamped with the capture times (to the float64 rounding of a 2026 stamp, ~0.2 us)
+    assert np.all(abs(sent[rows] - got_stamps) < 1e-6)
+    assert rows == sorted(rows) and len(rows) == counts.processed
+    live = got.positions()
+    assert all(m.header.frame_id == "map" for m in got.poses)
+    offline = offline_estimates(ctx, cfg, Dataset(cfg.dataset).flight(FLIGHT))[rows, :3]
+    gap = np.linalg.norm(live - offline, axis=1)
+    # every frame processed: the same frames, pixels and odometry (to quaternion rounding)
+    assert gap.mean() < (1e-4 if counts.dropped == 0 else 0.05), gap
+    cov = np.array(got.poses[-1].pose.covariance).reshape(6, 6)
+    assert np.all(np.diag(cov) > 0) and np.allclose(cov, cov.T)
+    values = got.status_values()
+    assert values["status"] in ("tracking", "ambiguous")
+    assert int(values["frames_processed"]) == counts.processed
+    assert float(values["latency_median_ms"]) > 0
+
+
+def publish_frames(player, pb, n, stamps, encoding=None, info=True, crop=0):
+    """Frames 0..n-1 of the playback at the given stamps (odometry, CameraInfo, image;
+    the CameraInfo once before them too)."""
+    if info:
+        player.info_pub.publish(player.camera_info(pb.camera, stamps[0]))
+        time.sleep(0.3)
+    for i, (image, stamp) in enumerate(zip(pb.frames(), stamps, strict=False)):
+        if i >= n:
+            break
+        time.sleep(max(0.0, stamp - time.time()))  # at its capture time
+        player.odometry_pub.publish(player.odometry_message(pb.odometry[i], stamp))
+        if info:
+            player.info_pub.publish(player.camera_info(pb.camera, stamp))
+        msg = player.image_message(image[crop:], stamp)
+        if encoding is not None:
+            msg.encoding = encoding
+        player.image_pub.publish(msg)
+
+
+def test_plays_a_bag(setup, tmp_path):
+    """A ROS 2 bag plays with its own calibration and frames as recorded."""
+    from localize.recording_export import export_bag
+
+    cfg, ctx, pb = setup
+    bag = export_bag(cfg.dataset, FLIGHT, tmp_path / "bag")
+    played = open_playback(bag)
+    assert len(played) == len(pb) and played.camera.width == pb.camera.width
+    np.testing.assert_allclose(played.odometry[:, :3, 3], pb.odometry[:, :3, 3], atol=1e-6)
+    assert next(iter(played.frames())).shape == (pb.camera.height, pb.camera.width, 3)
+
+
+def run_node(ros, setup, feed, **topics):
+    """Start the node (``topics`` over the config's), ``feed(player, playback, node,
+    listener)``, stop it; (node, listener)."""
+    cfg, ctx, pb = setup
+    if topics:
+        cfg = OmegaConf.merge(cfg, {"topics": topics})
+    node, got, executor, player_node, listener = start(ros, cfg, ctx)
+    try:
+        player = Player(player_node, PlaySettings(topics=node.topics))
+        assert player.wait_for_subscriber()
+        feed(player, pb, node, got)
+    finally:
+        stop(node, executor, player_node, listener)
+    return node, got
+
+
+class TestBadInput:
+    def test_unsupported_encoding(self, ros, setup, caplog):
+        def feed(player, pb, node, got):
+            stamps = time.time() + 0.1 * np.arange(4)
+            publish_frames(player, pb, 3, stamps[:3], encoding="16UC1")
+            wait_until(lambda: node.live.counts.rejected >= 1)
+            publish_frames(player, pb, 1, stamps[3:])  # a good frame still goes through
+            wait_until(lambda: node.live.counts.processed >= 1)
+
+        with caplog.at_level(logging.WARNING):
+            node, got = run_node(ros, setup, feed)
+        assert "image encoding '16UC1' is not supported; use one of" in caplog.text
+        assert "(or a CompressedImage topic)" in caplog.text
+        assert node.live.counts.rejected >= 1 and node.live.counts.processed >= 1
+
+    def test_image_of_another_size(self, ros, setup, caplog):
+        def feed(player, pb, node, got):
+            publish_frames(player, pb, 2, time.time() + 0.1 * np.arange(2), crop=8)
+            wait_until(lambda: node.live.counts.rejected >= 1)
+
+        with caplog.at_level(logging.WARNING):
+            node, got = run_node(ros, setup, feed)
+        assert "the CameraInfo (/camera/camera_info) says 128x96" in caplog.text
+        assert node.live.counts.processed == 0
+
+    def test_no_camera_info(self, ros, setup, caplog):
+        def feed(player, pb, node, got):
+            now = time.time()
+            publish_frames(player, pb, 3, now + 0.05 * np.arange(3), info=False)
+            wait_until(lambda: node.live.counts.received >= 3)
+
+        with caplog.at_level(logging.WARNING):
+            node, got = run_node(ros, setup, feed)
+        assert "no CameraInfo received yet on /camera/camera_info" in caplog.text
+        assert node.live.counts.processed == 0 and not got.poses
+        assert node.live.counts.rejected == node.live.counts.received >= 1
+
+    def test_odometry_going_backwards(self, ros, setup, caplog):
+        def feed(player, pb, node, got):
+            now = time.time()
+            publish_frames(player, pb, 2, [now, now + 0.1])
+            odo = player._types["odometry"]()
+            player._header(odo, now - 1.0, "odom")  # back in time
+            odo.pose.pose.orientation.w = 1.0
+            player.odometry_pub.publish(odo)
+            wait_until(lambda: node.live.counts.processed >= 1)
+            wait_until(lambda: "backwards" in caplog.text, 3.0)
+
+        with caplog.at_level(logging.WARNING):
+            node, got = run_node(ros, setup, feed)
+        assert "stamps went backwards or repeat; sample ignored" in caplog.text
+        assert node.live.counts.processed >= 1
+
+    def test_a_burst_of_frames_builds_no_backlog(self, ros, setup):
+        """30 frames at 30 Hz and then 30 as fast as they go: the node takes the newest,
+        counts the others as dropped, and one of the burst's last frames is processed soon
+        after it came (the sensor QoS, best effort with a depth of 5, loses frames of the
+        burst when the receiving thread is slower than they come)."""
+        def feed(player, pb, node, got):
+            now = time.time()
+            stamps = now + np.arange(30) / 30.0
+            for i in range(0, 30, 10):  # 30 Hz for a third of a second, three times over
+                publish_frames(player, pb, 10, stamps[i:i + 10])
+            burst = max(time.time(), stamps[-1] + 0.01) + 1e-4 * np.arange(30)
+            publish_frames(player, pb, 30, burst)  # as fast as they go
+            self.newest = burst[-5]
+            wait_until(lambda: len(got.poses) and got.stamps().max() >= self.newest - 1e-6)
+            time.sleep(0.5)
+
+        node, got = run_node(ros, setup, feed)
+        c = node.live.counts
+        # (frames the sensor QoS lost before the node saw them are not the node's to count)
+        assert 20 <= c.received <= 60 and c.processed < c.received and c.superseded > 0, c
+        assert c.processed + c.dropped == c.received, c
+        # the newest frames of the burst were processed, not a backlog of old ones
+        assert got.stamps().max() >= self.newest - 1e-6
+        assert node.live.latency.percentile(100) < 2.0
+
+
+class TestInputsAndResets:
+    def test_compressed_images_and_pose_odometry(self, ros, setup):
+        def feed(player, pb, node, got):
+            publish_frames(player, pb, 4, time.time() + 0.3 + 0.1 * np.arange(4))
+            wait_until(lambda: node.live.counts.processed >= 2)
+
+        node, got = run_node(ros, setup, feed, image_transport="compressed",
+                                     odometry_type="pose")
+        assert node.live.counts.processed >= 2 and len(got.poses) >= 2
+
+    def test_initial_pose_and_global_localization(self, ros, setup, caplog):
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from std_srvs.srv import Empty
+
+        from localize.ros2_play import _set_pose
+
+        def feed(player, pb, node, got):
+            client = player.node.create_client(Empty, node.topics.global_localization)
+            assert client.wait_for_service(timeout_sec=5.0)
+            future = client.call_async(Empty.Request())
+            assert wait_until(future.done, 5.0)
+            publish_frames(player, pb, 1, [time.time() + 0.3])
+            wait_until(lambda: node.live.counts.processed >= 1)
+            assert got.status_values().get("status") in (None, "global")
+            pub = player.node.create_publisher(PoseWithCovarianceStamped,
+                                               node.topics.initial_pose, 1)
+            msg = PoseWithCovarianceStamped()
+            msg.header.frame_id = "map"
+            _set_pose(msg.pose.pose, pb.groundtruth[1])
+            assert wait_until(lambda: pub.get_subscription_count() > 0, 5.0)
+            pub.publish(msg)
+            time.sleep(0.3)
+            now = time.time() + 0.3
+            publish_frames(player, pb, 2, [now, now + 0.1])
+            wait_until(lambda: node.live.counts.processed >= 3)
+
+        with caplog.at_level(logging.INFO):
+            node, got = run_node(ros, setup, feed)
+        assert node.live.counts.resets == 2
+        assert "re-localization (global start): reset counter 1" in caplog.text
+        assert "re-localization (initial pose): reset counter 2" in caplog.text
+        truth = xyzyaw_from_pose(setup[2].groundtruth[:3])
+        assert np.linalg.norm(got.positions()[-1] - truth[:, :3], axis=1).min() < 0.5
+
+
+@pytest.mark.slow
+def test_python_m_localize_ros2(ros, setup, tmp_path):
+    """``python -m localize.ros2`` starts from the command line, reports its status on the
+    loopback DDS of this test, tracks the frames played to it and stops cleanly on Ctrl-C."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from localize.ros2.listen import Listener
+
+    cfg, ctx, pb = setup
+    root = Path(__file__).resolve().parents[2]
+    args = [f"dataset={cfg.dataset}", "mode=none", f"out_root={cfg.out_root}",
+            f"start={list(cfg.start)}", f"hydra.run.dir={tmp_path}",
+            *[o for o in QUICK if not o.startswith(("seeds", "progress"))]]
+    proc = subprocess.Popen([sys.executable, "-m", "localize.ros2", *args], cwd=root,
+                            env=os.environ.copy(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    node = rclpy.create_node("cli_listener", context=ros)
+    from rclpy.executors import SingleThreadedExecutor
+
+    got = Listener(node, typed(Ros2Config, cfg, "ros2 config").topics)
+    executor = SingleThreadedExecutor(context=ros)
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    try:
+        assert wait_until(lambda: got.statuses or proc.poll() is not None, 120.0)
+        assert proc.poll() is None, proc.stdout.read()
+        assert got.status_values()["status"] == "waiting"
+        player = Player(node, PlaySettings(max_frames=5))
+        assert player.wait_for_subscriber()
+        player.play(pb)
+        assert wait_until(lambda: len(got.poses) >= 3, 20.0)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            out, _ = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, _ = proc.communicate()
+        executor.shutdown(timeout_sec=2.0)
+        node.destroy_node()
+    assert proc.returncode == 0, out
+    assert "ready" in out

@@ -1,0 +1,150 @@
+"""The live node's pure parts, without a middleware: the odometry at frame times, the
+newest-frame slot, message conversions, the covariance of the particles, the settings."""
+
+from __future__ import annotations
+
+import threading
+import time
+from array import array
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from core.config import typed
+from core.poses import interpolate_poses, pose_from_xyzyaw
+from localize.ros2.config import Ros2Config
+from localize.ros2.convert import (
+    image_of,
+    live_status,
+    particle_covariance,
+    position_quaternion,
+    shown_particles,
+    stamp_parts,
+    yaw_quaternions,
+)
+from localize.ros2.loopback import loopback_env
+from localize.ros2.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
+
+
+def poses(n: int) -> np.ndarray:
+    return pose_from_xyzyaw(np.column_stack([np.arange(n) * 0.1, np.zeros(n), np.ones(n),
+                                             np.linspace(0, 1, n)]))
+
+
+class TestOdometryBuffer:
+    def test_interpolates_as_recordings_do(self):
+        buf, T = OdometryBuffer(10.0), poses(5)
+        t = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+        for ti, Ti in zip(t, T, strict=True):
+            assert buf.add(ti, Ti) is None
+        np.testing.assert_allclose(buf.at(0.25), interpolate_poses([0.25], t, T)[0],
+                                   atol=1e-12)
+        np.testing.assert_allclose(buf.at(0.4), T[4], atol=1e-12)
+        assert buf.at(0.41) is None and buf.at(-0.01) is None  # never extrapolated
+
+    def test_stamps_going_backwards_are_refused(self):
+        buf = OdometryBuffer(10.0)
+        buf.add(1.0, np.eye(4))
+        why = buf.add(0.5, np.eye(4))
+        assert "backwards" in why and len(buf) == 1
+        assert "finite" in buf.add(2.0, np.full((4, 4), np.nan))
+
+    def test_keeps_only_the_last_seconds(self):
+        buf, T = OdometryBuffer(1.0), poses(40)
+        for i, Ti in enumerate(T):
+            buf.add(0.1 * i, Ti)
+        assert len(buf) <= 12 and buf.at(0.5) is None and buf.at(3.85) is not None
+
+    def test_waits_for_the_odometry_to_reach_the_frame(self):
+        buf = OdometryBuffer(10.0)
+        buf.add(0.0, np.eye(4))
+        threading.Timer(0.05, buf.add, (1.0, np.eye(4))).start()
+        pose, why = buf.wait_for(0.5, 2.0)
+        assert pose is not None and why == ""
+        pose, why = buf.wait_for(2.0, 0.05)
+        assert pose is None and "did not reach" in why and "clock" in why
+        assert "no odometry" in OdometryBuffer(1.0).wait_for(0.0, 0.01)[1]
+        assert "before the odometry" in buf.wait_for(-1.0, 0.01)[1]
+
+
+def test_latest_slot_keeps_the_newest():
+    slot = LatestSlot()
+    assert slot.put(1) is False
+    assert slot.put(2) is True  # 1 was not taken: dropped
+    assert slot.take(0.01) == 2 and slot.take(0.01) is None
+    t0 = time.monotonic()
+    threading.Timer(0.05, slot.put, (3,)).start()
+    assert slot.take(2.0) == 3 and time.monotonic() - t0 < 1.0
+
+
+def test_latency_window_and_throttle():
+    w = LatencyWindow(3)
+    assert np.isnan(w.percentile(50))
+    for v in (1.0, 2.0, 3.0, 4.0):
+        w.add(v)
+    assert w.percentile(50) == 3.0 and len(w) == 3
+    th = Throttle(60.0)
+    assert th("a") and not th("a") and th("b")
+
+
+def test_stamps_and_quaternions():
+    assert stamp_parts(12.5) == (12, 500_000_000)
+    sec, ns = stamp_parts(1796176277.430581)
+    assert sec == 1796176277 and abs(ns - 430581000) < 1000  # float64: ~0.2 us at 2026
+    T = pose_from_xyzyaw([1.0, 2.0, 3.0, 0.7])[0]
+    p, q = position_quaternion(T)
+    np.testing.assert_allclose(p, [1, 2, 3])
+    np.testing.assert_allclose(q, yaw_quaternions(np.array([0.7]))[0], atol=1e-12)
+
+
+def test_image_decoding_names_the_encoding():
+    msg = SimpleNamespace(encoding="bgr8", height=2, width=3, step=9,
+                          data=array("B", range(18)))
+    rgb = image_of(msg, "raw", "topic /cam frame 1")
+    assert rgb.shape == (2, 3, 3) and rgb[0, 0].tolist() == [2, 1, 0]
+    bad = SimpleNamespace(encoding="16UC1", height=2, width=3, step=6, data=array("B", bytes(12)))
+    with pytest.raises(ValueError, match=r"/cam frame 1: image encoding '16UC1' is not "
+                                         r"supported; use one of"):
+        image_of(bad, "raw", "/cam frame 1")
+
+
+def test_covariance_of_the_particles():
+    rng = np.random.default_rng(0)
+    n = 20000
+    std = np.array([0.3, 0.1, 0.05, 0.02, 0.01, 0.2])
+    d = rng.normal(size=(n, 6)) * std
+    mean = np.array([1.0, 2.0, 1.0, np.pi - 0.05])  # yaw near the wrap
+    particles = mean + d[:, [0, 1, 2, 5]]
+    particles[:, 3] = (particles[:, 3] + np.pi) % (2 * np.pi) - np.pi
+    cov = particle_covariance(particles, np.full(n, -np.log(n)), d[:, 3:5], mean)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), std, rtol=0.03)
+    assert np.allclose(cov, cov.T) and abs(cov[0, 1]) < 1e-3
+    shown = shown_particles(particles, 100, rng)
+    assert shown.shape == (100, 4)
+
+
+def test_status_of_an_estimate():
+    e = SimpleNamespace(status="tracking", position_std=0.1)
+    assert live_status(e, 0.5) == "tracking"
+    assert live_status(SimpleNamespace(status="coasting", position_std=0.8), 0.5) == "ambiguous"
+    assert live_status(SimpleNamespace(status="global", position_std=3.0), 0.5) == "global"
+
+
+def test_settings_name_the_key():
+    cfg = typed(Ros2Config, {}, "ros2 config")
+    assert cfg.frames.map == "map" and cfg.topics.initial_pose == "/initialpose"
+    with pytest.raises(ValueError, match="mode"):
+        typed(Ros2Config, {"mode": "oracle"}, "ros2 config")
+    with pytest.raises(ValueError, match="image_transport"):
+        typed(Ros2Config, {"topics": {"image_transport": "theora"}}, "ros2 config")
+    with pytest.raises(ValueError, match="topics.imgae"):
+        typed(Ros2Config, {"topics": {"imgae": "/x"}}, "ros2 config")
+
+
+def test_loopback_profile(tmp_path):
+    env = loopback_env(tmp_path, 42)
+    xml = (tmp_path / "fastdds_loopback.xml").read_text()
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST" and env["ROS_DOMAIN_ID"] == "42"
+    assert "<address>127.0.0.1</address>" in xml
+    assert "<useBuiltinTransports>false</useBuiltinTransports>" in xml
