@@ -23,8 +23,6 @@ IMAGE_TRANSPORTS = ("raw", "compressed")
 ODOMETRY_TYPES = ("odometry", "pose")
 #: ``qos.*`` reliability choices.
 RELIABILITIES = ("best_effort", "reliable")
-#: ``viz`` choices (``localize.viz``).
-VIEWERS = ("none", "rerun")
 
 
 @dataclass
@@ -159,7 +157,9 @@ class Ros2Config(LocalizeConfig):
         mavlink: the autopilot link (``localize.mavlink_out``), e.g.
             ``udpout:127.0.0.1:14550``; empty: off.
         mavlink_rate_hz: most MAVLink messages per second.
-        viz: the viewer (``localize.viz``): ``none`` or ``rerun``.
+
+    The viewer is ``LocalizeConfig``'s ``viz`` / ``viz_connect`` (``localize.viz``), logged to
+    ``<out_root>/<name>/live.rrd``.
     """
 
     node_name: str = "edgeloc"
@@ -172,14 +172,12 @@ class Ros2Config(LocalizeConfig):
     realtime: RealTimeSettings = field(default_factory=RealTimeSettings)
     mavlink: str = ""
     mavlink_rate_hz: float = 30.0
-    viz: str = "none"
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if self.mode not in ("cnn", "none"):
             raise ValueError(f"mode={self.mode!r}: a live camera has no true labels; use "
                              "mode=cnn (the SegNet) or mode=none (Canny)")
-        if self.viz not in VIEWERS:
-            raise ValueError(f"viz={self.viz!r}: use one of {VIEWERS}")
         if self.mavlink_rate_hz <= 0:
             raise ValueError(f"mavlink_rate_hz must be positive, got {self.mavlink_rate_hz}")
 

@@ -173,12 +173,14 @@ class LiveLocalizer:
         if self.cfg.mavlink:
             from localize.mavlink_out import MavlinkSender
 
-            self.mavlink = MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz))
+            self.mavlink = MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz),
+                                         clock=self.clock)
         if self.cfg.viz != "none":
             from localize.viz import open_viewer
 
             self.viewer = open_viewer(str(self.cfg.viz), self.ctx.world,
-                                      self.ctx.out_dir / "live.rrd")
+                                      self.ctx.out_dir / "live.rrd",
+                                      connect=self.cfg.viz_connect)
 
     # --- inputs (any thread) -----------------------------------------------------------
 
@@ -305,8 +307,10 @@ class LiveLocalizer:
         if self.report is not None:
             self.report(out)
         if self.mavlink is not None and out.status in ("tracking", "ambiguous"):
+            from localize.mavlink_out import quality_of
+
             self.mavlink.send(out.stamp, out.pose, out.covariance,
-                              int(round(100 * out.estimate.confidence)))
+                              quality_of(out.estimate.confidence, out.status))
         if self.viewer is not None:
             self.viewer.log_step(out.stamp, out.image, out.labels, out.estimate, out.particles)
         return out
