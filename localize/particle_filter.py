@@ -155,8 +155,8 @@ def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float
     beyond it (continuous, so a hypothesis just outside loses little and one far outside a
     lot; nothing is removed or moved).
 
-    The distance is the larger of the horizontal one to the free cells
-    (``OccupancyMap.outside_distance``) and the vertical one to the band.
+    The distance is ``OccupancyMap.outside_distance_xyz``: the larger of the horizontal one
+    to the free cells and the vertical one to the band.
 
     Args:
         particles: (N, 4) x, y, z (m), yaw.
@@ -164,16 +164,7 @@ def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float
         slack: m beyond the free space without a penalty.
         per_m: log-weight per metre beyond the slack (>= 0; 0: no prior).
     """
-    return -per_m * np.maximum(outside_free_space(particles[:, :3], free) - slack, 0.0)
-
-
-def outside_free_space(xyz: np.ndarray, free: OccupancyMap) -> np.ndarray:
-    """(N,) m from positions (N, 3) to the free space: the larger of the horizontal distance
-    to the free cells and the vertical one to the band (0 inside)."""
-    z = xyz[:, 2]
-    d_xy = free.outside_distance(xyz[:, :2])
-    d_z = np.maximum(np.maximum(free.band[0] - z, z - free.band[1]), 0.0)
-    return np.maximum(d_xy, d_z)
+    return -per_m * np.maximum(free.outside_distance_xyz(particles[:, :3]) - slack, 0.0)
 
 
 # --- weights ---------------------------------------------------------------------------------
