@@ -7,7 +7,11 @@ whose lower-left corner is ``origin + (c, r) * cell``: rows run along +Y, column
 A cell is free when its column has floor below the band, no surface of the model within the
 band [z_lo, z_hi], is not inside a solid, and its centre is at least ``margin`` from every
 cell that fails those tests (a Euclidean distance transform). ``OccupancyMap.from_mesh``
-builds that from a classed triangle mesh; ``OccupancyMap.from_boxes`` from the procedural
+builds that from a classed triangle mesh, and for meshes others made (scans with holes and
+noise, furnished rooms) more tolerantly where asked: the ceiling's footprint counts as floor,
+the footprint is closed morphologically and its small holes filled, and a column is an
+obstacle only where its surfaces cover a share of the band's height (a wall, not a stray
+triangle or a table top); ``OccupancyMap.from_boxes`` from the procedural
 corridor's free boxes (already shrunk by the margin), so both give one structure.
 
 Distances are those between cell centres: exact for a wall through cell centres, otherwise
@@ -66,7 +70,9 @@ class OccupancyMap:
     def from_mesh(cls, vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
                   band: Sequence[float], margin: float, cell: float,
                   floor_classes: Sequence[int] = (C.FLOOR,), samples_per_cell: float = 2.0,
-                  exclude_solids: bool = True) -> OccupancyMap:
+                  exclude_solids: bool = True, ceiling_classes: Sequence[int] = (),
+                  close: float = 0.0, max_hole: float = 0.0,
+                  obstacle_span: float = 0.0) -> OccupancyMap:
         """Rasterise a classed triangle mesh.
 
         The triangles are clipped to the band (obstacles), below it (floor faces) and above
@@ -85,8 +91,25 @@ class OccupancyMap:
             samples_per_cell: lattice steps per cell length (>= 2).
             exclude_solids: a column whose lowest surface above the band faces up (the top
                 of a closed block seen from inside it; at equal heights up wins) is inside a
-                solid, not free. Needs outward-facing normals (counter-clockwise winding seen
-                from outside); False for meshes whose winding is not reliable.
+                solid, not free; with ``obstacle_span``, above the band's top
+                ``obstacle_span`` share instead (a door's head, in the band at its top only,
+                leaves the opening free), and only where 3 x 3 cells are (a stray
+                triangle of a scan is no solid). Needs outward-facing normals
+                (counter-clockwise winding seen from outside); False for meshes whose
+                winding is not reliable.
+            ceiling_classes: faces of these classes above the band also mark a column as
+                inside the building (a scan sees the ceiling where furniture hides the
+                floor; a stairwell, a canopy over the entrance count too); (): the floor
+                alone.
+            close: m, radius of the morphological closing of that support (the floor's
+                footprint, with the ceiling's): gaps and holes narrower than about twice this
+                (scan noise, unseen floor) are filled; 0: none.
+            max_hole: m^2, holes of the closed support (regions enclosed by it) up to this
+                area are filled too (a hole of the scan under a table); 0: none.
+            obstacle_span: share of the band's height [0, 1] that a column's surfaces in the
+                band must cover (the union of the heights of the pieces touching the cell)
+                for the cell to be an obstacle: a wall or a cabinet covers the band, a stray
+                triangle, a table top or a door's head do not; 0: any surface.
 
         Returns:
             The map; its grid covers the mesh's XY bounds plus one cell.
@@ -98,9 +121,15 @@ class OccupancyMap:
             raise ValueError(f"samples_per_cell must be >= 2, got {samples_per_cell}")
         origin, shape = _grid(v[:, :2].min(0), v[:, :2].max(0), cell)
         grid = (origin, cell, shape, cell / samples_per_cell)
+        if not 0.0 <= obstacle_span <= 1.0 or close < 0 or max_hole < 0:
+            raise ValueError(f"obstacle_span must be in [0, 1] and close, max_hole >= 0, got "
+                             f"{obstacle_span}, {close}, {max_hole}")
         tri, index = v[f], np.arange(len(f))
         in_band = _clip_z(*_clip_z(tri, index, z_lo, above=True), z_hi, above=False)
-        blocked = _footprint(*in_band, grid)
+        if obstacle_span > 0:
+            blocked = _band_cover(in_band[0], grid, z_lo) >= obstacle_span * (z_hi - z_lo) - _TOL
+        else:
+            blocked = _footprint(*in_band, grid)
         is_floor = np.isin(cls_, np.asarray(floor_classes))
         floor = _footprint(*_clip_z(tri[is_floor], index[is_floor], z_lo, above=False,
                                     strict=True), grid)
@@ -108,10 +137,19 @@ class OccupancyMap:
             raise ValueError(f"mesh: no floor below the band {[z_lo, z_hi]} (faces of classes "
                              f"{list(floor_classes)} below z = {z_lo}); check the face classes "
                              "and the band")
+        is_ceiling = np.isin(cls_, np.asarray(ceiling_classes, dtype=cls_.dtype))
+        if is_ceiling.any():
+            ceiling = _footprint(*_clip_z(tri[is_ceiling], index[is_ceiling], z_hi,
+                                          above=True, strict=True), grid)
+            floor |= ceiling
+        floor = _fill_holes(_close(floor, close / cell), max_hole / cell**2)
         top_up = np.zeros(shape, bool)
-        if exclude_solids:
-            above, parent = _clip_z(tri, index, z_hi, above=True, strict=True)
+        if exclude_solids:  # inside a solid over the top ``obstacle_span`` of the band
+            level = z_hi - obstacle_span * (z_hi - z_lo)
+            above, parent = _clip_z(tri, index, level, above=True, strict=True)
             top_up = _lowest_faces_up(above, _normal_z(tri)[parent] > 0, grid)
+            if obstacle_span > 0:  # a solid is wider than a stray triangle: 3 x 3 cells
+                top_up = ndimage.binary_opening(top_up, np.ones((3, 3), bool))
         raw = floor & ~blocked & ~top_up
         clearance = ndimage.distance_transform_edt(raw, sampling=cell).astype(np.float32)
         free = raw & (clearance >= margin - _TOL)
@@ -191,6 +229,15 @@ class OccupancyMap:
         clearance of their cells; 0 outside the grid)."""
         rc, inside = self.cell_of(xy)
         return np.where(inside, self.clearance[rc[0], rc[1]], 0.0)
+
+    def outside_distance_xyz(self, xyz: np.ndarray) -> np.ndarray:
+        """(N,) m from positions (N, 3) to the free space: the larger of the horizontal
+        distance to the free cells (``outside_distance``) and the vertical one to the band;
+        0 inside."""
+        xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+        z = xyz[:, 2]
+        d_z = np.maximum(np.maximum(self.band[0] - z, z - self.band[1]), 0.0)
+        return np.maximum(self.outside_distance(xyz[:, :2]), d_z)
 
     @property
     def free_bounds(self) -> np.ndarray:
@@ -387,6 +434,59 @@ def _footprint(tri: np.ndarray, parent: np.ndarray, grid: tuple) -> np.ndarray:
         rc, inside = _cells(pts[:, :2], origin, cell, shape)
         mask[rc[0, inside], rc[1, inside]] = True
     return mask
+
+
+def _close(mask: np.ndarray, radius: float) -> np.ndarray:
+    """(H, W) bool: the morphological closing of ``mask`` by a disc of ``radius`` cells (the
+    mask padded first, so that nothing is lost at the grid's edge)."""
+    r = int(np.ceil(radius - 1e-9))
+    if r <= 0:
+        return mask
+    y, x = np.ogrid[-r:r + 1, -r:r + 1]
+    disc = x * x + y * y <= radius * radius + 1e-9
+    return ndimage.binary_closing(np.pad(mask, r), disc)[r:-r, r:-r] | mask
+
+
+def _fill_holes(mask: np.ndarray, max_cells: float) -> np.ndarray:
+    """(H, W) bool: ``mask`` with its holes (regions of ~mask not reaching the grid's edge,
+    4-connected) of at most ``max_cells`` cells filled."""
+    if max_cells <= 0:
+        return mask
+    label, _ = ndimage.label(~mask)
+    size = np.bincount(label.ravel())
+    edge = np.unique(np.concatenate([label[0], label[-1], label[:, 0], label[:, -1]]))
+    fill = size <= max_cells
+    fill[0] = False
+    fill[edge] = False
+    return mask | fill[label]
+
+
+def _band_cover(tri: np.ndarray, grid: tuple, z_lo: float) -> np.ndarray:
+    """(H, W) m of height covered in each cell by triangles (T, 3, 3) clipped to a band above
+    ``z_lo``: the length of the union of the height ranges of the triangles whose XY
+    footprints touch the cell (a triangle counts with its whole height range, so a long
+    sloped one covers more than its part over the cell: obstacles err on the safe side)."""
+    origin, cell, shape, spacing = grid
+    n_cells = int(np.prod(shape))
+    if len(tri) == 0:
+        return np.zeros(shape)
+    keys = []
+    for pts, t in _samples(tri, spacing):
+        rc, inside = _cells(pts[:, :2], origin, cell, shape)
+        flat = np.ravel_multi_index((rc[0, inside], rc[1, inside]), shape)
+        keys.append(np.unique(flat * len(tri) + t[inside]))
+    c, t = np.divmod(np.unique(np.concatenate(keys)), len(tri))
+    lo, hi = tri[t, :, 2].min(1) - z_lo, tri[t, :, 2].max(1) - z_lo
+    # merge the ranges per cell: shift each cell's ranges past the previous cell's, order
+    # by start, and a range starts a new run where it begins beyond all before it
+    offset = c * (float(hi.max()) + 1.0)
+    order = np.lexsort((lo, c))
+    a, b, c = lo[order] + offset[order], hi[order] + offset[order], c[order]
+    reach = np.maximum.accumulate(b)
+    new = np.r_[True, a[1:] > reach[:-1]]
+    first = np.flatnonzero(new)
+    length = np.maximum.reduceat(b, first) - a[first]
+    return np.bincount(c[first], weights=length, minlength=n_cells).reshape(shape)
 
 
 def _lowest_faces_up(tri: np.ndarray, up: np.ndarray, grid: tuple) -> np.ndarray:

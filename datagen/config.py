@@ -125,6 +125,11 @@ class FileWorldConfig(ImportSettings):
     z_range: list[float] = field(default_factory=lambda: [0.5, 2.2])  # m above the floor,
     # camera heights
     free_cell: float = 0.1  # m, cell of the free-space map (world/free.npz)
+    free_close: float = 0.5  # m, closing radius of the floor (and ceiling) footprint: fills
+    # a scan's gaps and unseen floor (core.occupancy ``close``)
+    free_max_hole: float = 4.0  # m2, enclosed holes of that footprint up to this are filled
+    obstacle_span: float = 0.25  # share of the camera band a column's surfaces must cover to
+    # be an obstacle (walls, cabinets; not a stray triangle, a table top, a door's head)
     light_spacing: float = 2.0  # m between the ceiling panels added along the free space when
     # the file has no lights (the hospital: 258 panels; 3 m: 121, half as bright)
 
@@ -177,6 +182,9 @@ class ProceduralWorldConfig:
     # camera heights (below door_height's min, so the rooms join the corridors through
     # their doors in the free space)
     free_cell: float = 0.1  # m, cell of the free-space map (world/free.npz)
+    free_close: float = 0.5  # m, as FileWorldConfig's
+    free_max_hole: float = 4.0  # m2, as FileWorldConfig's
+    obstacle_span: float = 0.25  # as FileWorldConfig's
     light_spacing: float = 2.0  # m between the ceiling panels added along the free space
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core import classes as C
 from core.dataset import World
 from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, ProceduralWorldConfig, WorldConfig, world_config
@@ -78,7 +79,10 @@ def corridor_site(spec: WorldConfig) -> Site:
 def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
                       source: str | None = None) -> OccupancyMap:
     """Where a camera may be in a building: ``spec.z_range`` above its floor,
-    ``spec.camera_margin`` from every surface, ``spec.free_cell`` cells.
+    ``spec.camera_margin`` from every surface, ``spec.free_cell`` cells; the floor's and the
+    ceiling's footprint closed by ``spec.free_close`` and its holes up to
+    ``spec.free_max_hole`` filled, obstacles where surfaces cover ``spec.obstacle_span`` of
+    the band (``OccupancyMap.from_mesh``).
 
     Raises:
         ValueError: a bad z_range, or no free space left, naming ``source`` (None: the file,
@@ -91,9 +95,12 @@ def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig
     try:
         return OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
                                       float(b.info["floor_z"]) + z, spec.camera_margin,
-                                      spec.free_cell)
+                                      spec.free_cell, ceiling_classes=(C.CEILING,),
+                                      close=spec.free_close, max_hole=spec.free_max_hole,
+                                      obstacle_span=spec.obstacle_span)
     except ValueError as err:
-        raise ValueError(f"{source or spec.path}: world.camera_margin / world.z_range: "
+        raise ValueError(f"{source or spec.path}: world.camera_margin / world.z_range / "
+                         f"world.free_close / world.free_max_hole / world.obstacle_span: "
                          f"{err}") from None
 
 
@@ -125,7 +132,10 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
     info = {
         "name": spec.name, "kind": spec.kind, **b.info,
         "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
-                       "margin": float(spec.camera_margin), "area_m2": round(free.area, 3)},
+                       "margin": float(spec.camera_margin), "close": float(spec.free_close),
+                       "max_hole": float(spec.free_max_hole),
+                       "obstacle_span": float(spec.obstacle_span),
+                       "area_m2": round(free.area, 3)},
         "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
     }
     world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,

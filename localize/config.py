@@ -103,8 +103,8 @@ class FilterParams:
         resample_ess: resample when ESS < this fraction of the particle count.
         free_space_slack: metres beyond the free space (cells and band) before the free-space prior
             applies.
-        outside_log_penalty: log-weight taken from particles outside (metres beyond the slack
-            scale it up: penalty * (1 + excess / 0.1)).
+        outside_log_penalty_per_m: log-weight a particle loses per metre beyond the slack (a
+            prior, not a wall: no particle is removed or moved; 0: no prior).
         recovery: inject particles when the best particle's fit collapses (augmented MCL).
         recovery_fast, recovery_slow: smoothing factors of the short and long averages of the
             best fit per frame.
@@ -145,7 +145,7 @@ class FilterParams:
     motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
     resample_ess: float = 0.5
     free_space_slack: float = 0.25
-    outside_log_penalty: float = 10.0
+    outside_log_penalty_per_m: float = 20.0
     recovery: bool = True
     recovery_fast: float = 0.3
     recovery_slow: float = 0.02
@@ -182,6 +182,10 @@ class FilterParams:
         if not 0.0 <= self.gate < 1.0 or self.lost_frames < 0:
             raise ValueError(f"filter.gate must be in [0, 1) and filter.lost_frames >= 0, got "
                              f"{self.gate}, {self.lost_frames}")
+        if self.free_space_slack < 0 or self.outside_log_penalty_per_m < 0:
+            raise ValueError(f"filter.free_space_slack ({self.free_space_slack}) and "
+                             f"filter.outside_log_penalty_per_m "
+                             f"({self.outside_log_penalty_per_m}) must be >= 0")
         if min(self.tilt_std) < 0:
             raise ValueError(f"filter.tilt_std must be >= 0 degrees, got {list(self.tilt_std)}")
 

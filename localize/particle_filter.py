@@ -11,8 +11,9 @@ more dimensions would thin its search); the corrections are drawn when it is thi
 Three functions make the filter (as in nchopin's ``particles``): an initial draw (around a
 known start for tracking, or uniform over the free space for global localization), a move
 (odometry increment plus noise) and a log-likelihood (``likelihood.EdgeLikelihood``). Around
-them: effective-sample-size triggered systematic resampling, a free-space prior (a copter is
-never inside a wall), recovery from depletion (random particles are injected when the recent
+them: effective-sample-size triggered systematic resampling, a free-space prior (a prior, not
+a wall: a hypothesis outside the free space loses log-weight with its distance, and none is
+removed or moved), recovery from depletion (random particles are injected when the recent
 best edge score falls well below its long-run level, as in augmented MCL), and the estimate,
 the weighted mean with a circular mean for yaw.
 
@@ -149,18 +150,21 @@ def draw_tilt(rng: np.random.Generator, n: int, std: float) -> np.ndarray:
 
 
 def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float,
-                         penalty: float) -> np.ndarray:
-    """Log prior (N,): 0 inside the free space (grown by ``slack``), negative outside.
+                         per_m: float) -> np.ndarray:
+    """Log prior (N,): 0 inside the free space grown by ``slack`` m, ``-per_m`` per metre
+    beyond it (continuous, so a hypothesis just outside loses little and one far outside a
+    lot; nothing is removed or moved).
 
-    The penalty grows with the distance beyond the slack: ``-penalty * (1 + excess / 0.1)``,
-    the distance being the larger of the horizontal one to the free cells
-    (``OccupancyMap.outside_distance``) and the vertical one to the band.
+    The distance is ``OccupancyMap.outside_distance_xyz``: the larger of the horizontal one
+    to the free cells and the vertical one to the band.
+
+    Args:
+        particles: (N, 4) x, y, z (m), yaw.
+        free: the free space.
+        slack: m beyond the free space without a penalty.
+        per_m: log-weight per metre beyond the slack (>= 0; 0: no prior).
     """
-    z = particles[:, 2]
-    d_xy = free.outside_distance(particles[:, :2])
-    d_z = np.maximum(np.maximum(free.band[0] - z, z - free.band[1]), 0.0)
-    excess = np.maximum(np.maximum(d_xy, d_z) - slack, 0.0)
-    return np.where(excess > 0, -penalty * (1.0 + excess / 0.1), 0.0)
+    return -per_m * np.maximum(free.outside_distance_xyz(particles[:, :3]) - slack, 0.0)
 
 
 # --- weights ---------------------------------------------------------------------------------
@@ -341,7 +345,7 @@ class ParticleFilter:
         loglik, score = log_likelihood(self.particles, self.tilt)
         global_phase = self.in_global_phase
         prior = free_space_log_prior(self.particles, self.free, p.free_space_slack,
-                                     p.outside_log_penalty)
+                                     p.outside_log_penalty_per_m)
         best = float(score[np.argmax(loglik + prior)]) if len(score) else float("nan")
         if not global_phase and self._below_gate(best):
             self._poor += 1

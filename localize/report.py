@@ -47,7 +47,8 @@ def summarize(records: list[dict], cfg) -> dict:
 
     Per flight (or recording) and mode: the tracking runs' error statistics over all frames
     of all seeds, the failure rate (share of frames with an error above
-    ``failure_threshold_m``), the mean error of each seed, and for global init the
+    ``failure_threshold_m``), the mean error of each seed, the true poses outside the free
+    space (``truth_outside_free``: frames, largest distance m), and for global init the
     convergence frame of each seed and the share converged within ``converge_within_frames``.
     Records without truth (a recording without ground truth) give no errors: the filter's
     own health, the frames and the seeds only.
@@ -82,6 +83,10 @@ def summarize(records: list[dict], cfg) -> dict:
             entry["num_frames"] = int(runs[0]["num_frames"])
             entry["dropped_frames"] = int(runs[0].get("dropped_frames", 0))
             entry["num_particles"] = int(runs[0]["filter_particles"])
+            outside = [r["truth_outside_free"] for r in runs if "truth_outside_free" in r]
+            if outside:
+                entry["truth_outside_free"] = {"frames": max(o["frames"] for o in outside),
+                                               "max_m": max(o["max_m"] for o in outside)}
         else:
             conv = [convergence_frame(np.array(r["position_error_m"]),
                                       mc.converge_threshold_m) for r in runs]
@@ -273,6 +278,16 @@ def _accuracy(m: dict, cfg) -> list[str]:
                 f"{_fmt(s['mean_confidence'], 2) if 'mean_confidence' in s else '-'} | "
                 f"{versus_paper(s['mean_position_error_m'], paper_err)} |")
     mc = cfg.metrics
+    outside = [f"{flight} {s['truth_outside_free']['frames']} of {s['num_frames']} (up to "
+               f"{s['truth_outside_free']['max_m']:.2f} m)"
+               for flight, modes in m["flights"].items() for s in modes.values()
+               if s.get("truth_outside_free", {}).get("frames")]
+    if outside:
+        lines += ["", "True poses outside the free space (the filter penalises them beyond "
+                  "filter.free_space_slack; the map: datagen's world.z_range, "
+                  "world.camera_margin, world.free_close, world.free_max_hole, "
+                  "world.obstacle_span): "
+                  + "; ".join(dict.fromkeys(outside)) + "."]
     return lines + ["", f"Failures: frames with an error above {mc.failure_threshold_m} m. "
                     f"Lost: runs whose error stayed above {mc.failure_threshold_m} m for more "
                     f"than {mc.lost_after_s:g} s. Coasting: frames that did not weigh the "

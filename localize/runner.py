@@ -37,6 +37,7 @@ from core.atomic import atomic_write_json, disk_full_guard
 from core.config import typed
 from core.dataset import FLIGHT_SETS, Camera, Dataset, World
 from core.frames import Frame, FrameSource, frame_count
+from core.occupancy import OccupancyMap
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES, LocalizeConfig
@@ -274,9 +275,11 @@ class PassRecord:
             self.timing[k][i, t] = v
         self.timing["total"][i, t] = sum(stages.values())
 
-    def write(self, i: int, run: RunSpec, out_dir: Path, num_particles: int) -> None:
+    def write(self, i: int, run: RunSpec, out_dir: Path, num_particles: int,
+              free: OccupancyMap) -> None:
         """Run i's trajectory (TUM, world_from_body) and run record (JSON: per delivered frame
-        the estimate, the timings and the diagnostics; the errors where there is truth)."""
+        the estimate, the timings and the diagnostics; where there is truth, the errors and
+        how many true poses lie outside the free space ``free``, and how far at most)."""
         traj, rec = run.paths(out_dir)
         n = len(self.index)
         estimate = self.estimate[i, :n]
@@ -295,6 +298,9 @@ class PassRecord:
             record.update({"truth": truth.tolist(),
                            "position_error_m": position_errors(estimate, truth).tolist(),
                            "yaw_error_deg": yaw_errors_deg(estimate, truth).tolist()})
+            outside = free.outside_distance_xyz(truth[:, :3])
+            record["truth_outside_free"] = {"frames": int(np.count_nonzero(outside > 0)),
+                                            "max_m": round(float(outside.max()), 3)}
         if n < self.num_frames:
             record["frame_index"] = list(self.index)
         record.update({"timing_ms": {k: v[i, :n].tolist() for k, v in self.timing.items()},
@@ -337,6 +343,7 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
             raise ValueError(f"{source.name}: a tracking run needs a start pose and the source "
                              "has no ground truth; give start=[x, y, z, yaw_deg]")
         start = xyzyaw_from_pose(source.groundtruth[0])[0]
+    warn_outside_free_space(source, ctx.world.free, T, start, settings.filter.free_space_slack)
     localizers = []
     for r in runs:
         loc = Localizer(ctx.world, ctx.camera, front, settings, r.rng(),
@@ -373,7 +380,45 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
         log.warning("%s/%s: %d of %d frames could not be read and were dropped", source.name,
                     mode, T - len(record.index), T)
     for i, r in enumerate(runs):
-        record.write(i, r, ctx.out_dir, localizers[i].filter_params.num_particles)
+        record.write(i, r, ctx.out_dir, localizers[i].filter_params.num_particles,
+                     ctx.world.free)
+
+
+#: the keys a warning about a pose outside the free space points at.
+FREE_SPACE_KEYS = ("the dataset's free space (world/free.npz) comes from datagen's "
+                   "world.z_range, world.camera_margin, world.free_close, "
+                   "world.free_max_hole and world.obstacle_span; the filter's prior "
+                   "penalises beyond filter.free_space_slack")
+
+
+def warn_outside_free_space(source: FrameSource, free: OccupancyMap, T: int,
+                            start: np.ndarray | None, slack: float) -> None:
+    """Log a warning when the start pose or any of the first ``T`` true poses of ``source``
+    lies outside the free space ``free``, with the distance (m) and the keys of the map.
+
+    Args:
+        source: the frames (its ``groundtruth``, if any, is checked).
+        free: the world's free space.
+        T: frames the pass covers.
+        start: (4,) x, y, z (m), yaw (rad) of the tracking runs, or None.
+        slack: m beyond the free space the filter does not penalise.
+    """
+    if start is not None:
+        d = float(free.outside_distance_xyz(np.asarray(start)[None, :3])[0])
+        if d > 0:
+            log.warning("%s: the start pose %s lies %.2f m outside the free space (%s "
+                        "%.2f m)", source.name, np.round(start[:3], 2).tolist(), d,
+                        FREE_SPACE_KEYS, slack)
+    if source.groundtruth is None:
+        return
+    truth = xyzyaw_from_pose(np.asarray(source.groundtruth[:T]))[:, :3]
+    d = free.outside_distance_xyz(truth)
+    if (d > 0).any():
+        worst = int(np.argmax(d))
+        log.warning("%s: %d of %d true poses lie outside the free space, up to %.2f m (frame "
+                    "%d at %s); %s %.2f m", source.name, int(np.count_nonzero(d > 0)), len(d),
+                    d[worst], worst, np.round(truth[worst], 2).tolist(), FREE_SPACE_KEYS,
+                    slack)
 
 
 @releases_claims

@@ -83,11 +83,37 @@ class TestMotion:
     def test_free_space_prior(self):
         p = np.array([[0, 5, 1, 0], [0.9, 5, 1, 0], [1.5, 5, 1, 0], [0, 5, 3.0, 0],
                       [40.0, 5, 1, 0]])
-        lp = free_space_log_prior(p, FREE, slack=0.25, penalty=10.0)
-        assert lp[0] == 0 and lp[1] == 0 and lp[2] < -10 and lp[3] < -10
-        # 0.8 m beyond the free cells: -10 * (1 + 0.55 / 0.1), to within a cell
-        assert lp[2] == pytest.approx(-65.0, abs=10 * 0.05 / 0.1)
+        lp = free_space_log_prior(p, FREE, slack=0.25, per_m=20.0)
+        assert lp[0] == 0 and lp[1] == 0  # inside, and within the slack
+        # 0.8 m beyond the free cells, 0.8 m above the band: 20 / m x 0.55 m, to within a cell
+        assert lp[2] == pytest.approx(-11.0, abs=20 * 0.05)
+        assert lp[3] == pytest.approx(-11.0, abs=1e-9)
         assert lp[4] < lp[2]  # beyond the map: its distance to the map counts too
+        np.testing.assert_array_equal(free_space_log_prior(p, FREE, 0.25, 0.0), 0.0)
+
+    def test_prior_penalises_and_never_moves(self):
+        """A filter step with a flat likelihood: a particle outside the free space loses
+        log-weight in proportion to its distance beyond the slack, one inside keeps its
+        weight, and none is removed, clamped or moved."""
+        params = FilterParams(num_particles=200, recovery=False, free_space_slack=0.25,
+                              outside_log_penalty_per_m=20.0, tilt_std=[0.0, 0.0])
+        pf = ParticleFilter(params, FREE, np.random.default_rng(0))
+        pf.init_tracking(np.array([0.0, 5.0, 1.0, 0.0]))
+        pf.particles[:4] = [[1.5, 5, 1, 0], [2.5, 5, 1, 0], [0.0, 5, 2.7, 0], [0.0, 5, 1, 0]]
+        before = pf.particles.copy()
+        flat = lambda s, t: (np.zeros(len(s)), np.full(len(s), 0.5))  # noqa: E731
+        info = pf.update(flat)
+        assert not info.resampled and len(pf.particles) == 200
+        np.testing.assert_array_equal(pf.particles, before)  # nothing moved or removed
+        rel = pf.logw - pf.logw[3]  # relative to a particle inside
+        d = np.array([0.8, 1.8, 0.5])  # m outside (horizontal to within a cell; vertical)
+        np.testing.assert_allclose(rel[:3], -20.0 * (d - 0.25), atol=20 * 0.05)
+        inside = FREE.contains(before[:, :2]) & (before[:, 2] >= Z[0]) & (before[:, 2] <= Z[1])
+        np.testing.assert_allclose(rel[inside], 0.0, atol=1e-9)
+
+    def test_prior_settings(self):
+        with pytest.raises(ValueError, match="outside_log_penalty_per_m"):
+            FilterParams(outside_log_penalty_per_m=-1.0)
 
 
 class TestWeights:

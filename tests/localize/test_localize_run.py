@@ -4,18 +4,21 @@ shape, resuming, and clear errors for bad input."""
 from __future__ import annotations
 
 import json
+import logging
 import re
 import shutil
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from core.poses import read_tum
+from core.occupancy import OccupancyMap
+from core.poses import pose_from_xyzyaw, read_tum
 from localize.likelihood import LikelihoodParams
 from localize.localizer import mode_likelihood_params
 from localize.particle_filter import FilterParams
-from localize.runner import RunSpec, run
+from localize.runner import RunSpec, run, warn_outside_free_space
 from tests.localize.conftest import QUICK, localize_cfg
 
 
@@ -113,6 +116,8 @@ class TestEndToEnd:
             assert v["min"] <= v["avg"] <= v["max"]
         assert m["timing_mode"] == "cnn"
         assert {t["target"].split(":")[0] for t in m["targets"]}
+        outside = entry["truth_outside_free"]  # the flight flies inside its free space
+        assert outside["frames"] == 0 and outside["max_m"] == 0.0
 
     def test_files(self, report):
         cfg, path = report
@@ -254,6 +259,26 @@ class TestFlightSets:
             run(localize_cfg([*base, "flight_set=train"]))
         with pytest.raises(ValueError, match=r"flight_names: \['paper'\] are not val flights"):
             run(localize_cfg([*base, "flight_set=val", "flight_names=[paper]"]))
+
+
+def test_pose_outside_free_space_is_warned(caplog):
+    """A start or a true pose outside the free space: a warning with the distance and the
+    keys of the map; none inside."""
+    free = OccupancyMap.from_boxes(np.array([[0.0, 0.0, 2.0, 4.0]]), (0.5, 2.2), 0.05)
+    truth = pose_from_xyzyaw(np.array([[1.0, 1.0, 1.0, 0.0], [3.0, 1.0, 1.0, 0.0],
+                                       [1.0, 2.0, 1.2, 0.0]]))
+    inside = SimpleNamespace(name="walk", groundtruth=truth[[0, 2]])
+    source = SimpleNamespace(name="walk", groundtruth=truth)
+    with caplog.at_level(logging.WARNING, logger="localize.runner"):
+        warn_outside_free_space(inside, free, 2, np.array([1.0, 1.0, 1.0, 0.0]), 0.25)
+        assert not caplog.records
+        warn_outside_free_space(source, free, 3, np.array([1.0, 1.0, 2.6, 0.0]), 0.25)
+    start, poses = (r.getMessage() for r in caplog.records)
+    assert "start pose [1.0, 1.0, 2.6] lies 0.40 m outside" in start
+    assert "walk: 1 of 3 true poses lie outside the free space, up to 0.98 m (frame 1" in poses
+    for text in (start, poses):
+        assert "world.z_range" in text and "world.camera_margin" in text
+        assert "filter.free_space_slack" in text
 
 
 def test_full_disk_names_the_folder_and_the_key(flat_dataset, tmp_path, monkeypatch):
