@@ -19,8 +19,8 @@ cabinet or pillar nobody drew. Datagen renders the truth and writes, as the data
 then its model edges and free space are made from the edited mesh as the truth's were. The
 truth is written to ``world_truth/`` with the ``builtins`` (unmodelled cabinets and pillars,
 class wall, ``datagen.realism.builtin_objects``) that the flights' renders show and the map
-lacks; they stand against walls off every flight's camera path. Everything is drawn from the dataset's map-error generator and
-listed in dataset.json's ``map_error``.
+lacks; they stand against walls off every flight's camera path. Everything is drawn from the
+dataset's map-error generator and listed in dataset.json's ``map_error``.
 """
 
 from __future__ import annotations
