@@ -113,6 +113,10 @@ class TestEndToEnd:
             assert v["min"] <= v["avg"] <= v["max"]
         assert m["timing_mode"] == "cnn"
         assert {t["target"].split(":")[0] for t in m["targets"]}
+        cal = entry["calibration"]
+        assert cal["within_m"] == cfg.metrics.calibration_within_m
+        assert sum(b["frame_share"] for b in cal["bins"]) == pytest.approx(1.0)
+        assert "calibration" in entry["global"]
 
     def test_files(self, report):
         cfg, path = report
@@ -122,7 +126,9 @@ class TestEndToEnd:
         assert "mode cnn: k = 40.0" in text  # conf/filter/default.yaml's mode_likelihood
         assert "mode cnn: [0.01, 0.005, 0.2]" in text  # and its mode_motion_std
         assert "fewer than 15 lines" in text  # and its likelihood.lines_ref
-        for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
+        assert "## Confidence calibration" in text
+        for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame",
+                    "paper_calibration"):
             assert (d / "plots" / f"{png}.png").stat().st_size > 1000
             assert f"plots/{png}.png" in text
         t, poses = read_tum(d / "trajectories" / "paper" / "cnn_seed0.txt")
