@@ -400,12 +400,15 @@ class MetricsSettings:
         failure_threshold_m: a frame with a larger error counts as a failure.
         lost_after_s: a run lost track when its error stayed above ``failure_threshold_m``
             for longer than this (``metrics.lost_track``).
+        calibration_within_m: the error bound of the confidence calibration
+            (``metrics.calibration``): the share of frames within it per confidence bin.
     """
 
     converge_threshold_m: float = 0.3
     converge_within_frames: int = 30
     failure_threshold_m: float = 1.0
     lost_after_s: float = 1.0
+    calibration_within_m: float = 0.3
 
 
 @dataclass

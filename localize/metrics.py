@@ -91,6 +91,60 @@ def health_stats(status: Sequence[str], confidence: Sequence[float]) -> dict:
             "mean_confidence": float(np.mean(confidence)) if n else None}
 
 
+#: Confidence bins of ``calibration``: [0, 0.5), [0.5, 0.7), [0.7, 0.9), [0.9, 1].
+CONFIDENCE_BINS = (0.0, 0.5, 0.7, 0.9, 1.0)
+#: The confidence the calibration target speaks of, and the share of such frames that must
+#: lie within the error bound (issue 69: when it says >= 0.9, within 0.3 m in >= 95 %).
+HIGH_CONFIDENCE = 0.9
+CALIBRATION_TARGET = 0.95
+
+
+def calibration(pos_err: np.ndarray, confidence: np.ndarray, within_m: float,
+                bins: Sequence[float] = CONFIDENCE_BINS,
+                high: float = HIGH_CONFIDENCE) -> dict:
+    """How well the filter's confidence tells its error: per confidence bin, the share of
+    frames in it and the share of those within ``within_m`` of the truth.
+
+    Args:
+        pos_err: (T,) position errors, metres.
+        confidence: (T,) the filter's confidence per frame, in [0, 1].
+        within_m: the error bound, metres.
+        bins: increasing bin edges; each bin is [lo, hi), the last [lo, hi].
+        high: the confidence of the headline figure.
+
+    Returns:
+        dict with within_m; bins: [{confidence: [lo, hi], frame_share, within_share}];
+        high_confidence: {min_confidence, frame_share, within_share} over the frames with
+        confidence >= ``high``. A share over no frames is None.
+    """
+    e = np.asarray(pos_err, dtype=np.float64).ravel()
+    c = np.asarray(confidence, dtype=np.float64).ravel()
+    if e.shape != c.shape:
+        raise ValueError(f"{e.size} errors for {c.size} confidences")
+    edges = np.asarray(bins, dtype=np.float64)
+    n_bins = len(edges) - 1
+    idx = np.clip(np.searchsorted(edges, c, side="right") - 1, 0, n_bins - 1)
+    within = e < within_m
+    count = np.bincount(idx, minlength=n_bins)
+    hits = np.bincount(idx, weights=within, minlength=n_bins)
+    n = max(e.size, 1)
+    high_frames = c >= high
+
+    def share(k: float, of: int) -> float | None:
+        return float(k / of) if of else None
+
+    return {
+        "within_m": float(within_m),
+        "bins": [{"confidence": [float(lo), float(hi)], "frame_share": float(k / n),
+                  "within_share": share(h, int(k))}
+                 for lo, hi, k, h in zip(edges[:-1], edges[1:], count, hits, strict=True)],
+        "high_confidence": {"min_confidence": float(high),
+                            "frame_share": float(high_frames.sum() / n),
+                            "within_share": share(within[high_frames].sum(),
+                                                  int(high_frames.sum()))},
+    }
+
+
 def timing_stats(samples_ms: Sequence[float] | np.ndarray) -> dict:
     """min / avg / max of per-frame times in milliseconds."""
     a = np.asarray(samples_ms, dtype=np.float64).ravel()

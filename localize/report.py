@@ -16,6 +16,8 @@ import numpy as np
 
 from core.atomic import atomic_write_json, atomic_write_text
 from localize.metrics import (
+    CALIBRATION_TARGET,
+    calibration,
     convergence_frame,
     error_stats,
     health_stats,
@@ -24,6 +26,7 @@ from localize.metrics import (
 )
 from localize.report_plots import (
     main_records,
+    plot_calibration,
     plot_errors,
     plot_frame,
     plot_topdown,
@@ -78,6 +81,7 @@ def summarize(records: list[dict], cfg) -> dict:
                 lost_track(r["position_error_m"], r["timestamps"], mc.failure_threshold_m,
                            mc.lost_after_s) for r in runs]))
             entry.update(_health(runs))
+            entry.update(_calibration(runs, pos, mc.calibration_within_m))
             entry["seeds"] = [int(r["seed"]) for r in runs]
             entry["per_seed_mean_m"] = [float(np.mean(r["position_error_m"])) for r in runs]
             entry["num_frames"] = int(runs[0]["num_frames"])
@@ -103,6 +107,7 @@ def summarize(records: list[dict], cfg) -> dict:
                                                    if after else None),
                 "failure_rate": fail,
                 "seeds": [int(r["seed"]) for r in runs],
+                **_calibration(runs, pos, mc.calibration_within_m),
             }
     timing_by_mode = {}
     for mode in {r["mode"] for r in main_records(records)}:
@@ -134,6 +139,16 @@ def _health(runs: list[dict]) -> dict:
     if not status:
         return {}
     return health_stats(status, np.concatenate([r["confidence"] for r in runs]))
+
+
+def _calibration(runs: list[dict], pos_err: np.ndarray, within_m: float) -> dict:
+    """``{"calibration": ...}`` (``metrics.calibration``) over the frames of runs, whose
+    errors ``pos_err`` are concatenated in the runs' order; {} for records without
+    confidence."""
+    if not all("confidence" in r for r in runs):
+        return {}
+    return {"calibration": calibration(pos_err, np.concatenate([r["confidence"] for r in runs]),
+                                       within_m)}
 
 
 def model_of(out_dir: Path, cfg, modes) -> dict:
@@ -295,6 +310,49 @@ def _accuracy(m: dict, cfg) -> list[str]:
                     "Confidence: the filter's own, per frame, averaged (0 to 1).", ""]
 
 
+def calibrations(modes: dict) -> dict[str, dict[str, dict]]:
+    """A flight's calibrations (metrics.json ``calibration``) by init and mode, from its
+    metrics.json entry (mode -> statistics)."""
+    out: dict[str, dict[str, dict]] = {}
+    for mode, s in modes.items():
+        for init, own in (("tracking", s), ("global", s.get("global", {}))):
+            if "calibration" in own:
+                out.setdefault(init, {})[mode] = own["calibration"]
+    return out
+
+
+def _calibration_table(m: dict) -> list[str]:
+    """The filter's confidence against its error, per flight, init and mode."""
+    rows = [(fl, init, mode, c) for fl, modes in m["flights"].items()
+            for init, by_mode in calibrations(modes).items() for mode, c in by_mode.items()]
+    if not rows:
+        return []
+    cal = rows[0][3]
+    hi, within = cal["high_confidence"]["min_confidence"], cal["within_m"]
+    bins = [f"[{lo:g}, {up:g}{']' if i == len(cal['bins']) - 1 else ')'}"
+            for i, (lo, up) in enumerate(b["confidence"] for b in cal["bins"])]
+    lines = ["## Confidence calibration", "",
+             f"Target: when the filter's confidence is >= {hi:g}, the error is below "
+             f"{within:g} m in >= {100 * CALIBRATION_TARGET:.0f}% of those frames. Per "
+             f"confidence bin: the share of its frames within {within:g} m (the bin's share "
+             "of all frames).", "",
+             f"| flight | init | mode | frames >= {hi:g} | of those within {within:g} m | met | "
+             + " | ".join(bins) + " |", "|---|---|---|---|---|---|" + "---|" * len(bins)]
+
+    def pct(v):
+        return "-" if v is None else f"{100 * v:.1f}%"
+
+    for fl, init, mode, c in rows:
+        h = c["high_confidence"]
+        met = "-" if h["within_share"] is None else (
+            "yes" if h["within_share"] >= CALIBRATION_TARGET else "**no**")
+        lines.append(f"| {fl} | {init} | {mode} | {pct(h['frame_share'])} | "
+                     f"{pct(h['within_share'])} | {met} | "
+                     + " | ".join(f"{pct(b['within_share'])} ({pct(b['frame_share'])})"
+                                  for b in c["bins"]) + " |")
+    return [*lines, ""]
+
+
 def _global(m: dict, cfg) -> list[str]:
     """Convergence from a uniform start, where global runs exist."""
     glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()
@@ -355,11 +413,12 @@ def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
 
 
 def results_sections(m: dict, cfg) -> list[str]:
-    """The sections of a flight's or a recording's report: accuracy (where there is truth),
-    global convergence (where there is truth), time per frame."""
+    """The sections of a flight's or a recording's report: accuracy, confidence calibration
+    and global convergence (where there is truth), time per frame."""
     truth = any("mean_position_error_m" in s for modes in m["flights"].values()
                 for s in modes.values())
-    return [*(_accuracy(m, cfg) if truth else []), *_global(m, cfg), *_timing(m, cfg)]
+    return [*(_accuracy(m, cfg) if truth else []), *_calibration_table(m), *_global(m, cfg),
+            *_timing(m, cfg)]
 
 
 def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:
@@ -403,6 +462,10 @@ def write_report(ctx) -> Path:
         plot_errors(records, flight, out / "plots" / f"{flight}_error.png",
                     float(ctx.cfg.metrics.converge_threshold_m))
         files.append(f"plots/{flight}_error.png")
+        cal = calibrations(metrics["flights"][flight])
+        if cal:
+            plot_calibration(cal, flight, out / "plots" / f"{flight}_calibration.png")
+            files.append(f"plots/{flight}_calibration.png")
         plots[flight] = files
     report = out / "report.md"
     atomic_write_text(report, render_markdown(metrics, ctx.cfg, plots))

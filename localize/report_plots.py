@@ -1,6 +1,8 @@
-"""The report's plots: trajectories, top-down view, errors over time, one frame's edges.
+"""The report's plots: trajectories, top-down view, errors over time, one frame's edges,
+the confidence calibration.
 
-Each takes the run records (``runs/<flight>/*.json``) of one flight and writes one PNG.
+Each takes the run records (``runs/<flight>/*.json``) of one flight, or its metrics, and
+writes one PNG.
 """
 
 from __future__ import annotations
@@ -127,6 +129,39 @@ def plot_errors(records: list[dict], flight: str, path: Path, threshold: float) 
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
     fig.suptitle(flight)
+    _save(fig, path)
+
+
+def plot_calibration(by_init: dict[str, dict[str, dict]], flight: str, path: Path) -> None:
+    """Reliability plot: per confidence bin, the share of frames within the error bound, one
+    line per mode, one panel per init (``by_init``: init -> mode -> its
+    ``metrics.calibration``); a marker's area is the bin's share of the frames, a bin without
+    frames is left out."""
+    fig, axes = plt.subplots(1, len(by_init), figsize=(6 * len(by_init), 4), squeeze=False)
+    for ax, (init, by_mode) in zip(axes[0], sorted(by_init.items(), reverse=True),
+                                   strict=True):
+        for mode, cal in sorted(by_mode.items()):
+            centre = np.array([b["confidence"] for b in cal["bins"]]).mean(axis=1)
+            share = np.array([np.nan if b["within_share"] is None else b["within_share"]
+                              for b in cal["bins"]])
+            frames = np.array([b["frame_share"] for b in cal["bins"]])
+            c = MODE_COLORS.get(mode)
+            ax.plot(centre, share, "-", color=c, alpha=0.8, label=MODE_LABELS.get(mode, mode))
+            ax.scatter(centre, share, s=20 + 300 * frames, color=c, alpha=0.6)
+        cal = next(iter(by_mode.values()))
+        ax.axvline(cal["high_confidence"]["min_confidence"], color="k", ls=":", lw=1)
+        ax.plot([0, 1], [0, 1], color="0.6", ls="--", lw=1, label="share = confidence")
+        ax.set_xticks(sorted({e for b in cal["bins"] for e in b["confidence"]}))
+        ax.set_xlim(0, 1)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("filter confidence (bin centre)")
+        ax.set_ylabel(f"share of the bin's frames within {cal['within_m']:g} m")
+        ax.grid(alpha=0.3)
+        ax.set_title(f"{init} init")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8,
+               bbox_to_anchor=(0.5, -0.06))
+    fig.suptitle(f"{flight}: confidence calibration")
     _save(fig, path)
 
 

@@ -118,6 +118,10 @@ class TestEndToEnd:
         assert {t["target"].split(":")[0] for t in m["targets"]}
         outside = entry["truth_outside_free"]  # the flight flies inside its free space
         assert outside["frames"] == 0 and outside["max_m"] == 0.0
+        cal = entry["calibration"]
+        assert cal["within_m"] == cfg.metrics.calibration_within_m
+        assert sum(b["frame_share"] for b in cal["bins"]) == pytest.approx(1.0)
+        assert "calibration" in entry["global"]
 
     def test_files(self, report):
         cfg, path = report
@@ -127,7 +131,9 @@ class TestEndToEnd:
         assert "mode cnn: k = 40.0" in text  # conf/filter/default.yaml's mode_likelihood
         assert "mode cnn: [0.01, 0.005, 0.2]" in text  # and its mode_motion_std
         assert "fewer than 15 lines" in text  # and its likelihood.lines_ref
-        for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame"):
+        assert "## Confidence calibration" in text
+        for png in ("paper_xy", "paper_topdown", "paper_error", "paper_frame",
+                    "paper_calibration"):
             assert (d / "plots" / f"{png}.png").stat().st_size > 1000
             assert f"plots/{png}.png" in text
         t, poses = read_tum(d / "trajectories" / "paper" / "cnn_seed0.txt")
