@@ -45,6 +45,7 @@ sys.path.insert(0, str(ROOT))
 
 from core.poses import xyzyaw_from_pose  # noqa: E402
 from localize.ros2.loopback import loopback_env  # noqa: E402
+from localize.ros2.sync import wait_until  # noqa: E402
 
 TARGET_LATENCY_MEDIAN_MS = 60.0
 TARGET_LATENCY_P95_MS = 100.0
@@ -70,15 +71,6 @@ def compose_node_config(overrides: list[str]):
                                                       if not o.startswith("hydra.")])
     resolve(cfg, overrides)
     return cfg
-
-
-def wait_until(cond, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
 
 
 def main() -> None:

@@ -32,6 +32,7 @@ from core.dataset import Dataset
 from localize.recording import SourceCamera, read_recording
 from localize.ros2.config import NodeTopics
 from localize.ros2.convert import position_quaternion, stamp_parts
+from localize.ros2.sync import wait_until
 
 log = logging.getLogger(__name__)
 
@@ -126,13 +127,9 @@ class Player:
     def wait_for_subscriber(self) -> bool:
         """Wait up to ``wait_s`` for a subscriber of the image, CameraInfo and odometry
         topics each."""
-        deadline = time.monotonic() + self.s.wait_s
         pubs = (self.image_pub, self.info_pub, self.odometry_pub)
-        while any(p.get_subscription_count() == 0 for p in pubs):
-            if time.monotonic() > deadline:
-                return False
-            time.sleep(0.05)
-        return True
+        return wait_until(lambda: all(p.get_subscription_count() > 0 for p in pubs),
+                          self.s.wait_s)
 
     def play(self, pb: Playback, stop=None) -> list[float]:
         """Publish every frame (up to ``max_frames``) at its time scaled by ``rate``;

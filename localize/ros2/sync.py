@@ -6,7 +6,8 @@ keeps the last seconds of odometry and gives the pose at a frame's stamp, interp
 recording's is (``core.poses.interpolate_poses``: linear translation, slerp rotation; never
 extrapolated), waiting a little for the odometry to reach it. ``LatestSlot`` holds one frame:
 a new frame replaces the one not taken yet (that one is dropped and counted), so the worker
-always takes the newest and no backlog builds.
+always takes the newest and no backlog builds. ``wait_until`` polls a condition another thread
+makes true (the player waiting for subscribers, tests and benchmarks for the node's output).
 """
 
 from __future__ import annotations
@@ -15,12 +16,24 @@ import bisect
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from core.poses import interpolate_poses
 from localize.recording import SPAN_SLACK
+
+
+def wait_until(cond: Callable[[], Any], timeout_s: float, poll_s: float = 0.05) -> bool:
+    """Poll ``cond()`` every ``poll_s`` seconds until it is true (True) or ``timeout_s``
+    seconds have passed (False)."""
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(poll_s)
+    return True
 
 
 class OdometryBuffer:

@@ -24,6 +24,7 @@ from omegaconf import OmegaConf  # noqa: E402
 from core.config import CONF, typed  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.ros2 import sync  # noqa: E402
 from localize.ros2.config import Ros2Config  # noqa: E402
 from localize.ros2.live import load_context, offline_estimates  # noqa: E402
 from localize.ros2.loopback import loopback_env  # noqa: E402
@@ -91,12 +92,8 @@ def stop(node, executor, *others):
 
 
 def wait_until(cond, timeout_s: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
+    """``localize.ros2.sync.wait_until`` with the tests' default timeout."""
+    return sync.wait_until(cond, timeout_s)
 
 
 def test_the_flight_through_the_node_tracks_as_offline(ros, setup):

@@ -24,7 +24,7 @@ from localize.ros2.convert import (
     yaw_quaternions,
 )
 from localize.ros2.loopback import loopback_env
-from localize.ros2.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
+from localize.ros2.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle, wait_until
 
 
 def poses(n: int) -> np.ndarray:
@@ -76,6 +76,16 @@ def test_latest_slot_keeps_the_newest():
     t0 = time.monotonic()
     threading.Timer(0.05, slot.put, (3,)).start()
     assert slot.take(2.0) == 3 and time.monotonic() - t0 < 1.0
+
+
+def test_wait_until_a_condition_or_the_timeout():
+    assert wait_until(lambda: True, 0.0)
+    flag = threading.Event()
+    threading.Timer(0.05, flag.set).start()
+    assert wait_until(flag.is_set, 5.0, poll_s=0.01)
+    start = time.monotonic()
+    assert not wait_until(lambda: False, 0.1, poll_s=0.01)
+    assert time.monotonic() - start >= 0.1
 
 
 def test_latency_window_and_throttle():
