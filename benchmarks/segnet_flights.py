@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -46,11 +47,10 @@ def flight_frames(flight) -> np.ndarray:
     return keep
 
 
-def confusion(segmenter, dataset: Dataset, flight_set: str, num_classes: int,
-              progress: bool = True) -> torch.Tensor:
-    """(C, C) int64 confusion (rows = truth) of the segmenter's labels on every usable frame of
-    the dataset's flights of ``flight_set``; label 255 (unseen) is ignored."""
-    cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
+def labelled_batches(segmenter, dataset: Dataset, flight_set: str, progress: bool = True
+                     ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """(predicted, true) (B, H, W) labels of every usable frame of the dataset's flights of
+    ``flight_set``, ``BATCH`` frames at a time."""
     for name in dataset.flight_names(flight_set):
         flight = dataset.flight(name)
         index = np.flatnonzero(flight_frames(flight))
@@ -58,10 +58,17 @@ def confusion(segmenter, dataset: Dataset, flight_set: str, num_classes: int,
                           disable=not progress, leave=False):
             batch = index[start:start + BATCH]
             rgb = np.stack([flight.image(int(t)) for t in batch])
-            truth = np.stack([flight.labels(int(t)) for t in batch])
-            pred = segmenter.labels(rgb)
-            cm += confusion_matrix(torch.from_numpy(pred.astype(np.int64)),
-                                   torch.from_numpy(truth.astype(np.int64)), num_classes)
+            yield segmenter.labels(rgb), np.stack([flight.labels(int(t)) for t in batch])
+
+
+def confusion(segmenter, dataset: Dataset, flight_set: str, num_classes: int,
+              progress: bool = True) -> torch.Tensor:
+    """(C, C) int64 confusion (rows = truth) of the segmenter's labels on every usable frame of
+    the dataset's flights of ``flight_set``; label 255 (unseen) is ignored."""
+    cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
+    for pred, truth in labelled_batches(segmenter, dataset, flight_set, progress):
+        cm += confusion_matrix(torch.from_numpy(pred.astype(np.int64)),
+                               torch.from_numpy(truth.astype(np.int64)), num_classes)
     return cm
 
 

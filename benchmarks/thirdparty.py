@@ -98,7 +98,7 @@ def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
         return done[key]
     import torch
 
-    from benchmarks.segnet_flights import BATCH, flight_frames
+    from benchmarks.segnet_flights import labelled_batches
     from core.dataset import Dataset
     from localize.frontend.segmenter import load_segmenter
     from train.metrics import boundary_counts, boundary_f, confusion_matrix, metrics_json
@@ -107,16 +107,10 @@ def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
     seg = load_segmenter(onnx, dataset.classes)
     cm = torch.zeros(seg.num_classes, seg.num_classes, dtype=torch.int64)
     bc = np.zeros(4, np.int64)
-    for name in dataset.flight_names("test"):
-        flight = dataset.flight(name)
-        index = np.flatnonzero(flight_frames(flight))
-        for start in range(0, len(index), BATCH):
-            batch = index[start:start + BATCH]
-            truth = np.stack([flight.labels(int(t)) for t in batch])
-            pred = seg.labels(np.stack([flight.image(int(t)) for t in batch]))
-            cm += confusion_matrix(torch.from_numpy(pred.astype(np.int64)),
-                                   torch.from_numpy(truth.astype(np.int64)), seg.num_classes)
-            bc += sum(boundary_counts(p, t) for p, t in zip(pred, truth, strict=True))
+    for pred, truth in labelled_batches(seg, dataset, "test", progress=False):
+        cm += confusion_matrix(torch.from_numpy(pred.astype(np.int64)),
+                               torch.from_numpy(truth.astype(np.int64)), seg.num_classes)
+        bc += sum(boundary_counts(p, t) for p, t in zip(pred, truth, strict=True))
     m = metrics_json(cm, [c["name"] for c in dataset.classes])
     res = {k: m[k] for k in ("pixel_accuracy", "mean_iou", "per_class_iou")} | boundary_f(bc)
     atomic_write_json(cache, {**done, key: res})
