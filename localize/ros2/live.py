@@ -35,11 +35,13 @@ from core.frames import FrameSource
 from core.poses import odometry_increment
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.localizer import EdgeModel, Estimate, Localizer
+from localize.mavlink_out import MavlinkSender, quality_of
 from localize.recording import Rectifier, SourceCamera, check_rigid, delivered_camera
 from localize.ros2.config import Ros2Config
 from localize.ros2.convert import live_status, particle_covariance, shown_particles, world_from_body
 from localize.ros2.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
 from localize.runner import Context, report_folder
+from localize.viz import open_viewer
 
 log = logging.getLogger(__name__)
 
@@ -169,18 +171,10 @@ class LiveLocalizer:
         self._start = start_state(self.cfg.start)
         self._worker: threading.Thread | None = None
         self._stop = threading.Event()
-        self.mavlink = self.viewer = None
-        if self.cfg.mavlink:
-            from localize.mavlink_out import MavlinkSender
-
-            self.mavlink = MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz),
-                                         clock=self.clock)
-        if self.cfg.viz != "none":
-            from localize.viz import open_viewer
-
-            self.viewer = open_viewer(str(self.cfg.viz), self.ctx.world,
-                                      self.ctx.out_dir / "live.rrd",
-                                      connect=self.cfg.viz_connect)
+        self.mavlink = (MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz),
+                                      clock=self.clock) if self.cfg.mavlink else None)
+        self.viewer = open_viewer(str(self.cfg.viz), self.ctx.world,
+                                  self.ctx.out_dir / "live.rrd", connect=self.cfg.viz_connect)
 
     # --- inputs (any thread) -----------------------------------------------------------
 
@@ -307,8 +301,6 @@ class LiveLocalizer:
         if self.report is not None:
             self.report(out)
         if self.mavlink is not None and out.status in ("tracking", "ambiguous"):
-            from localize.mavlink_out import quality_of
-
             self.mavlink.send(out.stamp, out.pose, out.covariance,
                               quality_of(out.estimate.confidence, out.status))
         if self.viewer is not None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 import threading
 import time
 
@@ -163,12 +164,12 @@ def test_plays_a_bag(setup, tmp_path):
     assert next(iter(played.frames())).shape == (pb.camera.height, pb.camera.width, 3)
 
 
-def run_node(ros, setup, feed, **topics):
-    """Start the node (``topics`` over the config's), ``feed(player, playback, node,
-    listener)``, stop it; (node, listener)."""
+def run_node(ros, setup, feed, settings=None, **topics):
+    """Start the node (``settings`` and ``topics`` over the config's), ``feed(player,
+    playback, node, listener)``, stop it; (node, listener)."""
     cfg, ctx, pb = setup
-    if topics:
-        cfg = OmegaConf.merge(cfg, {"topics": topics})
+    if settings or topics:
+        cfg = OmegaConf.merge(cfg, settings or {}, {"topics": topics})
     node, got, executor, player_node, listener = start(ros, cfg, ctx)
     try:
         player = Player(player_node, PlaySettings(topics=node.topics))
@@ -303,6 +304,52 @@ class TestInputsAndResets:
         assert "re-localization (initial pose): reset counter 2" in caplog.text
         truth = xyzyaw_from_pose(setup[2].groundtruth[:3])
         assert np.linalg.norm(got.positions()[-1] - truth[:, :3], axis=1).min() < 0.5
+
+    def test_estimates_reach_the_autopilot(self, ros, setup):
+        """With ``mavlink=udpout:...`` each estimate goes out as MAVLink ODOMETRY stamped
+        with its frame's capture time, and ``/initialpose`` increments its reset counter."""
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+
+        from localize.mavlink_out import MAV_FRAME_BODY_FRD
+        from localize.ros2_play import _set_pose
+
+        mavutil = pytest.importorskip("pymavlink.mavutil")
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        rx = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}")
+        sent = []
+
+        def feed(player, pb, node, got):
+            now = time.time() + 0.3
+            sent.extend([now, now + 0.1])
+            publish_frames(player, pb, 2, sent[:2])
+            wait_until(lambda: node.live.counts.processed >= 2)
+            pub = player.node.create_publisher(PoseWithCovarianceStamped,
+                                               node.topics.initial_pose, 1)
+            msg = PoseWithCovarianceStamped()
+            msg.header.frame_id = "map"
+            _set_pose(msg.pose.pose, pb.groundtruth[2])
+            assert wait_until(lambda: pub.get_subscription_count() > 0, 5.0)
+            pub.publish(msg)
+            wait_until(lambda: node.live.counts.resets >= 1, 5.0)
+            later = time.time() + 0.3
+            sent.append(later)
+            publish_frames(player, pb, 1, [later])
+            wait_until(lambda: node.live.counts.processed >= 3)
+
+        try:
+            node, got = run_node(ros, setup, feed,
+                                 settings={"mavlink": f"udpout:127.0.0.1:{port}"})
+            out = []
+            while (m := rx.recv_match(type="ODOMETRY", blocking=True, timeout=2)) is not None:
+                out.append(m)
+        finally:
+            rx.close()
+        assert len(out) == node.live.counts.processed == 3
+        assert all(m.child_frame_id == MAV_FRAME_BODY_FRD for m in out)
+        assert [m.time_usec for m in out] == [round(t * 1e6) for t in sent]
+        assert [m.reset_counter for m in out] == [0, 0, 1]
 
 
 @pytest.mark.slow
