@@ -5,6 +5,7 @@ Usage::
     python benchmarks/thirdparty.py                                # every building, all modes
     python benchmarks/thirdparty.py --buildings icl_scan floor101 --frames 300 --seeds 0
     python benchmarks/thirdparty.py --onnx outputs/models/mine/segnet.onnx --name mine
+    python benchmarks/thirdparty.py --buildings bookstore --finetune 1000  # + the fine-tune
 
 Per building, with no per-building setting: ``python -m datagen`` renders its test flights
 (``flights=floor``: two 115 s passes along routes planned through its free space; the scan:
@@ -15,6 +16,10 @@ delivered flight frame (pixel accuracy, mean IoU, boundary F at 2 px: what the l
 needs), and ``python -m localize`` tracks each flight from its true start in the given modes
 and seeds. The scan's first test flight is also exported as a folder recording
 (``localize.recording_export``: JPEG frames, odometry) and localized as a user's recording.
+With ``--finetune N``, N training and N / 8 validation images of the building (a dataset of
+their own, ``datasets/<building>_train``, apart from the test flights) fine-tune the SegNet
+(``experiment=finetune``: 9 epochs from the generalist; the epochs, not the minutes, bound it,
+so a busy machine trains the same network), and cnn runs again with it (``cnn_ft``).
 
 Buildings: the AWS hospital and bookstore (Gazebo worlds) and the ICL office scan from
 ``../shared/worlds`` (skipped where absent), and three procedural floors whose seeds (101-103)
@@ -62,6 +67,8 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
     ap.add_argument("--frames", type=int, default=None,
                     help="frames per flight (default: the flight preset's)")
+    ap.add_argument("--finetune", type=int, default=0, metavar="N",
+                    help="fine-tune on N training images of each building (0: no fine-tune)")
     ap.add_argument("--out-root", type=Path, default=ROOT / "outputs" / "benchmarks")
     ap.add_argument("--name", default="thirdparty")
     return ap.parse_args()
@@ -87,6 +94,25 @@ def datagen(building: str, out: Path, frames: int | None) -> Path | None:
         cmd += [f"flights.{p}.num_frames={frames}" for p in ("paper", "cluttered")]
     run(cmd)  # a finished dataset is resumed: nothing rendered again
     return ds
+
+
+def finetune(building: str, out: Path, images: int) -> Path:
+    """The SegNet fine-tuned on ``images`` training renders of the building (rendered and
+    trained once); its ONNX file."""
+    model, overrides = BUILDINGS[building]
+    train_ds = out / "datasets" / f"{building}_train"
+    cmd = [sys.executable, "-m", "datagen", f"name={building}_train", f"out_dir={train_ds}",
+           f"splits.train={images}", f"splits.val={max(images // 8, 1)}", "splits.test=0",
+           "render_flights=[]", "val_flights=[]", *overrides]
+    if model is not None:
+        cmd.append(f"world.path={SHARED / model}")
+    run(cmd)
+    onnx = out / "models" / building / "segnet.onnx"
+    if not onnx.is_file():
+        run([sys.executable, "-m", "train", "experiment=finetune", f"name={building}",
+             f"dataset={train_ds}", f"out_root={onnx.parent.parent}", "max_minutes=null",
+             "progress=false"])
+    return onnx
 
 
 def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
@@ -117,13 +143,14 @@ def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
     return res
 
 
-def localize(ds: Path, report: Path, args: argparse.Namespace, rec: Path | None = None
-             ) -> dict:
-    """``python -m localize`` on the test flights, or on the recording ``rec``; its
-    metrics."""
+def localize(ds: Path, report: Path, args: argparse.Namespace, rec: Path | None = None,
+             onnx: Path | None = None, modes: list[str] | None = None) -> dict:
+    """``python -m localize`` on the test flights, or on the recording ``rec``, with the SegNet
+    ``onnx`` (None: ``--onnx``) in ``modes`` (None: ``--modes``); its metrics."""
     lst = lambda xs: "[" + ",".join(str(x) for x in xs) + "]"  # noqa: E731
-    run([sys.executable, "-m", "localize", f"dataset={ds}", f"onnx_model={args.onnx}",
-         f"out_root={report.parent}", f"name={report.name}", f"modes={lst(args.modes)}",
+    run([sys.executable, "-m", "localize", f"dataset={ds}", f"onnx_model={onnx or args.onnx}",
+         f"out_root={report.parent}", f"name={report.name}",
+         f"modes={lst(modes or args.modes)}",
          f"seeds={lst(args.seeds)}", "inits=[tracking]", "progress=false",
          *([f"recording={rec}"] if rec else [])])
     folder = report / "recordings" / rec.name if rec else report
@@ -163,7 +190,10 @@ def tracking(metrics: dict) -> dict:
 def table(results: dict, modes: list[str]) -> str:
     """The markdown table of ``results`` (one row per building)."""
     head = ["building", "floor / free m²", "flags", "SegNet acc / mIoU / bF"]
-    head += [f"{m} m (lost)" for m in modes] + ["cnn frame ms", "recording cnn / none m"]
+    head += [f"{m} m (lost)" for m in modes]
+    if any("finetuned" in r for r in results.values()):
+        head += ["fine-tuned mIoU / bF", "cnn fine-tuned m (lost)"]
+    head += ["cnn frame ms", "recording cnn / none m"]
     rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for b, r in results.items():
         s = r.get("import") or {}
@@ -176,6 +206,11 @@ def table(results: dict, modes: list[str]) -> str:
                   f"{seg['boundary_f']:.3f}") if seg else "-"]
         cells += [f"{tr[m]['mean_m']:.3f} ({tr[m]['lost']}/{tr[m]['runs']})" if m in tr else "-"
                   for m in modes]
+        if "fine-tuned mIoU / bF" in head:
+            ft = r.get("finetuned") or {}
+            fs, fc = ft.get("segnet"), ft.get("tracking", {}).get("cnn")
+            cells.append(f"{fs['mean_iou']:.3f} / {fs['boundary_f']:.3f}" if fs else "-")
+            cells.append(f"{fc['mean_m']:.3f} ({fc['lost']}/{fc['runs']})" if fc else "-")
         ms = tr.get("cnn", {}).get("frame_ms")
         cells.append(f"{ms:.0f}" if ms else "-")
         cells.append(" / ".join(f"{rec[m]['mean_m']:.3f}" if m in rec else "-"
@@ -197,6 +232,13 @@ def main() -> int:
         if "cnn" in args.modes:
             r["segnet"] = segnet_scores(ds, args.onnx, out / "segnet" / f"{b}.json")
         r["tracking"] = tracking(localize(ds, out / "reports" / b, args))
+        if args.finetune:
+            onnx = finetune(b, out, args.finetune)
+            r["finetuned"] = {
+                "onnx": str(onnx), "images": args.finetune,
+                "segnet": segnet_scores(ds, onnx, out / "segnet" / f"{b}.json"),
+                "tracking": tracking(localize(ds, out / "reports" / f"{b}_ft", args,
+                                              onnx=onnx, modes=["cnn"]))}
         if b in RECORDING_OF:
             rec = recording(ds, out)
             r["recording"] = tracking(localize(ds, out / "reports" / b, args, rec))
@@ -206,7 +248,8 @@ def main() -> int:
             print(f"  import flag: {f['what']} (key: {f['key']})")
     md = table(results, args.modes)
     atomic_write_json(out / "thirdparty.json", {"onnx": str(args.onnx), "modes": args.modes,
-                                                "seeds": args.seeds, "results": results})
+                                                "seeds": args.seeds, "finetune": args.finetune,
+                                                "results": results})
     atomic_write_text(out / "thirdparty.md", md)
     print(md)
     return 0
