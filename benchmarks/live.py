@@ -5,6 +5,8 @@ Usage::
 
     python benchmarks/live.py --dataset outputs/datasets/demo            # mode cnn, paper
     python benchmarks/live.py --mode none --frames 60 filter.num_particles=300
+    python benchmarks/live.py --dataset outputs/datasets/hospital --out-root outputs/reports \
+        name=hospital          # the visibility grid of an offline run of it, cached: a warm start
 
 Starts ``python -m localize.ros2`` as a subprocess (tracking from the flight's first true
 pose; extra ``key=value`` arguments go to it) and plays the flight into it with
@@ -20,7 +22,9 @@ restarts the filter. Per rate it prints:
   node's own capture-to-publish figures are in its status, ``latency_*_ms``);
 - frames processed and dropped (the node's counts);
 - the node's start time: start-up inside it (dataset, SegNet, visibility grid) and from the
-  process start to its first status message.
+  process start to its first status message. A fresh ``out_root`` (the default) builds the
+  visibility grid: a cold start; ``--out-root`` and ``name=`` of an earlier run reuse its
+  ``cache/``: the warm start of a node on a building already localized.
 
 Targets (issue 71): at 10 Hz the offline run's accuracy within 10 %, latency <= 60 ms median,
 <= 100 ms p95; at 30 Hz no backlog (latency bounded), drops counted, accuracy within 25 %; the
@@ -81,6 +85,8 @@ def main() -> None:
     ap.add_argument("--mode", default="cnn")
     ap.add_argument("--frames", type=int, default=120, help="first N frames of the flight")
     ap.add_argument("--rates", type=float, nargs="+", default=[1.0, 3.0])
+    ap.add_argument("--out-root", type=Path, default=None,
+                    help="the node's out_root (default: a fresh folder, a cold start)")
     ap.add_argument("overrides", nargs="*", help="node settings, key=value")
     args = ap.parse_args()
 
@@ -94,7 +100,7 @@ def main() -> None:
     n = min(args.frames, len(pb))
     s = xyzyaw_from_pose(pb.groundtruth[0])[0]
     start = [float(s[0]), float(s[1]), float(s[2]), float(np.degrees(s[3]))]
-    overrides = node_overrides(args, start, tmp / "out")
+    overrides = node_overrides(args, start, args.out_root or tmp / "out")
 
     t_spawn = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "localize.ros2", *overrides], cwd=ROOT,
@@ -141,6 +147,8 @@ def main() -> None:
             runs.append((rate, stamps, listener.stamps(), listener.positions(),
                          np.array(listener.arrivals), before, listener.status_values(),
                          split_medians(listener)))
+        if any(not len(r[2]) for r in runs):
+            print("a run got no pose; the node's last output:\n" + "".join(lines[-30:]))
     finally:
         session.close()
         proc.terminate()
@@ -172,7 +180,9 @@ def split_medians(listener) -> dict[str, np.ndarray]:
 def report(rate, stamps, got, live, arrivals, before, after, split, offline, truth,
            offline_err, fps) -> None:
     if not len(got):
-        print(f"rate {rate}: no pose came back")
+        counts = {k: v for k, v in after.items() if k.startswith(("frames_", "dropped_"))}
+        print(f"rate {rate}: no pose came back; the node's counts: {counts}, status "
+              f"{after.get('status', '-')}")
         return
     rows = np.array([int(np.argmin(abs(stamps - s))) for s in got])
     err = np.linalg.norm(live - truth[rows, :3], axis=1)
