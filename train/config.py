@@ -226,7 +226,7 @@ class ExportConfig:
 
 @dataclass
 class TrainConfig:
-    """``python -m train``: SegNet on a datagen dataset, on CPU, written to
+    """``python -m train``: SegNet on a datagen dataset, on CPU or a GPU, written to
     ``<out_root>/<name>/`` (docs/train.md).
 
     Attributes:
@@ -236,8 +236,12 @@ class TrainConfig:
             list and image size) whose splits are trained on together.
         out_root: the folder of the model folders.
         seed: seeds the initial weights, the shuffling and the augmentation.
-        precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AMX tiles):
-            bfloat16 autocast for the training forward pass.
+        device: where the network trains: ``auto`` (CUDA where torch sees a GPU, else the
+            CPU), ``cpu`` or ``cuda``; under torchrun each process takes the GPU of its
+            ``LOCAL_RANK`` and the processes meet over NCCL (gloo on the CPU). Validation runs
+            there too; export and test run on the CPU (``train.distributed.training_device``).
+        precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AMX tiles; fp32 on
+            a GPU): bfloat16 autocast for the training forward pass.
         threads: torch intra-op threads (and onnxruntime's for the export's check); under
             torchrun per process (cores / processes).
         epochs: the one-cycle schedule's span, sized to end within ``max_minutes`` on 2
@@ -266,6 +270,7 @@ class TrainConfig:
     dataset: str = "outputs/datasets/demo"
     out_root: str = str(MODELS_ROOT)
     seed: int = 0
+    device: str = "auto"
     precision: str = "auto"
     threads: int = 2
     epochs: int = 21

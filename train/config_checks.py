@@ -7,17 +7,21 @@ import torch
 from train.config import LossConfig, TrainConfig
 
 
-def resolve_precision(precision: str) -> bool:
-    """Whether to train in bfloat16 autocast for ``precision`` (the ``precision`` key).
+def resolve_precision(precision: str, device: str = "cpu") -> bool:
+    """Whether to train in bfloat16 autocast for ``precision`` (the ``precision`` key) on
+    ``device`` (``cpu`` or ``cuda``).
 
-    "bf16" uses bfloat16 convolutions (oneDNN), "fp32" never does, "auto" does where the CPU
-    has AMX tiles. AVX512-BF16 alone is not enough: on such a 2-core CPU a demo training step
-    takes 1.3-1.4x longer in bfloat16 than in float32 (docs/train.md). Weights, optimizer
-    state, validation, the test metrics and the ONNX export stay float32.
+    "bf16" uses bfloat16 convolutions (oneDNN on the CPU), "fp32" never does, "auto" does where
+    the CPU has AMX tiles (on a GPU: never, its float32 is fast enough). AVX512-BF16 alone is
+    not enough: on such a 2-core CPU a demo training step takes 1.3-1.4x longer in bfloat16
+    than in float32 (docs/train.md). Weights, optimizer state, validation, the test metrics and
+    the ONNX export stay float32.
     """
     if precision not in ("auto", "bf16", "fp32"):
         raise ValueError(f"precision={precision!r}: use auto, bf16 or fp32")
     if precision == "auto":
+        if device == "cuda":
+            return False
         return bool(torch.cpu._is_amx_tile_supported())
     return precision == "bf16"
 
@@ -44,14 +48,18 @@ def check_loss(loss: LossConfig) -> None:
                          "(1 = off)")
 
 
-def check_config(cfg: TrainConfig) -> bool:
+def check_config(cfg: TrainConfig, device: str = "cpu") -> bool:
     """Every setting ``run`` can check before loading anything, each error naming its key.
+
+    Args:
+        cfg: the settings.
+        device: the device type training runs on (``cpu``, ``cuda``).
 
     Returns:
         Whether to train in bfloat16 autocast (``precision``).
     """
     check_counts(cfg)
-    bf16 = resolve_precision(cfg.precision)
+    bf16 = resolve_precision(cfg.precision, device)
     check_loss(cfg.loss)
     if cfg.model.head == "sharpen" and cfg.loss.resolution != "input":
         raise ValueError(

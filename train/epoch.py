@@ -39,7 +39,7 @@ def network_logits(model: SegNet, x: torch.Tensor, head: bool, bf16: bool) -> to
     Returns:
         (B, C, h', w') logits, bfloat16 or float32.
     """
-    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+    with torch.autocast(x.device.type, dtype=torch.bfloat16, enabled=bf16):
         logits = model.forward_network_resolution(x)
         if head:
             logits = model.to_input_resolution(logits, x)
@@ -67,11 +67,13 @@ def data_parallel(model: SegNet, full_labels: bool, bf16: bool, world: World
                   ) -> torch.nn.parallel.DistributedDataParallel | None:
     """The training forward pass (``TrainingForward``) in DistributedDataParallel, which
     averages the gradients over the ranks (rank 0's weights and buffers copied to all at
-    construction); None for one process."""
+    construction), on the model's device; None for one process."""
     if not world.active:
         return None
+    device = next(model.parameters()).device
     return torch.nn.parallel.DistributedDataParallel(
-        TrainingForward(model, uses_head(model, full_labels), bf16))
+        TrainingForward(model, uses_head(model, full_labels), bf16),
+        device_ids=[device] if device.type == "cuda" else None)
 
 
 def training_logits(model: SegNet, x: torch.Tensor, label_size: tuple[int, int],
@@ -124,8 +126,9 @@ def train_one_epoch(
     loss at the input's with ``full_labels``).
 
     Args:
-        model: network in train mode after the call.
-        data: the training split in memory, already at the network's resolution
+        model: network in train mode after the call, on the device it trains on (the
+            batches go there).
+        data: the training split in memory (CPU), already at the network's resolution
             (``downsample_split``).
         class_weights: (C,) cross-entropy weights or None.
         optimizer, scheduler: stepped every batch.
@@ -154,6 +157,7 @@ def train_one_epoch(
     if world.active and ddp is None:
         raise ValueError("train_one_epoch: world.active needs ddp=data_parallel(model, ...)")
     model.train()
+    device = next(model.parameters()).device
     total, steps, stopped = 0.0, 0, False
     n_steps = num_batches(len(data), batch_size, drop_last=True)
     bar = tqdm(
@@ -171,7 +175,8 @@ def train_one_epoch(
         x, y = world.shard(x), world.shard(y)
         if not full_labels and model.training_factor != model.downsample:
             y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
-        x = x.contiguous(memory_format=torch.channels_last)
+        x = x.to(device).contiguous(memory_format=torch.channels_last)
+        y = y.to(device)
         logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16, ddp)
         loss, value = batch_loss(logits, y, class_weights, boundary_weight, world)
         optimizer.zero_grad(set_to_none=True)

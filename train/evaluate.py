@@ -36,7 +36,7 @@ def evaluate(
     """Confusion matrix of the torch network's argmax on a split (full images, no augmentation).
 
     Args:
-        model: the network (put in eval mode).
+        model: the network (put in eval mode; the images go to its device).
         data: the split, (N, 3, H, W) uint8 images and (N, H, W) labels.
         num_classes: C.
         batch_size: images per forward pass.
@@ -46,10 +46,11 @@ def evaluate(
         (C, C) int64, rows = truth.
     """
     model.eval()
+    device = next(model.parameters()).device
     cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
     for idx in _bar(data, batch_size, progress, desc):
-        logits = model(to_float(data.images[idx]))
-        cm += confusion_matrix(logits.argmax(1), data.labels[idx], num_classes)
+        logits = model(to_float(data.images[idx]).to(device))
+        cm += confusion_matrix(logits.argmax(1).cpu(), data.labels[idx], num_classes)
     return cm
 
 

@@ -109,7 +109,7 @@ def pixel_loss_weights(target: torch.Tensor, weight: torch.Tensor | None = None,
         target, weight, boundary_weight: as for ``segmentation_loss``.
     """
     valid = target != IGNORE
-    w_pix = (torch.ones(target.shape) if weight is None
+    w_pix = (torch.ones(target.shape, device=target.device) if weight is None
              else weight[target.clamp(max=len(weight) - 1)]) * valid
     if boundary_weight != 1.0:
         w_pix = torch.where(boundary_mask(target), float(boundary_weight), 1.0) * w_pix

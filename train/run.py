@@ -62,7 +62,14 @@ from train.data import (
     through_camera,
     to_float,
 )
-from train.distributed import SINGLE, World, check_batch_size, process_group
+from train.distributed import (
+    CPU,
+    SINGLE,
+    World,
+    check_batch_size,
+    process_group,
+    training_device,
+)
 from train.epoch import data_parallel, train_one_epoch
 from train.evaluate import evaluate, evaluate_onnx
 from train.export import ParityError, export_checked, onnx_metadata, update_metadata
@@ -103,6 +110,7 @@ class Job:
     bf16: bool
     world: World = SINGLE  # the torchrun processes (train/distributed.py)
     ddp: torch.nn.parallel.DistributedDataParallel | None = None  # under torchrun
+    device: torch.device = CPU  # where the network trains (``device``)
 
     @property
     def full_labels(self) -> bool:
@@ -163,14 +171,17 @@ def build_network(cfg: TrainConfig, num_classes: int) -> SegNet:
     return model
 
 
-def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
-    """Check the config, claim the output folder, load the data, build network and optimizer.
+def prepare(cfg: TrainConfig, world: World = SINGLE,
+            device: torch.device = CPU) -> Job:
+    """Check the config, claim the output folder, load the data, build network and optimizer
+    (the network, its weight average and the class weights on ``device``; the data on the
+    CPU).
 
     Nothing is written before every check that needs no data has passed. Under torchrun
     (``world.active``) rank 0 alone claims and writes the folder and loads the validation
     split; every rank loads the training split and wraps the network in DDP (``job.ddp``).
     """
-    bf16 = check_config(cfg)
+    bf16 = check_config(cfg, device.type)
     check_batch_size(cfg.batch_size, world)
     camera = load_realism(cfg.data.realism, "data.realism")
     torch.set_num_threads(cfg.threads)
@@ -203,9 +214,11 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
         if val_data is not None:
             val_data = through_camera(val_data, camera, cfg.seed, stream=1)
     weights = class_weight_tensor(cfg.loss, train_data, num_classes)
+    if weights is not None:
+        weights = weights.to(device)
     # Training runs at the network's resolution (augmentation and loss 1/d^2 as costly) and
     # channels-last (oneDNN's faster layout for these convolutions on CPU).
-    model = model.to(memory_format=torch.channels_last)
+    model = model.to(device, memory_format=torch.channels_last)
     train_data = downsample_split(train_data, model.training_factor, keep_labels=full_labels)
     batch_size = min(cfg.batch_size, len(train_data))
     check_batch_size(batch_size, world)  # fewer training images than batch_size
@@ -216,15 +229,15 @@ def prepare(cfg: TrainConfig, world: World = SINGLE) -> Job:
               optimizer, scheduler, train_data, val_data,
               cfg.data.augment.at_resolution(model.training_factor), weights, batch_size,
               steps_per_epoch, cfg.epochs, bf16, world,
-              data_parallel(model, full_labels, bf16, world))
+              data_parallel(model, full_labels, bf16, world), device)
     if not world.is_main:
         return job
     if job.class_weights is not None:
         log.info("class weights: %s", job.class_weights)
     log.info(
-        "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch, %s",
-        cfg.model.name, count_parameters(model), model.channels, len(train_data),
-        len(val_data), steps_per_epoch, "bfloat16 autocast" if bf16 else "float32",
+        "model %s: %d parameters, channels %s; %d train / %d val images, %d steps/epoch, %s "
+        "on %s", cfg.model.name, count_parameters(model), model.channels, len(train_data),
+        len(val_data), steps_per_epoch, "bfloat16 autocast" if bf16 else "float32", device,
     )
     if world.active:
         log.info("data-parallel: %d processes (torch.distributed %s), %d images each per step",
@@ -327,7 +340,8 @@ def fit(job: Job) -> dict:
 
 
 def load_best(job: Job) -> tuple[SegNet, dict]:
-    """The network with the best checkpoint's weights, in eval mode, and the checkpoint."""
+    """The network with the best checkpoint's weights, on the CPU in eval mode (what is
+    exported), and the checkpoint."""
     path = job.out_dir / "checkpoint_best.pt"
     if not path.is_file():
         raise RuntimeError(
@@ -335,7 +349,7 @@ def load_best(job: Job) -> tuple[SegNet, dict]:
             f"{job.cfg.max_minutes} ended before the first epoch; raise it"
         )
     best = torch.load(path, map_location="cpu", weights_only=False)
-    model = job.model.to(memory_format=torch.contiguous_format)
+    model = job.model.to("cpu", memory_format=torch.contiguous_format)
     model.load_state_dict(best["model"])
     model.eval()
     return model, best
@@ -483,8 +497,9 @@ def run(cfg: DictConfig | Mapping | TrainConfig) -> dict:
     """
     t_start = time.monotonic()
     settings = train_settings(cfg)
-    with process_group() as world:
-        job = prepare(settings, world)
+    device = training_device(settings.device)
+    with process_group(device) as world:
+        job = prepare(settings, world, device)
         state = fit(job)
         job.ddp = None
     if not world.is_main:

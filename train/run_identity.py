@@ -20,6 +20,7 @@ HASH_EXCLUDE = (
     "name",
     "out_root",
     "threads",
+    "device",
     "max_minutes",
     "finish_by",
     "overwrite",
