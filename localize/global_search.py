@@ -1,0 +1,337 @@
+"""Global localization over a whole floor: every pose of the free space, scored by a table.
+
+A ``GlobalSearch`` keeps a large set of weighted pose hypotheses (x, y, z, yaw of the body, as
+the particle filter's states) that starts as a dense grid: every cell of the table
+(``ray_table.RayTable``) inside the free space times ``headings`` headings, jittered within
+its cell and heading bin, so the true pose always has hypotheses within half a cell and half a
+heading step of it. Each frame the hypotheses move by the odometry (with noise, as particles)
+and are weighed by the floor boundary the frame shows (``ray_table.floor_boundary``) against
+the table's distances: one look-up per azimuth bin, no projection of the model, so a
+hypothesis costs ~0.3 us against the edge likelihood's ~10 us and the whole floor fits a frame.
+
+Measurement (per hypothesis, over the frame's J azimuth bins): the camera height h that fits
+best in the least-squares sense of ``log tan = log h - log D`` (weighted by how an angle error
+maps to it, clamped to the free space's band), then the angle errors
+``e_j = atan(tan_j) - atan(h / D_j)`` and ``log L = -evidence * mean_j min(e_j^2 / 2 sigma^2,
+outlier)``; a frame takes at most ``frame_floor`` from any hypothesis against the best one, so a
+few bad frames (a person in front of the wall, a wrong label) never remove the truth.
+
+The set is resampled (systematic, with a small jitter) when its effective size falls under
+half, to an adaptive count (KLD-style): ``per_bin`` hypotheses per occupied bin of 0.5 m x 0.5 m
+x 20 deg, within [``min_hypotheses``, ``max_hypotheses``]. It converges when one cluster
+(``cluster_radius`` m, ``cluster_yaw_deg``) holds ``handover_mass`` of the weight for
+``handover_frames`` frames in a row; ``sample`` then draws the tracking filter's particles
+from that cluster.
+
+Interface (what the Localizer wires):
+
+- ``search = GlobalSearch(table, camera, world.free, params, rng)``; ``table = ray_table_for(world,
+  params)`` (built once per world and kept).
+- ``search.reset(weights=None)``: the dense start; ``weights`` is an optional callable
+  ``(N, 4) states -> (N,) log prior`` (a region, a pose with covariance, a heading range:
+  ``-inf`` removes a hypothesis).
+- ``search.predict(delta)``: (4,) odometry increment (``core.poses.odometry_increment``).
+- ``search.update(labels, tilt) -> bool``: (H, W) uint8 class labels (oracle or the SegNet's),
+  (3, 3) roll/pitch of the IMU or None; False when the frame shows too little floor boundary
+  (nothing weighed).
+- ``search.hypotheses(k) -> (poses (k', 4), mass (k',))``: the heaviest clusters, their
+  weighted mean poses and the share of the weight each holds (k' <= k).
+- ``search.converged``: one cluster held ``handover_mass`` for ``handover_frames`` frames.
+- ``search.sample(n) -> (n, 4)``: particles drawn from the dominant cluster's hypotheses.
+- ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
+  log-weights.
+
+Settings: ``GlobalSearchParams`` (``filter.global_search``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import logsumexp
+
+from core.dataset import Camera, World
+from core.occupancy import OccupancyMap
+from core.poses import wrap_angle
+from localize.particle_filter import apply_increment, effective_sample_size, systematic_resample
+from localize.ray_table import FloorBoundary, RayTable, floor_boundary
+
+
+@dataclass(frozen=True)
+class GlobalSearchParams:
+    """Settings of the global search (``filter.global_search``).
+
+    Attributes:
+        cell: m, the table's cell (the start grid's spacing).
+        rays: azimuth bins of the table (2 pi / rays each).
+        headings: headings per cell of the start grid.
+        sigma_deg: angle noise of a boundary pixel's bin, degrees.
+        outlier: most a bin's error costs, in units of its Gaussian's exponent.
+        evidence: log-likelihood scale of a frame (how many independent bins it counts as).
+        frame_floor: most log-weight a frame takes from a hypothesis against the best one.
+        min_bins: fewer observed azimuth bins: the frame is not weighed.
+        max_bins: most azimuth bins scored (evenly spaced among the observed ones).
+        motion_std: (3,) per frame: horizontal m, vertical m, yaw degrees.
+        motion_rel: (2,) more noise per m of translation and per rad of yaw change.
+        jitter: (2,) m and degrees of the jitter added at resampling.
+        per_bin: hypotheses per occupied 0.5 m x 0.5 m x 20 deg bin after resampling.
+        min_hypotheses, max_hypotheses: bounds of the count after resampling.
+        cluster_radius: m, a cluster's radius (the mass of a hypothesis).
+        cluster_yaw_deg: degrees, its half-width in yaw.
+        handover_mass: share of the weight one cluster must hold to converge.
+        handover_frames: frames in a row it must hold it.
+        stride: pixel step of the boundary search in the label image.
+    """
+
+    cell: float = 0.25
+    rays: int = 180
+    headings: int = 60
+    sigma_deg: float = 1.5
+    outlier: float = 2.0
+    evidence: float = 8.0
+    frame_floor: float = 6.0
+    min_bins: int = 6
+    max_bins: int = 16
+    motion_std: tuple[float, float, float] = (0.03, 0.02, 1.0)
+    motion_rel: tuple[float, float] = (0.1, 0.1)
+    jitter: tuple[float, float] = (0.05, 1.0)
+    per_bin: int = 40
+    min_hypotheses: int = 4000
+    max_hypotheses: int = 150000
+    cluster_radius: float = 0.6
+    cluster_yaw_deg: float = 25.0
+    handover_mass: float = 0.9
+    handover_frames: int = 5
+    stride: int = 2
+
+
+_TABLES: dict = {}
+#: Hypotheses scored at once (bounds the (n, J) temporaries to a few MB).
+CHUNK = 32768
+
+
+def ray_table_for(world: World, params: GlobalSearchParams) -> RayTable:
+    """The world's ``RayTable`` at the params' cell and rays, built once and kept while the
+    world lives (the runner's localizers of one world share it)."""
+    key = (id(world), params.cell, params.rays)
+    hit = _TABLES.get(key)
+    if hit is not None and hit[0] is world:
+        return hit[1]
+    table = RayTable.build(world, params.cell, params.rays)
+    _TABLES.clear()  # one world at a time: a run localizes one dataset
+    _TABLES[key] = (world, table)
+    return table
+
+
+def bin_keys(states: np.ndarray, size: float = 0.5, yaw_deg: float = 20.0) -> np.ndarray:
+    """(N,) int64 dense key of each state's (size m x size m x yaw_deg) bin, from 0 (for
+    ``np.bincount``)."""
+    ij = np.floor(states[:, :2] / size).astype(np.int64)
+    ij -= ij.min(axis=0)
+    ny = int(ij[:, 1].max()) + 1
+    nb = int(np.ceil(360.0 / yaw_deg))
+    kb = np.floor((wrap_angle(states[:, 3]) + np.pi) / np.deg2rad(yaw_deg)).astype(np.int64)
+    return (ij[:, 0] * ny + ij[:, 1]) * nb + np.minimum(kb, nb - 1)
+
+
+class GlobalSearch:
+    """The hypothesis set of a global start (module docstring).
+
+    Args:
+        table: the floor's ray table.
+        camera: K, size, body_from_cam.
+        free: the free space (the start's cells; its band bounds the fitted heights).
+        params: settings.
+        rng: random generator (its only source of randomness).
+    """
+
+    def __init__(self, table: RayTable, camera: Camera, free: OccupancyMap,
+                 params: GlobalSearchParams, rng: np.random.Generator):
+        self.table, self.camera, self.params, self.rng = table, camera, params, rng
+        self.free = free
+        self.band = (float(free.band[0]), float(free.band[1]))
+        d = np.maximum(np.nan_to_num(table.dist.astype(np.float32), nan=table.max_range), 0.05)
+        d = d.reshape(-1, table.rays)
+        self._wrap = M = table.rays // 4  # azimuth bins either side of the heading scored
+        # (cells * (R + 2M),) float32 1 / D, each cell's row wrapped by M bins both ways
+        self._inv_dist = (1.0 / np.concatenate([d[:, -M:], d, d[:, :M]], axis=1)).ravel()
+        self.states = np.zeros((0, 4))
+        self.logw = np.zeros(0)
+        self._held = 0
+        self._dominant = None  # (4,) mean pose of the cluster that held the mass
+
+    def reset(self, weights=None) -> None:
+        """The dense start: every free cell of the table x ``headings`` headings, jittered
+        within its cell and heading bin; ``weights``: optional ``(N, 4) -> (N,)`` log prior."""
+        p, t = self.params, self.table
+        xy = t.centres()
+        xy = xy[self.free.contains(xy)]
+        H = p.headings
+        n = len(xy) * H
+        xy = np.repeat(xy, H, axis=0) + self.rng.uniform(-0.5, 0.5, (n, 2)) * t.cell
+        yaw = (np.tile(np.arange(H), len(xy) // H) + self.rng.uniform(-0.5, 0.5, n)) \
+            * (2 * np.pi / H)
+        z = np.full(n, 0.5 * (self.band[0] + self.band[1]))
+        self.states = np.column_stack([xy, z, wrap_angle(yaw)])
+        self.logw = np.zeros(n)
+        if weights is not None:
+            self.logw = np.asarray(weights(self.states), dtype=np.float64)
+            keep = np.isfinite(self.logw)
+            if not keep.any():
+                raise ValueError("global search: the hint's prior leaves no pose of the free "
+                                 "space; check the region / pose / heading range")
+            self.states, self.logw = self.states[keep], self.logw[keep]
+        self.logw -= logsumexp(self.logw)
+        self._held, self._dominant = 0, None
+
+    def predict(self, delta: np.ndarray) -> None:
+        """Move every hypothesis by an odometry increment (4,) with noise."""
+        p = self.params
+        step = float(np.hypot(delta[0], delta[1]))
+        s_xy = p.motion_std[0] + p.motion_rel[0] * step
+        s_yaw = np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
+        std = np.array([s_xy, s_xy, p.motion_std[1], s_yaw])
+        noise = self.rng.normal(0.0, 1.0, self.states.shape) * std
+        self.states = apply_increment(self.states, np.asarray(delta, np.float64) + noise)
+
+    def log_likelihood(self, labels: np.ndarray, tilt: np.ndarray | None
+                       ) -> tuple[np.ndarray, np.ndarray] | None:
+        """(N,) log-likelihood of the hypotheses and (N,) their fitted body heights (m), or
+        None when the frame shows fewer than ``min_bins`` azimuth bins of floor boundary."""
+        p, t = self.params, self.table
+        fb = floor_boundary(labels, self.camera, tilt, t.rays, p.stride)
+        if len(fb) < p.min_bins:
+            return None
+        if len(fb) > p.max_bins:  # evenly spaced bins: neighbours tell nearly the same
+            keep = np.unique(np.linspace(0, len(fb) - 1, p.max_bins).round().astype(int))
+            fb = FloorBoundary(fb.offsets[keep], fb.tan[keep], fb.camera)
+        S = self.states
+        c, s = np.cos(S[:, 3]), np.sin(S[:, 3])
+        cx = S[:, 0] + c * fb.camera[0] - s * fb.camera[1]
+        cy = S[:, 1] + s * fb.camera[0] + c * fb.camera[1]
+        cells = t.cells(np.column_stack([cx, cy]))
+        R, M = t.rays, self._wrap
+        k = np.rint(fb.offsets * (R / (2 * np.pi))).astype(np.int32)  # (J,) bin offsets
+        k = np.clip(k, -M, M)
+        start = (np.maximum(cells, 0) * (R + 2 * M) + M
+                 + np.rint(S[:, 3] * (R / (2 * np.pi))).astype(np.int64) % R).astype(np.int32)
+        tan = fb.tan.astype(np.float32)
+        slope = np.float32(1.0) / (1 + tan * tan)  # d(angle) / d(tan)
+        w2 = slope * slope
+        w2_tan = w2 * tan
+        lo, hi = self.band[0] + fb.camera[2], self.band[1] + fb.camera[2]
+        inv_s2 = np.float32(1.0 / (2 * np.deg2rad(p.sigma_deg) ** 2))
+        rho = np.empty(len(S), dtype=np.float32)
+        h = np.empty(len(S), dtype=np.float32)
+        for a in range(0, len(S), CHUNK):  # chunks of rows: the (n, J) temporaries stay small
+            b = slice(a, a + CHUNK)
+            inv_d = self._inv_dist[start[b, None] + k[None]]  # (n, J) 1 / D
+            # the height that fits best: least squares of the first-order angle errors
+            num = np.einsum("ij,j->i", inv_d, w2_tan)
+            den = np.einsum("ij,ij,j->i", inv_d, inv_d, w2)
+            h[b] = np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi)
+            err = (tan[None] - h[b, None] * inv_d) * slope[None]  # angle error, first order
+            rho[b] = np.minimum(err * err * inv_s2, np.float32(p.outlier)).mean(1)
+        rho = np.where(cells >= 0, rho, np.float32(p.outlier))
+        ll = -p.evidence * rho.astype(np.float64)
+        return np.maximum(ll, ll.max() - p.frame_floor), h - fb.camera[2]
+
+    def update(self, labels: np.ndarray, tilt: np.ndarray | None) -> bool:
+        """Weigh the hypotheses by a frame's labels (module docstring), resample when the
+        effective size falls under half; False when the frame was not weighed."""
+        out = self.log_likelihood(labels, tilt)
+        if out is None:
+            self._track_dominant()
+            return False
+        ll, z = out
+        self.states[:, 2] = z
+        lw = self.logw + ll
+        self.logw = lw - logsumexp(lw)
+        if effective_sample_size(self.logw) < 0.5 * len(self.logw):
+            self._resample()
+        self._track_dominant()
+        return True
+
+    def _resample(self) -> None:
+        """Systematic resampling to the adaptive count (``per_bin`` per occupied bin), with the
+        jitter."""
+        p = self.params
+        idx = systematic_resample(self.rng, self.logw, min(p.max_hypotheses,
+                                                           max(len(self.logw), p.min_hypotheses)))
+        S = self.states[idx]
+        occupied = int(np.count_nonzero(np.bincount(bin_keys(S))))
+        n = int(np.clip(occupied * p.per_bin, p.min_hypotheses, p.max_hypotheses))
+        if n < len(S):
+            S = S[np.sort(self.rng.choice(len(S), n, replace=False))]
+        elif n > len(S):
+            S = S[np.sort(self.rng.integers(0, len(S), n))]
+        jit = self.rng.normal(0.0, 1.0, (len(S), 4)) * np.array(
+            [p.jitter[0], p.jitter[0], 0.0, np.deg2rad(p.jitter[1])])
+        S = S + jit
+        S[:, 3] = wrap_angle(S[:, 3])
+        self.states = S
+        self.logw = np.full(len(S), -np.log(len(S)))
+
+    def hypotheses(self, k: int = 5) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` heaviest clusters (non-maximum suppression): (k', 4) weighted mean poses,
+        (k',) the share of the weight within ``cluster_radius`` and ``cluster_yaw_deg`` of each,
+        heaviest first."""
+        p = self.params
+        w = np.exp(self.logw)
+        S = self.states
+        left = np.ones(len(S), bool)
+        poses, mass = [], []
+        yaw_tol = np.deg2rad(p.cluster_yaw_deg)
+        for _ in range(int(k)):  # k clusters, each vectorized over the hypotheses
+            if not left.any():
+                break
+            seed = self._densest(S[left], w[left])
+            near = left & (np.hypot(S[:, 0] - seed[0], S[:, 1] - seed[1]) <= p.cluster_radius) \
+                & (np.abs(wrap_angle(S[:, 3] - seed[3])) <= yaw_tol)
+            m = float(w[near].sum())
+            if m <= 0:
+                break
+            ww = w[near] / m
+            yaw = np.arctan2(ww @ np.sin(S[near, 3]), ww @ np.cos(S[near, 3]))
+            poses.append(np.r_[ww @ S[near, :3], yaw])
+            mass.append(m)
+            left &= ~near
+        return np.array(poses).reshape(-1, 4), np.array(mass)
+
+    def _densest(self, S: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """(4,) the weighted mean pose of the heaviest 0.5 m x 0.5 m x 20 deg bin of (S, w)."""
+        inv = bin_keys(S)
+        best = np.argmax(np.bincount(inv, weights=w))
+        sel = inv == best
+        ww = w[sel] / w[sel].sum()
+        yaw = np.arctan2(ww @ np.sin(S[sel, 3]), ww @ np.cos(S[sel, 3]))
+        return np.r_[ww @ S[sel, :3], yaw]
+
+    def _track_dominant(self) -> None:
+        """Count the frames in a row one cluster holds ``handover_mass``."""
+        poses, mass = self.hypotheses(1)
+        if len(mass) and mass[0] >= self.params.handover_mass:
+            self._held += 1
+            self._dominant = poses[0]
+        else:
+            self._held, self._dominant = 0, None
+
+    @property
+    def converged(self) -> bool:
+        """One cluster held ``handover_mass`` for ``handover_frames`` frames in a row."""
+        return self._held >= self.params.handover_frames
+
+    def sample(self, n: int) -> np.ndarray:
+        """(n, 4) particles for the tracking filter: resampled from the hypotheses of the
+        dominant cluster (all of them before one dominates)."""
+        p = self.params
+        S, lw = self.states, self.logw
+        if self._dominant is not None:
+            d = self._dominant
+            near = (np.hypot(S[:, 0] - d[0], S[:, 1] - d[1]) <= p.cluster_radius) \
+                & (np.abs(wrap_angle(S[:, 3] - d[3])) <= np.deg2rad(p.cluster_yaw_deg))
+            if near.any():
+                S, lw = S[near], lw[near]
+        return S[systematic_resample(self.rng, lw, int(n))].copy()
+
