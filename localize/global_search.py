@@ -10,18 +10,21 @@ the table's distances: one look-up per azimuth bin, no projection of the model, 
 hypothesis costs ~0.3 us against the edge likelihood's ~10 us and the whole floor fits a frame.
 
 Measurement (per hypothesis, over the frame's J azimuth bins): the camera height h that fits
-best in the least-squares sense of ``log tan = log h - log D`` (weighted by how an angle error
-maps to it, clamped to the free space's band), then the angle errors
-``e_j = atan(tan_j) - atan(h / D_j)`` and ``log L = -evidence * mean_j min(e_j^2 / 2 sigma^2,
-outlier)``; a frame takes at most ``frame_floor`` from any hypothesis against the best one, so a
-few bad frames (a person in front of the wall, a wrong label) never remove the truth.
+best (least squares of the first-order angle errors, a second time without the bins that are
+outliers at the first height; clamped to the free space's band), then the angle errors
+``e_j = atan(tan_j) - atan(h / D_j)`` and ``log L = -evidence * min(1, J / max_bins) *
+mean_j min(e_j^2 / 2 sigma^2, outlier)``; a frame takes at most ``frame_floor`` from any
+hypothesis against the best one, so a few bad frames (a person in front of the wall, a wrong
+label) never remove the truth.
 
-The set is resampled (systematic, with a small jitter) when its effective size falls under
-half, to an adaptive count (KLD-style): ``per_bin`` hypotheses per occupied bin of 0.5 m x 0.5 m
-x 20 deg, within [``min_hypotheses``, ``max_hypotheses``]. It converges when one cluster
-(``cluster_radius`` m, ``cluster_yaw_deg``) holds ``handover_mass`` of the weight for
-``handover_frames`` frames in a row; ``sample`` then draws the tracking filter's particles
-from that cluster.
+The weights are never reset: each frame the hypotheses more than ``prune_band`` below the best
+are dropped and the count is brought to an adaptive one (KLD-style: ``per_bin`` per occupied
+bin of 0.5 m x 0.5 m x 20 deg, within [``min_hypotheses``, ``max_hypotheses``]) by jittered
+copies of the survivors that share their parent's weight, or by a uniform thinning; so a pose
+that fits as well as the best keeps its share however few hypotheses it started with. It
+converges when one cluster (``cluster_radius`` m, ``cluster_yaw_deg``) holds
+``handover_mass`` of the weight for ``handover_frames`` frames in a row; ``sample`` then draws
+the tracking filter's particles from that cluster.
 
 Interface (what the Localizer wires):
 
@@ -46,19 +49,20 @@ Settings: ``GlobalSearchParams`` (``filter.global_search``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.special import logsumexp
 
+from core.config import typed
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
-from localize.particle_filter import apply_increment, effective_sample_size, systematic_resample
+from localize.particle_filter import apply_increment, spread, systematic_resample
 from localize.ray_table import FloorBoundary, RayTable, floor_boundary
 
 
-@dataclass(frozen=True)
+@dataclass
 class GlobalSearchParams:
     """Settings of the global search (``filter.global_search``).
 
@@ -68,14 +72,20 @@ class GlobalSearchParams:
         headings: headings per cell of the start grid.
         sigma_deg: angle noise of a boundary pixel's bin, degrees.
         outlier: most a bin's error costs, in units of its Gaussian's exponent.
-        evidence: log-likelihood scale of a frame (how many independent bins it counts as).
+        evidence: log-likelihood scale of a frame that shows ``max_bins`` bins or more (one
+            that shows fewer counts for their share).
         frame_floor: most log-weight a frame takes from a hypothesis against the best one.
         min_bins: fewer observed azimuth bins: the frame is not weighed.
         max_bins: most azimuth bins scored (evenly spaced among the observed ones).
         motion_std: (3,) per frame: horizontal m, vertical m, yaw degrees.
         motion_rel: (2,) more noise per m of translation and per rad of yaw change.
-        jitter: (2,) m and degrees of the jitter added at resampling.
-        per_bin: hypotheses per occupied 0.5 m x 0.5 m x 20 deg bin after resampling.
+        jitter: (2,) m and degrees of the jitter of a copy.
+        prune_band: hypotheses more than this below the best in log-weight are dropped.
+        inject_every: frames between injections of the best poses of a coarse grid (0: none).
+        inject_headings: headings per cell of that grid.
+        inject_count: poses injected.
+        inject_below: log-weight under the best they start with.
+        per_bin: hypotheses per occupied 0.5 m x 0.5 m x 20 deg bin after pruning.
         min_hypotheses, max_hypotheses: bounds of the count after resampling.
         cluster_radius: m, a cluster's radius (the mass of a hypothesis).
         cluster_yaw_deg: degrees, its half-width in yaw.
@@ -91,19 +101,29 @@ class GlobalSearchParams:
     outlier: float = 2.0
     evidence: float = 8.0
     frame_floor: float = 6.0
-    min_bins: int = 6
+    min_bins: int = 8
     max_bins: int = 16
-    motion_std: tuple[float, float, float] = (0.03, 0.02, 1.0)
-    motion_rel: tuple[float, float] = (0.1, 0.1)
-    jitter: tuple[float, float] = (0.05, 1.0)
+    motion_std: list[float] = field(default_factory=lambda: [0.03, 0.02, 1.0])
+    motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
+    jitter: list[float] = field(default_factory=lambda: [0.05, 1.0])
+    prune_band: float = 30.0
+    inject_every: int = 10
+    inject_headings: int = 24
+    inject_count: int = 1000
+    inject_below: float = 10.0
     per_bin: int = 40
     min_hypotheses: int = 4000
-    max_hypotheses: int = 150000
+    max_hypotheses: int = 100000
     cluster_radius: float = 0.6
     cluster_yaw_deg: float = 25.0
     handover_mass: float = 0.9
     handover_frames: int = 5
     stride: int = 2
+
+
+def search_params(global_search: dict) -> GlobalSearchParams:
+    """The settings of ``filter.global_search`` (a typo or a bad value raises naming it)."""
+    return typed(GlobalSearchParams, global_search, "filter.global_search")
 
 
 _TABLES: dict = {}
@@ -158,23 +178,14 @@ class GlobalSearch:
         self._inv_dist = (1.0 / np.concatenate([d[:, -M:], d, d[:, :M]], axis=1)).ravel()
         self.states = np.zeros((0, 4))
         self.logw = np.zeros(0)
-        self._held = 0
+        self._held = self._frames = 0
         self._dominant = None  # (4,) mean pose of the cluster that held the mass
 
     def reset(self, weights=None) -> None:
         """The dense start: every free cell of the table x ``headings`` headings, jittered
         within its cell and heading bin; ``weights``: optional ``(N, 4) -> (N,)`` log prior."""
-        p, t = self.params, self.table
-        xy = t.centres()
-        xy = xy[self.free.contains(xy)]
-        H = p.headings
-        n = len(xy) * H
-        xy = np.repeat(xy, H, axis=0) + self.rng.uniform(-0.5, 0.5, (n, 2)) * t.cell
-        yaw = (np.tile(np.arange(H), len(xy) // H) + self.rng.uniform(-0.5, 0.5, n)) \
-            * (2 * np.pi / H)
-        z = np.full(n, 0.5 * (self.band[0] + self.band[1]))
-        self.states = np.column_stack([xy, z, wrap_angle(yaw)])
-        self.logw = np.zeros(n)
+        self.states = self._grid(self.params.headings)
+        self.logw = np.zeros(len(self.states))
         if weights is not None:
             self.logw = np.asarray(weights(self.states), dtype=np.float64)
             keep = np.isfinite(self.logw)
@@ -183,7 +194,41 @@ class GlobalSearch:
                                  "space; check the region / pose / heading range")
             self.states, self.logw = self.states[keep], self.logw[keep]
         self.logw -= logsumexp(self.logw)
-        self._held, self._dominant = 0, None
+        self._held, self._dominant, self._frames = 0, None, 0
+
+    def _grid(self, headings: int) -> np.ndarray:
+        """(V * headings, 4) the free cells of the table x ``headings`` headings, jittered
+        within their cell and heading bin, at the band's middle height."""
+        t = self.table
+        xy = t.centres()
+        xy = xy[self.free.contains(xy)]
+        n = len(xy) * headings
+        xy = np.repeat(xy, headings, axis=0) + self.rng.uniform(-0.5, 0.5, (n, 2)) * t.cell
+        yaw = (np.tile(np.arange(headings), n // headings) + self.rng.uniform(-0.5, 0.5, n)) \
+            * (2 * np.pi / headings)
+        z = np.full(n, 0.5 * (self.band[0] + self.band[1]))
+        return np.column_stack([xy, z, wrap_angle(yaw)])
+
+    def _inject(self, labels: np.ndarray, tilt: np.ndarray | None) -> None:
+        """Every ``inject_every`` frames: score a coarse grid (``inject_headings`` per cell)
+        on this frame alone and add its ``inject_count`` best poses, ``inject_below`` under the
+        best log-weight (a pose lost to a run of bad frames comes back when a good one
+        shows it)."""
+        p = self.params
+        kept_S, kept_lw = self.states, self.logw
+        self.states = self._grid(p.inject_headings)
+        out = self.log_likelihood(labels, tilt)
+        S = self.states
+        self.states = kept_S
+        if out is None:
+            return
+        ll, z = out
+        top = np.argpartition(-ll, min(p.inject_count, len(ll) - 1))[:p.inject_count]
+        S[top, 2] = z[top]
+        lw = np.full(len(top), kept_lw.max() - p.inject_below)
+        self.states = np.concatenate([kept_S, S[top]])
+        self.logw = np.concatenate([kept_lw, lw])
+        self.logw -= logsumexp(self.logw)
 
     def predict(self, delta: np.ndarray) -> None:
         """Move every hypothesis by an odometry increment (4,) with noise."""
@@ -227,19 +272,28 @@ class GlobalSearch:
         for a in range(0, len(S), CHUNK):  # chunks of rows: the (n, J) temporaries stay small
             b = slice(a, a + CHUNK)
             inv_d = self._inv_dist[start[b, None] + k[None]]  # (n, J) 1 / D
-            # the height that fits best: least squares of the first-order angle errors
+            # the height that fits best: least squares of the first-order angle errors, then
+            # again without the bins that are outliers at the first height
             num = np.einsum("ij,j->i", inv_d, w2_tan)
             den = np.einsum("ij,ij,j->i", inv_d, inv_d, w2)
-            h[b] = np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi)
-            err = (tan[None] - h[b, None] * inv_d) * slope[None]  # angle error, first order
+            hb = np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi)
+            err = (tan[None] - hb[:, None] * inv_d) * slope[None]  # angle error, first order
+            inl = (err * err * inv_s2 < np.float32(p.outlier)).astype(np.float32)
+            inl_d = inl * inv_d
+            num = np.einsum("ij,j->i", inl_d, w2_tan)
+            den = np.einsum("ij,ij,j->i", inl_d, inv_d, w2)
+            hb = np.where(den > 0, np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi), hb)
+            err = (tan[None] - hb[:, None] * inv_d) * slope[None]
             rho[b] = np.minimum(err * err * inv_s2, np.float32(p.outlier)).mean(1)
+            h[b] = hb
         rho = np.where(cells >= 0, rho, np.float32(p.outlier))
-        ll = -p.evidence * rho.astype(np.float64)
+        ll = -p.evidence * min(1.0, len(fb) / p.max_bins) * rho.astype(np.float64)
         return np.maximum(ll, ll.max() - p.frame_floor), h - fb.camera[2]
 
     def update(self, labels: np.ndarray, tilt: np.ndarray | None) -> bool:
         """Weigh the hypotheses by a frame's labels (module docstring), resample when the
         effective size falls under half; False when the frame was not weighed."""
+        p = self.params
         out = self.log_likelihood(labels, tilt)
         if out is None:
             self._track_dominant()
@@ -248,30 +302,36 @@ class GlobalSearch:
         self.states[:, 2] = z
         lw = self.logw + ll
         self.logw = lw - logsumexp(lw)
-        if effective_sample_size(self.logw) < 0.5 * len(self.logw):
-            self._resample()
+        self._frames += 1
+        if p.inject_every > 0 and self._frames % p.inject_every == 0:
+            self._inject(labels, tilt)
+        self._prune()
         self._track_dominant()
         return True
 
-    def _resample(self) -> None:
-        """Systematic resampling to the adaptive count (``per_bin`` per occupied bin), with the
-        jitter."""
+    def _prune(self) -> None:
+        """Drop the hypotheses more than ``prune_band`` below the best in log-weight, then
+        bring the count to ``per_bin`` per occupied bin (within the bounds): copies of the
+        survivors drawn by weight, jittered, each copy sharing its parent's weight (cluster
+        masses are kept), or a uniform random thinning when there are too many (it keeps every
+        cluster's share in expectation)."""
         p = self.params
-        idx = systematic_resample(self.rng, self.logw, min(p.max_hypotheses,
-                                                           max(len(self.logw), p.min_hypotheses)))
-        S = self.states[idx]
+        keep = self.logw >= self.logw.max() - p.prune_band
+        S, lw = self.states[keep], self.logw[keep]
         occupied = int(np.count_nonzero(np.bincount(bin_keys(S))))
         n = int(np.clip(occupied * p.per_bin, p.min_hypotheses, p.max_hypotheses))
-        if n < len(S):
-            S = S[np.sort(self.rng.choice(len(S), n, replace=False))]
-        elif n > len(S):
-            S = S[np.sort(self.rng.integers(0, len(S), n))]
-        jit = self.rng.normal(0.0, 1.0, (len(S), 4)) * np.array(
-            [p.jitter[0], p.jitter[0], 0.0, np.deg2rad(p.jitter[1])])
-        S = S + jit
-        S[:, 3] = wrap_angle(S[:, 3])
-        self.states = S
-        self.logw = np.full(len(S), -np.log(len(S)))
+        if len(S) > n:
+            sel = np.sort(self.rng.choice(len(S), n, replace=False))
+            S, lw = S[sel], lw[sel]
+        elif len(S) < n:
+            parent = systematic_resample(self.rng, lw, n - len(S))
+            copies = 1 + np.bincount(parent, minlength=len(S))
+            lw = lw - np.log(copies)
+            new = S[parent] + self.rng.normal(0.0, 1.0, (len(parent), 4)) * np.array(
+                [p.jitter[0], p.jitter[0], 0.0, np.deg2rad(p.jitter[1])])
+            new[:, 3] = wrap_angle(new[:, 3])
+            S, lw = np.concatenate([S, new]), np.concatenate([lw, lw[parent]])
+        self.states, self.logw = S, lw - logsumexp(lw)
 
     def hypotheses(self, k: int = 5) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` heaviest clusters (non-maximum suppression): (k', 4) weighted mean poses,
@@ -316,6 +376,12 @@ class GlobalSearch:
             self._dominant = poses[0]
         else:
             self._held, self._dominant = 0, None
+
+    def estimate(self) -> tuple[np.ndarray, float, float]:
+        """The heaviest cluster's mean pose (4,), and the weighted horizontal spread (m) and
+        circular yaw spread (rad) of the whole set."""
+        poses, _ = self.hypotheses(1)
+        return poses[0], *spread(self.states, self.logw)
 
     @property
     def converged(self) -> bool:
