@@ -13,9 +13,10 @@ Measurement (per hypothesis, over the frame's J azimuth bins): the camera height
 best (least squares of the first-order angle errors, a second time without the bins that are
 outliers at the first height; clamped to the free space's band), then the angle errors
 ``e_j = atan(tan_j) - atan(h / D_j)`` and ``log L = -evidence * min(1, J / max_bins) *
-mean_j min(e_j^2 / 2 sigma^2, outlier)``; a frame takes at most ``frame_floor`` from any
-hypothesis against the best one, so a few bad frames (a person in front of the wall, a wrong
-label) never remove the truth.
+mean_j min(e_j^2 / 2 sigma^2 + class_cost [class_j != table's], outlier)`` (the class above
+the floor: wall, door or window); a frame takes at most ``frame_floor`` from any hypothesis
+against the best one, so a few bad frames (a person in front of the wall, a wrong label) never
+remove the truth.
 
 The weights are never reset: each frame the hypotheses more than ``prune_band`` below the best
 are dropped and the count is brought to an adaptive one (KLD-style: ``per_bin`` per occupied
@@ -59,7 +60,7 @@ from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from localize.particle_filter import apply_increment, spread, systematic_resample
-from localize.ray_table import FloorBoundary, RayTable, floor_boundary
+from localize.ray_table import RayTable, floor_boundary
 
 
 @dataclass
@@ -72,6 +73,8 @@ class GlobalSearchParams:
         headings: headings per cell of the start grid.
         sigma_deg: angle noise of a boundary pixel's bin, degrees.
         outlier: most a bin's error costs, in units of its Gaussian's exponent.
+        class_cost: what a bin costs whose class above the floor (wall, door, window) is not
+            the table's (added to its error, within ``outlier``).
         evidence: log-likelihood scale of a frame that shows ``max_bins`` bins or more (one
             that shows fewer counts for their share).
         frame_floor: most log-weight a frame takes from a hypothesis against the best one.
@@ -99,6 +102,7 @@ class GlobalSearchParams:
     headings: int = 60
     sigma_deg: float = 1.5
     outlier: float = 2.0
+    class_cost: float = 1.0
     evidence: float = 8.0
     frame_floor: float = 6.0
     min_bins: int = 8
@@ -176,6 +180,8 @@ class GlobalSearch:
         self._wrap = M = table.rays // 4  # azimuth bins either side of the heading scored
         # (cells * (R + 2M),) float32 1 / D, each cell's row wrapped by M bins both ways
         self._inv_dist = (1.0 / np.concatenate([d[:, -M:], d, d[:, :M]], axis=1)).ravel()
+        k = table.kind.reshape(-1, table.rays)
+        self._kind = np.concatenate([k[:, -M:], k, k[:, :M]], axis=1).ravel()
         self.states = np.zeros((0, 4))
         self.logw = np.zeros(0)
         self._held = self._frames = 0
@@ -250,7 +256,7 @@ class GlobalSearch:
             return None
         if len(fb) > p.max_bins:  # evenly spaced bins: neighbours tell nearly the same
             keep = np.unique(np.linspace(0, len(fb) - 1, p.max_bins).round().astype(int))
-            fb = FloorBoundary(fb.offsets[keep], fb.tan[keep], fb.camera)
+            fb = fb.take(keep)
         S = self.states
         c, s = np.cos(S[:, 3]), np.sin(S[:, 3])
         cx = S[:, 0] + c * fb.camera[0] - s * fb.camera[1]
@@ -271,7 +277,8 @@ class GlobalSearch:
         h = np.empty(len(S), dtype=np.float32)
         for a in range(0, len(S), CHUNK):  # chunks of rows: the (n, J) temporaries stay small
             b = slice(a, a + CHUNK)
-            inv_d = self._inv_dist[start[b, None] + k[None]]  # (n, J) 1 / D
+            idx = start[b, None] + k[None]
+            inv_d = self._inv_dist[idx]  # (n, J) 1 / D
             # the height that fits best: least squares of the first-order angle errors, then
             # again without the bins that are outliers at the first height
             num = np.einsum("ij,j->i", inv_d, w2_tan)
@@ -284,7 +291,11 @@ class GlobalSearch:
             den = np.einsum("ij,ij,j->i", inl_d, inv_d, w2)
             hb = np.where(den > 0, np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi), hb)
             err = (tan[None] - hb[:, None] * inv_d) * slope[None]
-            rho[b] = np.minimum(err * err * inv_s2, np.float32(p.outlier)).mean(1)
+            r = err * err * inv_s2
+            if p.class_cost > 0:  # a door seen where the table has a wall, ...
+                r += np.where(self._kind[idx] != fb.kind[None], np.float32(p.class_cost),
+                              np.float32(0.0))
+            rho[b] = np.minimum(r, np.float32(p.outlier)).mean(1)
             h[b] = hb
         rho = np.where(cells >= 0, rho, np.float32(p.outlier))
         ll = -p.evidence * min(1.0, len(fb) / p.max_bins) * rho.astype(np.float64)

@@ -32,9 +32,9 @@ from core.occupancy import OccupancyMap
 STANDING = (C.WALL, C.DOOR, C.WINDOW)
 
 
-def floor_boundary_segments(world: World) -> np.ndarray:
+def floor_boundary_segments(world: World) -> tuple[np.ndarray, np.ndarray]:
     """(M, 2, 2) xy (m) of the world's edge segments between the floor and a standing class
-    (``STANDING``); raises naming the world when there are none."""
+    (``STANDING``) and (M,) uint8 that class; raises naming the world when there are none."""
     seg = np.asarray(world.segments, dtype=np.float64).reshape(-1, 2, 3)
     sc = np.asarray(world.segment_classes).reshape(-1, 2)
     floor = sc == C.FLOOR
@@ -44,7 +44,8 @@ def floor_boundary_segments(world: World) -> np.ndarray:
         raise ValueError(f"world {world.info.get('name', '?')!r} has no edge segment between "
                          "the floor and a wall, door or window: the global search has nothing "
                          "to match; use filter.global_method=particles")
-    return seg[keep][:, :, :2]
+    other = np.where(floor[:, 0], sc[:, 1], sc[:, 0])
+    return seg[keep][:, :, :2], other[keep].astype(np.uint8)
 
 
 @dataclass
@@ -54,6 +55,8 @@ class RayTable:
     Attributes:
         dist: (Ny, Nx, R) float16 m, from each cell centre along azimuth bin r (``max_range``
             where nothing is hit; NaN for cells not in the table).
+        kind: (Ny, Nx, R) uint8 the class standing where the ray meets the boundary (wall,
+            door, window; 0 where nothing is hit or not in the table).
         valid: (Ny, Nx) bool, the cells the table holds (the free space, grown by ``grow``).
         origin: (2,) x, y (m) of cell [0, 0]'s lower-left corner.
         cell: m, cell size.
@@ -61,6 +64,7 @@ class RayTable:
     """
 
     dist: np.ndarray
+    kind: np.ndarray
     valid: np.ndarray
     origin: np.ndarray
     cell: float
@@ -85,18 +89,26 @@ class RayTable:
             raster: m, the boundary is drawn on a grid this fine and the rays marched by its
                 distance transform (sphere tracing).
         """
-        seg = floor_boundary_segments(world)
+        seg, seg_class = floor_boundary_segments(world)
         free: OccupancyMap = world.free
         lo = free.origin - grow - cell
         hi = free.origin + np.array(free.shape[::-1]) * free.cell + grow + cell
         nx, ny = (np.ceil((hi - lo) / cell)).astype(int)
         centres = lo + (np.stack(np.meshgrid(np.arange(nx), np.arange(ny)), -1) + 0.5) * cell
         valid = (free.outside_distance(centres.reshape(-1, 2)) <= grow).reshape(ny, nx)
-        field, f_origin = _boundary_field(seg, raster, max_range)
+        field, f_origin, nearest = _boundary_field(seg, seg_class, raster)
         pts = centres[valid]
         dist = np.full((ny, nx, rays), np.nan, dtype=np.float16)
-        dist[valid] = march(pts, rays, field, f_origin, raster, max_range).astype(np.float16)
-        return cls(dist, valid, lo, float(cell), float(max_range))
+        kind = np.zeros((ny, nx, rays), dtype=np.uint8)
+        d = march(pts, rays, field, f_origin, raster, max_range)
+        dist[valid] = d.astype(np.float16)
+        ang = np.arange(rays) * (2 * np.pi / rays)
+        hit = pts[:, None] + d[..., None] * np.stack([np.cos(ang), np.sin(ang)], -1)
+        ij = np.floor((hit - f_origin) / raster).astype(np.int64)
+        ij[..., 0] = np.clip(ij[..., 0], 0, nearest.shape[1] - 1)
+        ij[..., 1] = np.clip(ij[..., 1], 0, nearest.shape[0] - 1)
+        kind[valid] = np.where(d < max_range, nearest[ij[..., 1], ij[..., 0]], 0)
+        return cls(dist, kind, valid, lo, float(cell), float(max_range))
 
     def cells(self, xy: np.ndarray) -> np.ndarray:
         """(N,) int64 flat index of the cell of each point (N, 2); -1 outside the table."""
@@ -112,20 +124,21 @@ class RayTable:
         return self.origin + (np.column_stack([ix, iy]) + 0.5) * self.cell
 
 
-def _boundary_field(seg: np.ndarray, raster: float, pad: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def _boundary_field(seg: np.ndarray, seg_class: np.ndarray, raster: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Distance field (m, (Hy, Hx) float32) to the boundary segments (M, 2, 2) drawn on a
-    ``raster`` grid, and its origin (2,)."""
+    ``raster`` grid, its origin (2,) and (Hy, Hx) uint8 the class (``seg_class`` (M,)) of the
+    segment nearest each pixel."""
     pts = seg.reshape(-1, 2)
     lo = pts.min(axis=0) - 2 * raster
     hi = pts.max(axis=0) + 2 * raster
     nx, ny = np.ceil((hi - lo) / raster).astype(int) + 1
     img = np.zeros((ny, nx), dtype=np.uint8)
     px = np.round((seg - lo) / raster).astype(np.int32)
-    for a, b in px:  # one cv2 call per segment, at build time only
-        cv2.line(img, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), 1, 1)
-    field = ndimage.distance_transform_edt(img == 0).astype(np.float32) * raster
-    return field, lo
+    for (a, b), c in zip(px, seg_class, strict=True):  # one cv2 call per segment, at build
+        cv2.line(img, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), int(c), 1)
+    dist, (iy, ix) = ndimage.distance_transform_edt(img == 0, return_indices=True)
+    return dist.astype(np.float32) * raster, lo, img[iy, ix]
 
 
 def march(points: np.ndarray, rays: int, field: np.ndarray, f_origin: np.ndarray,
@@ -166,16 +179,22 @@ class FloorBoundary:
             heading (the body's yaw), counter-clockwise.
         tan: (J,) float64 tangent of the boundary's angle below the horizon (> 0) in that bin
             (the largest of the bin's pixels: the nearest boundary).
+        kind: (J,) uint8 the class above the floor at that pixel (``STANDING``).
         camera: (3,) the camera centre relative to the body in its heading frame (x forward,
             y left, z up), m.
     """
 
     offsets: np.ndarray
     tan: np.ndarray
+    kind: np.ndarray
     camera: np.ndarray
 
     def __len__(self) -> int:
         return len(self.tan)
+
+    def take(self, keep: np.ndarray) -> FloorBoundary:
+        """The bins ``keep`` (indices or a mask)."""
+        return FloorBoundary(self.offsets[keep], self.tan[keep], self.kind[keep], self.camera)
 
 
 def floor_boundary(labels: np.ndarray, camera: Camera, tilt: np.ndarray | None, rays: int,
@@ -203,7 +222,7 @@ def floor_boundary(labels: np.ndarray, camera: Camera, tilt: np.ndarray | None, 
     cam = (np.eye(3) if tilt is None else np.asarray(tilt, dtype=np.float64)) \
         @ np.asarray(camera.body_from_cam, dtype=np.float64)[:3, 3]
     if not len(vs):
-        return FloorBoundary(np.zeros(0), np.zeros(0), cam)
+        return FloorBoundary(np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), cam)
     uv1 = np.column_stack([us * stride, (vs + 1) * stride, np.ones(len(us))]).astype(np.float64)
     d = uv1 @ np.linalg.inv(camera.K).T @ R_hb.T  # (n, 3) rays in the heading frame
     horiz = np.hypot(d[:, 0], d[:, 1])
@@ -211,7 +230,8 @@ def floor_boundary(labels: np.ndarray, camera: Camera, tilt: np.ndarray | None, 
     down = tan > 1e-3
     width = 2 * np.pi / rays
     b = np.rint(np.arctan2(d[down, 1], d[down, 0]) / width).astype(np.int64)
-    uniq, inv = np.unique(b, return_inverse=True)
-    best = np.zeros(len(uniq))
-    np.maximum.at(best, inv, tan[down])
-    return FloorBoundary(uniq * width, best, cam)
+    tan, kind = tan[down], lab[:-1][vs[down], us[down]]
+    order = np.lexsort((tan, b))  # by bin, then tan: each bin's last is its nearest boundary
+    b, tan, kind = b[order], tan[order], kind[order]
+    last = np.flatnonzero(np.r_[b[1:] != b[:-1], True])
+    return FloorBoundary(b[last] * width, tan[last], kind[last].astype(np.uint8), cam)
