@@ -103,8 +103,8 @@ class GlobalSearchParams:
     sigma_deg: float = 1.5
     outlier: float = 2.0
     class_cost: float = 1.0
-    evidence: float = 8.0
-    frame_floor: float = 6.0
+    evidence: float = 3.0
+    frame_floor: float = 3.0
     min_bins: int = 8
     max_bins: int = 16
     motion_std: list[float] = field(default_factory=lambda: [0.03, 0.02, 1.0])
@@ -117,11 +117,11 @@ class GlobalSearchParams:
     inject_below: float = 10.0
     per_bin: int = 40
     min_hypotheses: int = 4000
-    max_hypotheses: int = 100000
+    max_hypotheses: int = 60000
     cluster_radius: float = 0.6
     cluster_yaw_deg: float = 25.0
-    handover_mass: float = 0.9
-    handover_frames: int = 5
+    handover_mass: float = 0.999
+    handover_frames: int = 10
     stride: int = 2
 
 

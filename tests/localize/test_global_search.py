@@ -16,7 +16,10 @@ from localize.ray_table import RayTable, floor_boundary
 #: see the floor meet the side walls (a 70 deg camera): along it,
 #: turning a little, 0.06 m per frame.
 FRAMES = 30
-PARAMS = GlobalSearchParams(headings=36, max_hypotheses=30000)
+#: Coarser and quicker to hand over than the defaults: the corridor is 5.5 m2 and 30 frames.
+SMALL = {"headings": 36, "max_hypotheses": 30000, "evidence": 8.0, "frame_floor": 6.0,
+         "handover_mass": 0.99, "handover_frames": 5}
+PARAMS = GlobalSearchParams(**SMALL)
 
 
 def path() -> np.ndarray:
@@ -99,8 +102,7 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
     """``reset(None)`` in a label mode runs the search (status ``global``), then the tracking
     filter takes over near the truth."""
     poses, labels = rendered
-    settings = Settings(filter=FilterParams(
-        num_particles=150, global_search={"headings": 36, "max_hypotheses": 30000}))
+    settings = Settings(filter=FilterParams(num_particles=150, global_search=SMALL))
     model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
                                                                              "oracle")
     loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
