@@ -186,10 +186,13 @@ class GlobalSearch:
         self.logw = np.zeros(0)
         self._held = self._frames = 0
         self._dominant = None  # (4,) mean pose of the cluster that held the mass
+        self._clusters = None  # ((version, k), hypotheses) of the last call
+        self._version = 0  # counts the changes of the set: reset, predict, update
 
     def reset(self, weights=None) -> None:
         """The dense start: every free cell of the table x ``headings`` headings, jittered
         within its cell and heading bin; ``weights``: optional ``(N, 4) -> (N,)`` log prior."""
+        self._version += 1
         self.states = self._grid(self.params.headings)
         self.logw = np.zeros(len(self.states))
         if weights is not None:
@@ -239,6 +242,7 @@ class GlobalSearch:
     def predict(self, delta: np.ndarray) -> None:
         """Move every hypothesis by an odometry increment (4,) with noise."""
         p = self.params
+        self._version += 1
         step = float(np.hypot(delta[0], delta[1]))
         s_xy = p.motion_std[0] + p.motion_rel[0] * step
         s_yaw = np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
@@ -305,6 +309,7 @@ class GlobalSearch:
         """Weigh the hypotheses by a frame's labels (module docstring), resample when the
         effective size falls under half; False when the frame was not weighed."""
         p = self.params
+        self._version += 1
         out = self.log_likelihood(labels, tilt)
         if out is None:
             self._track_dominant()
@@ -347,14 +352,21 @@ class GlobalSearch:
     def hypotheses(self, k: int = 5) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` heaviest clusters (non-maximum suppression): (k', 4) weighted mean poses,
         (k',) the share of the weight within ``cluster_radius`` and ``cluster_yaw_deg`` of each,
-        heaviest first."""
+        heaviest first (computed once per state of the set and k)."""
+        key = (self._version, int(k))
+        if self._clusters is None or self._clusters[0] != key:
+            self._clusters = (key, self._find_clusters(int(k)))
+        return self._clusters[1]
+
+    def _find_clusters(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``hypotheses``, computed."""
         p = self.params
         w = np.exp(self.logw)
         S = self.states
         left = np.ones(len(S), bool)
         poses, mass = [], []
         yaw_tol = np.deg2rad(p.cluster_yaw_deg)
-        for _ in range(int(k)):  # k clusters, each vectorized over the hypotheses
+        for _ in range(k):  # k clusters, each vectorized over the hypotheses
             if not left.any():
                 break
             seed = self._densest(S[left], w[left])
