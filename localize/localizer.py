@@ -3,7 +3,9 @@
 A ``Localizer`` holds one particle filter (``particle_filter.ParticleFilter``) over body poses
 (x, y, z, yaw), the edge likelihood of its edge mode (``likelihood.EdgeLikelihood``, and the
 thinned one of the global phase) and a front end (``frontend.FrontEnd``: image -> labels ->
-edge image). ``reset(start)`` starts it around a known pose or uniformly over the free space;
+edge image). ``reset(start)`` starts it around a known pose or, with None, by a global search
+over the free space (``global_search``, handing over to the filter once one pose dominates;
+the filter's uniform set for mode ``none`` or ``filter.global_method: particles``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
 ``Estimate``. No file is read or written.
@@ -263,7 +265,8 @@ class Localizer:
         return self._global_likelihood
 
     def reset(self, start: np.ndarray | None = None) -> None:
-        """Start tracking around ``start`` or, with None, globally (uniform over free space).
+        """Start tracking around ``start`` or, with None, globally (the global search, or the
+        filter's uniform set over the free space: ``_start_search``).
 
         Args:
             start: (4,) x, y, z (metres), yaw (radians), or (4, 4) world_from_body (its
