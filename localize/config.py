@@ -95,6 +95,10 @@ class FilterParams:
         global_motion_scale: motion noise multiplier while the global set is kept (the uniform
             set is sparse and must move to find the peak).
         global_thin: the global phase scores every n-th model sample.
+        global_method: how a global start searches: ``table`` (``global_search``: every free
+            cell x heading weighed by the floor boundary against a precomputed table; the label
+            modes) or ``particles`` (the uniform set above; always for mode ``none``).
+        global_search: ``global_search.GlobalSearchParams`` keys that differ from its defaults.
         init_std: (4,) tracking start noise: x, y, z (metres), yaw (degrees).
         motion_std: (3,) motion noise per frame: horizontal (metres), vertical (metres), yaw
             (degrees).
@@ -138,6 +142,8 @@ class FilterParams:
         "oracle": {"k": 50.0}})
     global_motion_scale: float = 15.0
     global_thin: int = 3
+    global_method: str = "table"
+    global_search: dict[str, Any] = field(default_factory=dict)
     init_std: list[float] = field(default_factory=lambda: [0.1, 0.1, 0.05, 3.0])
     motion_std: list[float] = field(default_factory=lambda: [0.01, 0.005, 0.5])
     mode_motion_std: dict[str, list[float]] = field(default_factory=lambda: {
@@ -165,6 +171,9 @@ class FilterParams:
                              f"filter.global_particles ({self.global_particles}) must be >= 1")
         if self.global_area <= 0:
             raise ValueError(f"filter.global_area must be positive (m2), got {self.global_area}")
+        if self.global_method not in ("table", "particles"):
+            raise ValueError(f"filter.global_method must be table or particles, got "
+                             f"{self.global_method!r}")
         if not 0.0 < self.resample_ess <= 1.0:
             raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
         for key in ("mode_likelihood", "mode_motion_std"):

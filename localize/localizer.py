@@ -3,7 +3,9 @@
 A ``Localizer`` holds one particle filter (``particle_filter.ParticleFilter``) over body poses
 (x, y, z, yaw), the edge likelihood of its edge mode (``likelihood.EdgeLikelihood``, and the
 thinned one of the global phase) and a front end (``frontend.FrontEnd``: image -> labels ->
-edge image). ``reset(start)`` starts it around a known pose or uniformly over the free space;
+edge image). ``reset(start)`` starts it around a known pose or, with None, by a global search
+over the free space (``global_search``, handing over to the filter once one pose dominates;
+the filter's uniform set for mode ``none`` or ``filter.global_method: particles``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
 ``Estimate``. No file is read or written.
@@ -41,6 +43,7 @@ from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import FilterParams, LikelihoodParams, Settings
 from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.frontend.front_end import Frame, FrontEnd
+from localize.global_search import GlobalSearch, ray_table_for, search_params
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose
@@ -243,6 +246,7 @@ class Localizer:
         self._global_likelihood = None
         self.likelihood_override = likelihood_override
         self.filter = ParticleFilter(self.filter_params, world.free, rng)
+        self.search: GlobalSearch | None = None  # a global start's search, until its handover
         self._last_time = None
         self._lost_at = None  # timestamp the track was last declared lost
 
@@ -261,14 +265,17 @@ class Localizer:
         return self._global_likelihood
 
     def reset(self, start: np.ndarray | None = None) -> None:
-        """Start tracking around ``start`` or, with None, globally (uniform over free space).
+        """Start tracking around ``start`` or, with None, globally (the global search, or the
+        filter's uniform set over the free space: ``_start_search``).
 
         Args:
             start: (4,) x, y, z (metres), yaw (radians), or (4, 4) world_from_body (its
                 heading taken; roll and pitch ignored), or None.
         """
+        self.search = None
         if start is None:
-            self.filter.init_global()
+            if not self._start_search():
+                self.filter.init_global()
         else:
             s = np.asarray(start, dtype=np.float64)
             if s.shape == (4, 4):
@@ -300,7 +307,7 @@ class Localizer:
         Returns:
             The estimate, computed before resampling.
         """
-        if len(self.filter.particles) == 0:
+        if len(self.filter.particles) == 0 and self.search is None:
             raise RuntimeError("Localizer.step before reset(): call reset(start) for tracking "
                                "or reset(None) for a global start")
         timestamp = float(timestamp)
@@ -310,6 +317,8 @@ class Localizer:
         delta = _check_increment(odometry_increment)
         tilt = None if attitude is None else _tilt(attitude)
         frame = self._frame(image, labels)
+        if self.search is not None:
+            return self._search_step(frame, delta, tilt, timestamp)
         loglik, obs_ms = self._log_likelihood(frame, tilt)
         t0 = time.perf_counter()
         with _BLAS.limit(limits=1, user_api="blas"):  # tiny GEMMs: threads only hurt
@@ -317,6 +326,8 @@ class Localizer:
                 self.filter.predict(delta)
             info = self.filter.update(loglik) if loglik is not None else self.filter.coast()
         filter_ms = (time.perf_counter() - t0) * 1e3
+        if info.status == "lost":
+            self._start_search()
         self._log_events(info.status, timestamp)
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
@@ -325,6 +336,42 @@ class Localizer:
                         info.position_std, info.yaw_std, info.ess, info.num_particles,
                         info.best_score, info.injected, info.status, info.confidence,
                         info.tilt, timing)
+
+    def _start_search(self) -> bool:
+        """Start a global search (``filter.global_method: table``, a label mode, no likelihood
+        override); False when the uniform particle set serves instead."""
+        fp = self.filter_params
+        if (fp.global_method != "table" or self.front_end.mode == "none"
+                or self.likelihood_override is not None):
+            return False
+        params = search_params(fp.global_search)
+        self.search = GlobalSearch(ray_table_for(self.world, params), self.camera,
+                                   self.world.free, params, self.filter.rng)
+        self.search.reset()
+        return True
+
+    def _search_step(self, frame: Frame, delta: np.ndarray | None, tilt: np.ndarray | None,
+                     timestamp: float) -> Estimate:
+        """A frame of the global search; on its convergence the tracking filter takes over
+        from the dominant cluster's hypotheses (status ``global`` until then)."""
+        t0 = time.perf_counter()
+        search = self.search
+        with _BLAS.limit(limits=1, user_api="blas"):
+            if delta is not None:
+                search.predict(delta)
+            if frame.labels is not None:
+                search.update(frame.labels, tilt)
+            state, pos_std, yaw_std = search.estimate()
+            n = len(search.logw)
+            if search.converged:
+                self.filter.init_particles(search.sample(self.filter_params.num_particles))
+                self.search = None
+        filter_ms = (time.perf_counter() - t0) * 1e3
+        self._last_time = timestamp
+        timing = {"segmentation": frame.timing_ms["segmentation"],
+                  "preprocessing": frame.timing_ms["edges"], "filter": filter_ms}
+        return Estimate(timestamp, state, pose_from_xyzyaw(state)[0], pos_std, yaw_std,
+                        float("nan"), n, float("nan"), 0, "global", 0.0, np.zeros(2), timing)
 
     def _log_events(self, status: str, timestamp: float) -> None:
         """Log a loss and the re-localization that follows it."""

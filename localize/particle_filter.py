@@ -296,9 +296,16 @@ class ParticleFilter:
     def init_tracking(self, start: np.ndarray) -> None:
         """Start around a known pose (4,) x, y, z, yaw."""
         p = self.params
-        self.particles = init_tracking(self.rng, start, p.num_particles, p.init_std)
-        self.tilt = draw_tilt(self.rng, p.num_particles, np.deg2rad(p.tilt_std[0]))
-        self.logw = np.full(p.num_particles, -np.log(p.num_particles))
+        self.init_particles(init_tracking(self.rng, start, p.num_particles, p.init_std))
+
+    def init_particles(self, particles: np.ndarray) -> None:
+        """Start tracking from a given set (N, 4) x, y, z, yaw, equally weighted (a global
+        search's handover)."""
+        p = self.params
+        self.particles = np.array(particles, dtype=np.float64)
+        n = len(self.particles)
+        self.tilt = draw_tilt(self.rng, n, np.deg2rad(p.tilt_std[0]))
+        self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
         self._poor, self._fit, self._reckoned = 0, 1.0, None
 

@@ -25,9 +25,11 @@ from tests.localize.test_localize_edges import EDGES_CFG
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 
-# one likelihood and motion model for every mode and phase, no "few lines" scaling
+# one likelihood and motion model for every mode and phase, no "few lines" scaling; the uniform
+# particle set of a global start (the global search: test_global_search.py)
 SETTINGS = Settings(
     filter=FilterParams(num_particles=150, global_particles=600, global_frames=2,
+                        global_method="particles",
                         global_likelihood={}, mode_likelihood={}, global_motion_scale=1.0,
                         global_thin=1, mode_motion_std={}, init_std=[0.05, 0.05, 0.02, 2.0],
                         recovery=False,

@@ -1,0 +1,123 @@
+"""The global search (localize.global_search, localize.ray_table) on the small corridor, with
+labels rendered from the structural model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
+from localize.config import FilterParams, Settings
+from localize.global_search import GlobalSearch, GlobalSearchParams, ray_table_for
+from localize.localizer import EdgeModel, Localizer
+from localize.ray_table import RayTable, floor_boundary
+
+#: A path through the small corridor (free x in [-1.9, 0.7], y in [0.3, 3.7]), low enough to
+#: see the floor meet the side walls (a 70 deg camera): along it,
+#: turning a little, 0.06 m per frame.
+FRAMES = 30
+#: Coarser and quicker to hand over than the defaults: the corridor is 5.5 m2 and 30 frames.
+SMALL = {"headings": 36, "max_hypotheses": 30000, "evidence": 8.0, "frame_floor": 6.0,
+         "handover_mass": 0.99, "handover_frames": 5}
+PARAMS = GlobalSearchParams(**SMALL)
+
+
+def path() -> np.ndarray:
+    """(FRAMES, 4) body x, y, z, yaw."""
+    t = np.arange(FRAMES)
+    return np.column_stack([-0.6 + 0.3 * np.sin(t / 10), 0.8 + 0.06 * t, 0.7 + 0.005 * t,
+                            np.pi / 2 + 0.3 * np.sin(t / 8)])
+
+
+@pytest.fixture(scope="module")
+def rendered(renderer, camera):
+    """(poses (FRAMES, 4, 4), labels (FRAMES, H, W)) along ``path``."""
+    poses = pose_from_xyzyaw(path())
+    labels = np.stack([renderer.render(T @ camera.body_from_cam)[0] for T in poses])
+    return poses, labels
+
+
+@pytest.fixture(scope="module")
+def table(small_world):
+    return RayTable.build(small_world, PARAMS.cell, PARAMS.rays)
+
+
+def test_table_matches_the_rendered_floor_boundary(table, rendered, camera):
+    """From the true pose the frame's floor boundary lies where the table says: tan = h / D
+    in most azimuth bins."""
+    _, labels = rendered
+    diffs = []
+    for lab, st in zip(labels[::5], path()[::5], strict=True):
+        fb = floor_boundary(lab, camera, None, table.rays)
+        assert len(fb) >= 6
+        c, sn = np.cos(st[3]), np.sin(st[3])
+        cxy = st[:2] + [c * fb.camera[0] - sn * fb.camera[1], sn * fb.camera[0] + c * fb.camera[1]]
+        cell = table.cells(cxy[None])[0]
+        assert cell >= 0
+        bins = np.rint((st[3] + fb.offsets) / (2 * np.pi / table.rays)).astype(int) % table.rays
+        D = table.dist.reshape(-1, table.rays)[cell, bins].astype(np.float64)
+        pred = np.arctan((st[2] + fb.camera[2]) / D)
+        diffs.append(np.abs(np.arctan(fb.tan) - pred))
+    d = np.degrees(np.concatenate(diffs))
+    assert np.median(d) < 1.5 and np.mean(d < 5.0) > 0.8
+
+
+def run_search(table, small_world, camera, rendered, seed):
+    poses, labels = rendered
+    search = GlobalSearch(table, camera, small_world.free, PARAMS, np.random.default_rng(seed))
+    search.reset()
+    tops = []
+    for t in range(FRAMES):
+        if t:
+            search.predict(odometry_increment(poses[t - 1], poses[t]))
+        search.update(labels[t], None)
+        tops.append(search.hypotheses(3)[0][0])
+    return np.array(tops), search
+
+
+def test_search_finds_the_true_pose_and_is_deterministic(table, small_world, camera, rendered):
+    tops, search = run_search(table, small_world, camera, rendered, 0)
+    truth = path()
+    err = np.hypot(*(tops[:, :2] - truth[:, :2]).T)
+    yaw = np.abs(wrap_angle(tops[:, 3] - truth[:, 3]))
+    assert (err[20:] < 0.3).all() and (yaw[20:] < np.deg2rad(10)).all(), err
+    poses, mass = search.hypotheses(3)
+    assert mass[0] > 0.9 and search.converged
+    particles = search.sample(200)
+    assert particles.shape == (200, 4)
+    assert np.hypot(*(particles[:, :2] - truth[-1, :2]).T).max() <= PARAMS.cluster_radius + 0.1
+    again, _ = run_search(table, small_world, camera, rendered, 0)
+    np.testing.assert_array_equal(tops, again)
+
+
+def test_a_hint_limits_the_start(table, small_world, camera):
+    search = GlobalSearch(table, camera, small_world.free, PARAMS, np.random.default_rng(0))
+    search.reset(lambda s: np.where(s[:, 1] < 1.0, 0.0, -np.inf))
+    assert (search.states[:, 1] < 1.0).all() and len(search.states) > 0
+    with pytest.raises(ValueError, match="leaves no pose"):
+        search.reset(lambda s: np.full(len(s), -np.inf))
+
+
+def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rendered):
+    """``reset(None)`` in a label mode runs the search (status ``global``), then the tracking
+    filter takes over near the truth."""
+    poses, labels = rendered
+    settings = Settings(filter=FilterParams(num_particles=150, global_search=SMALL))
+    model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
+                                                                             "oracle")
+    loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
+                    model=model)
+    loc.reset(None)
+    assert loc.search is not None
+    statuses, est = [], []
+    for t in range(FRAMES):
+        delta = odometry_increment(poses[t - 1], poses[t]) if t else None
+        e = loc.step(None, delta, poses[t], 0.1 * t, labels=labels[t])
+        statuses.append(e.status)
+        est.append(e.state)
+    assert statuses[0] == "global" and statuses[-1] == "tracking"
+    assert loc.search is None
+    err = np.hypot(*(np.array(est)[-5:, :2] - path()[-5:, :2]).T)
+    assert (err < 0.3).all(), err
+    assert ray_table_for(small_world, GlobalSearchParams(headings=36)) is ray_table_for(
+        small_world, GlobalSearchParams(headings=36))
