@@ -3,7 +3,9 @@
 A ``Localizer`` holds one particle filter (``particle_filter.ParticleFilter``) over body poses
 (x, y, z, yaw), the edge likelihood of its edge mode (``likelihood.EdgeLikelihood``, and the
 thinned one of the global phase) and a front end (``frontend.FrontEnd``: image -> labels ->
-edge image). ``reset(start)`` starts it around a known pose or uniformly over the free space;
+edge image). ``reset(start)`` starts it around a known pose, or globally: uniformly over the
+free space or inside a ``start_hint.StartHint`` (a region, a pose with covariance, a heading
+range);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
 ``Estimate``. No file is read or written.
@@ -43,7 +45,9 @@ from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.frontend.front_end import Frame, FrontEnd
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
+from localize.hypotheses import Hypothesis
 from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose
+from localize.start_hint import StartHint
 from localize.visibility import SparseVisibility, load_or_build
 from localize.visibility_budget import fit_grid_cached
 
@@ -173,7 +177,8 @@ class Estimate:
 
     Attributes:
         timestamp: seconds, as given to ``step``.
-        state: (4,) x, y, z (metres), yaw (radians): the particles' weighted mean.
+        state: (4,) x, y, z (metres), yaw (radians): the particles' weighted mean, or the top
+            hypothesis's pose while it holds less than ``filter.dominant_mass``.
         pose: (4, 4) world_from_body of ``state`` (zero roll and pitch).
         position_std: weighted horizontal spread of the particles, metres.
         yaw_std: circular spread of their yaw, radians.
@@ -181,13 +186,16 @@ class Estimate:
         num_particles: particles after the step.
         best_score: fit quality of the most likely particle (NaN: too little seen to tell).
         injected: particles injected by depletion recovery in this step.
-        status: ``tracking``, ``coasting``, ``lost`` or ``global``
-            (``particle_filter.StepInfo``).
+        status: ``tracking``, ``ambiguous``, ``coasting`` or ``lost``
+            (``particle_filter.StepInfo``): ``tracking`` only once one hypothesis has held
+            ``filter.dominant_mass`` for ``filter.dominant_frames`` frames.
         confidence: in [0, 1], how much the images back the estimate
             (``particle_filter.StepInfo``).
         tilt: (2,) roll, pitch correction of the IMU's attitude, radians.
         timing_ms: ``segmentation`` (the edge source's labels), ``preprocessing`` (edge image
             and score maps) and ``filter`` (motion, likelihood, resampling), ms.
+        hypotheses: the heaviest pose hypotheses of the particle set with their mass,
+            heaviest first (``hypotheses.Hypothesis``).
     """
 
     timestamp: float
@@ -203,6 +211,7 @@ class Estimate:
     confidence: float
     tilt: np.ndarray
     timing_ms: Mapping[str, float]
+    hypotheses: tuple[Hypothesis, ...] = ()
 
 
 class Localizer:
@@ -260,15 +269,16 @@ class Localizer:
                                                      coarse.visibility, coarse.pairs)
         return self._global_likelihood
 
-    def reset(self, start: np.ndarray | None = None) -> None:
-        """Start tracking around ``start`` or, with None, globally (uniform over free space).
+    def reset(self, start: np.ndarray | StartHint | None = None) -> None:
+        """Start tracking around ``start`` or globally: with None uniform over the free space,
+        with a ``StartHint`` inside it (status ``ambiguous`` until a hypothesis dominates).
 
         Args:
             start: (4,) x, y, z (metres), yaw (radians), or (4, 4) world_from_body (its
-                heading taken; roll and pitch ignored), or None.
+                heading taken; roll and pitch ignored), or a ``StartHint``, or None.
         """
-        if start is None:
-            self.filter.init_global()
+        if start is None or isinstance(start, StartHint):
+            self.filter.init_global(start)
         else:
             s = np.asarray(start, dtype=np.float64)
             if s.shape == (4, 4):
@@ -324,7 +334,7 @@ class Localizer:
         return Estimate(timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0],
                         info.position_std, info.yaw_std, info.ess, info.num_particles,
                         info.best_score, info.injected, info.status, info.confidence,
-                        info.tilt, timing)
+                        info.tilt, timing, info.hypotheses)
 
     def _log_events(self, status: str, timestamp: float) -> None:
         """Log a loss and the re-localization that follows it."""
