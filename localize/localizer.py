@@ -43,9 +43,9 @@ from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import FilterParams, LikelihoodParams, Settings
 from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.frontend.front_end import Frame, FrontEnd
+from localize.hypotheses import Hypothesis
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
-from localize.hypotheses import Hypothesis
 from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose
 from localize.start_hint import StartHint
 from localize.visibility import SparseVisibility, load_or_build
