@@ -87,7 +87,8 @@ def top_hypotheses(poses: np.ndarray, logw: np.ndarray, k: int = 3, radius_m: fl
 
     Returns:
         Up to ``k`` ``Hypothesis`` (at least one for a non-empty set); their masses sum to at
-        most 1 (the rest lies outside every kernel). Cost: one binning and ``k`` x (1 + ``SHIFT_STEPS``) passes over N.
+        most 1 (the rest lies outside every kernel). Cost: one binning and ``k`` x
+        (1 + ``SHIFT_STEPS``) passes over N.
     """
     p = np.asarray(poses, dtype=np.float64)
     lw = np.asarray(logw, dtype=np.float64)
