@@ -334,6 +334,33 @@ class ParticleFilter:
         self._poor, self._fit, self._reckoned = 0, 0.0, None
         self.dominance.clear()
 
+    def init_weighted(self, poses: np.ndarray, logw: np.ndarray, dominant: bool = False) -> None:
+        """Start tracking from a weighted pose set (a global search's hand-over):
+        ``num_particles`` drawn from it by systematic resampling, tilt corrections drawn.
+
+        Args:
+            poses: (M, 4) x, y, z (m), yaw (rad).
+            logw: (M,) log-weights (any scale).
+            dominant: one hypothesis of the set already dominates (status ``tracking`` at
+                once); else ``ambiguous`` until one has held for ``dominant_frames``.
+        """
+        p = self.params
+        poses = np.asarray(poses, dtype=np.float64)
+        logw = np.asarray(logw, dtype=np.float64)
+        if poses.ndim != 2 or poses.shape[1] != 4 or logw.shape != (len(poses),) or not len(poses):
+            raise ValueError(f"init_weighted: poses must be (M, 4), M >= 1, and logw (M,), got "
+                             f"{poses.shape} and {logw.shape}")
+        idx = systematic_resample(self.rng, logw, p.num_particles)
+        self.particles = poses[idx].copy()
+        self.tilt = draw_tilt(self.rng, p.num_particles, np.deg2rad(p.tilt_std[0]))
+        self.logw = np.full(p.num_particles, -np.log(p.num_particles))
+        self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
+        self._poor, self._fit, self._reckoned = 0, 0.0, None
+        if dominant:
+            self.dominance.confirm()
+        else:
+            self.dominance.clear()
+
     @property
     def in_global_phase(self) -> bool:
         """True while the large global set is kept (before thinning)."""

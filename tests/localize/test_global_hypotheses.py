@@ -115,6 +115,22 @@ class TestDominance:
         assert pf.update(flat).status == "tracking"
 
 
+def test_a_search_hands_over_its_weighted_poses():
+    pf = ParticleFilter(FilterParams(num_particles=400), FREE, np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    a, b = np.array([0.0, 2.0, 1.2, 0.5]), np.array([0.0, 8.0, 1.2, -2.5])
+    poses = np.concatenate([cloud(rng, a, 100), cloud(rng, b, 100)])
+    pf.init_weighted(poses, np.r_[np.zeros(100), np.full(100, -np.log(3.0))])  # 0.75, 0.25
+    assert pf.particles.shape == (400, 4) and not pf.in_global_phase
+    near_a = np.linalg.norm(pf.particles[:, :2] - a[:2], axis=1) < 0.5
+    assert near_a.mean() == pytest.approx(0.75, abs=0.01)
+    assert not pf.dominance.confirmed
+    pf.init_weighted(poses[:100], np.zeros(100), dominant=True)
+    assert pf.dominance.confirmed
+    with pytest.raises(ValueError, match="init_weighted"):
+        pf.init_weighted(np.zeros((0, 4)), np.zeros(0))
+
+
 class TestStartHint:
     def test_region_restricts_the_particles(self):
         region = [-0.7, 4.0, 0.7, 6.0]
