@@ -45,6 +45,7 @@ sys.path.insert(0, str(ROOT))
 
 from hydra import compose, initialize_config_dir  # noqa: E402
 
+from benchmarks.floor_localize import global_update_ms  # noqa: E402
 from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.spliced import flight_segment, kidnapped  # noqa: E402
@@ -165,14 +166,6 @@ def run_floor(floor: str, ds_path: Path, args: argparse.Namespace) -> list[dict]
     for r in rows:
         r["floor"] = floor
     return rows
-
-
-def global_update_ms(record: dict) -> list[float]:
-    """Filter ms of the frames a run keeps its large global set (more particles than at its
-    end), the first left out (warm-up)."""
-    ms, n = np.array(record["timing_ms"]["filter"]), np.array(record["num_particles"])
-    big = np.flatnonzero(n > n[-1])
-    return ms[big[1:]].tolist() if len(big) > 1 else []
 
 
 def run_summary(out_dir: Path, run: RunSpec, kind: str, kidnapped_at: int | None = None
