@@ -42,6 +42,8 @@ class TestTopHypotheses:
         assert np.linalg.norm(h[1].state[:2] - b[:2]) < 0.03
         assert abs(wrap_angle(h[1].state[3] - b[3])) < 0.02
         assert h[0].position_std == pytest.approx(0.14, abs=0.02)  # sqrt(2) x 0.1
+        thinned = top_hypotheses(p, logw, k=3, max_poses=1000)  # a large set's shortcut
+        np.testing.assert_allclose([t.mass for t in thinned], [0.6, 0.4], atol=0.01)
 
     def test_a_cluster_across_the_yaw_seam_is_one(self):
         rng = np.random.default_rng(1)
