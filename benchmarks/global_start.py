@@ -122,12 +122,22 @@ def starts_of(ds: Dataset, frames: int, count: int) -> list[tuple[str, int]]:
 def kidnaps_of(ds: Dataset, after: int, frames: int, count: int) -> list[tuple]:
     """``count`` kidnappings, each ((flight, first frame) tracked ``after`` frames, (flight,
     first frame) teleported to for ``frames``): of ``2 count`` starts spread over the test
-    flights (``starts_of``), each joined to the one half the list away (another flight's, or
-    far along the same)."""
+    flights (``starts_of``), each of the first ``count`` joined to the one whose first true
+    position lies farthest from where its own stretch ends (the flights of a floor often fly
+    one route: a start of the other flight at the same frame would barely move)."""
     starts = starts_of(ds, after + frames, max(2 * count, 2))
-    half = len(starts) // 2
-    pairs = [(starts[i], starts[(i + half) % len(starts)]) for i in range(len(starts))]
-    return [(a, b) for a, b in pairs if a != b][:count]
+    flights = {name: ds.flight(name) for name in {s[0] for s in starts}}
+
+    def xy(name: str, i: int) -> np.ndarray:
+        return np.asarray(flights[name].groundtruth[min(i, len(flights[name]) - 1)])[:2, 3]
+
+    out = []
+    for a in starts[:count]:
+        end = xy(a[0], a[1] + after - 1)
+        others = [b for b in starts if b != a]
+        if others:
+            out.append((a, max(others, key=lambda b: np.linalg.norm(xy(*b) - end))))
+    return out
 
 
 def compose_cfg(ds_path: Path, floor: str, args: argparse.Namespace):

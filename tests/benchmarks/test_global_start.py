@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from benchmarks.global_start import (
@@ -19,9 +20,19 @@ from benchmarks.global_start import (
 from tests.localize.conftest import QUICK
 
 
+class FakeFlight(list):
+    """A flight of ``n`` frames flying +x at 0.1 m a frame (the kidnappings read its truth)."""
+
+    def __init__(self, n: int):
+        super().__init__([0] * n)
+        self.groundtruth = np.tile(np.eye(4), (n, 1, 1))
+        self.groundtruth[:, 0, 3] = 0.1 * np.arange(n)
+
+
 def fake_dataset(lengths: dict[str, int]):
+    flights = {name: FakeFlight(n) for name, n in lengths.items()}
     return SimpleNamespace(flight_names=lambda which: list(lengths),
-                           flight=lambda name: [0] * lengths[name])
+                           flight=lambda name: flights[name])
 
 
 def test_start_frames_spread_and_leave_room():
@@ -34,7 +45,9 @@ def test_start_frames_spread_and_leave_room():
     assert len(starts) == 5
     pairs = kidnaps_of(ds, 30, 200, 3)
     assert len(pairs) == 3 and all(a != b for a, b in pairs)
-    assert all(a[0] != b[0] for a, b in pairs)  # another flight's stretch
+    # teleported to the start farthest from where the tracked stretch ends
+    assert pairs[0] == (("paper", 0), ("paper", 920))
+    assert pairs[2] == (("paper", 920), ("paper", 0))
 
 
 def _row(kind="global", **kw):
