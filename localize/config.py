@@ -99,6 +99,14 @@ class FilterParams:
             cell x heading weighed by the floor boundary against a precomputed table; the label
             modes) or ``particles`` (the uniform set above; always for mode ``none``).
         global_search: ``global_search.GlobalSearchParams`` keys that differ from its defaults.
+        hypotheses: pose hypotheses reported per frame (``localize.hypotheses``: the
+            heaviest modes of the weighted set and their mass).
+        hypothesis_radius_m, hypothesis_yaw_deg: a hypothesis's kernel: horizontal radius
+            (m) and heading half-width (degrees).
+        dominant_mass: the status is ``tracking`` only once one hypothesis has held at least
+            this share of the mass...
+        dominant_frames: ...for this many frames in a row (``ambiguous`` until then; a start
+            at a known pose is dominant at once).
         init_std: (4,) tracking start noise: x, y, z (metres), yaw (degrees).
         motion_std: (3,) motion noise per frame: horizontal (metres), vertical (metres), yaw
             (degrees).
@@ -144,6 +152,11 @@ class FilterParams:
     global_thin: int = 3
     global_method: str = "table"
     global_search: dict[str, Any] = field(default_factory=dict)
+    hypotheses: int = 3
+    hypothesis_radius_m: float = 0.5
+    hypothesis_yaw_deg: float = 20.0
+    dominant_mass: float = 0.9
+    dominant_frames: int = 10
     init_std: list[float] = field(default_factory=lambda: [0.1, 0.1, 0.05, 3.0])
     motion_std: list[float] = field(default_factory=lambda: [0.01, 0.005, 0.5])
     mode_motion_std: dict[str, list[float]] = field(default_factory=lambda: {
@@ -195,6 +208,13 @@ class FilterParams:
             raise ValueError(f"filter.free_space_slack ({self.free_space_slack}) and "
                              f"filter.outside_log_penalty_per_m "
                              f"({self.outside_log_penalty_per_m}) must be >= 0")
+        if (self.hypotheses < 1 or self.hypothesis_radius_m <= 0 or self.hypothesis_yaw_deg <= 0
+                or not 0.0 < self.dominant_mass <= 1.0 or self.dominant_frames < 1):
+            raise ValueError(f"filter.hypotheses ({self.hypotheses}) and filter.dominant_frames "
+                             f"({self.dominant_frames}) must be >= 1, filter.hypothesis_radius_m "
+                             f"({self.hypothesis_radius_m}) and hypothesis_yaw_deg "
+                             f"({self.hypothesis_yaw_deg}) positive, filter.dominant_mass "
+                             f"({self.dominant_mass}) in (0, 1]")
         if min(self.tilt_std) < 0:
             raise ValueError(f"filter.tilt_std must be >= 0 degrees, got {list(self.tilt_std)}")
 
@@ -438,6 +458,27 @@ class ReportSettings:
 
 
 @dataclass
+class HintSettings:
+    """``hint``: where the global starts begin (``localize.start_hint.StartHint``); every key
+    null: anywhere in the free space.
+
+    Attributes:
+        region: [xmin, ymin, xmax, ymax] or a polygon [[x, y], ...], metres (the world's
+            frame).
+        space: a space (room) the world names (world.json ``spaces``), instead of ``region``.
+        pose: [x, y, z, yaw_deg] the start lies around (as ROS's ``/initialpose``)...
+        pose_std: ...with this spread [sx, sy, sz (m), syaw (deg)].
+        heading_deg: [from, to] degrees: headings counter-clockwise from ``from`` to ``to``.
+    """
+
+    region: list[Any] | None = None
+    space: str | None = None
+    pose: list[float] | None = None
+    pose_std: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.1, 15.0])
+    heading_deg: list[float] | None = None
+
+
+@dataclass
 class LocalizeConfig(Settings):
     """The whole localize config (``conf/localize.yaml``): the ``Settings`` and the run.
 
@@ -465,6 +506,7 @@ class LocalizeConfig(Settings):
             dataset's.
         start: recording: [x, y, z, yaw_deg] world pose to track from; None: the first
             ground-truth pose, else a global start.
+        hint: where the global starts begin (``HintSettings``).
         max_frames: only the first N >= 1 frames of each flight or recording (quick runs,
             tests); null: every frame; 0 is refused, naming the key.
         threads: onnxruntime intra-op threads.
@@ -494,6 +536,7 @@ class LocalizeConfig(Settings):
     recording_topics: BagTopics = field(default_factory=BagTopics)
     recording_body_from_cam: list[Any] | None = None
     start: list[float] | None = None
+    hint: HintSettings = field(default_factory=HintSettings)
     max_frames: int | None = None
     threads: int = 2
     overwrite: bool = False

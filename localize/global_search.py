@@ -195,6 +195,7 @@ class GlobalSearch:
         self._version += 1
         self.states = self._grid(self.params.headings)
         self.logw = np.zeros(len(self.states))
+        self._prior = weights
         if weights is not None:
             self.logw = np.asarray(weights(self.states), dtype=np.float64)
             keep = np.isfinite(self.logw)
@@ -232,7 +233,10 @@ class GlobalSearch:
         if out is None:
             return
         ll, z = out
+        if self._prior is not None:  # a hint's prior: injections stay inside it
+            ll = ll + self._prior(S)
         top = np.argpartition(-ll, min(p.inject_count, len(ll) - 1))[:p.inject_count]
+        top = top[np.isfinite(ll[top])]
         S[top, 2] = z[top]
         lw = np.full(len(top), kept_lw.max() - p.inject_below)
         self.states = np.concatenate([kept_S, S[top]])

@@ -3,9 +3,11 @@
 A ``Localizer`` holds one particle filter (``particle_filter.ParticleFilter``) over body poses
 (x, y, z, yaw), the edge likelihood of its edge mode (``likelihood.EdgeLikelihood``, and the
 thinned one of the global phase) and a front end (``frontend.FrontEnd``: image -> labels ->
-edge image). ``reset(start)`` starts it around a known pose or, with None, by a global search
-over the free space (``global_search``, handing over to the filter once one pose dominates;
-the filter's uniform set for mode ``none`` or ``filter.global_method: particles``);
+edge image). ``reset(start)`` starts it around a known pose or globally: with None or a
+``start_hint.StartHint`` (a region, a pose with covariance, a heading range), by a global
+search over the free space (``global_search``, handing over to the filter once one pose
+dominates; the filter's uniform set, or the hint's, for mode ``none`` or
+``filter.global_method: particles``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
 ``Estimate``. No file is read or written.
@@ -44,9 +46,11 @@ from localize.config import FilterParams, LikelihoodParams, Settings
 from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.frontend.front_end import Frame, FrontEnd
 from localize.global_search import GlobalSearch, ray_table_for, search_params
+from localize.hypotheses import Hypothesis, top_hypotheses
 from localize.likelihood import EdgeLikelihood
 from localize.particle_filter import LogLikelihood, ParticleFilter
 from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose
+from localize.start_hint import StartHint
 from localize.visibility import SparseVisibility, load_or_build
 from localize.visibility_budget import fit_grid_cached
 
@@ -176,7 +180,8 @@ class Estimate:
 
     Attributes:
         timestamp: seconds, as given to ``step``.
-        state: (4,) x, y, z (metres), yaw (radians): the particles' weighted mean.
+        state: (4,) x, y, z (metres), yaw (radians): the particles' weighted mean, or the top
+            hypothesis's pose while it holds less than ``filter.dominant_mass``.
         pose: (4, 4) world_from_body of ``state`` (zero roll and pitch).
         position_std: weighted horizontal spread of the particles, metres.
         yaw_std: circular spread of their yaw, radians.
@@ -184,13 +189,16 @@ class Estimate:
         num_particles: particles after the step.
         best_score: fit quality of the most likely particle (NaN: too little seen to tell).
         injected: particles injected by depletion recovery in this step.
-        status: ``tracking``, ``coasting``, ``lost`` or ``global``
-            (``particle_filter.StepInfo``).
+        status: ``tracking``, ``ambiguous``, ``coasting`` or ``lost``
+            (``particle_filter.StepInfo``): ``tracking`` only once one hypothesis has held
+            ``filter.dominant_mass`` for ``filter.dominant_frames`` frames.
         confidence: in [0, 1], how much the images back the estimate
             (``particle_filter.StepInfo``).
         tilt: (2,) roll, pitch correction of the IMU's attitude, radians.
         timing_ms: ``segmentation`` (the edge source's labels), ``preprocessing`` (edge image
             and score maps) and ``filter`` (motion, likelihood, resampling), ms.
+        hypotheses: the heaviest pose hypotheses of the particle set with their mass,
+            heaviest first (``hypotheses.Hypothesis``).
     """
 
     timestamp: float
@@ -206,6 +214,7 @@ class Estimate:
     confidence: float
     tilt: np.ndarray
     timing_ms: Mapping[str, float]
+    hypotheses: tuple[Hypothesis, ...] = ()
 
 
 class Localizer:
@@ -264,18 +273,19 @@ class Localizer:
                                                      coarse.visibility, coarse.pairs)
         return self._global_likelihood
 
-    def reset(self, start: np.ndarray | None = None) -> None:
-        """Start tracking around ``start`` or, with None, globally (the global search, or the
-        filter's uniform set over the free space: ``_start_search``).
+    def reset(self, start: np.ndarray | StartHint | None = None) -> None:
+        """Start tracking around ``start`` or globally: with None over the whole free space,
+        with a ``StartHint`` inside it (the global search, or the filter's uniform set:
+        ``_start_search``; status ``ambiguous`` until a hypothesis dominates).
 
         Args:
             start: (4,) x, y, z (metres), yaw (radians), or (4, 4) world_from_body (its
-                heading taken; roll and pitch ignored), or None.
+                heading taken; roll and pitch ignored), or a ``StartHint``, or None.
         """
         self.search = None
-        if start is None:
-            if not self._start_search():
-                self.filter.init_global()
+        if start is None or isinstance(start, StartHint):
+            if not self._start_search(start):
+                self.filter.init_global(start)
         else:
             s = np.asarray(start, dtype=np.float64)
             if s.shape == (4, 4):
@@ -335,11 +345,12 @@ class Localizer:
         return Estimate(timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0],
                         info.position_std, info.yaw_std, info.ess, info.num_particles,
                         info.best_score, info.injected, info.status, info.confidence,
-                        info.tilt, timing)
+                        info.tilt, timing, info.hypotheses)
 
-    def _start_search(self) -> bool:
+    def _start_search(self, hint: StartHint | None = None) -> bool:
         """Start a global search (``filter.global_method: table``, a label mode, no likelihood
-        override); False when the uniform particle set serves instead."""
+        override), inside ``hint`` (its ``log_prior``) if given; False when the uniform
+        particle set serves instead."""
         fp = self.filter_params
         if (fp.global_method != "table" or self.front_end.mode == "none"
                 or self.likelihood_override is not None):
@@ -347,13 +358,14 @@ class Localizer:
         params = search_params(fp.global_search)
         self.search = GlobalSearch(ray_table_for(self.world, params), self.camera,
                                    self.world.free, params, self.filter.rng)
-        self.search.reset()
+        self.search.reset(None if hint is None else hint.log_prior)
         return True
 
     def _search_step(self, frame: Frame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float) -> Estimate:
         """A frame of the global search; on its convergence the tracking filter takes over
-        from the dominant cluster's hypotheses (status ``global`` until then)."""
+        from the dominant cluster's hypotheses (status ``ambiguous`` until then, the estimate
+        the heaviest cluster's pose)."""
         t0 = time.perf_counter()
         search = self.search
         with _BLAS.limit(limits=1, user_api="blas"):
@@ -363,6 +375,9 @@ class Localizer:
                 search.update(frame.labels, tilt)
             state, pos_std, yaw_std = search.estimate()
             n = len(search.logw)
+            fp = self.filter_params
+            hyps = tuple(top_hypotheses(search.states, search.logw, fp.hypotheses,
+                                        fp.hypothesis_radius_m, fp.hypothesis_yaw_deg))
             if search.converged:
                 self.filter.init_particles(search.sample(self.filter_params.num_particles))
                 self.search = None
@@ -371,7 +386,8 @@ class Localizer:
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"], "filter": filter_ms}
         return Estimate(timestamp, state, pose_from_xyzyaw(state)[0], pos_std, yaw_std,
-                        float("nan"), n, float("nan"), 0, "global", 0.0, np.zeros(2), timing)
+                        float("nan"), n, float("nan"), 0, "ambiguous", 0.0, np.zeros(2), timing,
+                        hyps)
 
     def _log_events(self, status: str, timestamp: float) -> None:
         """Log a loss and the re-localization that follows it."""

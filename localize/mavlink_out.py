@@ -140,8 +140,9 @@ def check_quality(quality: int) -> int:
 
 def quality_of(confidence: float, status: str) -> int:
     """MAVLink quality of an estimate (``localizer.Estimate``): -1 when ``lost`` or in the
-    ``global`` phase (no pose to fuse yet), else ``round(100 * confidence)`` in 1..100."""
-    if status in ("lost", "global"):
+    ``ambiguous`` (no hypothesis dominates yet: no pose to fuse), else
+    ``round(100 * confidence)`` in 1..100."""
+    if status in ("lost", "ambiguous"):
         return -1
     return int(np.clip(round(100.0 * float(confidence)), 1, 100))
 

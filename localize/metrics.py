@@ -82,11 +82,30 @@ def lost_track(pos_err: np.ndarray, timestamps: np.ndarray, threshold_m: float,
     return bool(np.any(t[ends] - t[starts] > longer_than_s))
 
 
+def false_convergence(pos_err: np.ndarray, timestamps: np.ndarray, status: Sequence[str],
+                      threshold_m: float, longer_than_s: float) -> bool:
+    """Whether a run declared convergence falsely: its status was ``tracking`` while its error
+    stayed above ``threshold_m`` for longer than ``longer_than_s`` (one unbroken stretch of
+    such frames, ``lost_track``'s measure).
+
+    Args:
+        pos_err: (T,) metres.
+        timestamps: (T,) seconds.
+        status: (T,) the filter's status per frame (``Estimate.status``).
+    """
+    tracking = np.asarray(status) == "tracking"
+    if len(tracking) != len(pos_err):
+        raise ValueError(f"{len(pos_err)} errors for {len(tracking)} statuses")
+    return lost_track(np.where(tracking, pos_err, 0.0), timestamps, threshold_m, longer_than_s)
+
+
 def health_stats(status: Sequence[str], confidence: Sequence[float]) -> dict:
     """The filter's own view of a run (``Estimate.status``, ``.confidence`` per frame): the
-    share of coasting frames, the losses it declared and its mean confidence."""
+    share of coasting and of ambiguous frames, the losses it declared and its mean
+    confidence."""
     n = len(status)
     return {"coasting_rate": list(status).count("coasting") / max(n, 1),
+            "ambiguous_rate": list(status).count("ambiguous") / max(n, 1),
             "losses_declared": list(status).count("lost"),
             "mean_confidence": float(np.mean(confidence)) if n else None}
 

@@ -21,7 +21,11 @@ Knowing when it is lost: a frame whose best particle fits the image far worse th
 long-run level (below ``gate`` of it: a dropout, a covered lens, a wrong pose) does not weigh
 the particles; the filter *coasts* on the odometry. ``lost_frames`` such frames in a row
 declare the track lost, and the filter re-localizes over the free space (a global start).
-Each step reports its status and a confidence in [0, 1] (``StepInfo``).
+Each step reports its status and a confidence in [0, 1] (``StepInfo``), and the heaviest
+pose hypotheses of the weighted set with their mass (``localize.hypotheses``): the status is
+``ambiguous`` until one hypothesis has held ``dominant_mass`` of the mass for
+``dominant_frames`` frames in a row, and the estimate is the top hypothesis's pose whenever
+it holds less than ``dominant_mass`` (the weighted mean of two modes lies between them).
 
 Motion: the odometry increment between two frames is expressed in the gravity-aligned heading
 frame of the earlier pose (forward, left, up, yaw change), the frame a VIO's increments are
@@ -41,6 +45,8 @@ from scipy.special import logsumexp
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from localize.config import FilterParams
+from localize.hypotheses import Dominance, Hypothesis, top_hypotheses
+from localize.start_hint import StartHint
 
 # --- the three model functions ---------------------------------------------------------------
 
@@ -228,8 +234,9 @@ class StepInfo:
     ``num_particles``).
 
     Attributes:
-        estimate: (4,) weighted mean pose; while a re-localization keeps its global set, the
-            lost track's pose moved by the odometry.
+        estimate: (4,) weighted mean pose, or the top hypothesis's pose when it holds less
+            than ``dominant_mass``; while a re-localization keeps its global set, the lost
+            track's pose moved by the odometry.
         ess: effective sample size.
         best_score: quality of the most likely particle.
         resampled: the set was resampled.
@@ -238,13 +245,17 @@ class StepInfo:
         position_std: weighted horizontal spread, metres (``spread``).
         yaw_std: circular yaw spread, radians.
         tilt: (2,) weighted mean roll, pitch correction of the IMU's attitude, radians.
-        status: ``tracking`` (the frame weighed the particles), ``coasting`` (it did not: the
-            image showed nothing usable or fit no particle; odometry only), ``lost`` (this
-            frame declared the track lost and started a re-localization) or ``global`` (the
-            global set of a start or a re-localization is kept).
+        status: ``tracking`` (the frame weighed the particles and one hypothesis has
+            dominated for ``dominant_frames``), ``ambiguous`` (no hypothesis has yet: a
+            global start or a re-localization, or the set split), ``coasting`` (a dominated
+            track the frame did not weigh: the image showed nothing usable or fit no
+            particle; odometry only) or ``lost`` (this frame declared the track lost and
+            started a re-localization).
         confidence: in [0, 1], how much the estimate is backed by the images: the smoothed fit
-            of the best particle over its long-run level (0 while coasting), times
-            ``1 - position_std / 1 m``.
+            of the best particle over its long-run level (0 while coasting or ambiguous),
+            times ``1 - position_std / 1 m``.
+        hypotheses: the heaviest modes of the weighted set, heaviest first
+            (``hypotheses.top_hypotheses``).
     """
 
     estimate: np.ndarray
@@ -258,6 +269,7 @@ class StepInfo:
     tilt: np.ndarray | None = None
     status: str = "tracking"
     confidence: float = float("nan")
+    hypotheses: tuple[Hypothesis, ...] = ()
 
 
 #: The fit gate needs a long-run fit level this far above chance: mode none's raw image edges
@@ -292,6 +304,7 @@ class ParticleFilter:
         self._fit = 0.0  # smoothed fit ratio of the confidence
         self._reckoned = None  # (4,) the lost track's pose moved by the odometry, reported
         # while a re-localization's global set is kept
+        self.dominance = Dominance(params.dominant_mass, params.dominant_frames)
 
     def init_tracking(self, start: np.ndarray) -> None:
         """Start around a known pose (4,) x, y, z, yaw."""
@@ -299,8 +312,8 @@ class ParticleFilter:
         self.init_particles(init_tracking(self.rng, start, p.num_particles, p.init_std))
 
     def init_particles(self, particles: np.ndarray) -> None:
-        """Start tracking from a given set (N, 4) x, y, z, yaw, equally weighted (a global
-        search's handover)."""
+        """Start tracking from a given set (N, 4) x, y, z, yaw, equally weighted (a tracking
+        start, or a global search's handover once one pose dominated): status ``tracking``."""
         p = self.params
         self.particles = np.array(particles, dtype=np.float64)
         n = len(self.particles)
@@ -308,18 +321,25 @@ class ParticleFilter:
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
         self._poor, self._fit, self._reckoned = 0, 1.0, None
+        self.dominance.confirm()
 
-    def init_global(self) -> None:
-        """Start uniform over the free space, with ``global_count(free area)`` particles
-        (``global_particles``, more over a free space larger than ``global_area``)."""
+    def init_global(self, hint: StartHint | None = None) -> None:
+        """Start uniform over the free space, or inside ``hint`` (``StartHint.draw``), with
+        ``global_count(area)`` particles (``global_particles``, more over a free space, or a
+        hinted area, larger than ``global_area``)."""
         p = self.params
-        n = p.global_count(self.free.area)
-        self.particles = init_global(self.rng, self.free, n)
+        if hint is None:
+            n = p.global_count(self.free.area)
+            self.particles = init_global(self.rng, self.free, n)
+        else:
+            n = p.global_count(hint.area(self.free))
+            self.particles = hint.draw(self.rng, self.free, n)
         self.tilt = np.zeros((n, 2))
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._low = 0, None, None, 0
         self._thin_at = p.global_frames
         self._poor, self._fit, self._reckoned = 0, 0.0, None
+        self.dominance.clear()
 
     @property
     def in_global_phase(self) -> bool:
@@ -362,7 +382,10 @@ class ParticleFilter:
         self._poor = 0
         self.logw = normalize_log_weights(self.logw + loglik + prior)
         mean = estimate(self.particles, self.logw)
-        est = self._reported(mean, global_phase)
+        hyps = self.hypotheses()
+        top = hyps[0].mass if hyps else 0.0
+        status = self.dominance.update(top)
+        est = self._reported(mean if top >= p.dominant_mass else hyps[0].state, global_phase)
         pos_std, yaw_std = spread(self.particles, self.logw)
         tilt = np.exp(self.logw) @ self.tilt
         ess = effective_sample_size(self.logw)
@@ -387,9 +410,15 @@ class ParticleFilter:
             if thin:
                 self._thin_at, self._reckoned = 0, None
                 self.tilt = draw_tilt(self.rng, n, np.deg2rad(p.tilt_std[0]))
-        status = "global" if global_phase else "tracking"
         return StepInfo(est, ess, best, resampled, injected, len(self.particles), pos_std,
-                        yaw_std, tilt, status, self._confidence(pos_std, global_phase))
+                        yaw_std, tilt, status,
+                        self._confidence(pos_std, status != "tracking"), tuple(hyps))
+
+    def hypotheses(self) -> list[Hypothesis]:
+        """The heaviest modes of the weighted set (``filter.hypotheses`` of them)."""
+        p = self.params
+        return top_hypotheses(self.particles, self.logw, p.hypotheses, p.hypothesis_radius_m,
+                              p.hypothesis_yaw_deg)
 
     def coast(self, best: float = float("nan")) -> StepInfo:
         """A frame that does not weigh the particles (nothing usable in the image, or no
@@ -399,14 +428,18 @@ class ParticleFilter:
             best: the best particle's fit of the frame, if scored (reported only).
         """
         global_phase = self.in_global_phase
-        est = self._reported(estimate(self.particles, self.logw), global_phase)
+        hyps = self.hypotheses()
+        mean = estimate(self.particles, self.logw)
+        dominant = bool(hyps) and hyps[0].mass >= self.params.dominant_mass
+        est = self._reported(mean if dominant else hyps[0].state, global_phase)
         pos_std, yaw_std = spread(self.particles, self.logw)
         self._fit *= 1.0 - CONFIDENCE_RATE
         self.frame += 1
+        status = "coasting" if self.dominance.confirmed else "ambiguous"
         return StepInfo(est, effective_sample_size(self.logw), best, False, 0,
                         len(self.particles), pos_std, yaw_std,
-                        np.exp(self.logw) @ self.tilt, "global" if global_phase else "coasting",
-                        self._confidence(pos_std, global_phase))
+                        np.exp(self.logw) @ self.tilt, status,
+                        self._confidence(pos_std, status != "coasting"), tuple(hyps))
 
     def _below_gate(self, best: float) -> bool:
         """The best fit is below ``gate`` of its long-run level (once that level is known and
@@ -432,9 +465,9 @@ class ParticleFilter:
 
     def _reported(self, est: np.ndarray, global_phase: bool) -> np.ndarray:
         """The pose a step reports: while a re-localization keeps its global set, the lost
-        track's pose moved by the odometry (the global set's mean is the middle of the free
-        space until it gathers), else ``est``."""
-        if global_phase and self._reckoned is not None:
+        track's pose moved by the odometry until a hypothesis dominates (the global set's
+        mean is the middle of the free space until it gathers), else ``est``."""
+        if global_phase and self._reckoned is not None and not self.dominance.confirmed:
             return self._reckoned.copy()
         return est
 
@@ -445,9 +478,9 @@ class ParticleFilter:
         ratio = float(np.clip(best / self._slow, 0.0, 1.0)) if self._slow > 0.05 else 1.0
         self._fit += CONFIDENCE_RATE * (ratio - self._fit)
 
-    def _confidence(self, pos_std: float, global_phase: bool) -> float:
-        """``StepInfo.confidence``: 0 in the global phase."""
-        if global_phase:
+    def _confidence(self, pos_std: float, ambiguous: bool) -> float:
+        """``StepInfo.confidence``: 0 while no hypothesis dominates."""
+        if ambiguous:
             return 0.0
         return float(self._fit * max(0.0, 1.0 - pos_std / CONFIDENCE_SPREAD_M))
 

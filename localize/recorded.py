@@ -10,8 +10,8 @@ Output folder ``<out_root>/<name>/recordings/<recording name>/``::
     config.json                 the settings its results depend on (core.outputs)
     trajectory.txt              the first mode's estimates (cnn when it ran), TUM, world_from_body
     trajectory.json             its companion: per frame the timestamp, the filter's status
-                                (tracking, coasting, lost, global), confidence (0-1) and
-                                particle spread (m)
+                                (tracking, ambiguous, coasting, lost), confidence (0-1),
+                                particle spread (m) and pose hypotheses [x, y, z, yaw, mass]
     trajectories/<mode>.txt     each mode's estimates (TUM), and <mode>.json their companions
     runs/<mode>.json            each mode's run record (as a flight's, ``runner.PassRecord``)
     report.md, metrics.json     per mode: errors against groundtruth (when the recording has it),
@@ -84,9 +84,11 @@ def start_state(cfg: DictConfig, rec: Recording) -> np.ndarray | None:
 
 def companion(record: dict) -> dict[str, list]:
     """A trajectory's companion of a run record: per frame the timestamp, the filter's status,
-    confidence (0-1) and particle spread (m)."""
+    confidence (0-1), particle spread (m) and pose hypotheses ([x, y, z, yaw, mass], m and rad,
+    heaviest first)."""
     return {"timestamp": record["timestamps"], "status": record["status"],
-            "confidence": record["confidence"], "position_std_m": record["position_std"]}
+            "confidence": record["confidence"], "position_std_m": record["position_std"],
+            "hypotheses": record.get("hypotheses", [[] for _ in record["timestamps"]])}
 
 
 def write_overlay(path: Path, rec: Recording, ctx: Context, record: dict) -> None:

@@ -20,6 +20,7 @@ from localize.metrics import (
     calibration,
     convergence_frame,
     error_stats,
+    false_convergence,
     health_stats,
     lost_track,
     timing_stats,
@@ -80,6 +81,7 @@ def summarize(records: list[dict], cfg) -> dict:
             entry["lost_rate"] = float(np.mean([
                 lost_track(r["position_error_m"], r["timestamps"], mc.failure_threshold_m,
                            mc.lost_after_s) for r in runs]))
+            entry["false_convergence_rate"] = _false_convergence_rate(runs, mc)
             entry.update(_health(runs))
             entry.update(_calibration(runs, pos, mc.calibration_within_m))
             entry["seeds"] = [int(r["seed"]) for r in runs]
@@ -106,6 +108,7 @@ def summarize(records: list[dict], cfg) -> dict:
                 "mean_error_after_convergence_m": (float(np.mean(np.concatenate(after)))
                                                    if after else None),
                 "failure_rate": fail,
+                "false_convergence_rate": _false_convergence_rate(runs, mc),
                 "seeds": [int(r["seed"]) for r in runs],
                 **_calibration(runs, pos, mc.calibration_within_m),
             }
@@ -130,6 +133,17 @@ def summarize(records: list[dict], cfg) -> dict:
     }
     out["targets"] = targets(out, cfg)
     return out
+
+
+def _false_convergence_rate(runs: list[dict], mc) -> float | None:
+    """Share of runs that declared convergence falsely (``metrics.false_convergence``: status
+    ``tracking`` while above ``failure_threshold_m`` for over ``lost_after_s``); None when the
+    records carry no status."""
+    if not all("status" in r for r in runs):
+        return None
+    return float(np.mean([false_convergence(r["position_error_m"], r["timestamps"], r["status"],
+                                            mc.failure_threshold_m, mc.lost_after_s)
+                          for r in runs]))
 
 
 def _health(runs: list[dict]) -> dict:
@@ -363,12 +377,18 @@ def _global(m: dict, cfg) -> list[str]:
     lines = ["## Global localization (uniform start)", "",
              f"Converged: error below {cfg.metrics.converge_threshold_m} m from that frame "
              "to the end of the flight.", "",
+             f"False convergence: status `tracking` while more than "
+             f"{cfg.metrics.failure_threshold_m} m off for over {cfg.metrics.lost_after_s} s.",
+             "",
              f"| flight | mode | converged within {n} frames | convergence frame per seed "
-             "| mean error after convergence (m) |", "|---|---|---|---|---|"]
+             "| mean error after convergence (m) | false convergence |",
+             "|---|---|---|---|---|---|"]
     for fl, mode, g in glob:
+        fc = g.get("false_convergence_rate")
         lines.append(f"| {fl} | {mode} | {100 * g['converged_within_rate']:.0f}% | "
                      f"{', '.join(_fmt(c) for c in g['convergence_frames'])} | "
-                     f"{_fmt(g['mean_error_after_convergence_m'])} |")
+                     f"{_fmt(g['mean_error_after_convergence_m'])} | "
+                     f"{'-' if fc is None else f'{100 * fc:.0f}%'} |")
     return [*lines, ""]
 
 

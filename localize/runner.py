@@ -5,7 +5,8 @@ Layout of ``outputs/reports/<name>/``::
     report.md, metrics.json, plots/*.png
     trajectories/<flight>/<mode>_seed<k>.txt          tracking init (TUM, world_from_body)
     trajectories/<flight>/<mode>_global_seed<k>.txt   global init
-    runs/<flight>/<mode>_<init>_seed<k>.json          per-frame errors, timings, diagnostics
+    runs/<flight>/<mode>_<init>_seed<k>.json          per-frame errors, timings, diagnostics,
+                                                      status and pose hypotheses
     cache/visibility_<hash>.npz                       occlusion grid of the world
     viz/<flight>_<mode>.rrd                           with viz=rerun: the pass for the viewer
 
@@ -52,6 +53,7 @@ from localize.localizer import (
     mode_likelihood_params,
 )
 from localize.metrics import position_errors, yaw_errors_deg
+from localize.start_hint import hint_from_settings
 from localize.viz import open_viewer
 
 log = logging.getLogger(__name__)
@@ -249,6 +251,7 @@ class PassRecord:
         self.diag = {k: np.zeros((n_runs, T)) for k in DIAGNOSTICS}
         self.timing = {k: np.zeros((n_runs, T)) for k in STAGES}
         self.status = [[""] * T for _ in range(n_runs)]
+        self.hypotheses = [[[] for _ in range(T)] for _ in range(n_runs)]
         self.index: list[int] = []
         self.timestamps: list[float] = []
         self.truth: list[np.ndarray] | None = []
@@ -270,6 +273,7 @@ class PassRecord:
         for k in DIAGNOSTICS:
             self.diag[k][i, t] = getattr(est, k)
         self.status[i][t] = est.status
+        self.hypotheses[i][t] = [h.as_list() for h in est.hypotheses]
         stages = {"acquisition": acquisition_ms, **est.timing_ms}
         for k, v in stages.items():
             self.timing[k][i, t] = v
@@ -278,8 +282,9 @@ class PassRecord:
     def write(self, i: int, run: RunSpec, out_dir: Path, num_particles: int,
               free: OccupancyMap) -> None:
         """Run i's trajectory (TUM, world_from_body) and run record (JSON: per delivered frame
-        the estimate, the timings and the diagnostics; where there is truth, the errors and
-        how many true poses lie outside the free space ``free``, and how far at most)."""
+        the estimate, the timings, the diagnostics, the status and the pose hypotheses
+        ``[x, y, z, yaw, mass]``, heaviest first; where there is truth, the errors and how many
+        true poses lie outside the free space ``free``, and how far at most)."""
         traj, rec = run.paths(out_dir)
         n = len(self.index)
         estimate = self.estimate[i, :n]
@@ -305,7 +310,8 @@ class PassRecord:
             record["frame_index"] = list(self.index)
         record.update({"timing_ms": {k: v[i, :n].tolist() for k, v in self.timing.items()},
                        **{k: v[i, :n].tolist() for k, v in self.diag.items()},
-                       "status": self.status[i][:n]})
+                       "status": self.status[i][:n],
+                       "hypotheses": self.hypotheses[i][:n]})
         atomic_write_json(rec, record)
 
 
@@ -323,7 +329,8 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
         likelihood_override: replaces the edge likelihood (the paper-faithful comparison).
         num_particles: override of the filter's particle count (both inits).
         start: (4,) x, y, z (m), yaw (rad) the tracking runs start from; None: the source's
-            first true pose.
+            first true pose. The global runs start inside the config's ``hint``
+            (``start_hint.hint_from_settings``; none set: the whole free space).
 
     With ``viz=rerun`` the pass's first run (its frames, labels, estimate, particles) is
     logged to ``<out_dir>/viz/<source>_<mode>.rrd`` (``localize.viz``).
@@ -344,11 +351,12 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
                              "has no ground truth; give start=[x, y, z, yaw_deg]")
         start = xyzyaw_from_pose(source.groundtruth[0])[0]
     warn_outside_free_space(source, ctx.world.free, T, start, settings.filter.free_space_slack)
+    hint = hint_from_settings(ctx.settings.hint, ctx.world.info)
     localizers = []
     for r in runs:
         loc = Localizer(ctx.world, ctx.camera, front, settings, r.rng(),
                         model=ctx.model_for(mode), likelihood_override=likelihood_override)
-        loc.reset(start if r.init == "tracking" else None)
+        loc.reset(start if r.init == "tracking" else hint)
         localizers.append(loc)
     record = PassRecord(len(runs), T)
     desc = f"{source.name}/{mode}" + (f"/{runs[0].likelihood}"
@@ -461,7 +469,7 @@ def report_folder(cfg: DictConfig) -> Path:
 # only choose which runs exist, so they may change between resumes. The segnet.onnx digest
 # may be set where no cnn run had one.
 RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_edges",
-               "visibility", "onnx_sha256")
+               "visibility", "hint", "onnx_sha256")
 # settings under RESULT_KEYS that change only how fast the results come, not the results
 SPEED_ONLY = ("filter.likelihood.workers", "filter.likelihood.chunk")
 #: What to do when the disk fills during a run (``core.atomic.DiskFullError``'s advice).

@@ -15,7 +15,7 @@ timeline (seconds). Entities:
   projected at the estimate (``overlay.project_segments``). Without a camera the image and
   labels go to ``camera/`` alone.
 - ``status/confidence``, ``status/position_std``: the estimate's, over time;
-  ``status/log``: the filter's status (tracking, coasting, lost, global) when it changes.
+  ``status/log``: the filter's status (tracking, ambiguous, coasting, lost) when it changes.
 
 The core never imports rerun: only ``open_viewer("rerun", ...)`` does.
 """

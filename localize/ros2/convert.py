@@ -23,7 +23,7 @@ IMAGE_TYPE = {"raw": "sensor_msgs/msg/Image", "compressed": "sensor_msgs/msg/Com
 POSE_TYPE = {"odometry": "nav_msgs/msg/Odometry", "pose": "geometry_msgs/msg/PoseStamped",
              "initial_pose": "geometry_msgs/msg/PoseWithCovarianceStamped"}
 #: Statuses the node reports, and their diagnostic_msgs levels (OK, WARN, ERROR).
-STATUS_LEVEL = {"tracking": 0, "ambiguous": 1, "global": 1, "lost": 2}
+STATUS_LEVEL = {"tracking": 0, "ambiguous": 1, "lost": 2}
 NS = 1_000_000_000
 
 
@@ -110,8 +110,8 @@ def shown_particles(particles: np.ndarray, most: int, rng: np.random.Generator) 
 
 
 def live_status(estimate: Estimate, ambiguous_std_m: float) -> str:
-    """``tracking``, ``ambiguous`` (tracking or coasting, the particles spread wider than
-    ``ambiguous_std_m``), ``lost`` or ``global`` (the filter's global phase)."""
-    if estimate.status in ("lost", "global"):
+    """``tracking``, ``ambiguous`` (the filter's: no hypothesis dominates yet; or tracking or
+    coasting with the particles spread wider than ``ambiguous_std_m``) or ``lost``."""
+    if estimate.status in ("lost", "ambiguous"):
         return estimate.status
     return "ambiguous" if estimate.position_std > ambiguous_std_m else "tracking"

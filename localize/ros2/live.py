@@ -85,7 +85,7 @@ class Output:
         pose: (4, 4) map world_from_body (the odometry's roll and pitch, corrected).
         covariance: (6, 6) over x, y, z, roll, pitch, yaw (``convert.particle_covariance``).
         particles: (K, 4) x, y, z, yaw, at most ``SHOWN_PARTICLES``.
-        status: ``tracking``, ``ambiguous``, ``lost`` or ``global`` (``convert.live_status``).
+        status: ``tracking``, ``ambiguous`` or ``lost`` (``convert.live_status``).
         image: (H, W, 3) uint8 the delivered frame.
         labels: (H, W) uint8 the SegNet's labels, or None (mode none).
     """

@@ -11,6 +11,7 @@ from localize.config import FilterParams, Settings
 from localize.global_search import GlobalSearch, GlobalSearchParams, ray_table_for
 from localize.localizer import EdgeModel, Localizer
 from localize.ray_table import RayTable, floor_boundary
+from localize.start_hint import StartHint
 
 #: A path through the small corridor (free x in [-1.9, 0.7], y in [0.3, 3.7]), low enough to
 #: see the floor meet the side walls (a 70 deg camera): along it,
@@ -99,8 +100,8 @@ def test_a_hint_limits_the_start(table, small_world, camera):
 
 
 def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rendered):
-    """``reset(None)`` in a label mode runs the search (status ``global``), then the tracking
-    filter takes over near the truth."""
+    """``reset(None)`` in a label mode runs the search (status ``ambiguous``, its pose
+    hypotheses reported), then the tracking filter takes over near the truth."""
     poses, labels = rendered
     settings = Settings(filter=FilterParams(num_particles=150, global_search=SMALL))
     model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
@@ -115,9 +116,29 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
         e = loc.step(None, delta, poses[t], 0.1 * t, labels=labels[t])
         statuses.append(e.status)
         est.append(e.state)
-    assert statuses[0] == "global" and statuses[-1] == "tracking"
+        assert e.hypotheses and e.hypotheses[0].mass <= 1.0 + 1e-9
+    assert statuses[0] == "ambiguous" and statuses[-1] == "tracking"
     assert loc.search is None
     err = np.hypot(*(np.array(est)[-5:, :2] - path()[-5:, :2]).T)
     assert (err < 0.3).all(), err
     assert ray_table_for(small_world, GlobalSearchParams(headings=36)) is ray_table_for(
         small_world, GlobalSearchParams(headings=36))
+
+
+def test_localizer_hint_weighs_the_search(small_world, camera):
+    """A ``StartHint`` given to ``Localizer.reset`` restricts the search's start: a region
+    keeps only its poses, a pose with covariance weighs them by its Gaussian."""
+    settings = Settings(filter=FilterParams(num_particles=150, global_search=SMALL))
+    model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
+                                                                             "oracle")
+    loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
+                    model=model)
+    loc.reset(StartHint(region=[-5.0, 0.0, 5.0, 1.0], heading=(0.0, np.pi / 2)))
+    s = loc.search.states
+    assert len(s) and (s[:, 1] <= 1.0 + 1e-9).all()
+    assert ((s[:, 3] >= -1e-6) & (s[:, 3] <= np.pi / 2 + 1e-6)).all()
+    centre = np.array([-0.6, 1.5, 0.7, 0.0])
+    loc.reset(StartHint(pose=centre, covariance=np.diag([0.04, 0.04, 0.01, 0.05])))
+    s, w = loc.search.states, np.exp(loc.search.logw)
+    near = np.hypot(*(s[:, :2] - centre[:2]).T) < 0.5
+    assert w[near].sum() > 0.9

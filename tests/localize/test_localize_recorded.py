@@ -63,7 +63,7 @@ class TestRecordedFlight:
         health = json.loads((folder / "trajectory.json").read_text())
         t, _ = read_tum(folder / "trajectory.txt")
         np.testing.assert_allclose(health["timestamp"], t, atol=1e-6)
-        assert set(health["status"]) <= {"tracking", "coasting", "lost", "global"}
+        assert set(health["status"]) <= {"tracking", "ambiguous", "coasting", "lost"}
         c = np.array(health["confidence"])
         assert len(c) == len(t) and ((c >= 0) & (c <= 1)).all() and c[-1] > 0
         m = json.loads((folder / "metrics.json").read_text())["flights"][FLIGHT]["cnn"]

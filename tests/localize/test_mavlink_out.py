@@ -96,7 +96,7 @@ class TestConversion:
         assert time_usec(1.7e9) == 1_700_000_000_000_000
         assert quality_of(0.5, "tracking") == 50
         assert quality_of(0.0, "coasting") == 1
-        assert quality_of(0.9, "lost") == -1 and quality_of(0.9, "global") == -1
+        assert quality_of(0.9, "lost") == -1 and quality_of(0.9, "ambiguous") == -1
 
     def test_rate_limit(self):
         assert due(None, 0.0, 10.0)

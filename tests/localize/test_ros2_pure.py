@@ -138,7 +138,7 @@ def test_status_of_an_estimate():
     e = SimpleNamespace(status="tracking", position_std=0.1)
     assert live_status(e, 0.5) == "tracking"
     assert live_status(SimpleNamespace(status="coasting", position_std=0.8), 0.5) == "ambiguous"
-    assert live_status(SimpleNamespace(status="global", position_std=3.0), 0.5) == "global"
+    assert live_status(SimpleNamespace(status="ambiguous", position_std=3.0), 0.5) == "ambiguous"
 
 
 def test_settings_name_the_key():
