@@ -34,11 +34,17 @@ class EdgeSettings:
         simplify_m: metres, the tolerance of straightening chained pieces
             (``edge_polylines.simplify_segments``; 0: exactly collinear points only).
         min_length: metres; shorter segments (after merging) are dropped.
+        straighten_class_changes: straighten the boundaries between two classes too; off,
+            they keep the triangle sides the classes change along, which is what a label
+            image rendered from the mesh shows (straightened, a scan's jagged class
+            boundaries lie off the labels' and the label modes track worse:
+            docs/notes/edges.md).
     """
 
     regions: RegionSettings = field(default_factory=RegionSettings)
     simplify_m: float = 0.02
     min_length: float = 0.05
+    straighten_class_changes: bool = False
 
 
 def extract_edges(
@@ -56,11 +62,10 @@ def extract_edges(
     classed by the surface they meet (``probe_boundary``): a wall standing on a floor as a
     separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
     degrees. A closed mesh without coincident faces has neither, so nothing is cast. The
-    pieces are chained and straightened (``simplify_segments``, ``settings.simplify_m``),
-    those on one line within 2 ``simplify_m`` with gaps up to 2.5 ``simplify_m`` joined
-    (``merge_near_collinear``), collinear
-    touching ones merged (``merge_collinear``) and those under ``settings.min_length``
-    dropped.
+    creases and boundary edges are straightened (``straighten``, ``settings.simplify_m``),
+    the class boundaries kept as they run (``settings.straighten_class_changes``);
+    collinear touching pieces are merged (``merge_collinear``) and those under
+    ``settings.min_length`` dropped.
 
     Args:
         vertices: (V, 3) metres. faces: (F, 3) vertex indices, shared vertices merged.
@@ -120,17 +125,42 @@ def extract_edges(
     seg, ang = np.concatenate(seg), np.concatenate(ang)
     cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
     part = np.concatenate(part)
-    crease_bin = np.round(ang).astype(np.int64)
-    _, group = np.unique(np.concatenate([cls.astype(np.int64), part, crease_bin[:, None]], 1),
-                         axis=0, return_inverse=True)
-    seg, member = simplify_segments(seg, group.ravel(), settings.simplify_m)
-    cls, ang = cls[member], ang[member]
-    _, line_group = np.unique(np.c_[cls, ang > crease_deg], axis=0, return_inverse=True)
-    seg, member = merge_near_collinear(seg, line_group.ravel(), 2 * settings.simplify_m,
-                                       2.5 * settings.simplify_m)
-    seg, cls, ang = merge_collinear(seg, cls[member], ang[member])
+    # class boundaries between two classes stay where the faces' classes change (what a
+    # label image shows, triangle side by triangle side); the rest are straightened
+    exact = (cls[:, 0] != cls[:, 1]) & (cls[:, 0] != C.VOID)
+    if not settings.straighten_class_changes:
+        seg_s, cls_s, ang_s = straighten(seg[~exact], cls[~exact], ang[~exact], part[~exact],
+                                         crease_deg, settings.simplify_m)
+        seg = np.concatenate([seg[exact], seg_s])
+        cls = np.concatenate([cls[exact], cls_s])
+        ang = np.concatenate([ang[exact], ang_s])
+    else:
+        seg, cls, ang = straighten(seg, cls, ang, part, crease_deg, settings.simplify_m)
+    seg, cls, ang = merge_collinear(seg, cls, ang)
     long = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= settings.min_length
     return seg[long], cls[long], ang[long]
+
+
+def straighten(seg: np.ndarray, cls: np.ndarray, ang: np.ndarray, part: np.ndarray,
+               crease_deg: float, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Edge pieces (M, 2, 3) chained within their class pair, pair of regions ``part``
+    (M, 2) and crease (to a degree), straightened with tolerance ``tol`` metres
+    (``simplify_segments``), then joined along lines within 2 ``tol`` with gaps up to
+    2.5 ``tol`` (``merge_near_collinear``, within the class pair and crease or not).
+
+    Returns:
+        (segments, classes, crease) of the straight segments; each takes the classes and
+        crease of the longest piece it replaces.
+    """
+    if len(seg) == 0:
+        return seg, cls, ang
+    key = np.c_[cls.astype(np.int64), part, np.round(ang).astype(np.int64)]
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    seg, member = simplify_segments(seg, group.ravel(), tol)
+    cls, ang = cls[member], ang[member]
+    _, line_group = np.unique(np.c_[cls, ang > crease_deg], axis=0, return_inverse=True)
+    seg, member = merge_near_collinear(seg, line_group.ravel(), 2 * tol, 2.5 * tol)
+    return seg, cls[member], ang[member]
 
 
 def _sign(n: np.ndarray, ref: np.ndarray) -> np.ndarray:

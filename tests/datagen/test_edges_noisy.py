@@ -13,7 +13,7 @@ import trimesh
 
 from core import classes as C
 from datagen.edge_polylines import simplify_segments
-from datagen.edges import extract_edges
+from datagen.edges import EdgeSettings, extract_edges
 from datagen.planar_regions import face_pairs, planar_regions
 from datagen.world import build_world
 
@@ -77,24 +77,34 @@ def test_a_noisy_box_has_its_twelve_edges():
 
 def test_a_scanned_room_keeps_its_vertical_corners():
     """An open-topped 3 x 4 x 2.5 m room seen from inside (one noisy mesh, classed by
-    geometry): its 4 vertical corners (wall|wall), 4 floor|wall lines, the walls' top
+    geometry): its 4 vertical corners (wall|wall), its floor|wall foot lines, the walls' top
     boundary, and nothing else."""
     room = trimesh.creation.box(extents=(3.0, 4.0, 2.5))
     room.invert()  # normals into the room
     top = room.triangles_center[:, 2] > 1.2
     room.update_faces(~top)
     v, f = _noisy(room, 0.003, seed=1)
-    seg, cls, crease = extract_edges(v, f, _by_region(v, f))
+    classes = _by_region(v, f)
+    seg, cls, crease = extract_edges(v, f, classes)
     d = seg[:, 1] - seg[:, 0]
     vertical = np.abs(d[:, 2]) > 0.9 * _lengths(seg)
     assert vertical.sum() == 4
     assert (cls[vertical] == [C.WALL, C.WALL]).all()
     assert _lengths(seg[vertical]) == pytest.approx(np.full(4, 2.5), abs=0.05)
     assert crease[vertical] == pytest.approx(np.full(4, 90.0), abs=3)
-    floor = (cls == [C.FLOOR, C.WALL]).all(axis=1)
-    assert floor.sum() == 4 and _lengths(seg[floor]).sum() == pytest.approx(14.0, abs=0.1)
     rim = (cls == [C.VOID, C.WALL]).all(axis=1)
     assert rim.sum() == 4 and _lengths(seg[rim]).sum() == pytest.approx(14.0, abs=0.1)
+    # the floor|wall class boundary runs along the triangle sides the classes change at, as
+    # a label image shows it: its pieces of at least 5 cm, all on the room's foot lines
+    floor = (cls == [C.FLOOR, C.WALL]).all(axis=1)
+    assert (vertical | rim | floor).all() and floor.any()
+    assert np.abs(seg[floor][:, :, 2] + 1.25).max() < 0.02
+    assert _lengths(seg[floor]).min() >= 0.05
+    # straightened too, it is the room's four foot lines
+    seg, cls, _ = extract_edges(v, f, classes,
+                                settings=EdgeSettings(straighten_class_changes=True))
+    floor = (cls == [C.FLOOR, C.WALL]).all(axis=1)
+    assert floor.sum() == 4 and _lengths(seg[floor]).sum() == pytest.approx(14.0, abs=0.1)
     assert len(seg) == 12
 
 
