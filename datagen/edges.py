@@ -1,9 +1,11 @@
 """3D edge segments of a classed triangle mesh: creases, boundaries and class changes.
 
-An edge shared by two faces is a model edge when the faces meet at an angle above the crease
-threshold or carry different classes; an edge with one face is a boundary edge. Seams between
-coplanar faces of one class (triangulation diagonals, grid splits) are dropped. Collinear
-touching pieces with the same class pair and angle are merged into one segment.
+An edge shared by two faces is a model edge when the faces' planar regions
+(``datagen.planar_regions``) meet at an angle above the crease threshold or the faces carry
+different classes; an edge with one face is a boundary edge. Seams inside a region
+(triangulation diagonals, grid splits, a scan's noise) are dropped. Creases and boundary
+edges are straightened (``datagen.edge_polylines``); collinear touching pieces with the same
+class pair and angle are merged into one segment.
 """
 
 from __future__ import annotations
@@ -14,7 +16,13 @@ import numpy as np
 
 from core import classes as C
 from datagen.edge_polylines import merge_near_collinear, simplify_segments
-from datagen.planar_regions import RegionSettings, face_pairs, planar_regions, winding_agrees
+from datagen.planar_regions import (
+    RegionSettings,
+    face_areas,
+    face_pairs,
+    planar_regions,
+    winding_agrees,
+)
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -22,6 +30,10 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     tri = vertices[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+#: degrees; a face with a neighbour this close in angle is exact (a CAD facet's triangle).
+FLAT_DEG = 0.01
 
 
 @dataclass(frozen=True)
@@ -101,9 +113,16 @@ def extract_edges(
     # the second as wound consistently with the first
     na = rnormal[region[f0]] * _sign(normals[f0], rnormal[region[f0]])
     nb = rnormal[region[g1]] * _sign(normals[g1], rnormal[region[g1]])
-    nb = np.where(winding_agrees(faces, uniq, f0, g1)[:, None], nb, -nb)
-    r_angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", na, nb), -1.0, 1.0)))
-    r_angle = np.where(region[f0] == region[g1], 0.0, r_angle)
+    agree = np.where(winding_agrees(faces, uniq, f0, g1), 1.0, -1.0)[:, None]
+    r_angle = _degrees(na, agree * nb)
+    # inside a region, a crease between two exact faces (each with a coplanar neighbour: a
+    # CAD facet, not a scan's noise) stays, at the faces' own angle
+    f_angle = _degrees(normals[f0], agree * normals[g1])
+    flat = np.zeros(len(faces), dtype=bool)
+    coplanar = two & (f_angle < FLAT_DEG)
+    flat[f0[coplanar]] = flat[g1[coplanar]] = True
+    inside = region[f0] == region[g1]
+    r_angle = np.where(inside, np.where(flat[f0] & flat[g1], f_angle, 0.0), r_angle)
     angle = np.where(two, r_angle, np.where(count == 1, 90.0, angle))
     c0 = face_class[f0]
     c1 = np.where(count >= 2, face_class[g1], 0)
@@ -145,7 +164,7 @@ def straighten(seg: np.ndarray, cls: np.ndarray, ang: np.ndarray, part: np.ndarr
                crease_deg: float, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edge pieces (M, 2, 3) chained within their class pair, pair of regions ``part``
     (M, 2) and crease (to a degree), straightened with tolerance ``tol`` metres
-    (``simplify_segments``), then joined along lines within 2 ``tol`` with gaps up to
+    (``simplify_segments``), then joined along lines within ``tol`` with gaps up to
     2.5 ``tol`` (``merge_near_collinear``, within the class pair and crease or not).
 
     Returns:
@@ -159,8 +178,13 @@ def straighten(seg: np.ndarray, cls: np.ndarray, ang: np.ndarray, part: np.ndarr
     seg, member = simplify_segments(seg, group.ravel(), tol)
     cls, ang = cls[member], ang[member]
     _, line_group = np.unique(np.c_[cls, ang > crease_deg], axis=0, return_inverse=True)
-    seg, member = merge_near_collinear(seg, line_group.ravel(), 2 * tol, 2.5 * tol)
+    seg, member = merge_near_collinear(seg, line_group.ravel(), tol, 2.5 * tol)
     return seg, cls[member], ang[member]
+
+
+def _degrees(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K,) degrees between unit vectors a, b (K, 3)."""
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
 
 
 def _sign(n: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -182,8 +206,7 @@ def region_classes(face_class: np.ndarray, region: np.ndarray, vertices: np.ndar
     void = face_class == C.VOID
     if not void.any():
         return face_class
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = face_areas(vertices, faces)
     n_cls = int(face_class.max()) + 1
     table = np.zeros((region.max() + 1, n_cls))
     np.add.at(table, (region[~void], face_class[~void].astype(np.int64)), area[~void])

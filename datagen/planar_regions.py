@@ -34,6 +34,12 @@ class RegionSettings:
     min_area: float = 0.01
 
 
+def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) m² areas of the triangles."""
+    tri = vertices[faces]
+    return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+
+
 def face_pairs(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The mesh's unique edges and the faces on each.
 
@@ -88,9 +94,8 @@ def planar_regions(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
     """
     s = settings or RegionSettings()
     n_f = len(faces)
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    centre = tri.mean(axis=1)
+    area = face_areas(vertices, faces)
+    centre = vertices[faces].mean(axis=1)
     good = np.isfinite(normals).all(axis=1)
     n = np.where(good[:, None], normals, 0.0)
     pairs = pairs[good[pairs].all(axis=1)]

@@ -45,10 +45,10 @@ def _lengths(seg: np.ndarray) -> np.ndarray:
 
 
 def test_a_noisy_plane_has_no_inner_edge():
-    """A 2 m x 2 m floor, 5 cm triangles, 3 mm noise: no crease inside; its border (meeting
+    """A 2 m x 2 m floor, 5 cm triangles, 2 mm noise: no crease inside; its border (meeting
     nothing) is its four sides, straight."""
     plane = trimesh.Trimesh([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], [[0, 1, 2], [0, 2, 3]])
-    v, f = _noisy(plane, 0.003)
+    v, f = _noisy(plane, 0.002)
     seg, cls, crease = extract_edges(v, f, np.full(len(f), C.FLOOR, np.uint8))
     mid = seg.mean(axis=1)[:, :2]
     inner = (np.abs(mid - 1.0) < 0.9).all(axis=1)
@@ -58,10 +58,10 @@ def test_a_noisy_plane_has_no_inner_edge():
 
 
 def test_a_noisy_box_has_its_twelve_edges():
-    """A closed 2 x 3 x 1.5 m box, 5 cm triangles, 3 mm noise: 12 creases near 90 degrees
+    """A closed 2 x 3 x 1.5 m box, 5 cm triangles, 2 mm noise: 12 creases near 90 degrees
     along the box's edges (single faces of the noise meet at tens of degrees)."""
     box = trimesh.creation.box(extents=(2.0, 3.0, 1.5))
-    v, f = _noisy(box, 0.003)
+    v, f = _noisy(box, 0.002)
     normals = trimesh.Trimesh(v, f, process=False).face_normals
     _, count, f0, f1 = face_pairs(f)
     two = count == 2
@@ -83,7 +83,7 @@ def test_a_scanned_room_keeps_its_vertical_corners():
     room.invert()  # normals into the room
     top = room.triangles_center[:, 2] > 1.2
     room.update_faces(~top)
-    v, f = _noisy(room, 0.003, seed=1)
+    v, f = _noisy(room, 0.002, seed=1)
     classes = _by_region(v, f)
     seg, cls, crease = extract_edges(v, f, classes)
     d = seg[:, 1] - seg[:, 0]
@@ -110,7 +110,7 @@ def test_a_scanned_room_keeps_its_vertical_corners():
 
 def test_regions_of_a_noisy_box_are_its_six_sides():
     box = trimesh.creation.box(extents=(2.0, 3.0, 1.5))
-    v, f = _noisy(box, 0.003)
+    v, f = _noisy(box, 0.002)
     n = trimesh.Trimesh(v, f, process=False).face_normals
     _, count, f0, f1 = face_pairs(f)
     region, normal = planar_regions(v, f, n, np.stack([f0, f1], 1)[count == 2])
