@@ -1,16 +1,28 @@
 """3D edge segments of a classed triangle mesh: creases, boundaries and class changes.
 
-An edge shared by two faces is a model edge when the faces meet at an angle above the crease
-threshold or carry different classes; an edge with one face is a boundary edge. Seams between
-coplanar faces of one class (triangulation diagonals, grid splits) are dropped. Collinear
-touching pieces with the same class pair and angle are merged into one segment.
+An edge shared by two faces is a model edge when the faces' planar regions
+(``datagen.planar_regions``) meet at an angle above the crease threshold or the faces carry
+different classes; an edge with one face is a boundary edge. Seams inside a region
+(triangulation diagonals, grid splits, a scan's noise) are dropped. Creases and boundary
+edges are straightened (``datagen.edge_polylines``); collinear touching pieces with the same
+class pair and angle are merged into one segment.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from core import classes as C
+from datagen.edge_polylines import merge_near_collinear, simplify_segments
+from datagen.planar_regions import (
+    RegionSettings,
+    face_areas,
+    face_pairs,
+    planar_regions,
+    winding_agrees,
+)
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -20,23 +32,59 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
+#: degrees; a face with a neighbour this close in angle is exact (a CAD facet's triangle).
+FLAT_DEG = 0.01
+
+
+@dataclass(frozen=True)
+class EdgeSettings:
+    """How model edges are found beyond the crease threshold (``extract_edges``).
+
+    Attributes:
+        regions: how faces are grown into planar regions, whose fitted normals the crease
+            test compares (``planar_regions.RegionSettings``).
+        simplify_m: metres, the tolerance of straightening chained pieces
+            (``edge_polylines.simplify_segments``; 0: exactly collinear points only).
+        min_length: metres; shorter segments (after merging) are dropped.
+        straighten_class_changes: straighten the boundaries between two classes too; off,
+            they keep the triangle sides the classes change along, which is what a label
+            image rendered from the mesh shows (straightened, a scan's jagged class
+            boundaries lie off the labels' and the label modes track worse:
+            docs/notes/edges.md).
+    """
+
+    regions: RegionSettings = field(default_factory=RegionSettings)
+    simplify_m: float = 0.02
+    min_length: float = 0.05
+    straighten_class_changes: bool = False
+
+
 def extract_edges(
     vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray, crease_deg: float = 20.0,
-    probe: BoundaryProbe | None = None,
+    probe: BoundaryProbe | None = None, settings: EdgeSettings | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Model edges of a mesh.
 
     Faces lying on a face that faces them (``covered_faces``: the bottom of a wall block
-    standing on a floor, blocks side by side) are dropped first. Boundary edges (one face)
-    are classed by the surface they meet (``probe_boundary``): a wall standing on a floor as
-    a separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
-    degrees. A closed mesh without coincident faces has neither, so nothing is cast.
+    standing on a floor, blocks side by side) are dropped first. The rest are grown into
+    planar regions (``planar_regions``): an edge between two faces is a crease when their
+    regions' fitted normals meet above ``crease_deg`` (scan noise inside a region makes
+    none), and a class edge when the faces' classes differ; a face of class void takes its
+    region's class (the area-majority of its classed faces). Boundary edges (one face) are
+    classed by the surface they meet (``probe_boundary``): a wall standing on a floor as a
+    separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
+    degrees. A closed mesh without coincident faces has neither, so nothing is cast. The
+    creases and boundary edges are straightened (``straighten``, ``settings.simplify_m``),
+    the class boundaries kept as they run (``settings.straighten_class_changes``);
+    collinear touching pieces are merged (``merge_collinear``) and those under
+    ``settings.min_length`` dropped.
 
     Args:
         vertices: (V, 3) metres. faces: (F, 3) vertex indices, shared vertices merged.
         face_class: (F,) class id per face.
-        crease_deg: minimum angle between face normals for a crease, degrees.
+        crease_deg: minimum angle between region normals for a crease, degrees.
         probe: settings of the boundary probes (None: the defaults).
+        settings: regions, straightening, minimum length (None: the defaults).
 
     Returns:
         segments (M, 2, 3) endpoints in metres; classes (M, 2) uint8, the classes on the two
@@ -46,29 +94,43 @@ def extract_edges(
     """
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise ValueError(f"faces must be (F, 3), got {faces.shape}")
+    settings = settings or EdgeSettings()
     vertices = np.asarray(vertices, dtype=np.float64)
     face_class = np.asarray(face_class)
     normals = face_normals(vertices, faces)
     hidden = covered_faces(vertices, faces, normals, probe)
     if hidden.any():
         faces, face_class, normals = faces[~hidden], face_class[~hidden], normals[~hidden]
-    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    owner = np.repeat(np.arange(len(faces)), 3)
-    uniq, inv, count = np.unique(e, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    order = np.argsort(inv, kind="stable")
-    start = np.concatenate([[0], np.cumsum(count)[:-1]])
-    f0 = owner[order[start]]
-    f1 = np.where(count >= 2, owner[order[np.minimum(start + 1, len(order) - 1)]], -1)
-    cos = np.einsum("ij,ij->i", normals[f0], normals[np.maximum(f1, 0)])
+    uniq, count, f0, f1 = face_pairs(faces)
+    two = count == 2
+    region, rnormal = planar_regions(vertices, faces, normals,
+                                     np.stack([f0[two], f1[two]], 1), settings.regions)
+    face_class = region_classes(face_class, region, vertices, faces)
+    g1 = np.maximum(f1, 0)
+    cos = np.einsum("ij,ij->i", normals[f0], normals[g1])
     angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-    angle = np.where(count == 1, 90.0, angle)
+    # crease between regions: their fitted normals, each turned as its face on this edge,
+    # the second as wound consistently with the first
+    na = rnormal[region[f0]] * _sign(normals[f0], rnormal[region[f0]])
+    nb = rnormal[region[g1]] * _sign(normals[g1], rnormal[region[g1]])
+    agree = np.where(winding_agrees(faces, uniq, f0, g1), 1.0, -1.0)[:, None]
+    r_angle = _degrees(na, agree * nb)
+    # inside a region, a crease between two exact faces (each with a coplanar neighbour: a
+    # CAD facet, not a scan's noise) stays, at the faces' own angle
+    f_angle = _degrees(normals[f0], agree * normals[g1])
+    flat = np.zeros(len(faces), dtype=bool)
+    coplanar = two & (f_angle < FLAT_DEG)
+    flat[f0[coplanar]] = flat[g1[coplanar]] = True
+    inside = region[f0] == region[g1]
+    r_angle = np.where(inside, np.where(flat[f0] & flat[g1], f_angle, 0.0), r_angle)
+    angle = np.where(two, r_angle, np.where(count == 1, 90.0, angle))
     c0 = face_class[f0]
-    c1 = np.where(count >= 2, face_class[np.maximum(f1, 0)], 0)
-    keep = (count > 2) | ((count == 2) & ((angle > crease_deg) | (c0 != c1)))
+    c1 = np.where(count >= 2, face_class[g1], 0)
+    keep = (count > 2) | (two & ((angle > crease_deg) | (c0 != c1)))
     seg = [vertices[uniq[keep]]]
     cls = [np.stack([c0, c1], axis=1)[keep]]
     ang = [np.round(angle[keep], 6)]
+    part = [np.sort(np.stack([region[f0], region[g1]], 1)[keep], axis=1)]
     if (count == 1).any():
         b_seg, b_cls, b_ang = probe_boundary(vertices, faces, face_class, normals,
                                              uniq[count == 1], f0[count == 1], probe)
@@ -76,8 +138,83 @@ def extract_edges(
         seg.append(b_seg[kept])
         cls.append(b_cls[kept])
         ang.append(b_ang[kept])
+        owner = np.repeat(region[f0[count == 1]],
+                          _pieces(uniq[count == 1], vertices, probe or BoundaryProbe()))[kept]
+        part.append(np.stack([owner, np.full(len(owner), -1)], 1))
+    seg, ang = np.concatenate(seg), np.concatenate(ang)
     cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
-    return merge_collinear(np.concatenate(seg), cls, np.concatenate(ang))
+    part = np.concatenate(part)
+    # class boundaries between two classes stay where the faces' classes change (what a
+    # label image shows, triangle side by triangle side); the rest are straightened
+    exact = (cls[:, 0] != cls[:, 1]) & (cls[:, 0] != C.VOID)
+    if not settings.straighten_class_changes:
+        seg_s, cls_s, ang_s = straighten(seg[~exact], cls[~exact], ang[~exact], part[~exact],
+                                         crease_deg, settings.simplify_m)
+        seg = np.concatenate([seg[exact], seg_s])
+        cls = np.concatenate([cls[exact], cls_s])
+        ang = np.concatenate([ang[exact], ang_s])
+    else:
+        seg, cls, ang = straighten(seg, cls, ang, part, crease_deg, settings.simplify_m)
+    seg, cls, ang = merge_collinear(seg, cls, ang)
+    long = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= settings.min_length
+    return seg[long], cls[long], ang[long]
+
+
+def straighten(seg: np.ndarray, cls: np.ndarray, ang: np.ndarray, part: np.ndarray,
+               crease_deg: float, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Edge pieces (M, 2, 3) chained within their class pair, pair of regions ``part``
+    (M, 2) and crease (to a degree), straightened with tolerance ``tol`` metres
+    (``simplify_segments``), then joined along lines within ``tol`` with gaps up to
+    2.5 ``tol`` (``merge_near_collinear``, within the class pair and crease or not).
+
+    Returns:
+        (segments, classes, crease) of the straight segments; each takes the classes and
+        crease of the longest piece it replaces.
+    """
+    if len(seg) == 0:
+        return seg, cls, ang
+    key = np.c_[cls.astype(np.int64), part, np.round(ang).astype(np.int64)]
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    seg, member = simplify_segments(seg, group.ravel(), tol)
+    cls, ang = cls[member], ang[member]
+    _, line_group = np.unique(np.c_[cls, ang > crease_deg], axis=0, return_inverse=True)
+    seg, member = merge_near_collinear(seg, line_group.ravel(), tol, 2.5 * tol)
+    return seg, cls[member], ang[member]
+
+
+def _degrees(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K,) degrees between unit vectors a, b (K, 3)."""
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
+
+
+def _sign(n: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """(K, 1) +-1: the orientation of ``ref`` (K, 3) that agrees with ``n`` (K, 3)."""
+    return np.where(np.einsum("ij,ij->i", n, ref) < 0, -1.0, 1.0)[:, None]
+
+
+def _pieces(edges: np.ndarray, vertices: np.ndarray, probe: BoundaryProbe) -> np.ndarray:
+    """(B,) how many pieces ``probe_boundary`` cuts each boundary edge (B, 2) into."""
+    p, q = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    n = np.maximum(np.ceil(np.linalg.norm(q - p, axis=1) / probe.step), 1)
+    return n.astype(np.int64)
+
+
+def region_classes(face_class: np.ndarray, region: np.ndarray, vertices: np.ndarray,
+                   faces: np.ndarray) -> np.ndarray:
+    """(F,) the face classes with each void face given its region's class: the class holding
+    most of the region's classed area (void where the region has none)."""
+    void = face_class == C.VOID
+    if not void.any():
+        return face_class
+    area = face_areas(vertices, faces)
+    n_cls = int(face_class.max()) + 1
+    table = np.zeros((region.max() + 1, n_cls))
+    np.add.at(table, (region[~void], face_class[~void].astype(np.int64)), area[~void])
+    best = np.argmax(table, axis=1)
+    best = np.where(table.max(axis=1) > 0, best, C.VOID)
+    out = face_class.copy()
+    out[void] = best[region[void]].astype(face_class.dtype)
+    return out
 
 
 @dataclass(frozen=True)
