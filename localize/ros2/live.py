@@ -51,7 +51,8 @@ SHOWN_PARTICLES = 200
 
 def load_context(cfg: DictConfig) -> Context:
     """The dataset, world, typed settings, model edges (visibility cached under
-    ``<out_root>/<name>/cache``) and, in mode cnn, the SegNet of ``cfg``."""
+    ``<out_root>/<name>/cache``; those of ``cfg.mode`` made here, as they take seconds on a
+    large building) and, in mode cnn, the SegNet of ``cfg``."""
     settings = typed(Ros2Config, cfg, "ros2 config")
     dataset = Dataset(cfg.dataset)
     world = dataset.world()
@@ -61,7 +62,9 @@ def load_context(cfg: DictConfig) -> Context:
     if cfg.mode == "cnn":
         segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
                                    int(cfg.threads))
-    return Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter)
+    ctx = Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter)
+    ctx.model_for(cfg.mode)
+    return ctx
 
 
 def start_state(start) -> np.ndarray | None:
@@ -166,6 +169,8 @@ class LiveLocalizer:
         self._last_odometry: np.ndarray | None = None
         self._last_status = ""
         self._front = self.ctx.front_end(self.cfg.mode)
+        # made here, not in ``camera_info``: the receiving thread must not stop for seconds
+        self._model = self.ctx.model_for(self.cfg.mode)
         self._rng = np.random.default_rng(int(self.cfg.seed))  # the filter's alone
         self._display_rng = np.random.default_rng([int(self.cfg.seed), 1])
         self._start = start_state(self.cfg.start)
@@ -192,7 +197,7 @@ class LiveLocalizer:
             mount = None if mount is None else check_rigid(np.asarray(mount), "body_from_cam")
             camera, rect = delivered_camera(source, self.ctx.dataset.camera, mount, where)
             loc = Localizer(self.ctx.world, camera, self._front, self.ctx.settings, self._rng,
-                            model=self.ctx.model_for(self.cfg.mode))
+                            model=self._model)
             loc.reset(self._start)
             self.localizer, self.rectifier, self.source_camera = loc, rect, source
         log.info("camera %dx%d from %s, frames delivered at %dx%d; %s", source.width,

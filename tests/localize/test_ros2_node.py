@@ -97,6 +97,29 @@ def wait_until(cond, timeout_s: float = 10.0) -> bool:
     return sync.wait_until(cond, timeout_s)
 
 
+def test_camera_info_makes_no_model_edges(setup, monkeypatch):
+    """The mode's model edges (seconds on a large building) are made when the node starts,
+    not in the CameraInfo callback: that callback runs on the receiving thread, and while it
+    ran no frame was received (the sensor QoS kept the last few, the rest were lost)."""
+    import dataclasses
+
+    from localize.localizer import EdgeModel
+    from localize.ros2.live import LiveLocalizer
+
+    cfg, ctx, pb = setup
+    fresh = dataclasses.replace(ctx, _models={})
+    made = []
+    for_mode = EdgeModel.for_mode
+    monkeypatch.setattr(EdgeModel, "for_mode",
+                        lambda self, *a, **k: made.append(1) or for_mode(self, *a, **k))
+    live = LiveLocalizer(cfg, fresh, publish=lambda out: None)
+    before = len(made)
+    live.camera_info(pb.camera, "test camera_info")
+    assert live.localizer is not None
+    assert len(made) == before, "the CameraInfo callback made the model edges"
+    live.stop()
+
+
 def test_the_flight_through_the_node_tracks_as_offline(ros, setup):
     cfg, ctx, pb = setup
     node, got, executor, player_node, listener = start(ros, cfg, ctx)
