@@ -222,9 +222,9 @@ def summarize(rows: list[dict]) -> dict:
         k = [r for r in rows if (r["floor"], r["mode"], r["kind"]) == (floor, mode,
                                                                         "kidnapped")]
         entry = {"starts": len(g)}
-        for f in BY_FRAMES:  # None where a run is too short to tell
-            ok = [r["converged_frame"] is not None and r["converged_frame"] <= f for r in g
-                  if r["frames"] > f]
+        for f in BY_FRAMES:  # within its first f frames; None where the runs are shorter
+            ok = [r["converged_frame"] is not None and r["converged_frame"] < f for r in g
+                  if r["frames"] >= f]
             entry[f"within_{WITHIN_M}m_by_{f}"] = _share(ok)
         conv = [r for r in g if r["converged_frame"] is not None]
         entry["median_frames_to_converge"] = (float(np.median([r["converged_frame"]
