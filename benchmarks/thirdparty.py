@@ -16,7 +16,7 @@ delivered flight frame (pixel accuracy, mean IoU, boundary F at 2 px: what the l
 needs), and ``python -m localize`` tracks each flight from its true start in the given modes
 and seeds. The scan's first test flight is also exported as a folder recording
 (``localize.recording_export``: JPEG frames, odometry) and localized as a user's recording.
-With ``--finetune N``, N training and N / 8 validation images of the building (a dataset of
+With ``--finetune N``, N training and N / 8 validation and test images of the building (a dataset of
 their own, ``datasets/<building>_train``, apart from the test flights) fine-tune the SegNet
 (``experiment=finetune``: 9 epochs from the generalist; the epochs, not the minutes, bound it,
 so a busy machine trains the same network), and cnn runs again with it (``cnn_ft``).
@@ -102,7 +102,8 @@ def finetune(building: str, out: Path, images: int) -> Path:
     model, overrides = BUILDINGS[building]
     train_ds = out / "datasets" / f"{building}_train"
     cmd = [sys.executable, "-m", "datagen", f"name={building}_train", f"out_dir={train_ds}",
-           f"splits.train={images}", f"splits.val={max(images // 8, 1)}", "splits.test=0",
+           f"splits.train={images}", f"splits.val={max(images // 8, 1)}",
+           f"splits.test={max(images // 8, 1)}",
            "render_flights=[]", "val_flights=[]", *overrides]
     if model is not None:
         cmd.append(f"world.path={SHARED / model}")
