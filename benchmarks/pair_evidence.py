@@ -38,7 +38,7 @@ from localize.frontend.edge_image import pair_name  # noqa: E402
 from localize.frontend.front_end import Frame  # noqa: E402
 from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.localizer import mode_likelihood_params  # noqa: E402
-from localize.particle_filter import estimate as estimate_pose  # noqa: E402
+from localize.pose_stats import estimate as estimate_pose  # noqa: E402
 from localize.projection import ModelSamples, tilt_from_pose  # noqa: E402
 from localize.runner import Context, load_runs, prepare  # noqa: E402
 from localize.visibility import SparseVisibility  # noqa: E402

@@ -59,7 +59,8 @@ from core.config import typed
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
-from localize.particle_filter import apply_increment, spread, systematic_resample
+from localize.particle_filter import apply_increment, systematic_resample
+from localize.pose_stats import spread
 from localize.ray_table import RayTable, floor_boundary
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from core.poses import wrap_angle
+from localize.pose_stats import mean_pose, pose_spread
 
 #: Mean-shift steps from a peak bin's centre to its mode.
 SHIFT_STEPS = 2
@@ -60,13 +61,9 @@ class Hypothesis:
 
 def _weighted_pose(p: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Weighted mean pose (4,), horizontal std (m) and circular yaw std (rad) of poses
-    (N, 4) with weights (N,) summing to > 0."""
+    (N, 4) with positive weights (N,)."""
     w = w / w.sum()
-    xyz = w @ p[:, :3]
-    s, c = w @ np.sin(p[:, 3]), w @ np.cos(p[:, 3])
-    pos = float(np.sqrt(max(w @ ((p[:, :2] - xyz[:2]) ** 2).sum(axis=1), 0.0)))
-    yaw_std = float(np.sqrt(max(-2.0 * np.log(max(np.hypot(s, c), 1e-12)), 0.0)))
-    return np.concatenate([xyz, [np.arctan2(s, c)]]), pos, yaw_std
+    return (mean_pose(p, w), *pose_spread(p, w))
 
 
 def _inside(p: np.ndarray, centre: np.ndarray, radius_m: float, yaw_rad: float) -> np.ndarray:

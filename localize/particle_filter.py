@@ -46,6 +46,7 @@ from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from localize.config import FilterParams
 from localize.hypotheses import Dominance, Hypothesis, top_hypotheses
+from localize.pose_stats import estimate, normalize_log_weights, spread
 from localize.start_hint import StartHint
 
 # --- the three model functions ---------------------------------------------------------------
@@ -176,11 +177,6 @@ def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float
 # --- weights ---------------------------------------------------------------------------------
 
 
-def normalize_log_weights(logw: np.ndarray) -> np.ndarray:
-    """Log-weights shifted so that the weights sum to one."""
-    return logw - logsumexp(logw)
-
-
 def effective_sample_size(logw: np.ndarray) -> float:
     """ESS = 1 / sum(w^2) of normalized weights, from log-weights (N,)."""
     lw = normalize_log_weights(logw)
@@ -203,23 +199,6 @@ def systematic_resample(rng: np.random.Generator, logw: np.ndarray, n: int) -> n
     cdf[-1] = 1.0
     u = (rng.random() + np.arange(n)) / n
     return np.minimum(np.searchsorted(cdf, u, side="right"), len(w) - 1)
-
-
-def estimate(particles: np.ndarray, logw: np.ndarray) -> np.ndarray:
-    """Weighted mean pose (4,): mean x, y, z; circular mean yaw."""
-    w = np.exp(normalize_log_weights(logw))
-    xyz = w @ particles[:, :3]
-    yaw = np.arctan2(w @ np.sin(particles[:, 3]), w @ np.cos(particles[:, 3]))
-    return np.concatenate([xyz, [yaw]])
-
-
-def spread(particles: np.ndarray, logw: np.ndarray) -> tuple[float, float]:
-    """Weighted horizontal position std (metres) and circular yaw std (radians)."""
-    w = np.exp(normalize_log_weights(logw))
-    m = w @ particles[:, :2]
-    pos = float(np.sqrt(w @ ((particles[:, :2] - m) ** 2).sum(axis=1)))
-    r = np.hypot(w @ np.sin(particles[:, 3]), w @ np.cos(particles[:, 3]))
-    return pos, float(np.sqrt(max(-2.0 * np.log(max(r, 1e-12)), 0.0)))
 
 
 # --- the filter ------------------------------------------------------------------------------

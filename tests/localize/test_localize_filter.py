@@ -20,13 +20,13 @@ from localize.particle_filter import (
     ParticleFilter,
     apply_increment,
     effective_sample_size,
-    estimate,
     free_space_log_prior,
     init_global,
     init_tracking,
     move,
     systematic_resample,
 )
+from localize.pose_stats import estimate
 
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 Z = np.array([0.5, 2.2])
