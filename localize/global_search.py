@@ -60,7 +60,7 @@ from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from localize.particle_filter import apply_increment, systematic_resample
-from localize.pose_stats import spread
+from localize.pose_stats import mean_pose, spread
 from localize.ray_table import RayTable, floor_boundary
 
 
@@ -365,24 +365,18 @@ class GlobalSearch:
 
     def _find_clusters(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``hypotheses``, computed."""
-        p = self.params
         w = np.exp(self.logw)
         S = self.states
         left = np.ones(len(S), bool)
         poses, mass = [], []
-        yaw_tol = np.deg2rad(p.cluster_yaw_deg)
         for _ in range(k):  # k clusters, each vectorized over the hypotheses
             if not left.any():
                 break
-            seed = self._densest(S[left], w[left])
-            near = left & (np.hypot(S[:, 0] - seed[0], S[:, 1] - seed[1]) <= p.cluster_radius) \
-                & (np.abs(wrap_angle(S[:, 3] - seed[3])) <= yaw_tol)
+            near = left & self._in_cluster(S, self._densest(S[left], w[left]))
             m = float(w[near].sum())
             if m <= 0:
                 break
-            ww = w[near] / m
-            yaw = np.arctan2(ww @ np.sin(S[near, 3]), ww @ np.cos(S[near, 3]))
-            poses.append(np.r_[ww @ S[near, :3], yaw])
+            poses.append(mean_pose(S[near], w[near] / m))
             mass.append(m)
             left &= ~near
         return np.array(poses).reshape(-1, 4), np.array(mass)
@@ -392,9 +386,14 @@ class GlobalSearch:
         inv = bin_keys(S)
         best = np.argmax(np.bincount(inv, weights=w))
         sel = inv == best
-        ww = w[sel] / w[sel].sum()
-        yaw = np.arctan2(ww @ np.sin(S[sel, 3]), ww @ np.cos(S[sel, 3]))
-        return np.r_[ww @ S[sel, :3], yaw]
+        return mean_pose(S[sel], w[sel] / w[sel].sum())
+
+    def _in_cluster(self, S: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        """(N,) bool: poses (N, 4) within ``cluster_radius`` and ``cluster_yaw_deg`` of
+        ``centre`` (4,)."""
+        p = self.params
+        return (np.hypot(S[:, 0] - centre[0], S[:, 1] - centre[1]) <= p.cluster_radius) \
+            & (np.abs(wrap_angle(S[:, 3] - centre[3])) <= np.deg2rad(p.cluster_yaw_deg))
 
     def _track_dominant(self) -> None:
         """Count the frames in a row one cluster holds ``handover_mass``."""
@@ -419,12 +418,9 @@ class GlobalSearch:
     def sample(self, n: int) -> np.ndarray:
         """(n, 4) particles for the tracking filter: resampled from the hypotheses of the
         dominant cluster (all of them before one dominates)."""
-        p = self.params
         S, lw = self.states, self.logw
         if self._dominant is not None:
-            d = self._dominant
-            near = (np.hypot(S[:, 0] - d[0], S[:, 1] - d[1]) <= p.cluster_radius) \
-                & (np.abs(wrap_angle(S[:, 3] - d[3])) <= np.deg2rad(p.cluster_yaw_deg))
+            near = self._in_cluster(S, self._dominant)
             if near.any():
                 S, lw = S[near], lw[near]
         return S[systematic_resample(self.rng, lw, int(n))].copy()
