@@ -107,8 +107,7 @@ def extract_edges(
                                      np.stack([f0[two], f1[two]], 1), settings.regions)
     face_class = region_classes(face_class, region, vertices, faces)
     g1 = np.maximum(f1, 0)
-    cos = np.einsum("ij,ij->i", normals[f0], normals[g1])
-    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    angle = _degrees(normals[f0], normals[g1])
     # crease between regions: their fitted normals, each turned as its face on this edge,
     # the second as wound consistently with the first
     na = rnormal[region[f0]] * _sign(normals[f0], rnormal[region[f0]])
@@ -132,14 +131,13 @@ def extract_edges(
     ang = [np.round(angle[keep], 6)]
     part = [np.sort(np.stack([region[f0], region[g1]], 1)[keep], axis=1)]
     if (count == 1).any():
-        b_seg, b_cls, b_ang = probe_boundary(vertices, faces, face_class, normals,
-                                             uniq[count == 1], f0[count == 1], probe)
+        b_seg, b_cls, b_ang, b_edge = probe_boundary(vertices, faces, face_class, normals,
+                                                     uniq[count == 1], f0[count == 1], probe)
         kept = (b_ang > crease_deg) | (b_cls[:, 0] != b_cls[:, 1])
         seg.append(b_seg[kept])
         cls.append(b_cls[kept])
         ang.append(b_ang[kept])
-        owner = np.repeat(region[f0[count == 1]],
-                          _pieces(uniq[count == 1], vertices, probe or BoundaryProbe()))[kept]
+        owner = region[f0[count == 1]][b_edge[kept]]
         part.append(np.stack([owner, np.full(len(owner), -1)], 1))
     seg, ang = np.concatenate(seg), np.concatenate(ang)
     cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
@@ -190,13 +188,6 @@ def _degrees(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _sign(n: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """(K, 1) +-1: the orientation of ``ref`` (K, 3) that agrees with ``n`` (K, 3)."""
     return np.where(np.einsum("ij,ij->i", n, ref) < 0, -1.0, 1.0)[:, None]
-
-
-def _pieces(edges: np.ndarray, vertices: np.ndarray, probe: BoundaryProbe) -> np.ndarray:
-    """(B,) how many pieces ``probe_boundary`` cuts each boundary edge (B, 2) into."""
-    p, q = vertices[edges[:, 0]], vertices[edges[:, 1]]
-    n = np.maximum(np.ceil(np.linalg.norm(q - p, axis=1) / probe.step), 1)
-    return n.astype(np.int64)
 
 
 def region_classes(face_class: np.ndarray, region: np.ndarray, vertices: np.ndarray,
@@ -297,7 +288,7 @@ _COVER_WEIGHTS = np.array([[1 / 3, 1 / 3, 1 / 3], [0.8, 0.1, 0.1], [0.1, 0.8, 0.
 def probe_boundary(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
                    normals: np.ndarray, edges: np.ndarray, owner: np.ndarray,
                    probe: BoundaryProbe | None = None,
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Class and crease of boundary edges from the surface each piece of them meets.
 
     Each edge is cut into pieces (``probe.step``); from ``offset`` in front of the owning
@@ -315,7 +306,8 @@ def probe_boundary(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarr
         probe: settings (None: defaults).
 
     Returns:
-        pieces (K, 2, 3) metres; classes (K, 2) (owner's class, other); crease (K,) degrees.
+        pieces (K, 2, 3) metres; classes (K, 2) (owner's class, other); crease (K,) degrees;
+        which (K,) the boundary edge (index into ``edges``) each piece is of.
     """
     probe = probe or BoundaryProbe()
     p, q = vertices[edges[:, 0]], vertices[edges[:, 1]]
@@ -344,7 +336,7 @@ def probe_boundary(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarr
     crease = np.where(hit >= 0, np.round(np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))), 1),
                       90.0)
     classes = np.stack([face_class[owner[which]], other], axis=1)
-    return pieces, classes, crease
+    return pieces, classes, crease, which
 
 
 def _first_faces(vertices: np.ndarray, faces: np.ndarray, mid: np.ndarray, normal: np.ndarray,
