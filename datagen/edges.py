@@ -16,9 +16,9 @@ import numpy as np
 
 from core import classes as C
 from datagen.edge_polylines import merge_near_collinear, simplify_segments
+from datagen.importers.building import face_areas_normals
 from datagen.planar_regions import (
     RegionSettings,
-    face_areas,
     face_pairs,
     planar_regions,
     winding_agrees,
@@ -197,7 +197,7 @@ def region_classes(face_class: np.ndarray, region: np.ndarray, vertices: np.ndar
     void = face_class == C.VOID
     if not void.any():
         return face_class
-    area = face_areas(vertices, faces)
+    area = face_areas_normals(vertices, faces)[0]
     n_cls = int(face_class.max()) + 1
     table = np.zeros((region.max() + 1, n_cls))
     np.add.at(table, (region[~void], face_class[~void].astype(np.int64)), area[~void])

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from datagen.importers.building import face_areas_normals
+
 
 @dataclass(frozen=True)
 class RegionSettings:
@@ -32,12 +34,6 @@ class RegionSettings:
     region_deg: float = 30.0
     plane_tol: float = 0.02
     min_area: float = 0.01
-
-
-def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F,) m² areas of the triangles."""
-    tri = vertices[faces]
-    return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
 
 
 def face_pairs(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -94,7 +90,7 @@ def planar_regions(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
     """
     s = settings or RegionSettings()
     n_f = len(faces)
-    area = face_areas(vertices, faces)
+    area = face_areas_normals(vertices, faces)[0]
     centre = vertices[faces].mean(axis=1)
     good = np.isfinite(normals).all(axis=1)
     n = np.where(good[:, None], normals, 0.0)
