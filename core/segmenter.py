@@ -1,5 +1,6 @@
 """The ONNX SegNet runtime every stage shares: reading a ``segnet.onnx`` and its metadata, an
-onnxruntime session, and ``OnnxSegmenter``, per-pixel classes of RGB frames (no torch import).
+onnxruntime session, and ``OnnxSegmenter``, per-pixel classes of RGB frames (no torch import;
+the ``onnx`` package, 1.5 s of imports, only where a caller asks for the ``ModelProto``).
 
 API::
 
@@ -12,14 +13,30 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import onnx
 import onnxruntime as ort
+
+if TYPE_CHECKING:
+    import onnx
 
 INPUT_NAME = "image"
 OUTPUT_NAME = "logits"
 LABELS_NAME = "labels"
+
+
+def _not_onnx(path: Path, reason: str) -> ValueError:
+    return ValueError(
+        f"{path} is not an ONNX model ({reason}). Give the segnet.onnx (or segnet_int8.onnx) "
+        "of a model folder written by `python -m train`, e.g. "
+        "onnx_model=outputs/models/demo/segnet.onnx")
+
+
+def _require_file(path: Path) -> None:
+    if not path.is_file():
+        raise FileNotFoundError(f"ONNX model not found: {path}. Train and export one with "
+                                "`python -m train`.")
 
 
 def load_onnx(path: str | Path) -> onnx.ModelProto:
@@ -29,20 +46,17 @@ def load_onnx(path: str | Path) -> onnx.ModelProto:
         FileNotFoundError: there is no such file.
         ValueError: the file is not an ONNX model (names it and what to pass instead).
     """
+    import onnx
+
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"ONNX model not found: {path}. Train and export one with "
-                                "`python -m train`.")
+    _require_file(path)
     try:
         proto = onnx.load(str(path), load_external_data=False)
         reason = "" if len(proto.graph.node) else "no graph in it"
     except Exception as err:  # protobuf's DecodeError and friends: not a serialized ModelProto
         reason = f"{type(err).__name__}: {err}"
     if reason:
-        raise ValueError(
-            f"{path} is not an ONNX model ({reason}). Give the segnet.onnx (or segnet_int8.onnx) "
-            "of a model folder written by `python -m train`, e.g. "
-            "onnx_model=outputs/models/demo/segnet.onnx")
+        raise _not_onnx(path, reason)
     return proto
 
 
@@ -62,20 +76,44 @@ def ort_session(model: str | Path | bytes, threads: int = 2) -> ort.InferenceSes
     # Idle worker threads would otherwise spin for a while after each run, taking the cores from
     # the caller's next step (the localizer's edge maps and filter).
     so.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    src = model if isinstance(model, bytes) else str(model)
-    return ort.InferenceSession(src, so, providers=["CPUExecutionProvider"])
+    return _session(model, so)
+
+
+def _session(model: str | Path | bytes, so: ort.SessionOptions) -> ort.InferenceSession:
+    """``ort.InferenceSession``; a path that is not a file or not an ONNX model raises
+    FileNotFoundError or ValueError naming it."""
+    if isinstance(model, bytes):
+        return ort.InferenceSession(model, so, providers=["CPUExecutionProvider"])
+    path = Path(model)
+    _require_file(path)
+    try:
+        return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
+    except Exception as err:  # onnxruntime's InvalidProtobuf, Fail, InvalidGraph
+        raise _not_onnx(path, f"{type(err).__name__}: {err}".strip()) from None
 
 
 def read_metadata(model: onnx.ModelProto | str | Path) -> dict:
-    """Decoded metadata_props of an ONNX file or model (JSON values parsed)."""
-    if not isinstance(model, onnx.ModelProto):
-        model = load_onnx(model)
+    """Decoded metadata_props of an ONNX file or model (JSON values parsed).
+
+    A file is read by onnxruntime with no graph optimization (~0.1 s), not the onnx package.
+    """
+    if hasattr(model, "metadata_props"):
+        props = {p.key: p.value for p in model.metadata_props}
+    else:
+        so = ort.SessionOptions()
+        so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
+        so.log_severity_level = 3
+        props = _session(model, so).get_modelmeta().custom_metadata_map
+    return _decoded(props)
+
+
+def _decoded(props: dict[str, str]) -> dict:
     out = {}
-    for p in model.metadata_props:
+    for key, value in props.items():
         try:
-            out[p.key] = json.loads(p.value)
+            out[key] = json.loads(value)
         except json.JSONDecodeError:
-            out[p.key] = p.value
+            out[key] = value
     return out
 
 
@@ -109,8 +147,9 @@ class OnnxSegmenter:
 
     def __init__(self, path: str | Path, threads: int = 2) -> None:
         path = Path(path)
-        proto = load_onnx(path)  # a missing or non-ONNX file: an error that names it
-        self.metadata = read_metadata(proto)
+        # a missing or non-ONNX file: an error that names it
+        self.session = ort_session(path, threads)
+        self.metadata = _decoded(self.session.get_modelmeta().custom_metadata_map)
         for key in ("classes", "input_height", "input_width"):
             if key not in self.metadata:
                 raise ValueError(
@@ -124,7 +163,6 @@ class OnnxSegmenter:
             [c["id"] for c in self.classes if c.get("structural")], dtype=np.int64
         )
         self.input_size = (int(self.metadata["input_height"]), int(self.metadata["input_width"]))
-        self.session = ort_session(proto.SerializeToString(), threads)
         outputs = {o.name: o for o in self.session.get_outputs()}
         if OUTPUT_NAME not in outputs:
             raise ValueError(f"{path}: the graph has no {OUTPUT_NAME!r} output; re-export the "
