@@ -110,6 +110,20 @@ class StartHint:
         return cls(pose=xyzyaw_from_pose(np.asarray(world_from_body))[0],
                    covariance=cov6[np.ix_(idx, idx)])
 
+    @classmethod
+    def start_of_initial_pose(cls, world_from_body: np.ndarray,
+                              covariance: np.ndarray | Sequence[float],
+                              init_std: Sequence[float]) -> np.ndarray | StartHint:
+        """What a ROS ``/initialpose`` starts: tracking from its pose ((4,) x, y, z, yaw)
+        where its covariance is no wider than the tracking start's noise (``init_std``: x, y,
+        z m, yaw deg; an all-zero covariance, as many publishers send, included), else a
+        search inside its Gaussian (``from_initial_pose``; RViz's 2D Pose Estimate: 0.5 m,
+        15 deg)."""
+        hint = cls.from_initial_pose(world_from_body, covariance)
+        std = np.array([init_std[0], init_std[1], np.deg2rad(init_std[3])], dtype=np.float64)
+        var = np.diag(hint.covariance)[[0, 1, 3]]
+        return hint.pose if bool((var <= std ** 2 + 1e-12).all()) else hint
+
     @property
     def heading_span(self) -> float:
         """Radians of headings the hint allows, in (0, 2 pi]."""

@@ -41,6 +41,7 @@ from localize.ros2.config import Ros2Config
 from localize.ros2.convert import live_status, particle_covariance, shown_particles, world_from_body
 from localize.ros2.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
 from localize.runner import Context, report_folder
+from localize.start_hint import StartHint
 from localize.viz import open_viewer
 
 log = logging.getLogger(__name__)
@@ -231,11 +232,13 @@ class LiveLocalizer:
         if self.slot.put(_Pending(stamp, decode, where)):
             self.counts.superseded += 1
 
-    def request_reset(self, start: np.ndarray | None) -> None:
-        """Re-localize: track from ``start`` ((4,) x, y, z, yaw, or a (4, 4) map pose) or,
-        None, globally; applied before the next frame."""
+    def request_reset(self, start: np.ndarray | StartHint | None) -> None:
+        """Re-localize: track from ``start`` ((4,) x, y, z, yaw, or a (4, 4) map pose), search
+        inside a ``StartHint``, or, None, globally; applied before the next frame."""
+        if start is not None and not isinstance(start, StartHint):
+            start = np.asarray(start, np.float64)
         with self._lock:
-            self._reset = (True, None if start is None else np.asarray(start, np.float64))
+            self._reset = (True, start)
 
     # --- the worker --------------------------------------------------------------------
 
@@ -331,7 +334,8 @@ class LiveLocalizer:
             return
         self.localizer.reset(reset[1])
         self._last_odometry = None
-        self._relocalized("global start" if reset[1] is None else "initial pose")
+        self._relocalized("global start" if reset[1] is None else
+                         "initial pose search" if isinstance(reset[1], StartHint) else "initial pose")
 
     def _relocalized(self, why: str) -> None:
         self.counts.resets += 1

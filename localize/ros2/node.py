@@ -45,6 +45,7 @@ from localize.ros2.convert import (
 )
 from localize.ros2.live import LiveLocalizer, Output
 from localize.runner import Context
+from localize.start_hint import StartHint
 
 log = logging.getLogger(__name__)
 
@@ -136,9 +137,16 @@ class LocalizerNode(Node):
                         self.topics.initial_pose, frame, self.frames.map)
             return
         T = pose_of(msg, "initial_pose")
-        log.info("%s: tracking from x %.2f, y %.2f, z %.2f", self.topics.initial_pose,
-                 *T[:3, 3])
-        self.live.request_reset(T)
+        start = StartHint.start_of_initial_pose(T, msg.pose.covariance,
+                                                self.live.ctx.settings.filter.init_std)
+        if isinstance(start, StartHint):
+            sx, sy, _, syaw = np.sqrt(np.diag(start.covariance))
+            log.info("%s: searching around x %.2f, y %.2f (std %.2f, %.2f m, yaw %.0f deg)",
+                     self.topics.initial_pose, *T[:2, 3], sx, sy, np.degrees(syaw))
+        else:
+            log.info("%s: tracking from x %.2f, y %.2f, z %.2f", self.topics.initial_pose,
+                     *T[:3, 3])
+        self.live.request_reset(start)
 
     def _on_global_localization(self, request, response):
         log.info("%s: global localization over the free space", self.topics.global_localization)

@@ -160,6 +160,22 @@ class TestStartHint:
         np.testing.assert_allclose(hint.pose, [0.0, 3.0, 1.2, 0.3], atol=1e-12)
         np.testing.assert_allclose(np.diag(hint.covariance), [0.25, 0.16, 0.01, 0.04])
 
+    def test_initial_pose_tracks_or_searches_by_its_covariance(self):
+        """No wider than the tracking start's noise (zero included): track from the pose;
+        RViz's 2D Pose Estimate (0.5 m, 15 deg): a search inside its Gaussian."""
+        T = pose_from_xyzyaw(np.array([[0.0, 3.0, 1.2, 0.3]]))[0]
+        init_std = [0.1, 0.1, 0.05, 3.0]
+        for cov6 in (np.zeros(36), np.diag([0.01, 0.005, 0, 0, 0, 0.002]).ravel()):
+            start = StartHint.start_of_initial_pose(T, cov6, init_std)
+            assert not isinstance(start, StartHint)
+            np.testing.assert_allclose(start, [0.0, 3.0, 1.2, 0.3], atol=1e-12)
+        rviz = np.diag([0.25, 0.25, 0, 0, 0, 0.06853892]).ravel()
+        start = StartHint.start_of_initial_pose(T, rviz, init_std)
+        assert isinstance(start, StartHint)
+        np.testing.assert_allclose(np.diag(start.covariance), [0.25, 0.25, 0, 0.06853892])
+        yaw_only = np.diag([0.0, 0.0, 0, 0, 0, 0.01]).ravel()  # 5.7 deg > 3 deg
+        assert isinstance(StartHint.start_of_initial_pose(T, yaw_only, init_std), StartHint)
+
     def test_heading_range_across_the_seam(self):
         hint = StartHint(heading=(np.deg2rad(170), np.deg2rad(-170)))
         p = hint.draw(np.random.default_rng(0), FREE, 2000)

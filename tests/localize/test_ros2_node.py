@@ -314,17 +314,26 @@ class TestInputsAndResets:
             msg.header.frame_id = "map"
             _set_pose(msg.pose.pose, pb.groundtruth[1])
             assert wait_until(lambda: pub.get_subscription_count() > 0, 5.0)
+            # RViz's 2D Pose Estimate covariance: a search around the pose
+            msg.pose.covariance = np.diag([0.25, 0.25, 0, 0, 0, 0.0685]).ravel().tolist()
+            pub.publish(msg)
+            time.sleep(0.3)
+            publish_frames(player, pb, 1, [time.time() + 0.3])
+            wait_until(lambda: node.live.counts.processed >= 2)
+            msg.pose.covariance = [0.0] * 36  # no covariance: tracking from the pose
             pub.publish(msg)
             time.sleep(0.3)
             now = time.time() + 0.3
             publish_frames(player, pb, 2, [now, now + 0.1])
-            wait_until(lambda: node.live.counts.processed >= 3)
+            wait_until(lambda: node.live.counts.processed >= 4)
 
         with caplog.at_level(logging.INFO):
             node, got = run_node(ros, setup, feed)
-        assert node.live.counts.resets == 2
+        assert node.live.counts.resets == 3
         assert "re-localization (global start): reset counter 1" in caplog.text
-        assert "re-localization (initial pose): reset counter 2" in caplog.text
+        assert "searching around x" in caplog.text
+        assert "re-localization (initial pose search): reset counter 2" in caplog.text
+        assert "re-localization (initial pose): reset counter 3" in caplog.text
         truth = xyzyaw_from_pose(setup[2].groundtruth[:3])
         assert np.linalg.norm(got.positions()[-1] - truth[:, :3], axis=1).min() < 0.5
 
