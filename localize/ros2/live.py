@@ -334,8 +334,9 @@ class LiveLocalizer:
             return
         self.localizer.reset(reset[1])
         self._last_odometry = None
-        self._relocalized("global start" if reset[1] is None else
-                         "initial pose search" if isinstance(reset[1], StartHint) else "initial pose")
+        why = ("global start" if reset[1] is None else
+               "initial pose search" if isinstance(reset[1], StartHint) else "initial pose")
+        self._relocalized(why)
 
     def _relocalized(self, why: str) -> None:
         self.counts.resets += 1
