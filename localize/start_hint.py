@@ -29,14 +29,11 @@ REDRAWS = 20
 
 
 def polygon_contains(polygon: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """(N,) bool: points (N, 2) inside a polygon (K, 2) (even-odd rule; m)."""
-    poly = np.asarray(polygon, dtype=np.float64)
-    x, y = xy[:, 0:1], xy[:, 1:2]
-    a, b = poly, np.roll(poly, -1, axis=0)
-    crosses = (a[:, 1] > y) != (b[:, 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    return (np.count_nonzero(crosses & (x < at), axis=1) % 2) == 1
+    """(N,) bool: points (N, 2) inside a polygon (K, 2) (m; matplotlib's ``Path``)."""
+    from matplotlib.path import Path  # the path module alone, not pyplot
+
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    return Path(np.asarray(polygon, dtype=np.float64)).contains_points(xy)
 
 
 def polygon_area(polygon: np.ndarray) -> float:
