@@ -64,30 +64,37 @@ def test_table_matches_the_rendered_floor_boundary(table, rendered, camera):
 
 
 def run_search(table, small_world, camera, rendered, seed):
+    """Top hypotheses (FRAMES, 4), the search, the first frame it converged (None: never) and
+    200 particles sampled then (the Localizer's handover)."""
     poses, labels = rendered
     search = GlobalSearch(table, camera, small_world.free, PARAMS, np.random.default_rng(seed))
     search.reset()
-    tops = []
+    tops, first, particles = [], None, None
     for t in range(FRAMES):
         if t:
             search.predict(odometry_increment(poses[t - 1], poses[t]))
         search.update(labels[t], None)
         tops.append(search.hypotheses(3)[0][0])
-    return np.array(tops), search
+        if first is None and search.converged:
+            first, particles = t, search.sample(200)
+    return np.array(tops), search, first, particles
 
 
 def test_search_finds_the_true_pose_and_is_deterministic(table, small_world, camera, rendered):
-    tops, search = run_search(table, small_world, camera, rendered, 0)
+    tops, search, first, particles = run_search(table, small_world, camera, rendered, 0)
     truth = path()
     err = np.hypot(*(tops[:, :2] - truth[:, :2]).T)
     yaw = np.abs(wrap_angle(tops[:, 3] - truth[:, 3]))
     assert (err[20:] < 0.3).all() and (yaw[20:] < np.deg2rad(10)).all(), err
-    poses, mass = search.hypotheses(3)
-    assert mass[0] > 0.9 and search.converged
-    particles = search.sample(200)
+    _, mass = search.hypotheses(3)
+    assert mass[0] > 0.9
+    # one cluster held handover_mass for handover_frames frames: the handover, at the truth
+    assert first is not None and first <= 20, first
     assert particles.shape == (200, 4)
-    assert np.hypot(*(particles[:, :2] - truth[-1, :2]).T).max() <= PARAMS.cluster_radius + 0.1
-    again, _ = run_search(table, small_world, camera, rendered, 0)
+    assert err[first] < PARAMS.cluster_radius, err[first]  # the tracking filter refines it
+    # drawn from the dominant cluster's hypotheses (its radius, and a copy's jitter)
+    assert np.hypot(*(particles[:, :2] - tops[first, :2]).T).max() <= PARAMS.cluster_radius + 0.1
+    again, *_ = run_search(table, small_world, camera, rendered, 0)
     np.testing.assert_array_equal(tops, again)
 
 
