@@ -185,12 +185,43 @@ def _reveals(model, settings, parts: list[Part]) -> None:
         p.face_class = cls
 
 
+def space_footprints(model, storey, settings) -> dict[str, list[list[float]]]:
+    """The footprints of a storey's rooms (its ``IfcSpace``; all of the file's without
+    storeys): name (``LongName``, else ``Name``, else ``#id``) -> polygon corners [[x, y],
+    ...] in metres, the outline of the space's triangles seen from above (shapely, which
+    ifcopenshell requires); a space in pieces keeps its largest. ``hint.space=NAME`` starts a
+    global search in one (world.json ``spaces``)."""
+    import ifcopenshell.util.element as ue
+    from shapely import Polygon, union_all
+
+    objs = ue.get_decomposition(storey) if storey is not None else model.by_type("IfcSpace")
+    spaces = sorted((e for e in objs if e.is_a("IfcSpace") and e.Representation),
+                    key=lambda e: e.id())
+    out: dict[str, list[list[float]]] = {}
+    for space, verts, faces, _, _ in _shapes(model, spaces, settings):
+        tris = verts[faces][:, :, :2]
+        a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+        area = 0.5 * np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+        shape = union_all([Polygon(t) for t in tris[area > 1e-6]])
+        if shape.is_empty:
+            continue
+        if shape.geom_type != "Polygon":
+            shape = max(getattr(shape, "geoms", [shape]), key=lambda g: g.area)
+        ring = np.asarray(shape.simplify(1e-3).exterior.coords)[:-1]
+        name = space.LongName or space.Name or f"#{space.id()}"
+        if name in out:
+            name = f"{name} #{space.id()}"
+        out[name] = ring.round(4).tolist()
+    return out
+
+
 def load_ifc(path: Path, storey: str | None, doors: str) -> tuple[list[Part], dict]:
     """The elements of one storey of an IFC file, in metres, Z up, classed by IFC type.
 
     Returns:
         parts (named ``IfcType/name/material``) and info: ``storey``, ``elevation`` (m),
-        ``storeys`` (name -> elevation), ``elements`` (count), ``schema``.
+        ``storeys`` (name -> elevation), ``elements`` (count), ``schema``, ``spaces`` (the
+        storey's rooms: ``space_footprints``).
     """
     import ifcopenshell.geom
 
@@ -206,6 +237,8 @@ def load_ifc(path: Path, storey: str | None, doors: str) -> tuple[list[Part], di
     parts = _parts(_shapes(model, own, settings), False, z - 0.05)
     _reveals(model, settings, parts)
     parts += _parts(_shapes(model, above, settings), True)
+    spaces = space_footprints(model, storeys[index][0] if storeys else None, settings)
     return parts, {"schema": model.schema, "storey": name, "elevation": float(max(z, -1e9)),
+                   "spaces": spaces,
                    "storeys": {s.Name or f"#{s.id()}": round(e, 3) for s, e in storeys},
                    "elements": len(own), "ceiling_elements": len(above), "units": 1.0}

@@ -102,11 +102,17 @@ def visual(geometry: str, pose: str = "0 0 0 0 0 0", name: str = "visual") -> st
             f'</box></geometry></collision></link>')
 
 
+#: The ground storey's rooms (IfcSpace) in write_ifc: name -> corners, m (the Lab an L).
+SPACES = {"Office": [(0.2, 0.2), (3.0, 0.2), (3.0, 3.8), (0.2, 3.8)],
+          "Lab": [(3.0, 0.2), (5.8, 0.2), (5.8, 3.8), (4.5, 3.8), (4.5, 2.0), (3.0, 2.0)]}
+
+
 def write_ifc(path: Path, upper: bool = True) -> Path:
     """An IFC4 file (ifcopenshell.api), metres: storey "Ground" at 0 m with four 3 m walls
     around 6 x 4 m (inside 0.2..5.8 x 0.2..3.8), a floor slab (top at 0), a 0.9 x 2.1 m door
-    in the y = 0 wall at x 2..2.9 and a 1.2 x 1 m window in the x = 6 wall; with ``upper`` a
-    storey "Level 1" at 3 m with a slab (its underside is the ground storey's ceiling)."""
+    in the y = 0 wall at x 2..2.9 and a 1.2 x 1 m window in the x = 6 wall, two rooms
+    (``SPACES``); with ``upper`` a storey "Level 1" at 3 m with a slab (its underside is the
+    ground storey's ceiling)."""
     from ifcopenshell.api import aggregate, context, feature, geometry, project, root, spatial, unit
 
     m = project.create_file(version="IFC4")
@@ -171,6 +177,12 @@ def write_ifc(path: Path, upper: bool = True) -> Path:
         place(el, *at, z, yaw)
         feature.add_filling(m, opening=op, element=el)
 
+    for name, corners in SPACES.items():  # the rooms, extruded 3 m down from 3 m
+        sp = root.create_entity(m, ifc_class="IfcSpace", name=name)
+        place(sp, 0, 0, 3.0)
+        rep = geometry.add_slab_representation(m, context=body, depth=3.0, polyline=corners)
+        geometry.assign_representation(m, product=sp, representation=rep)
+        aggregate.assign_object(m, relating_object=ground, products=[sp])
     filled(walls[0], "IfcDoor", "Door", 2.0, -0.3, 0.0, 0.0, 0.9, 2.1, (2.0, 0.05))
     filled(walls[1], "IfcWindow", "Window", 6.3, 1.5, 0.9, np.pi / 2, 1.2, 1.0, (5.95, 1.5))
     m.write(str(path))

@@ -8,7 +8,7 @@ import pytest
 
 from core import classes as C
 from datagen.importers import load_building
-from tests.datagen.building_files import write_ifc
+from tests.datagen.building_files import SPACES, write_ifc
 
 pytest.importorskip("ifcopenshell")
 
@@ -45,6 +45,16 @@ def test_ifc_classes_and_storeys(ifc_file):
     assert not hole.any()
     window = centres(b, b.face_class == C.WINDOW)
     assert (window[:, 0] > 5.7).all() and (window[:, 2] > 0.89).all()
+
+
+def test_ifc_spaces_are_the_rooms_footprints(ifc_file):
+    """The storey's IfcSpace outlines, by name, in world.json's ``spaces`` (``hint.space``):
+    the same corners (any start and direction), the L-shaped room's six included."""
+    spaces = load_building(ifc_file).info["spaces"]
+    assert set(spaces) == set(SPACES)
+    for name, corners in SPACES.items():
+        got = {tuple(np.round(c, 3)) for c in spaces[name]}
+        assert got == {tuple(map(float, c)) for c in corners}, name
 
 
 def test_ifc_doors_closed_and_storey_choice(ifc_file):
