@@ -199,14 +199,13 @@ def space_footprints(model, storey, settings) -> dict[str, list[list[float]]]:
                     key=lambda e: e.id())
     out: dict[str, list[list[float]]] = {}
     for space, verts, faces, _, _ in _shapes(model, spaces, settings):
-        tris = verts[faces][:, :, :2]
-        a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-        area = 0.5 * np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
-        shape = union_all([Polygon(t) for t in tris[area > 1e-6]])
+        area, normal = face_areas_normals(verts, faces)
+        seen = area * np.abs(normal[:, 2]) > 1e-6  # the triangle's area seen from above
+        shape = union_all([Polygon(t) for t in verts[faces[seen]][:, :, :2]])
         if shape.is_empty:
             continue
-        if shape.geom_type != "Polygon":
-            shape = max(getattr(shape, "geoms", [shape]), key=lambda g: g.area)
+        if shape.geom_type != "Polygon":  # a space in pieces: its largest
+            shape = max(shape.geoms, key=lambda g: g.area)
         ring = np.asarray(shape.simplify(1e-3).exterior.coords)[:-1]
         name = space.LongName or space.Name or f"#{space.id()}"
         if name in out:
