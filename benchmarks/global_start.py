@@ -13,7 +13,7 @@ none: the whole free space), each from a frame spread evenly along the floor's t
 (``core.spliced.flight_segment``: the flights' routes are planned through the free space) for
 ``--frames`` frames; and ``--kidnaps`` kidnapped-robot runs: tracked from the truth for
 ``--kidnap-after`` frames, then teleported to another flight's stretch
-(``core.spliced.kidnapped``) for ``--frames`` frames more.
+(``core.spliced.kidnapped``) for ``--kidnap-frames`` frames more.
 
 Figures per floor and mode: the share of starts within 0.3 m (from that frame to the end of
 the run) by frame 30 / 100 / 200 (None where the runs are shorter), the median frames and
@@ -78,6 +78,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--kidnaps", type=int, default=10, help="kidnapped-robot runs per floor")
     ap.add_argument("--kidnap-after", type=int, default=30,
                     help="frames tracked before the teleport")
+    ap.add_argument("--kidnap-frames", type=int, default=KIDNAP_BACK_FRAMES,
+                    help="frames after the teleport")
     ap.add_argument("--out-root", type=Path, default=OUTPUTS / "benchmarks")
     ap.add_argument("--name", default="global_start")
     ap.add_argument("overrides", nargs="*", help="more `python -m localize` overrides")
@@ -164,10 +166,11 @@ def run_floor(floor: str, ds_path: Path, args: argparse.Namespace) -> list[dict]
             runs = [RunSpec(source.name, mode, "global", k) for k in args.seeds]
             run_pass(ctx, source, mode, [r for r in runs if not r.done(ctx.out_dir)])
             rows += [run_summary(ctx.out_dir, r, "global") for r in runs]
-        for (fa, sa), (fb, sb) in kidnaps_of(ds, args.kidnap_after, args.frames, args.kidnaps):
+        for (fa, sa), (fb, sb) in kidnaps_of(ds, args.kidnap_after, args.kidnap_frames,
+                                             args.kidnaps):
             a, b = ds.flight(fa), ds.flight(fb)
             source = kidnapped(flight_segment(a, sa, min(args.kidnap_after, len(a) - sa)),
-                               flight_segment(b, sb, min(args.frames, len(b) - sb)),
+                               flight_segment(b, sb, min(args.kidnap_frames, len(b) - sb)),
                                name=f"{fa}@{sa}+{fb}@{sb}")
             runs = [RunSpec(source.name, mode, "tracking", k) for k in args.seeds]
             run_pass(ctx, source, mode, [r for r in runs if not r.done(ctx.out_dir)])
