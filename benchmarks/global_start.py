@@ -25,8 +25,10 @@ within 0.3 m within 100 frames of the teleport. Timings are context only: the ma
 
 Writes ``<out-root>/<name>/``: per floor a localize report folder (``reports/<floor>/``: one
 run record per start, mode and seed, ``localize.runner.PassRecord``; a finished run is kept,
-so an interrupted call resumes and a second one only collects), ``global_start.json`` and
-``global_start.md``. A floor whose dataset is absent is skipped with a message.
+so an interrupted call resumes and a second one only collects), ``global_start.json``,
+``global_start.md`` and ``global_start.png`` (per floor, the share of starts within 0.3 m by
+each frame, and of kidnappings back by each frame after the teleport). A floor whose dataset
+is absent is skipped with a message.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ sys.path.insert(0, str(ROOT))
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from benchmarks.floor_localize import global_update_ms  # noqa: E402
-from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
+from core.atomic import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.spliced import flight_segment, kidnapped  # noqa: E402
 from localize.metrics import convergence_frame, false_convergence  # noqa: E402
@@ -290,6 +292,40 @@ def markdown(result: dict) -> str:
     return "\n".join([*lines, ""])
 
 
+def plot(rows: list[dict], path: Path) -> None:
+    """Per floor, the share of global starts within ``WITHIN_M`` (from that frame to the end)
+    by each frame, one line per mode, and of kidnappings back by each frame after the
+    teleport (dashed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    floors = sorted({r["floor"] for r in rows})
+    fig, axes = plt.subplots(1, len(floors), figsize=(4 * len(floors), 3.2), squeeze=False,
+                             sharey=True)
+    for ax, floor in zip(axes[0], floors, strict=True):
+        for i, mode in enumerate(sorted({r["mode"] for r in rows if r["floor"] == floor})):
+            for kind, key, style in (("global", "converged_frame", "-"),
+                                     ("kidnapped", "back_frames", "--")):
+                runs = [r for r in rows if (r["floor"], r["mode"], r["kind"]) == (floor, mode,
+                                                                                  kind)]
+                if not runs:
+                    continue
+                n = max(r["frames"] - r.get("kidnapped_at", 0) for r in runs)
+                done = np.array([n if r[key] is None else r[key] for r in runs])
+                share = (done[None, :] <= np.arange(n)[:, None]).mean(axis=1)
+                ax.plot(np.arange(n), 100 * share, style, color=f"C{i}",
+                        label=f"{mode}, {'start' if kind == 'global' else 'kidnapped'} "
+                              f"({len(runs)})")
+        ax.axhline(90, color="0.6", lw=0.8)
+        ax.set(title=floor, xlabel="frame (after the teleport: dashed)", ylim=(0, 102))
+        ax.legend(fontsize=7, loc="lower right")
+    axes[0][0].set_ylabel(f"% within {WITHIN_M} m to the end")
+    atomic_write(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight"))
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     args = parse_args(argv)
     out = args.out_root / args.name
@@ -307,6 +343,8 @@ def main(argv=None) -> int:
               "table": summarize(rows), "runs": rows}
     atomic_write_json(out / "global_start.json", result)
     atomic_write_text(out / "global_start.md", markdown(result))
+    if rows:
+        plot(rows, out / "global_start.png")
     print(markdown(result))
     return 0
 

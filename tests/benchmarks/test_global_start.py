@@ -93,6 +93,7 @@ def test_a_small_call_writes_the_table_and_resumes(flat_dataset, tmp_path):
     e = result["table"]["tiny"]["oracle"]
     assert e["starts"] == 2 and e["kidnaps"] == 1
     assert (out / "global_start.md").read_text().startswith("# Global start")
+    assert (out / "global_start.png").stat().st_size > 1000
     records = sorted((out / "reports" / "tiny" / "runs").glob("*/*.json"))
     assert len(records) == 3
     rec = json.loads(records[0].read_text())
