@@ -320,7 +320,7 @@ def plot(rows: list[dict], path: Path) -> None:
                               f"({len(runs)})")
         ax.axhline(90, color="0.6", lw=0.8)
         ax.set(title=floor, xlabel="frame (after the teleport: dashed)", ylim=(0, 102))
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=7, loc="upper left")
     axes[0][0].set_ylabel(f"% within {WITHIN_M} m to the end")
     atomic_write(path, lambda p: fig.savefig(p, dpi=110, bbox_inches="tight"))
     plt.close(fig)
