@@ -85,8 +85,7 @@ def test_summary_and_table():
 def test_a_small_call_writes_the_table_and_resumes(flat_dataset, tmp_path):
     argv = ["--floors", f"tiny={flat_dataset}", "--modes", "oracle", "--starts", "2",
             "--frames", "12", "--kidnaps", "1", "--kidnap-after", "6", "--kidnap-frames", "12",
-            "--out-root",
-            str(tmp_path), "--", *QUICK[2:], "filter.lost_frames=3"]
+            "--out-root", str(tmp_path), "--", *QUICK[2:], "filter.lost_frames=3"]
     assert main(argv) == 0
     out = tmp_path / "global_start"
     result = json.loads((out / "global_start.json").read_text())
