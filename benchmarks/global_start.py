@@ -224,13 +224,15 @@ def _share(flags: list[bool]) -> float | None:
     return float(np.mean(flags)) if flags else None
 
 
+def _runs(rows: list[dict], floor: str, mode: str, kind: str) -> list[dict]:
+    return [r for r in rows if (r["floor"], r["mode"], r["kind"]) == (floor, mode, kind)]
+
+
 def summarize(rows: list[dict]) -> dict:
     """Per floor and mode: the global starts' and the kidnappings' figures."""
     table: dict = {}
     for floor, mode in sorted({(r["floor"], r["mode"]) for r in rows}):
-        g = [r for r in rows if (r["floor"], r["mode"], r["kind"]) == (floor, mode, "global")]
-        k = [r for r in rows if (r["floor"], r["mode"], r["kind"]) == (floor, mode,
-                                                                        "kidnapped")]
+        g, k = _runs(rows, floor, mode, "global"), _runs(rows, floor, mode, "kidnapped")
         entry = {"starts": len(g)}
         for f in BY_FRAMES:  # within its first f frames; None where the runs are shorter
             ok = [r["converged_frame"] is not None and r["converged_frame"] < f for r in g
@@ -313,8 +315,7 @@ def plot(rows: list[dict], path: Path) -> None:
         for i, mode in enumerate(sorted({r["mode"] for r in rows if r["floor"] == floor})):
             for kind, key, style in (("global", "converged_frame", "-"),
                                      ("kidnapped", "back_frames", "--")):
-                runs = [r for r in rows if (r["floor"], r["mode"], r["kind"]) == (floor, mode,
-                                                                                  kind)]
+                runs = _runs(rows, floor, mode, kind)
                 if not runs:
                     continue
                 n = max(r["frames"] - r.get("kidnapped_at", 0) for r in runs)
