@@ -26,8 +26,8 @@ sys.path.insert(0, {root!r})
 from core.config import compose_config
 import datagen.dataset_writer as writer
 import datagen.job as datagen_job
-import datagen.render_split as render_split
-from core.variant import choose_variant
+import datagen.rendering.split as render_split
+from core.imaging.variant import choose_variant
 variant = choose_variant({variant!r})
 n = {images}
 cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "splits.test=0",

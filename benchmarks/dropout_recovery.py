@@ -8,7 +8,7 @@ Usage::
 
 Steps a ``Localizer`` (tracking start) through each test flight of ``--dataset``, with the
 frames between each start time of ``--at`` and ``--duration`` seconds later replaced by a
-dropout of each ``--kinds`` (``core.camera_effects``: black, noise, covered lens; mode
+dropout of each ``--kinds`` (``core.imaging.camera_effects``: black, noise, covered lens; mode
 oracle gets void labels there, it sees nothing either). Prints per flight, kind and seed the
 largest error during the dropouts and the time after each dropout's end until the error stays
 below ``--within`` m for a second; then the share of dropouts back within ``--back-s`` seconds
@@ -29,10 +29,10 @@ sys.path.insert(0, str(ROOT))
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from core import classes as C  # noqa: E402
-from core.camera_effects import apply_effects  # noqa: E402
+from core.imaging.camera_effects import apply_effects  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
-from localize.runner import RunSpec, prepare  # noqa: E402
+from localize.offline.runner import RunSpec, prepare  # noqa: E402
 
 
 def back_after(t: np.ndarray, err: np.ndarray, end: float, within: float) -> float:

@@ -6,7 +6,7 @@ Usage::
     python benchmarks/edges_scale.py --path some.world --step 0.5
 
 Imports the building (``datagen.importers.load_building``, the ``world=file`` defaults),
-times ``datagen.edges.extract_edges`` (best of ``--repeat``; the covered-face and boundary
+times ``datagen.mesh.edges.extract_edges`` (best of ``--repeat``; the covered-face and boundary
 probes included, the Mitsuba variant chosen beforehand as a datagen run does) and prints:
 segments and metres per class pair (largest first), the segments the localizer scores
 (``localize.localizer.scored_segments``, ``--min-length`` m) and their samples every
@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core import classes as C  # noqa: E402
-from datagen.edges import BoundaryProbe, extract_edges  # noqa: E402
+from datagen.mesh.edges import BoundaryProbe, extract_edges  # noqa: E402
 
 HOSPITAL = ROOT.parent / "shared" / "worlds" / "aws_hospital" / "worlds" / "hospital.world"
 
@@ -48,8 +48,8 @@ def pair_table(seg: np.ndarray, cls: np.ndarray) -> list[tuple[str, int, float]]
 def scored(seg: np.ndarray, cls: np.ndarray, min_length: float, spacing: float) -> dict:
     """Segments and samples the localizer scores: all, those between two different
     structural classes, those with void on one side."""
+    from localize.filter.projection import sample_segments
     from localize.localizer import scored_segments
-    from localize.projection import sample_segments
 
     world = SimpleNamespace(segments=seg, segment_classes=cls)
     keep = scored_segments(world, min_length)
@@ -73,9 +73,9 @@ def main() -> int:
     if not args.path.exists():
         print(f"{args.path} not found: nothing to measure (needs ../shared/worlds)")
         return 0
-    from core.variant import choose_variant
+    from core.imaging.variant import choose_variant
     from datagen.importers import load_building
-    from datagen.site import world_config
+    from datagen.worlds.site import world_config
 
     spec = world_config({"kind": "file", "path": str(args.path)})
     b = load_building(settings=spec)

@@ -29,9 +29,9 @@ sys.path.insert(0, str(ROOT))
 from core.config import typed  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
-from datagen import trajectories as TR  # noqa: E402
 from datagen.config import DatagenConfig, FlightConfig  # noqa: E402
-from datagen.routes import find_turns, route_at, route_length  # noqa: E402
+from datagen.flights import trajectories as TR  # noqa: E402
+from datagen.flights.routes import find_turns, route_at, route_length  # noqa: E402
 
 NAMES = ("flown m", "mean speed m/s", "start m", "mean |across| m", "across std m",
          "height m", "height ptp m", "yaw dev max deg", "yaw dev rms deg", "tilt max deg",
@@ -70,7 +70,7 @@ def main() -> None:
     from core.config import compose_config
 
     cfg = typed(DatagenConfig, compose_config("datagen"), "datagen")
-    from datagen.site import build_site
+    from datagen.worlds.site import build_site
 
     if a.world is not None:
         logging.disable(logging.WARNING)

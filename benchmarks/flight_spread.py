@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 from core.dataset import SPLITS  # noqa: E402
 from datagen.generate import run as render  # noqa: E402
-from localize.runner import run as localize  # noqa: E402
+from localize.offline.runner import run as localize  # noqa: E402
 
 
 def flights_config(dataset: Path, n: int, out: Path) -> dict:
@@ -102,7 +102,7 @@ def summarize(metrics: dict) -> list[str]:
 
 
 def main(source_wrappers=None) -> None:
-    """The command line; ``source_wrappers``: ``localize.runner.run``'s, per edge mode a
+    """The command line; ``source_wrappers``: ``localize.offline.runner.run``'s, per edge mode a
     function of the mode's own edge source giving the one to use (benchmarks/class_swap.py)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dataset", type=Path, default=ROOT / "outputs/datasets/demo")

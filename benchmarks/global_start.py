@@ -24,7 +24,7 @@ within 0.3 m within 100 frames of the teleport. Timings are context only: the ma
 (``os.getloadavg``) is recorded beside them.
 
 Writes ``<out-root>/<name>/``: per floor a localize report folder (``reports/<floor>/``: one
-run record per start, mode and seed, ``localize.runner.PassRecord``; a finished run is kept,
+run record per start, mode and seed, ``localize.offline.runner.PassRecord``; a finished run is kept,
 so an interrupted call resumes and a second one only collects), ``global_start.json``,
 ``global_start.md`` and ``global_start.png`` (per floor, the share of starts within 0.3 m by
 each frame, and of kidnappings back by each frame after the teleport). A floor whose dataset
@@ -51,8 +51,8 @@ from benchmarks.floor_localize import global_update_ms  # noqa: E402
 from core.atomic import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.spliced import flight_segment, kidnapped  # noqa: E402
-from localize.metrics import convergence_frame, false_convergence  # noqa: E402
-from localize.runner import RunSpec, check_resume, prepare, run_pass  # noqa: E402
+from localize.offline.metrics import convergence_frame, false_convergence  # noqa: E402
+from localize.offline.runner import RunSpec, check_resume, prepare, run_pass  # noqa: E402
 
 OUTPUTS = ROOT / "outputs"
 THIRDPARTY = OUTPUTS / "benchmarks" / "thirdparty" / "datasets"

@@ -10,13 +10,13 @@ Usage::
 
 Starts ``python -m localize.ros2`` as a subprocess (tracking from the flight's first true
 pose; extra ``key=value`` arguments go to it) and plays the flight into it with
-``localize.ros2_play``'s player at ``--rates`` times its own frame rate (the rendered flights
+``localize.ros2.play``'s player at ``--rates`` times its own frame rate (the rendered flights
 are 10 fps: rates 1 and 3 are 10 Hz and 30 Hz input), all on loopback only
 (``localize.ros2.loopback``). Before each rate an ``/initialpose`` at the first true pose
 restarts the filter. Per rate it prints:
 
 - accuracy: the mean position error against the truth of the frames the node processed, and
-  of the offline run (``localize.ros2.live.offline_estimates``: the node's filter, seed and
+  of the offline run (``localize.live.loop.offline_estimates``: the node's filter, seed and
   start over every frame), and their ratio; the mean gap between the two estimates;
 - latency: capture stamp to the pose's arrival at a subscriber, median and p95, ms (the
   node's own capture-to-publish figures are in its status, ``latency_*_ms``);
@@ -48,8 +48,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.live.sync import wait_until  # noqa: E402
 from localize.ros2.loopback import loopback_env  # noqa: E402
-from localize.ros2.sync import wait_until  # noqa: E402
 
 TARGET_LATENCY_MEDIAN_MS = 60.0
 TARGET_LATENCY_P95_MS = 100.0
@@ -67,8 +67,8 @@ def compose_node_config(overrides: list[str]):
 
     import localize  # noqa: F401
     from core.config import CONF
+    from localize.resolve import resolve
     from localize.ros2 import config as _config  # noqa: F401
-    from localize.settings import resolve
 
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose(config_name="ros2", overrides=[o for o in overrides
@@ -92,8 +92,8 @@ def main() -> None:
 
     tmp = Path(tempfile.mkdtemp(prefix="live_bench_"))
     os.environ.update(loopback_env(tmp))  # before rclpy.init: loopback only
-    from localize.ros2.live import load_context, offline_estimates
-    from localize.ros2_play import Player, PlaySettings, open_playback
+    from localize.live.loop import load_context, offline_estimates
+    from localize.ros2.play import Player, PlaySettings, open_playback
 
     flight_dir = Path(args.dataset) / "flights" / args.flight
     pb = open_playback(flight_dir)

@@ -37,10 +37,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.poses import xyzyaw_from_pose  # noqa: E402
+from localize.filter.projection import tilt_from_pose  # noqa: E402
 from localize.frontend.segmenter import model_path  # noqa: E402
 from localize.localizer import Localizer  # noqa: E402
-from localize.projection import tilt_from_pose  # noqa: E402
-from localize.runner import prepare  # noqa: E402
+from localize.offline.runner import prepare  # noqa: E402
 
 TARGET_FILTER_MS = 20.0
 TARGET_FRAME_MS = 50.0
@@ -82,7 +82,7 @@ def compare_likelihoods(ctx, loc: Localizer, seen: list, truth: np.ndarray, n: i
                         frames: int) -> tuple[list[float], list[float]]:
     """ms of the vectorized and the paper-faithful likelihood of the same ``n`` particles
     around the truth, on the first ``frames`` frames of ``seen`` (``time_frames``)."""
-    from localize.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings
+    from localize.filter.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings
 
     pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
                                   PaperFaithfulSettings())

@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 from core import classes as C  # noqa: E402
 from core.atomic import write_png  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
-from datagen.routes import find_turns, plan_route, route_length  # noqa: E402
+from datagen.flights.routes import find_turns, plan_route, route_length  # noqa: E402
 
 SIZE = (25.0, 57.0)  # m, x, y
 RING = (5.0, 2.4)  # m, rooms' depth between the outer wall and the corridor; corridor width

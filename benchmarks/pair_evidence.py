@@ -34,14 +34,15 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.atomic import read_png  # noqa: E402
+from localize.context import Context  # noqa: E402
+from localize.filter.likelihood import EdgeLikelihood  # noqa: E402
+from localize.filter.pose_stats import estimate as estimate_pose  # noqa: E402
+from localize.filter.projection import ModelSamples, tilt_from_pose  # noqa: E402
+from localize.filter.visibility import SparseVisibility  # noqa: E402
 from localize.frontend.edge_image import pair_name  # noqa: E402
 from localize.frontend.front_end import Frame  # noqa: E402
-from localize.likelihood import EdgeLikelihood  # noqa: E402
 from localize.localizer import mode_likelihood_params  # noqa: E402
-from localize.pose_stats import estimate as estimate_pose  # noqa: E402
-from localize.projection import ModelSamples, tilt_from_pose  # noqa: E402
-from localize.runner import Context, load_runs, prepare  # noqa: E402
-from localize.visibility import SparseVisibility  # noqa: E402
+from localize.offline.runner import load_runs, prepare  # noqa: E402
 
 
 def pair_likelihoods(samples: ModelSamples, vis: SparseVisibility, sample_pairs: np.ndarray,

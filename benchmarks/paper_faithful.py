@@ -7,9 +7,9 @@ Usage::
     python benchmarks/paper_faithful.py -- filter.likelihood.sigma=0.3   # localize overrides
 
 Tracks the first ``--frames`` frames of ``--flight`` (tracking start, ``--particles``
-particles, one run per seed) twice through the runner's pass (``localize.runner.run_pass``):
+particles, one run per seed) twice through the runner's pass (``localize.offline.runner.run_pass``):
 with the vectorized edge likelihood and with the paper-faithful one
-(``localize.paper_faithful``: a Mitsuba render, its contours and Hough lines per particle, a
+(``localize.filter.paper_faithful``: a Mitsuba render, its contours and Hough lines per particle, a
 Python loop over particles) as the likelihood override. Both share the frames, the edge images,
 the particles' start and the filter's settings (conf/localize.yaml with the given overrides).
 Prints each one's mean position error and filter ms per frame and the speed-up of the
@@ -35,10 +35,10 @@ sys.path.insert(0, str(ROOT))
 from core.atomic import atomic_write_json  # noqa: E402
 from core.outputs import releases_claims  # noqa: E402
 from localize.config import HoughSettings  # noqa: E402
-from localize.metrics import error_stats, timing_stats  # noqa: E402
-from localize.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings  # noqa: E402
-from localize.render import centred  # noqa: E402
-from localize.runner import RunSpec, check_resume, load_runs, prepare, run_pass  # noqa: E402
+from localize.filter.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings  # noqa: E402
+from localize.filter.paper_render import centred  # noqa: E402
+from localize.offline.metrics import error_stats, timing_stats  # noqa: E402
+from localize.offline.runner import RunSpec, check_resume, load_runs, prepare, run_pass  # noqa: E402
 
 DATASET = ROOT / "outputs" / "datasets" / "demo"
 
@@ -128,7 +128,7 @@ def comparison_summary(records: list[dict]) -> dict:
     """Accuracy and filter time of each likelihood's runs, and the speed ratio.
 
     Args:
-        records: run records (``localize.runner.load_runs``); those of the comparison have
+        records: run records (``localize.offline.runner.load_runs``); those of the comparison have
             ``likelihood`` ``vectorized_n<n>`` or ``paper_faithful_n<n>``.
 
     Returns:

@@ -43,7 +43,7 @@ def run(name: str, scene, poses: list[np.ndarray], cfg: dict, near_lights: bool 
     from datagen.appearance.lights import sample_lights
     from datagen.appearance.textures import sample_textures
     from datagen.job import make_camera
-    from datagen.render import Renderer
+    from datagen.rendering.render import Renderer
 
     camera = make_camera(cfg["camera"])
     look, r = cfg["appearance"], cfg["render"]
@@ -78,11 +78,11 @@ def main() -> None:
     ap.add_argument("--spacing", type=float, default=3.0, help="lattice light spacing, m")
     a = ap.parse_args()
     from core.config import compose_config
+    from core.imaging.variant import choose_variant
     from core.occupancy import OccupancyMap
-    from core.variant import choose_variant
     from datagen.importers import load_building
-    from datagen.scene import building_scene, corridor_scene
-    from datagen.world import build_world
+    from datagen.worlds.corridor import build_world
+    from datagen.worlds.scene import building_scene, corridor_scene
 
     variant = choose_variant(a.variant)
     cfg = compose_config("datagen")

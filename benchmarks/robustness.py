@@ -35,8 +35,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
-from core.realism import load_realism  # noqa: E402
-from localize.metrics import error_stats, lost_track  # noqa: E402
+from core.imaging.realism import load_realism  # noqa: E402
+from localize.offline.metrics import error_stats, lost_track  # noqa: E402
 
 #: Per factor, how a strength s scales the real preset's magnitudes: "mul" x s, "inv" / s
 #: (a sensor's full well: less is noisier), "quality" 100 - (100 - q) x s.

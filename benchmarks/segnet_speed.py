@@ -14,7 +14,7 @@ otherwise a randomly initialised model of the given config is exported to a temp
 frame over ``--runs`` runs after warm-up, and the process CPU time per frame, which is less
 sensitive to other jobs on a shared machine. Timings are for batch 1 unless --batch is given.
 ``onnxruntime_int8`` is the int8 copy
-(``train.quantize``): the model folder's ``segnet_int8.onnx`` if there is one, else the timed
+(``train.deploy.quantize``): the model folder's ``segnet_int8.onnx`` if there is one, else the timed
 graph quantized here with random calibration frames (speed does not depend on the ranges).
 """
 
@@ -37,10 +37,10 @@ from omegaconf import OmegaConf
 
 from core.classes import as_json
 from core.segmenter import OnnxSegmenter
-from train.checkpoint import load_checkpoint
-from train.export import GRAPH_POOLING, onnx_metadata, to_onnx_proto
-from train.quantize import INT8_NAME, quantize_segnet
-from train.segnet import SegNet, build_segnet, count_parameters
+from train.deploy.export import GRAPH_POOLING, onnx_metadata, to_onnx_proto
+from train.deploy.quantize import INT8_NAME, quantize_segnet
+from train.loop.checkpoint import load_checkpoint
+from train.net.segnet import SegNet, build_segnet, count_parameters
 
 CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
 

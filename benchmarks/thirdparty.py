@@ -15,7 +15,7 @@ on it); then the SegNet (``--onnx``, default the shipped generalist) is scored o
 delivered flight frame (pixel accuracy, mean IoU, boundary F at 2 px: what the likelihood
 needs), and ``python -m localize`` tracks each flight from its true start in the given modes
 and seeds. The scan's first test flight is also exported as a folder recording
-(``localize.recording_export``: JPEG frames, odometry) and localized as a user's recording.
+(``localize.recordings.export``: JPEG frames, odometry) and localized as a user's recording.
 With ``--finetune N``, N training and N / 8 validation and test images of the building (a dataset of
 their own, ``datasets/<building>_train``, apart from the test flights) fine-tune the SegNet
 (``experiment=finetune``: 9 epochs from the generalist; the epochs, not the minutes, bound it,
@@ -165,7 +165,7 @@ def recording(ds: Path, out: Path) -> Path:
     name = Dataset(ds).flight_names("test")[0]
     rec = out / "recordings" / ds.name
     if not (rec / "images.txt").is_file():
-        run([sys.executable, "-m", "localize.recording_export", ds, name, rec])
+        run([sys.executable, "-m", "localize.recordings.export", ds, name, rec])
     return rec
 
 

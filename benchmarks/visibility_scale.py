@@ -6,7 +6,7 @@ Usage::
     python benchmarks/visibility_scale.py --max-range 15 --cell-xy 0.3 --global-particles 0
 
 Imports the hospital (``datagen.importers.load_building``), extracts its edges
-(``datagen.edges.extract_edges``) and free space (``OccupancyMap.from_mesh``, the corridor
+(``datagen.mesh.edges.extract_edges``) and free space (``OccupancyMap.from_mesh``, the corridor
 world's flyable band above the floor), samples the structural edges and builds their
 visibility lists (``EdgeModel.build``, cached under ``--cache``). Then:
 
@@ -37,29 +37,29 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.dataset import Camera, World  # noqa: E402
+from core.imaging.rays import RayCaster  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
 from core.poses import odometry_increment, pose_from_xyzyaw  # noqa: E402
-from core.rays import RayCaster  # noqa: E402
 from localize.config import Settings  # noqa: E402
-from localize.frontend.edge_image import EdgeImage  # noqa: E402
-from localize.frontend.front_end import Frame  # noqa: E402
-from localize.localizer import EdgeModel, Localizer, scored_segments  # noqa: E402
-from localize.projection import (  # noqa: E402
+from localize.filter.projection import (  # noqa: E402
     cam_from_world,
     camera_centres,
     pixel_index,
     projection_matrices,
     sample_segments,
 )
+from localize.frontend.edge_image import EdgeImage  # noqa: E402
+from localize.frontend.front_end import Frame  # noqa: E402
+from localize.localizer import EdgeModel, Localizer, scored_segments  # noqa: E402
 
 HOSPITAL = ROOT.parent / "shared" / "worlds" / "aws_hospital" / "worlds" / "hospital.world"
 TARGET_FILTER_MS, TARGET_GB = 20.0, 2.0
 
 
 def hospital_world(path: Path) -> tuple[World, OccupancyMap]:
-    """The hospital as ``python -m datagen world=file`` builds it (``datagen.site``): its
+    """The hospital as ``python -m datagen world=file`` builds it (``datagen.worlds.site``): its
     ``World`` and free space (0.1 m cells, 0.3 m margin, 0.5-2.2 m above the floor)."""
-    from datagen.site import build_site
+    from datagen.worlds.site import build_site
 
     world = build_site({"kind": "file", "path": str(path)}).world
     return world, world.free
@@ -75,7 +75,7 @@ def camera() -> Camera:
 
 def truth_states(occ: OccupancyMap, frames: int, step: float, z: float) -> np.ndarray:
     """(frames, 4) poses ``step`` m apart along a planned route, from its first third."""
-    from datagen.routes import plan_route, route_at, route_length
+    from datagen.flights.routes import plan_route, route_at, route_length
 
     route = plan_route(occ, np.random.default_rng(0))
     s = route_length(route) / 3 + step * np.arange(frames)

@@ -21,7 +21,7 @@ odometry.txt has a pose per frame. With it (``realism.timing``), images.txt list
 delivered frames (``timestamp rgb/NNNNNN.png``; dropped frames are missing, and were never
 rendered) with their timestamps, and odometry.txt is sampled at its own rate: ``Dataset.flight``
 interpolates it at each delivered frame's timestamp, as a folder recording's reader does
-(localize/recording_folder.py).
+(localize/recordings/folder.py).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ import numpy as np
 
 from core.atomic import png_complete, read_png
 from core.frames import Frame, delivered_frames, frame_count
-from core.lens import Undistorter, coefficients
+from core.imaging.lens import Undistorter, coefficients
 from core.occupancy import OccupancyMap
 from core.poses import interpolate_poses, read_tum
 

@@ -1,7 +1,7 @@
 """A sequence of frames as the localizer consumes it: the one contract of a frame source.
 
 A rendered flight (``core.dataset.Flight``), a recording (a folder or a bag,
-``localize.recording.Recording``) and a live stream are each a ``FrameSource``: per frame
+``localize.recordings.recording.Recording``) and a live stream are each a ``FrameSource``: per frame
 its image, its true labels if any, the odometry increment since the previous delivered
 frame, the attitude (roll and pitch of the odometry pose) and the timestamp, and the true
 pose if any (``FrameSource.steps``). ``delivered_frames``, behind each source's ``steps``,

@@ -15,7 +15,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from core.config import register_schema
-from core.realism import RealismConfig
+from core.imaging.realism import RealismConfig
 from datagen.importers.settings import ImportSettings
 
 # --------------------------------------------------------------------------- world
@@ -85,8 +85,8 @@ class LightPanels:
 
 @dataclass
 class WorldConfig:
-    """The corridor (``world``, datagen/world.py): by default the paper's environment, a 10 m
-    office corridor, long side along +Y, doors on both sides. A recess's jambs, head and sill
+    """The corridor (``world``, datagen/worlds/corridor.py): by default the paper's environment, a
+    10 m office corridor, long side along +Y, doors on both sides. A recess's jambs, head and sill
     take the door's / window's class, so the class boundary is the recess's outer edge
     (docs/datagen.md)."""
 
@@ -114,7 +114,7 @@ class WorldConfig:
 
 @dataclass
 class FileWorldConfig(ImportSettings):
-    """A building model read from a file (``world=file world.path=FILE``; datagen/site.py):
+    """A building model read from a file (``world=file world.path=FILE``; datagen/worlds/site.py):
     a Gazebo world, a mesh or an IFC file (the import keys: ``ImportSettings``,
     docs/importers.md), with the free space a camera may fly in."""
 
@@ -136,7 +136,7 @@ class FileWorldConfig(ImportSettings):
 
 @dataclass
 class ProceduralWorldConfig:
-    """An office floor drawn from a seed (``world=procedural``, datagen/procedural.py):
+    """An office floor drawn from a seed (``world=procedural``, datagen/worlds/procedural.py):
     corridors on a coarse grid (L and T junctions, loops), a lobby, rooms behind door
     openings, recesses, columns, glass walls (class window) and windows on the outer walls;
     built into a world as an imported building is (the free-space keys as
@@ -233,7 +233,7 @@ class CameraConfig:
 
 @dataclass
 class RenderConfig:
-    """Mitsuba's rendering (``render``, datagen/render.py)."""
+    """Mitsuba's rendering (``render``, datagen/rendering/render.py)."""
 
     variant: str = "auto"  # auto: llvm_ad_rgb if LLVM works, else scalar_rgb (with a warning)
     spp: int = 1  # path-tracer samples per pixel (RGB; the denoiser removes the noise)
@@ -376,9 +376,9 @@ class DistractorPreset:
 
 @dataclass
 class TrajectoryConfig:
-    """A hand-flown pass along a route (``flights.<name>.trajectory``, datagen/trajectories.py
-    ``flight_trajectory``); pairs are [min, max], drawn per flight. The flight covers speed x
-    duration metres of its route (less if the route is shorter)."""
+    """A hand-flown pass along a route (``flights.<name>.trajectory``,
+    datagen/flights/trajectories.py ``flight_trajectory``); pairs are [min, max], drawn per flight.
+    The flight covers speed x duration metres of its route (less if the route is shorter)."""
 
     speed: list[float] = field(default_factory=lambda: [0.3, 0.45])  # m/s, mean forward
     # speed (capped so the flight ends inside)
@@ -403,7 +403,7 @@ class TrajectoryConfig:
 @dataclass
 class OdometryConfig:
     """The drifting VIO-like odometry of a flight (``flights.<name>.odometry``,
-    datagen/trajectories.py ``noisy_odometry``)."""
+    datagen/flights/trajectories.py ``noisy_odometry``)."""
 
     trans_noise_m: float = 0.004  # per-frame translation noise std (each axis)
     yaw_noise_deg: float = 0.1  # per-frame heading-increment noise std
@@ -416,7 +416,7 @@ class OdometryConfig:
 
 @dataclass
 class RouteConfig:
-    """A route planned through the free space (datagen/routes.py ``plan_route``): the
+    """A route planned through the free space (datagen/flights/routes.py ``plan_route``): the
     cheapest path between two far-apart cells on the free space's ridge (the middle of
     corridors and rooms), simplified and its corners rounded."""
 

@@ -24,7 +24,6 @@ from core.dataset import SCHEMA_VERSION, SPLITS, frame_name
 from core.outputs import Claim, claim_output
 from core.poses import write_tum
 from datagen.config import DatagenConfig
-from datagen.importers.plan import write_plan
 from datagen.job import (
     DATASET_POLICY,
     NON_CONTENT_KEYS,
@@ -33,6 +32,7 @@ from datagen.job import (
     content_config,
     flight_stream,
 )
+from datagen.mesh.plan import write_plan
 from datagen.realism import builtin_objects, calibration, optics, timing
 
 log = logging.getLogger(__name__)
@@ -50,7 +50,7 @@ def software_versions(variant: str) -> dict[str, str]:
 
 def write_metadata(job: Job, variant: str) -> None:
     """dataset.json, world/ and the pose files (identical bytes from every shard)."""
-    from datagen.save import save_world
+    from datagen.worlds.save import save_world
 
     cfg, out, cam = job.cfg, job.out, job.camera
     meta = {

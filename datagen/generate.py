@@ -1,6 +1,6 @@
 """The datagen job: render the training splits and the evaluation flights of one world
-(``run``): ``datagen.job`` prepares it, ``datagen.render_split`` and
-``datagen.render_flight`` render it, ``datagen.dataset_writer`` writes it."""
+(``run``): ``datagen.job`` prepares it, ``datagen.rendering.split`` and
+``datagen.rendering.flight`` render it, ``datagen.dataset_writer`` writes it."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from core.dataset import SPLITS
 from datagen.config import DatagenConfig
 from datagen.dataset_writer import claim_dataset, write_stats
 from datagen.job import prepare
-from datagen.render_flight import render_flight
-from datagen.render_split import render_split
+from datagen.rendering.flight import render_flight
+from datagen.rendering.split import render_split
 
 log = logging.getLogger(__name__)
 
@@ -26,7 +26,7 @@ def run(cfg: DatagenConfig | Mapping, progress: bool | None = None) -> Path:
         cfg: the settings (``prepare``).
         progress: tqdm progress bars; None: the config's ``progress``.
     """
-    from core.variant import choose_variant
+    from core.imaging.variant import choose_variant
 
     job = prepare(cfg)
     progress = job.cfg.progress if progress is None else progress

@@ -34,19 +34,19 @@ from typing import Any
 
 import numpy as np
 
-from core import camera_effects
-from core.camera import intrinsics
 from core.config import as_config, typed
 from core.dataset import SPLITS, Camera, World
+from core.imaging import camera_effects
+from core.imaging.camera import intrinsics
+from core.imaging.realism import MapErrorConfig, realism_label
 from core.outputs import FolderPolicy
 from core.poses import pose_from_xyz_rpy
-from core.realism import MapErrorConfig, realism_label
-from datagen import trajectories
 from datagen.config import CameraConfig, DatagenConfig
 from datagen.distractors.presets import check_preset
+from datagen.flights import trajectories
 from datagen.realism import ahrs, builtin_objects, calibration, map_error, optics, timing
-from datagen.scene import Scene
-from datagen.site import Site, build_site
+from datagen.worlds.scene import Scene
+from datagen.worlds.site import Site, build_site
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """``python -m localize``: the edge particle filter on a dataset's flights (conf/localize.yaml).
 
-Hydra composes the defaults, the presets and the command line; ``localize.settings.resolve``
+Hydra composes the defaults, the presets and the command line; ``localize.resolve.resolve``
 adds the localize settings the model folder carries (under the command line) and records
 which layer set each value that differs from its default (report.md prints them).
 """
@@ -11,8 +11,8 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from localize.runner import run
-from localize.settings import resolve
+from localize.offline.runner import run
+from localize.resolve import resolve
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="localize")
@@ -22,7 +22,7 @@ def main(cfg: DictConfig) -> None:
     if cfg.recording is None:
         report = run(cfg)
     else:
-        from localize.recorded import run_recording
+        from localize.offline.recorded import run_recording
 
         report = run_recording(cfg)
     print(f"report: {report}")

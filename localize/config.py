@@ -2,7 +2,7 @@
 
 The field defaults below are the defaults, written nowhere else: Hydra composes
 ``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``) and the command line onto
-``LocalizeConfig``, and ``localize.settings.resolve`` adds the settings a model carries and
+``LocalizeConfig``, and ``localize.resolve.resolve`` adds the settings a model carries and
 records which layer set each value that differs from its default; a typo or a wrong type fails
 at start-up naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is
 the default config's. Library code builds one from a partial mapping with
@@ -20,13 +20,13 @@ from core.config import register_schema
 MODES = ("none", "cnn", "oracle")
 #: ``edges.cnn.refine`` choices.
 REFINES = ("none", "union")
-#: ``viz`` choices (``localize.viz``).
+#: ``viz`` choices (``localize.viewers.viz``).
 VIZ_KINDS = ("none", "rerun")
 
 
 @dataclass
 class LikelihoodParams:
-    """The edge likelihood (``filter.likelihood``; ``localize.likelihood``).
+    """The edge likelihood (``filter.likelihood``; ``localize.filter.likelihood``).
 
     Attributes:
         k: weight ``W = exp(k * score)`` (the paper's ``alpha * exp(k * score)``: a constant
@@ -76,7 +76,7 @@ class LikelihoodParams:
 
 @dataclass
 class FilterParams:
-    """The particle filter (``filter``; ``localize.particle_filter``). Presets:
+    """The particle filter (``filter``; ``localize.filter.particle_filter``). Presets:
     conf/filter/*.yaml (``filter=paper``: the paper's settings).
 
     Attributes:
@@ -99,7 +99,7 @@ class FilterParams:
             cell x heading weighed by the floor boundary against a precomputed table; the label
             modes) or ``particles`` (the uniform set above; always for mode ``none``).
         global_search: ``global_search.GlobalSearchParams`` keys that differ from its defaults.
-        hypotheses: pose hypotheses reported per frame (``localize.hypotheses``: the
+        hypotheses: pose hypotheses reported per frame (``localize.filter.hypotheses``: the
             heaviest modes of the weighted set and their mass).
         hypothesis_radius_m, hypothesis_yaw_deg: a hypothesis's kernel: horizontal radius
             (m) and heading half-width (degrees).
@@ -353,7 +353,7 @@ class ModelEdgeSettings:
 
 @dataclass
 class VisibilitySettings:
-    """``visibility``: the samples visible from each camera cell (``localize.visibility``;
+    """``visibility``: the samples visible from each camera cell (``localize.filter.visibility``;
     cached under ``<report>/cache/``).
 
     Attributes:
@@ -364,7 +364,7 @@ class VisibilitySettings:
             time grow with the samples within it).
         max_gb: memory budget of the lists, GB: while they are estimated above it, the
             cells double, and from the second coarsening on the range shrinks by 2/3
-            (``localize.visibility_budget``; the corridor keeps ``cell_xy``, ``cell_z``,
+            (``localize.filter.visibility_budget``; the corridor keeps ``cell_xy``, ``cell_z``,
             ``max_range``; a hospital floor gets 0.4 x 0.5 m and 15 m). None: the configured
             grid whatever its size.
         variant: Mitsuba variant of the ray casts.
@@ -404,7 +404,7 @@ class Settings:
 @dataclass
 class BagTopics:
     """``recording_topics``: the topics a ROS bag recording is read from (ignored for
-    folders; ``localize.recording_bag``).
+    folders; ``localize.recordings.bag``).
 
     Attributes:
         image: sensor_msgs/Image or CompressedImage.
@@ -459,7 +459,7 @@ class ReportSettings:
 
 @dataclass
 class HintSettings:
-    """``hint``: where the global starts begin (``localize.start_hint.StartHint``); every key
+    """``hint``: where the global starts begin (``localize.filter.start_hint.StartHint``); every key
     null: anywhere in the free space.
 
     Attributes:
@@ -514,11 +514,11 @@ class LocalizeConfig(Settings):
         progress: tqdm progress bars.
         viz: ``rerun``: log each pass (frames, labels, model edges at the estimate, particles,
             trajectory, the model in 3D) to ``<report>/viz/<source>_<mode>.rrd``
-            (``localize.viz``); ``none``: no viewer.
+            (``localize.viewers.viz``); ``none``: no viewer.
         viz_connect: with ``viz=rerun``, a running rerun viewer to stream to instead of the
             file, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
         metrics, report: the report's settings.
-        set_by: written by ``python -m localize`` (``localize.settings.resolve``), not read:
+        set_by: written by ``python -m localize`` (``localize.resolve.resolve``), not read:
             for each setting whose value differs from its default, the layer that set it
             (``conf/...yaml``, ``model <file>``, ``onnx_model=auto``, ``command line``).
     """

@@ -43,16 +43,21 @@ from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import FilterParams, LikelihoodParams, Settings
+from localize.filter.hypotheses import Hypothesis, top_hypotheses
+from localize.filter.likelihood import EdgeLikelihood
+from localize.filter.particle_filter import LogLikelihood, ParticleFilter
+from localize.filter.projection import (
+    ModelSamples,
+    corrected_tilts,
+    sample_segments,
+    tilt_from_pose,
+)
+from localize.filter.start_hint import StartHint
+from localize.filter.visibility import SparseVisibility, load_or_build
+from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.frontend.front_end import Frame, FrontEnd
-from localize.global_search import GlobalSearch, ray_table_for, search_params
-from localize.hypotheses import Hypothesis, top_hypotheses
-from localize.likelihood import EdgeLikelihood
-from localize.particle_filter import LogLikelihood, ParticleFilter
-from localize.projection import ModelSamples, corrected_tilts, sample_segments, tilt_from_pose
-from localize.start_hint import StartHint
-from localize.visibility import SparseVisibility, load_or_build
-from localize.visibility_budget import fit_grid_cached
+from localize.search.global_search import GlobalSearch, ray_table_for, search_params
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).

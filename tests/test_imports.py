@@ -62,7 +62,7 @@ def violations() -> list[str]:
 ROS_PACKAGES = {"rclpy", "sensor_msgs", "geometry_msgs", "nav_msgs", "std_srvs",
                 "diagnostic_msgs", "std_msgs", "builtin_interfaces"}
 ROS_FILES = {"localize/ros2/node.py", "localize/ros2/listen.py", "localize/ros2/__main__.py",
-             "localize/ros2_play.py"}
+             "localize/ros2/play.py"}
 
 
 def ros_imports() -> list[str]:
@@ -92,9 +92,10 @@ def test_stages_import_only_downward() -> None:
 
 def test_the_walk_sees_every_kind_of_import() -> None:
     """Module-level, function-level, ``import x`` and relative ``from . import`` are all read."""
-    code = ("import datagen.render\n"
-            "def f():\n    from train.predict import OnnxSegmenter\n"
+    code = ("import datagen.rendering.render\n"
+            "def f():\n    from train.deploy.predict import OnnxSegmenter\n"
             "from .frontend import sources\n")
     file = ROOT / "localize" / "example.py"
     got = imported_modules(ast.parse(code), "localize", file)
-    assert sorted(got) == [(1, "datagen.render"), (3, "train.predict"), (4, "localize.frontend")]
+    assert sorted(got) == [(1, "datagen.rendering.render"), (3, "train.deploy.predict"),
+                           (4, "localize.frontend")]

@@ -23,7 +23,7 @@ IMAGENET_STD = (0.229, 0.224, 0.225)
 
 @dataclass
 class ModelConfig:
-    """The network (``model``, train/segnet.py). The defaults are the compact SegNet for CPU
+    """The network (``model``, train/net/segnet.py). The defaults are the compact SegNet for CPU
     (``model=segnet_small``): the VGG16-BN layout at 3/8 width and four stages of two
     convolutions, run at a quarter of the input resolution (4x4 average in, bilinear logits
     out), with the encoder maps added after each unpooling. ``model=segnet`` is the paper's
@@ -75,7 +75,7 @@ class ModelConfig:
 
 @dataclass
 class OptimConfig:
-    """The optimizer (``optim``, train/optim.py), with a one-cycle schedule (warm-up, then
+    """The optimizer (``optim``, train/loop/optim.py), with a one-cycle schedule (warm-up, then
     cosine decay) stepped every batch. The defaults are AdamW (``optim=adamw``).
 
     Attributes:
@@ -204,7 +204,7 @@ class EvalConfig:
 
 @dataclass
 class ExportConfig:
-    """segnet.onnx and its int8 copy (``export``; train/export.py, train/quantize.py).
+    """segnet.onnx and its int8 copy (``export``; train/deploy/export.py, train/deploy/quantize.py).
 
     Attributes:
         parity_images: test images checked with onnxruntime against torch.
@@ -239,7 +239,7 @@ class TrainConfig:
         device: where the network trains: ``auto`` (CUDA where torch sees a GPU, else the
             CPU), ``cpu`` or ``cuda``; under torchrun each process takes the GPU of its
             ``LOCAL_RANK`` and the processes meet over NCCL (gloo on the CPU). Validation runs
-            there too; export and test run on the CPU (``train.distributed.training_device``).
+            there too; export and test run on the CPU (``train.loop.distributed.training_device``).
         precision: ``fp32``, ``bf16`` or ``auto`` (bf16 where the CPU has AMX tiles; fp32 on
             a GPU): bfloat16 autocast for the training forward pass.
         threads: torch intra-op threads (and onnxruntime's for the export's check); under

@@ -21,9 +21,9 @@ from kornia.geometry.transform import crop_and_resize
 from tqdm import tqdm
 
 from core.atomic import read_png
-from core.camera_effects import apply_effects
 from core.dataset import Dataset
-from core.realism import RealismConfig
+from core.imaging.camera_effects import apply_effects
+from core.imaging.realism import RealismConfig
 from train.config import AugmentConfig
 
 IGNORE = 255
@@ -164,7 +164,7 @@ def load_split(
 
 def through_camera(data: SplitData, settings: RealismConfig, seed: int, stream: int) -> SplitData:
     """Each image once through a drone camera (``data.realism``): an exposure offset, sensor
-    noise and JPEG as ``core.camera_effects.apply_effects`` gives a flight's frames.
+    noise and JPEG as ``core.imaging.camera_effects.apply_effects`` gives a flight's frames.
 
     A training image is a still, not a flight, so its exposure offset is drawn on its own:
     uniform in +/-``exposure.step_ev`` (a light switched on or off, before auto exposure
@@ -174,7 +174,7 @@ def through_camera(data: SplitData, settings: RealismConfig, seed: int, stream: 
 
     Args:
         data: the split, (N, 3, H, W) uint8 images at the dataset's resolution.
-        settings: the camera's realism preset (``core.realism.load_realism``).
+        settings: the camera's realism preset (``core.imaging.realism.load_realism``).
         seed: the training's seed; image i draws from SeedSequence([seed, stream, i]).
         stream: the split's stream (one per split, so train and val draw apart).
 

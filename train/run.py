@@ -17,7 +17,7 @@ another config is refused unless ``overwrite=true`` (core.outputs; docs/outputs.
 reads its settings as a ``train.config.TrainConfig`` and is ``prepare`` (config checks, data,
 network, optimizer), ``fit`` (the epochs, each ``train_one_epoch`` then validation and
 checkpoints) and ``finish`` (export, test, metrics). Under ``torchrun`` several processes
-train together (train/distributed.py) and rank 0 alone writes the folder.
+train together (train/loop/distributed.py) and rank 0 alone writes the folder.
 """
 
 from __future__ import annotations
@@ -33,23 +33,13 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
 
-from core import camera_effects
 from core.atomic import atomic_write_json, atomic_write_text
 from core.dataset import Dataset, open_datasets
+from core.imaging import camera_effects
+from core.imaging.realism import load_realism
 from core.model_folder import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from core.outputs import releases_claims
-from core.realism import load_realism
 from train.budget import fit_epochs, training_budget
-from train.checkpoint import (
-    LAST_CHECKPOINT,
-    disk_space_guard,
-    load_init_weights,
-    new_state,
-    read_last,
-    resume,
-    save_best,
-    save_last,
-)
 from train.config import AugmentConfig, LossConfig, TrainConfig
 from train.config_checks import check_config
 from train.data import (
@@ -62,7 +52,20 @@ from train.data import (
     through_camera,
     to_float,
 )
-from train.distributed import (
+from train.deploy.export import ParityError, export_checked, onnx_metadata, update_metadata
+from train.deploy.quantize import INT8_NAME, int8_summary, quantize_model_dir
+from train.deploy.quantize import REPORT_NAME as QUANTIZE_REPORT
+from train.loop.checkpoint import (
+    LAST_CHECKPOINT,
+    disk_space_guard,
+    load_init_weights,
+    new_state,
+    read_last,
+    resume,
+    save_best,
+    save_last,
+)
+from train.loop.distributed import (
     CPU,
     SINGLE,
     World,
@@ -70,17 +73,14 @@ from train.distributed import (
     process_group,
     training_device,
 )
-from train.epoch import data_parallel, train_one_epoch
-from train.evaluate import evaluate, evaluate_onnx
-from train.export import ParityError, export_checked, onnx_metadata, update_metadata
+from train.loop.epoch import data_parallel, train_one_epoch
+from train.loop.evaluate import evaluate, evaluate_onnx
+from train.loop.optim import make_ema, make_optimizer, make_scheduler
+from train.loop.train_log import TRAIN_LOG, epoch_row, write_train_log
 from train.losses import median_frequency_weights
 from train.metrics import metrics_json, plot_confusion, scores
-from train.optim import make_ema, make_optimizer, make_scheduler
-from train.quantize import INT8_NAME, int8_summary, quantize_model_dir
-from train.quantize import REPORT_NAME as QUANTIZE_REPORT
+from train.net.segnet import SegNet, build_segnet, count_parameters
 from train.run_identity import config_hash, prepare_output, train_settings, training_config
-from train.segnet import SegNet, build_segnet, count_parameters
-from train.train_log import TRAIN_LOG, epoch_row, write_train_log
 
 log = logging.getLogger(__name__)
 
@@ -108,7 +108,7 @@ class Job:
     steps_per_epoch: int
     requested: int  # the configured epochs (the longest schedule)
     bf16: bool
-    world: World = SINGLE  # the torchrun processes (train/distributed.py)
+    world: World = SINGLE  # the torchrun processes (train/loop/distributed.py)
     ddp: torch.nn.parallel.DistributedDataParallel | None = None  # under torchrun
     device: torch.device = CPU  # where the network trains (``device``)
 
@@ -486,7 +486,7 @@ def run(cfg: DictConfig | Mapping | TrainConfig) -> dict:
     """Train (or resume), export the best checkpoint to ONNX, score it on the test split.
 
     Under ``torchrun`` (``WORLD_SIZE`` > 1 in the environment) the processes train together
-    (train/distributed.py); rank 0 alone writes the model folder, exports and tests, the
+    (train/loop/distributed.py); rank 0 alone writes the model folder, exports and tests, the
     others return an empty dict once training is done.
 
     Args:

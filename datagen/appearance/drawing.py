@@ -8,7 +8,7 @@ import colorsys
 import cv2
 import numpy as np
 
-from core.colour import LINEAR_LUT
+from core.imaging.colour import LINEAR_LUT
 
 
 def _hsv(rng: np.random.Generator, h: tuple[float, float], s: tuple[float, float],

@@ -7,8 +7,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from core.colour import srgb_to_linear
 from core.config import as_config
+from core.imaging.colour import srgb_to_linear
 from datagen.appearance.choices import (
     _LUMA,
     _maybe,

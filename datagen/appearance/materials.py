@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from core.colour import srgb_to_linear
 from core.config import as_config
+from core.imaging.colour import srgb_to_linear
 from datagen.appearance.choices import (
     _maybe,
     _range,

@@ -11,7 +11,7 @@ from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from datagen.config import DistractorPreset
 from datagen.distractors.placement import _Floor, place_objects
-from datagen.routes import first_blocked
+from datagen.flights.routes import first_blocked
 
 GOAL_CANDIDATES = 32  # goals drawn per new goal, among those in sight a far one is taken
 FAR_SHARE = 0.7  # a goal is far at >= this share of the farthest candidate's distance

@@ -11,7 +11,7 @@ import numpy as np
 
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw
-from datagen.map_cache import derived
+from datagen.flights.map_cache import derived
 
 _TOL = 1e-6  # m, slack of the clearance tests
 

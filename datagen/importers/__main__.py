@@ -19,14 +19,14 @@ import numpy as np
 from core.atomic import atomic_write_json, write_png
 from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, RouteConfig
-from datagen.importers.building import Building
+from datagen.flights.routes import find_turns, plan_route, route_length
 from datagen.importers.load import EXTENSIONS, load_building
 from datagen.importers.orient import AXES
-from datagen.importers.plan import write_plan
 from datagen.importers.settings import ImportSettings
 from datagen.importers.summary import import_summary, summary_lines, vertical_edges
-from datagen.routes import find_turns, plan_route, route_length
-from datagen.site import camera_free_space
+from datagen.mesh.building import Building
+from datagen.mesh.plan import write_plan
+from datagen.worlds.site import camera_free_space
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     plan = write_plan(b, out / f"{stem}_plan.png", args.px, args.cut, occ,
                       [] if route is None else [route])
     write_png(out / f"{stem}_free.png", occ.plot([] if route is None else [route], scale=2))
-    from datagen.edges import extract_edges
+    from datagen.mesh.edges import extract_edges
 
     segments = extract_edges(b.vertices, b.faces, b.face_class, FileWorldConfig.crease_deg)[0]
     report = import_summary(b, occ.area, vertical_edges(segments))

@@ -17,8 +17,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from core import classes as C
-from datagen.importers.building import UNSET, Building, face_areas_normals, weighted_quantile
 from datagen.importers.settings import NameRule
+from datagen.mesh.building import UNSET, Building, face_areas_normals, weighted_quantile
 
 HORIZONTAL = 0.9  # |normal z| from which a face is horizontal (within ~25 deg)
 LARGE_M2 = 1.0  # m^2, a connected horizontal surface from which geometry overrules a name

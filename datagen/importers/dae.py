@@ -12,8 +12,8 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from datagen.importers.building import Part
 from datagen.importers.images import load_image
+from datagen.mesh.building import Part
 
 
 def _colour(material) -> np.ndarray:

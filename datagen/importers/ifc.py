@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from core import classes as C
-from datagen.importers.building import UNSET, Part, face_areas_normals
 from datagen.importers.classify import HORIZONTAL
+from datagen.mesh.building import UNSET, Part, face_areas_normals
 
 #: IFC type -> class, the first that the element is (``is_a``) decides; None: by the name
 #: rules and geometry. IfcSlab and IfcCovering are classed per face / predefined type.

@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.colour import srgb_to_linear
+from core.imaging.colour import srgb_to_linear
 
 log = logging.getLogger(__name__)
 #: Longest side (pixels) an image texture is shrunk to (memory: 3 MB per image as float32).

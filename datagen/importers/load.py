@@ -11,16 +11,16 @@ import numpy as np
 
 from core import classes as C
 from core.config import as_config
-from datagen.importers.building import (
+from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
+from datagen.importers.orient import axis_name
+from datagen.importers.settings import ImportSettings
+from datagen.mesh.building import (
     Building,
     Part,
     assemble,
     face_areas_normals,
     weighted_quantile,
 )
-from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
-from datagen.importers.orient import axis_name
-from datagen.importers.settings import ImportSettings
 
 log = logging.getLogger(__name__)
 SDF_EXTENSIONS = (".world", ".sdf")

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.importers.building import Part
 from datagen.importers.dae import load_dae
 from datagen.importers.images import linear_image
 from datagen.importers.orient import axis_name, find_up_axis, to_z_up
+from datagen.mesh.building import Part
 
 #: Y-up to Z-up: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], np.float64)

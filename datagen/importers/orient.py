@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from datagen.importers.building import face_areas_normals
+from datagen.mesh.building import face_areas_normals
 
 #: The axes a file may name as up (``world.up_axis``); ``x``, ``y``, ``z`` mean ``+x``, ...
 AXES = ("+x", "-x", "+y", "-y", "+z", "-z")

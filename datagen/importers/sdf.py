@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from datagen.importers.building import Part, transformed
 from datagen.importers.meshfile import load_mesh_file
+from datagen.mesh.building import Part, transformed
 
 log = logging.getLogger(__name__)
 #: An ``<sdf version="...">file</sdf>`` entry of a model.config, read as text.

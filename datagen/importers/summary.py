@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from core import classes as C
-from datagen.importers.building import Building, face_areas_normals
 from datagen.importers.orient import find_up_axis
+from datagen.mesh.building import Building, face_areas_normals
 
 #: Metres per file unit of the units a model is commonly drawn in (``world.units``).
 UNITS = {"mm": 0.001, "cm": 0.01, "inch": 0.0254, "foot": 0.3048, "m": 1.0}
@@ -72,7 +72,7 @@ def import_summary(b: Building, free_area_m2: float | None = None,
 
     Args:
         b: the imported building.
-        free_area_m2: the camera free space's area (``datagen.site.camera_free_space``), or
+        free_area_m2: the camera free space's area (``datagen.worlds.site.camera_free_space``), or
             None if not built.
         vertical: the number of vertical model edges (``vertical_edges``), or None.
 

@@ -28,8 +28,8 @@ from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
 from core.config import as_config
+from core.imaging.realism import AhrsConfig
 from core.poses import pose_from_xyz_rpy
-from core.realism import AhrsConfig
 
 WHERE = "realism.ahrs"
 STD_KEYS = ("bias_deg", "noise_deg", "drift_deg")

@@ -14,11 +14,11 @@ import numpy as np
 
 from core import classes as C
 from core.dataset import World
+from core.imaging.realism import MapErrorConfig
 from core.occupancy import OccupancyMap
-from core.realism import MapErrorConfig
-from datagen.edges import extract_edges
+from datagen.mesh.edges import extract_edges
 from datagen.realism.map_error import OPENING_KINDS, TRIES
-from datagen.scene import TEXTURE_EXTENT, Surface, box_uv, ceiling_above
+from datagen.worlds.scene import TEXTURE_EXTENT, Surface, box_uv, ceiling_above
 
 
 @dataclass(frozen=True)

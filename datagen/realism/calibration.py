@@ -19,7 +19,7 @@ import numpy as np
 
 from core.config import as_config
 from core.dataset import Camera
-from core.realism import CalibrationConfig
+from core.imaging.realism import CalibrationConfig
 
 WHERE = "realism.calibration"
 

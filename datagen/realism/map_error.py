@@ -36,10 +36,10 @@ from scipy.sparse.csgraph import connected_components
 from core import classes as C
 from core.config import as_config
 from core.dataset import World
+from core.imaging.realism import MapErrorConfig
 from core.occupancy import OccupancyMap
-from core.realism import MapErrorConfig
 from datagen.config import DoorSize, WindowSize
-from datagen.edges import extract_edges
+from datagen.mesh.edges import extract_edges
 
 WHERE = "realism.map"
 OPENING_KINDS = {"door": C.DOOR, "window": C.WINDOW}

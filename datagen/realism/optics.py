@@ -13,16 +13,16 @@ A flight frame at time t (frame i at t = i / fps) is made of S sub-frames:
   the number that keeps the image's motion between sub-frames at most ``subframes.step_px``
   (``subframe_count``), at most ``subframes.max_count``;
 - lens: each sub-frame is rendered by a pinhole camera of K's focal length large enough to
-  hold every ray of the distorted image (``core.lens.cover_camera``) and resampled through the
-  lens (``core.lens.distort_maps``, cv2.remap: bilinear in linear light, labels and depth
-  nearest);
+  hold every ray of the distorted image (``core.imaging.lens.cover_camera``) and resampled through
+  the lens (``core.imaging.lens.distort_maps``, cv2.remap: bilinear in linear light, labels and
+  depth nearest);
 - rows: each row of the frame is the mean, in linear light, of the sub-frames weighted by how
   much of its exposure window their interval covers (``assemble``; a window of zero length
   takes the sub-frame whose interval holds t_r). Its label and depth come from the sub-frame
   nearest its mid-exposure time t_r - exposure_s / 2 (``pick_rows``), so labels match the
   image.
 
-The result is the rendered frame the camera effects (core/camera_effects.py) then take.
+The result is the rendered frame the camera effects (core/imaging/camera_effects.py) then take.
 The distractors stay where they are at frame i during its sub-frames (people walk 1-2 cm in a
 blur window). A frame's sub-frames depend only on the flight's true poses and i, and their
 render seeds are drawn from the frame's own generator: resume and shards give the same bytes.
@@ -38,13 +38,13 @@ import cv2
 import numpy as np
 
 from core import classes as C
-from core import lens
-from core.colour import linear_to_srgb8
 from core.config import as_config
 from core.dataset import Camera
+from core.imaging import lens
+from core.imaging.colour import linear_to_srgb8
+from core.imaging.realism import RealismConfig
 from core.poses import interpolate_poses
-from core.realism import RealismConfig
-from datagen.render import Traced
+from datagen.rendering.render import Traced
 
 WHERE = "realism"
 #: m, the depth the sub-frame count assumes for the nearest surfaces in view: the image

@@ -30,8 +30,8 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, RotationSpline
 
 from core.config import as_config
+from core.imaging.realism import TimingConfig
 from core.poses import pose_from_xyz_rpy
-from core.realism import TimingConfig
 from datagen.config import OdometryConfig
 
 WHERE = "realism.timing"

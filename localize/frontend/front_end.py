@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import astuple, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,7 +22,9 @@ from localize.config import MODES, EdgeSettings
 from localize.frontend.edge_image import EdgeImage, check_rgb
 from localize.frontend.extractor import EdgeExtractor, edge_settings
 from localize.frontend.sources import edge_source
-from localize.likelihood import EdgeLikelihood, Observation
+
+if TYPE_CHECKING:  # the filter reads the front end, never the other way round
+    from localize.filter.likelihood import EdgeLikelihood, Observation
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """``python -m localize.ros2``: the live node (conf/ros2.yaml, docs/ros2.md).
 
 Hydra composes the settings as for ``python -m localize`` (``dataset=``, ``onnx_model=``, the
-filter; ``localize.settings.resolve`` adds the model's settings) plus the node's; the node
+filter; ``localize.resolve.resolve`` adds the model's settings) plus the node's; the node
 loads the dataset, the model edges and the SegNet, then spins until Ctrl-C.
 """
 
@@ -14,9 +14,9 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from localize.live.loop import load_context
+from localize.resolve import resolve
 from localize.ros2 import config as _config  # noqa: F401  (registers the schema)
-from localize.ros2.live import load_context
-from localize.settings import resolve
 
 log = logging.getLogger(__name__)
 

@@ -154,12 +154,12 @@ class Ros2Config(LocalizeConfig):
             over the free space (``/initialpose`` or the service restart it at any time).
         body_from_cam: (4, 4) camera mount on the body; None: the dataset's.
         topics, frames, qos, realtime: the node's interface and limits.
-        mavlink: the autopilot link (``localize.mavlink_out``), e.g.
+        mavlink: the autopilot link (``localize.live.mavlink``), e.g.
             ``udpout:127.0.0.1:14550``; empty: off.
         mavlink_rate_hz: most MAVLink messages per second.
 
-    The viewer is ``LocalizeConfig``'s ``viz`` / ``viz_connect`` (``localize.viz``), logged to
-    ``<out_root>/<name>/live.rrd``.
+    The viewer is ``LocalizeConfig``'s ``viz`` / ``viz_connect`` (``localize.viewers.viz``), logged
+    to ``<out_root>/<name>/live.rrd``.
     """
 
     node_name: str = "edgeloc"

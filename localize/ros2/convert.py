@@ -2,7 +2,7 @@
 info, poses, the covariance of the particles and the status the node reports.
 
 Messages are read by their fields (a deserialized bag message and an rclpy one alike), with
-the recordings' own decoders (``localize.recording_bag``: ``decode_image``, ``source_camera``,
+the recordings' own decoders (``localize.recordings.bag``: ``decode_image``, ``source_camera``,
 ``pose_matrix``); what the node publishes is computed here as arrays and copied into the
 messages by ``localize.ros2.node``.
 """
@@ -13,10 +13,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from core.poses import wrap_angle
+from localize.filter.projection import corrected_tilts, tilt_from_pose, yaw_rotation
 from localize.localizer import Estimate
-from localize.projection import corrected_tilts, tilt_from_pose, yaw_rotation
-from localize.recording import SourceCamera
-from localize.recording_bag import decode_image, pose_matrix, source_camera
+from localize.recordings.messages import decode_image, pose_matrix, source_camera
+from localize.recordings.recording import SourceCamera
 
 #: Message type names of the inputs, as ``decode_image`` and ``pose_matrix`` take them.
 IMAGE_TYPE = {"raw": "sensor_msgs/msg/Image", "compressed": "sensor_msgs/msg/CompressedImage"}

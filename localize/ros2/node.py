@@ -1,4 +1,4 @@
-"""The ROS 2 node over the live localizer (``localize.ros2.live.LiveLocalizer``).
+"""The ROS 2 node over the live localizer (``localize.live.loop.LiveLocalizer``).
 
 Subscribes the camera (sensor_msgs/Image or CompressedImage), its CameraInfo and the odometry
 (nav_msgs/Odometry or geometry_msgs/PoseStamped) with the sensor QoS, ``/initialpose``
@@ -33,6 +33,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_srvs.srv import Empty
 
+from localize.context import Context
+from localize.filter.start_hint import StartHint
+from localize.live.loop import LiveLocalizer, Output
 from localize.ros2.convert import (
     STATUS_LEVEL,
     camera_of,
@@ -43,9 +46,6 @@ from localize.ros2.convert import (
     stamp_seconds,
     yaw_quaternions,
 )
-from localize.ros2.live import LiveLocalizer, Output
-from localize.runner import Context
-from localize.start_hint import StartHint
 
 log = logging.getLogger(__name__)
 

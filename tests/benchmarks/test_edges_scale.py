@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from benchmarks.edges_scale import pair_table, scored
-from datagen.edges import extract_edges
+from datagen.mesh.edges import extract_edges
 from tests.buildings import assemble
 
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from benchmarks.occupancy_build import BAND, MARGIN, SIZE, floor_plan
 from core.occupancy import OccupancyMap
-from datagen.routes import count_turns, plan_route, route_length
+from datagen.flights.routes import count_turns, plan_route, route_length
 
 
 def test_floor_plan_size_and_a_hospital_flight_route():

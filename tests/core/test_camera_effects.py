@@ -1,4 +1,4 @@
-"""Tests of core.camera_effects: sensor noise, exposure changes, JPEG and dropouts on the
+"""Tests of core.imaging.camera_effects: sensor noise, exposure changes, JPEG and dropouts on the
 flights' images, and their wiring into datagen (realism=real)."""
 
 from __future__ import annotations
@@ -12,14 +12,20 @@ import pytest
 import yaml
 
 import datagen.generate as gen
-from core import camera_effects as E
-from core import colour
 from core.atomic import read_png
 from core.config import CONF, compose_config, typed
-from core.realism import DropoutConfig, ExposureConfig, JpegConfig, RealismConfig, SensorNoiseConfig
+from core.imaging import camera_effects as E
+from core.imaging import colour
+from core.imaging.realism import (
+    DropoutConfig,
+    ExposureConfig,
+    JpegConfig,
+    RealismConfig,
+    SensorNoiseConfig,
+)
 from datagen.config import DatagenConfig
 from datagen.job import prepare
-from datagen.render_flight import flight_effect
+from datagen.rendering.flight import flight_effect
 
 FPS = 10.0
 
@@ -77,7 +83,7 @@ class TestFrames:
 
     def test_zero_noise_and_exposure_round_trip(self):
         """Through linear light and back without a change: every 8-bit level comes back."""
-        from core.colour import linear_to_srgb8
+        from core.imaging.colour import linear_to_srgb8
 
         levels = np.arange(256, dtype=np.uint8).reshape(16, 16, 1).repeat(3, axis=2)
         np.testing.assert_array_equal(linear_to_srgb8(colour.to_linear(levels)), levels)

@@ -1,4 +1,4 @@
-"""core/lens.py: the plumb_bob fold check, the maps that render through a lens and undo it,
+"""core/imaging/lens.py: the plumb_bob fold check, the maps that render through a lens and undo it,
 and the round trip on a rendered flight (datagen's realism.lens, read back by
 core.dataset.Flight)."""
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from core import lens
 from core.atomic import read_png
-from core.camera import intrinsics
 from core.config import compose_config
 from core.dataset import Camera, Dataset
+from core.imaging import lens
+from core.imaging.camera import intrinsics
 from datagen import generate as gen
 
 #: EuRoC MAV cam0's plumb_bob coefficients (the realism=real lens).

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.occupancy import BLOCKED_RGB, FREE_RGB, MARGIN_RGB, OccupancyMap
-from datagen.world import build_world
+from datagen.worlds.corridor import build_world
 from tests.buildings import BAND, MARGIN, assemble, occupancy, ring, ring_area, with_ceiling
 
 

@@ -10,7 +10,7 @@ from scipy import ndimage
 
 from core import classes as C
 from core.occupancy import OccupancyMap
-from datagen.world import build_world
+from datagen.worlds.corridor import build_world
 from tests.buildings import BAND, MARGIN, THICK, _box, assemble
 from tests.core.test_occupancy import _iou
 

@@ -15,11 +15,11 @@ from scipy.spatial.transform import Rotation
 import datagen.generate as gen
 from core.config import CONF, compose_config, typed
 from core.dataset import Dataset
+from core.imaging.realism import AhrsConfig, RealismConfig
 from core.poses import pose_from_xyz_rpy, read_tum
-from core.realism import AhrsConfig, RealismConfig
-from datagen import trajectories as TR
 from datagen.config import DatagenConfig
 from datagen.dataset_writer import write_metadata
+from datagen.flights import trajectories as TR
 from datagen.job import flight_stream, prepare, rng_for
 from datagen.realism import ahrs
 

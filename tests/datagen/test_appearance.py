@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from core import colour
+from core.imaging import colour
 from datagen.appearance import floors, walls
 from datagen.appearance.choices import CEILING_STYLES, FLOOR_STYLES, TEXTURE_SPECS, WALL_STYLES
 from datagen.appearance.drawing import _noise

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from datagen.edges import extract_edges, merge_collinear
-from datagen.world import build_world
+from datagen.mesh.edges import extract_edges, merge_collinear
+from datagen.worlds.corridor import build_world
 from tests.buildings import HEIGHT, assemble, ring
 
 
@@ -100,7 +100,7 @@ def test_the_corridor_casts_no_ray(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the closed corridor must not need a ray")
 
-    monkeypatch.setattr("core.rays.RayCaster.__init__", refuse)
+    monkeypatch.setattr("core.imaging.rays.RayCaster.__init__", refuse)
     assert len(build_world().world.segments) == 132
 
 

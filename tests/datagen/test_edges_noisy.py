@@ -12,10 +12,10 @@ import pytest
 import trimesh
 
 from core import classes as C
-from datagen.edge_polylines import simplify_segments
-from datagen.edges import EdgeSettings, extract_edges
-from datagen.planar_regions import face_pairs, planar_regions
-from datagen.world import build_world
+from datagen.mesh.edge_polylines import simplify_segments
+from datagen.mesh.edges import EdgeSettings, extract_edges
+from datagen.mesh.planar_regions import face_pairs, planar_regions
+from datagen.worlds.corridor import build_world
 
 SCAN = (Path(__file__).resolve().parents[2] / ".." / "shared" / "worlds" / "icl_office_scan"
         / "of_kt2_planeopt.obj")

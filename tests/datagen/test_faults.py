@@ -29,7 +29,7 @@ CHILD = """
 import json, sys, time
 from pathlib import Path
 import datagen.generate as gen
-import datagen.render_split as render_split
+import datagen.rendering.split as render_split
 from core.config import compose_config
 try:
     import core.outputs

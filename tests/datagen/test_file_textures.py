@@ -16,7 +16,7 @@ from datagen.appearance.textures import sample_textures
 from datagen.importers import load_building
 from datagen.importers.meshfile import Y_UP_TO_Z_UP
 from datagen.job import make_camera
-from datagen.scene import building_scene
+from datagen.worlds.scene import building_scene
 from tests.datagen.building_files import open_room, write_dae
 
 #: The poster's image: top-left red, top-right green, bottom-left blue, bottom-right white.
@@ -115,8 +115,8 @@ def test_structure_takes_the_file_look_only_when_asked(building):
 def test_the_poster_renders_the_right_way_round(building):
     """Seen from inside the room, the poster's image reads as it was drawn: red top left,
     green top right, blue bottom left, white bottom right."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     _, b = building

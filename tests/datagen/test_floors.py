@@ -12,11 +12,11 @@ import pytest
 
 from core.occupancy import OccupancyMap
 from core.poses import xyzyaw_from_pose
-from datagen import trajectories as TR
 from datagen.config import FlightConfig, TrajectoryConfig
 from datagen.distractors.crowd import person_tracks
 from datagen.distractors.placement import place_objects
-from datagen.routes import find_turns, route_at, route_length
+from datagen.flights import trajectories as TR
+from datagen.flights.routes import find_turns, route_at, route_length
 from tests.buildings import BAND, MARGIN, assemble, occupancy, ring
 
 #: a 30 s flight (300 frames at 10 fps) at 0.3-0.35 m/s: 9-10.5 m, fits the test buildings

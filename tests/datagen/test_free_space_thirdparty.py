@@ -15,7 +15,7 @@ from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig
 from datagen.importers import load_building
 from datagen.importers.settings import ImportSettings
-from datagen.site import camera_free_space
+from datagen.worlds.site import camera_free_space
 
 WORLDS = Path(__file__).resolve().parents[2] / ".." / "shared" / "worlds"
 SCAN = WORLDS / "icl_office_scan" / "of_kt2_planeopt.obj"

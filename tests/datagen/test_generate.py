@@ -11,8 +11,9 @@ import pytest
 from hydra.errors import ConfigCompositionException
 
 import datagen.generate as gen
-import datagen.render_flight as render_flight
-import datagen.render_split as render_split
+import datagen.rendering.flight as render_flight
+import datagen.rendering.frame as render_frame
+import datagen.rendering.split as render_split
 from core import classes as C
 from core.atomic import read_png
 from core.config import compose_config
@@ -20,7 +21,7 @@ from core.dataset import Dataset
 from core.occupancy import PATH_RGB
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME, OutputFolderError
 from datagen.job import prepare, shard_range
-from datagen.pipeline import Pipeline
+from datagen.rendering.pipeline import Pipeline
 
 SMALL = ["camera.width=64", "camera.height=48", "splits.train=4", "splits.val=1",
          "splits.test=0", "render.spp=1", "training.chunk=2", "render_flights=[cluttered]",
@@ -90,7 +91,7 @@ class TestDeterminismAndResume:
 
         # A run that dies after two frames, then is re-run.
         crashed = tmp_path / "crashed"
-        real_write, calls = render_split.write_frame, {"n": 0}
+        real_write, calls = render_frame.write_frame, {"n": 0}
 
         def dying_write(*args, **kwargs):
             if calls["n"] == 2:
@@ -98,10 +99,10 @@ class TestDeterminismAndResume:
             calls["n"] += 1
             return real_write(*args, **kwargs)
 
-        monkeypatch.setattr(render_split, "write_frame", dying_write)
+        monkeypatch.setattr(render_frame, "write_frame", dying_write)
         with pytest.raises(KeyboardInterrupt):
             gen.run(small_cfg(crashed), progress=False)
-        monkeypatch.setattr(render_split, "write_frame", real_write)
+        monkeypatch.setattr(render_frame, "write_frame", real_write)
         assert len(list((crashed / "train" / "rgb").glob("*.png"))) == 2
         gen.run(small_cfg(crashed), progress=False)
 

@@ -10,7 +10,7 @@ import numpy as np
 from core import classes as C
 from datagen.importers import load_building
 from datagen.importers.__main__ import main
-from datagen.importers.plan import plan_labels
+from datagen.mesh.plan import plan_labels
 from tests.datagen.building_files import open_room
 
 

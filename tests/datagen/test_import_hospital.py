@@ -69,7 +69,7 @@ def test_hospital_summary(hospital):
 
 
 def test_hospital_plan(hospital):
-    from datagen.importers.plan import plan_labels
+    from datagen.mesh.plan import plan_labels
 
     labels, _, res = plan_labels(hospital[0], metres_per_px=0.1)
     counts = np.bincount(labels.ravel(), minlength=256)

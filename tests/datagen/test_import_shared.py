@@ -12,7 +12,7 @@ from core import classes as C
 from datagen.config import FileWorldConfig
 from datagen.importers import load_building
 from datagen.importers.summary import import_summary
-from datagen.site import camera_free_space
+from datagen.worlds.site import camera_free_space
 
 WORLDS = Path(__file__).resolve().parents[2] / ".." / "shared" / "worlds"
 BOOKSTORE = WORLDS / "aws_bookstore" / "worlds" / "bookstore.world"

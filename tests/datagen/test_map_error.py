@@ -14,12 +14,12 @@ from core import classes as C
 from core.atomic import read_png
 from core.config import compose_config
 from core.dataset import Dataset
-from core.realism import CalibrationConfig, MapErrorConfig
+from core.imaging.realism import CalibrationConfig, MapErrorConfig
 from datagen.job import CALIBRATION_STREAM, MAP_STREAM, make_camera, prepare, rng_for
 from datagen.realism import builtin_objects as B
 from datagen.realism import calibration as CAL
 from datagen.realism import map_error as M
-from datagen.site import build_site
+from datagen.worlds.site import build_site
 from tests.datagen.test_site import write_ring_glb
 
 MAP = ["realism.map.wall_std_m=0.03", "realism.map.ceiling_std_m=0.03",

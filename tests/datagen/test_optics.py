@@ -12,12 +12,12 @@ from scipy.spatial.transform import Rotation
 
 from core.atomic import read_png
 from core.config import compose_config
-from core.realism import RealismConfig
+from core.imaging.realism import RealismConfig
 from datagen import generate as gen
 from datagen.job import prepare
 from datagen.realism import optics
-from datagen.render_flight import flight_scene
-from datagen.render_split import new_renderer
+from datagen.rendering.flight import flight_scene
+from datagen.rendering.frame import new_renderer
 from tests.core.test_lens import EUROC, LENS, SMALL, camera
 
 
@@ -153,7 +153,7 @@ class TestRender:
         a 60 ms readout. Against the global-shutter frame at t, each row's labels are shifted
         right by about f * yaw rate * (t_r - t): top rows (read early) to the left, bottom rows
         to the right, so vertical edges slant."""
-        from core.variant import choose_variant
+        from core.imaging.variant import choose_variant
 
         choose_variant("auto")
         cfg = compose_config("datagen", [*SMALL, "realism.rolling_shutter.readout_s=0.06",

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from datagen.pipeline import Pipeline
+from datagen.rendering.pipeline import Pipeline
 
 
 class TestPipeline:

@@ -1,5 +1,5 @@
-"""world=procedural: office floors drawn from a seed (datagen/procedural.py), built into a site
-as an imported building is."""
+"""world=procedural: office floors drawn from a seed (datagen/worlds/procedural.py), built into a
+site as an imported building is."""
 
 from __future__ import annotations
 
@@ -17,9 +17,10 @@ from core.config import compose_config
 from core.dataset import Dataset
 from core.occupancy import OccupancyMap
 from datagen.config import ProceduralWorldConfig, world_config
-from datagen.procedural import build_floor, draw_plan, main
-from datagen.routes import find_turns, plan_route, route_length
-from datagen.site import build_site
+from datagen.flights.routes import find_turns, plan_route, route_length
+from datagen.worlds.__main__ import main
+from datagen.worlds.procedural import build_floor, draw_plan
+from datagen.worlds.site import build_site
 
 #: A smaller floor than the default (a 3 x 2 or 2 x 2 corridor grid): fast.
 SMALL = ProceduralWorldConfig(size=[26.0, 22.0], grid_spacing=[6.0, 7.0])
@@ -172,7 +173,7 @@ class TestSite:
 
 
 def test_cli_plan(tmp_path, capsys):
-    """``python -m datagen.procedural``: the plan image and the info of a floor."""
+    """``python -m datagen.worlds``: the plan image and the info of a floor."""
     assert main(["--seed", "1", "--size", "26", "22", "--out", str(tmp_path)]) == 0
     assert read_png(tmp_path / "procedural_1_plan.png").ndim == 3
     info = json.loads((tmp_path / "procedural_1.json").read_text())

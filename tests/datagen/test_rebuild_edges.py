@@ -1,4 +1,4 @@
-"""``python -m datagen.rebuild_edges``: a dataset's edges.npz rebuilt from its model.npz."""
+"""``python -m datagen.mesh.rebuild_edges``: a dataset's edges.npz rebuilt from its model.npz."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import json
 import numpy as np
 
 from core.dataset import load_world
-from datagen.rebuild_edges import dataset_crease_deg, main
-from datagen.save import save_world
-from datagen.world import build_world
+from datagen.mesh.rebuild_edges import dataset_crease_deg, main
+from datagen.worlds.corridor import build_world
+from datagen.worlds.save import save_world
 
 
 def _dataset(tmp_path, crease=20.0):

@@ -11,15 +11,15 @@ from core.config import compose_config
 from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
 from datagen.job import make_camera
-from datagen.scene import corridor_scene
-from datagen.world import build_world
+from datagen.worlds.corridor import build_world
+from datagen.worlds.scene import corridor_scene
 
 
 @pytest.fixture(scope="module")
 def view():
     """A 160x120 render of the default corridor from a tilted pose looking down +Y."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=160", "camera.height=120"])
@@ -46,7 +46,7 @@ def _boundary_distance(label: np.ndarray) -> np.ndarray:
 
 
 def _visible_projection(model, camera, world_from_cam, depth, points):
-    from core.camera import project
+    from core.imaging.camera import project
 
     uv, z = project(camera.K, np.linalg.inv(world_from_cam), points)
     H, W = depth.shape
@@ -100,7 +100,7 @@ class TestRender:
         seg = w.segments[w.segment_classes[:, 0] != w.segment_classes[:, 1]]
         t = np.linspace(0, 1, 200)[None, :, None]
         pts = (seg[:, :1] * (1 - t) + seg[:, 1:] * t).reshape(-1, 3)
-        from core.camera import project
+        from core.imaging.camera import project
 
         uv, z = project(camera.K, np.linalg.inv(T), pts)
         uv[:, 0] = camera.width - 1 - uv[:, 0]
@@ -112,7 +112,7 @@ class TestRender:
 
 def test_render_is_develop_of_trace():
     """``render`` = ``develop(trace(...))``; the traced arrays survive the scene moving on."""
-    from datagen.render import Renderer
+    from datagen.rendering.render import Renderer
 
     cfg = compose_config("datagen", ["camera.width=64", "camera.height=48"])
     camera = make_camera(cfg["camera"])
@@ -146,8 +146,8 @@ def test_render_is_develop_of_trace():
 def test_denoiser_keeps_only_emitters_raw():
     """The denoiser leaves the emitters as rendered (the ceiling lights, the window's outdoor
     view) and smooths every diffuse surface, the window's frame faces too (labelled window)."""
-    from core.variant import shape_index
-    from datagen.render import Renderer
+    from core.imaging.variant import shape_index
+    from datagen.rendering.render import Renderer
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     camera = make_camera(cfg["camera"])
@@ -166,8 +166,8 @@ def test_denoiser_keeps_only_emitters_raw():
 
 def test_develop_smooths_all_but_the_raw_shapes():
     """A noisy flat view, shape 1 on the left (diffuse), shape 2 on the right (kept raw)."""
-    from core.colour import linear_to_srgb8
-    from datagen.render import Developer, Traced
+    from core.imaging.colour import linear_to_srgb8
+    from datagen.rendering.render import Developer, Traced
 
     H, W = 16, 32
     aux = np.zeros((H, W, 5), np.float32)
@@ -188,8 +188,8 @@ def test_develop_smooths_all_but_the_raw_shapes():
 def test_set_textures_reaches_every_textured_surface():
     """The door and window frames (texture ``frame``, surfaces of their own) follow
     ``set_textures`` like the rest."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
 
@@ -206,7 +206,7 @@ def test_set_textures_reaches_every_textured_surface():
 
 
 def test_renderer_takes_a_scene():
-    from datagen.render import Renderer
+    from datagen.rendering.render import Renderer
 
     cfg = compose_config("datagen", ["camera.width=32", "camera.height=24"])
     with pytest.raises(TypeError, match="corridor_scene"):
@@ -217,8 +217,8 @@ def test_glossy_floor():
     """A renderer built with glossy_floor: weight 0 renders the diffuse floor (as a plain
     renderer, within path-tracing noise); a smooth glossy floor mirrors the ceiling lights
     (brighter highlights on the floor); a plain renderer refuses set_floor_gloss."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=80", "camera.height=60"])

@@ -1,4 +1,4 @@
-"""datagen.routes: routes planned through an occupancy map, waypoints, motion, turns."""
+"""datagen.flights.routes: routes planned through an occupancy map, waypoints, motion, turns."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.occupancy import OccupancyMap
-from datagen.routes import (
+from datagen.flights.routes import (
     count_turns,
     find_turns,
     plan_route,

@@ -13,7 +13,8 @@ from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
 from datagen.importers import load_building
 from datagen.job import make_camera
-from datagen.scene import (
+from datagen.worlds.corridor import build_world
+from datagen.worlds.scene import (
     BUILDING_TEXTURE_EXTENT,
     DEFAULT_COLOUR,
     box_uv,
@@ -22,7 +23,6 @@ from datagen.scene import (
     corridor_scene,
     light_centres,
 )
-from datagen.world import build_world
 from tests import buildings
 from tests.datagen import building_files as files
 from tests.datagen.building_files import ROOM
@@ -162,8 +162,8 @@ def test_no_lattice_light_without_a_ceiling():
 def room_view(room):
     """A 64x48 render (4 spp) from (0.8, 1.5, 1.2) looking +x at the far wall and the
     cabinet."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     b, free = room
@@ -201,8 +201,8 @@ def test_corridor_render_unchanged():
     renderer that read the CorridorModel). 1 sRGB level is allowed on the mean colour: LLVM
     compiles the renderer for the CPU's vector width, and an AVX2 CPU's mean differs by up to
     0.8 level from the AVX-512 one the figures were recorded on."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=96", "camera.height=72"])
@@ -226,8 +226,8 @@ CORRIDOR_DEPTH = 3.39807  # m, mean z
 def test_near_lights_sampling_is_unbiased_and_skips_lights_off(room):
     """Weighting the lights by radiance / distance^2 keeps the mean radiance, and a light that
     is off is never sampled."""
-    from core.variant import choose_variant
-    from datagen.render import Renderer
+    from core.imaging.variant import choose_variant
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     b, free = room

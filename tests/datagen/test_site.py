@@ -1,4 +1,4 @@
-"""datagen.site: the corridor and a building file give one structure; world=file settings."""
+"""datagen.worlds.site: the corridor and a building file give one structure; world=file settings."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import trimesh
 from core import classes as C
 from core.config import compose_config
 from datagen.config import FileWorldConfig, WorldConfig, world_config
-from datagen.site import STANDING_BAND, build_site
+from datagen.worlds.site import STANDING_BAND, build_site
 from tests.buildings import BAND, MARGIN, ring, ring_area
 
 
@@ -55,7 +55,7 @@ class TestFile:
         summary = w.info["import_summary"]  # also world/import_summary.json
         assert summary["free_area_m2"] == pytest.approx(w.free.area, abs=0.1)
         assert summary["vertical_edges"] > 0 and summary["up_axis"]["axis"] == "+y"
-        from datagen.save import save_world
+        from datagen.worlds.save import save_world
 
         save_world(tmp_path / "world", w)
         assert json.loads((tmp_path / "world" / "import_summary.json").read_text()) == summary

@@ -13,10 +13,10 @@ from scipy.spatial.transform import Rotation
 import datagen.generate as gen
 from core.config import compose_config
 from core.dataset import Dataset
+from core.imaging.realism import HarderFlightConfig, TimingConfig
 from core.poses import read_tum, xyzyaw_from_pose
-from core.realism import HarderFlightConfig, TimingConfig
-from datagen import trajectories as TR
 from datagen.dataset_writer import write_metadata
+from datagen.flights import trajectories as TR
 from datagen.job import check_inside, prepare, rng_for
 from datagen.realism import timing as TM
 

@@ -1,4 +1,4 @@
-"""Tests of datagen.trajectories: training poses, flights and noisy odometry."""
+"""Tests of datagen.flights.trajectories: training poses, flights and noisy odometry."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from scipy.spatial.transform import Rotation
 from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy, xyzyaw_from_pose
-from datagen import trajectories as TR
 from datagen.config import OdometryConfig
+from datagen.flights import trajectories as TR
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])

@@ -8,8 +8,8 @@ import trimesh
 
 from core import classes as C
 from core.config import compose_config
-from datagen.edges import extract_edges
-from datagen.world import MAIN, Box, boundary_mesh, build_world, classify_faces
+from datagen.mesh.edges import extract_edges
+from datagen.worlds.corridor import MAIN, Box, boundary_mesh, build_world, classify_faces
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +132,7 @@ class TestCorridor:
 def test_render_surfaces_cover_every_face_once_with_its_class(model):
     """Each face is in exactly one textured surface, whose class is the face's; the frames
     keep the frame texture whatever their class."""
-    from datagen.scene import corridor_scene
+    from datagen.worlds.scene import corridor_scene
 
     w = model.world
     surf = corridor_scene(model).surfaces

@@ -16,10 +16,10 @@ from onnx import TensorProto, helper
 
 from core import classes as C
 from core.atomic import read_png, write_png
-from core.camera import intrinsics
 from core.config import CONF, compose_config
 from core.dataset import Camera
-from datagen.world import build_world
+from core.imaging.camera import intrinsics
+from datagen.worlds.corridor import build_world
 
 #: body x forward -> camera z, body y left -> camera -x, body z up -> camera -y; 10 cm ahead.
 BODY_FROM_CAM = np.array([[0.0, 0.0, 1.0, 0.1], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0],
@@ -48,7 +48,7 @@ def camera() -> Camera:
 
 @pytest.fixture(scope="session")
 def renderer(small_world, camera):
-    from localize.render import ModelRenderer
+    from localize.filter.paper_render import ModelRenderer
 
     return ModelRenderer(small_world, camera)
 

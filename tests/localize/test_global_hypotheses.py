@@ -8,16 +8,16 @@ import pytest
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, wrap_angle
 from localize.config import FilterParams, HintSettings
-from localize.hypotheses import Dominance, top_hypotheses
-from localize.metrics import false_convergence
-from localize.particle_filter import ParticleFilter
-from localize.start_hint import (
+from localize.filter.hypotheses import Dominance, top_hypotheses
+from localize.filter.particle_filter import ParticleFilter
+from localize.filter.start_hint import (
     StartHint,
     as_polygon,
     hint_from_settings,
     named_space,
     polygon_contains,
 )
+from localize.offline.metrics import false_convergence
 
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 FREE = OccupancyMap.from_boxes(BOXES, np.array([0.5, 2.2]), 0.05, margin=0.3)

@@ -1,5 +1,5 @@
-"""The global search (localize.global_search, localize.ray_table) on the small corridor, with
-labels rendered from the structural model."""
+"""The global search (localize.search.global_search, localize.search.ray_table) on the small
+corridor, with labels rendered from the structural model."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pytest
 
 from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
 from localize.config import FilterParams, Settings
-from localize.global_search import GlobalSearch, GlobalSearchParams, ray_table_for
+from localize.filter.start_hint import StartHint
 from localize.localizer import EdgeModel, Localizer
-from localize.ray_table import RayTable, floor_boundary
-from localize.start_hint import StartHint
+from localize.search.global_search import GlobalSearch, GlobalSearchParams, ray_table_for
+from localize.search.ray_table import RayTable, floor_boundary
 
 #: A path through the small corridor (free x in [-1.9, 0.7], y in [0.3, 3.7]), low enough to
 #: see the floor meet the side walls (a 70 deg camera): along it,

@@ -15,9 +15,9 @@ from core.config import compose_config
 from core.dataset import Dataset
 from datagen import generate as gen
 from localize.frontend.sources import LabelFunction
-from localize.recording import read_recording
-from localize.recording_export import export_folder
-from localize.runner import run
+from localize.offline.runner import run
+from localize.recordings.export import export_folder
+from localize.recordings.read import read_recording
 from tests.core.test_lens import EUROC, LENS
 from tests.localize.conftest import QUICK, localize_cfg
 

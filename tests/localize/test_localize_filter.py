@@ -14,8 +14,7 @@ from core.poses import (
     wrap_angle,
     xyzyaw_from_pose,
 )
-from localize.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
-from localize.particle_filter import (
+from localize.filter.particle_filter import (
     FilterParams,
     ParticleFilter,
     apply_increment,
@@ -26,7 +25,8 @@ from localize.particle_filter import (
     move,
     systematic_resample,
 )
-from localize.pose_stats import estimate
+from localize.filter.pose_stats import estimate
+from localize.offline.metrics import convergence_frame, error_stats, timing_stats, yaw_errors_deg
 
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 Z = np.array([0.5, 2.2])
@@ -314,7 +314,7 @@ class TestMetrics:
 
 
 def test_lost_track_needs_a_long_stretch():
-    from localize.metrics import lost_track
+    from localize.offline.metrics import lost_track
 
     t = np.arange(30) * 0.1
     e = np.zeros(30)

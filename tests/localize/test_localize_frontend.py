@@ -7,6 +7,8 @@ import pytest
 
 from core import classes as C
 from localize.config import CnnSettings
+from localize.filter.likelihood import EdgeLikelihood, LikelihoodParams
+from localize.filter.projection import sample_segments
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import (
     CannyEdges,
@@ -16,8 +18,6 @@ from localize.frontend.sources import (
     TrueLabels,
     edge_source,
 )
-from localize.likelihood import EdgeLikelihood, LikelihoodParams
-from localize.projection import sample_segments
 from tests.localize.test_localize_edges import EDGES_CFG, two_walls
 
 PLAIN = CnnSettings(prior_correction=0.0)  # the stub has no class weights to take out

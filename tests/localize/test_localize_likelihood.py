@@ -9,9 +9,7 @@ import pytest
 
 from core import classes as C
 from core.config import typed
-from localize.frontend.boundaries import label_edges
-from localize.frontend.edge_image import EdgeImage, pair_code
-from localize.likelihood import (
+from localize.filter.likelihood import (
     FIT_EPS,
     EdgeLikelihood,
     LikelihoodParams,
@@ -21,8 +19,10 @@ from localize.likelihood import (
     observe,
     run_all,
 )
-from localize.projection import cam_from_world, sample_segments
-from localize.visibility import build_visibility
+from localize.filter.projection import cam_from_world, sample_segments
+from localize.filter.visibility import build_visibility
+from localize.frontend.boundaries import label_edges
+from localize.frontend.edge_image import EdgeImage, pair_code
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 OFFSETS = np.array([[0.1, 0, 0, 0], [-0.1, 0, 0, 0], [0, 0.2, 0, 0], [0, -0.2, 0, 0],
@@ -223,7 +223,7 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     from core.atomic import read_png
     from core.dataset import Dataset
     from core.poses import xyzyaw_from_pose
-    from localize.projection import tilt_from_pose
+    from localize.filter.projection import tilt_from_pose
 
     ds = Dataset(tiny_dataset)
     world, cam = ds.world(), ds.camera
@@ -247,7 +247,7 @@ def test_per_particle_tilts_correct_an_imu_error(model, camera, renderer):
     """A frame rendered at roll 1.5, pitch -2 deg while the IMU says 0.5, -1: the particle
     whose correction undoes the error scores best; zero corrections equal the shared tilt."""
     from core.poses import pose_from_xyz_rpy
-    from localize.projection import corrected_tilts, tilt_from_pose
+    from localize.filter.projection import corrected_tilts, tilt_from_pose
 
     s, vis = model
 

@@ -14,12 +14,13 @@ from core import classes as C
 from core.dataset import Dataset
 from core.poses import odometry_increment
 from localize.config import FilterParams, LikelihoodParams, Settings, VisibilitySettings
+from localize.context import settings_of
+from localize.filter.projection import cam_from_world
 from localize.frontend.extractor import edge_settings
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import LabelFunction, TrueLabels
 from localize.localizer import EdgeModel, Estimate, Localizer
-from localize.projection import cam_from_world
-from localize.runner import RunSpec, run, settings_of
+from localize.offline.runner import RunSpec, run
 from tests.localize.conftest import QUICK, localize_cfg
 from tests.localize.test_localize_edges import EDGES_CFG
 

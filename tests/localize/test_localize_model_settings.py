@@ -14,7 +14,7 @@ from hydra import compose, initialize_config_dir
 import localize.__main__ as lm
 from core.config import CONF
 from core.segmenter import OnnxSegmenter
-from localize import settings as ls
+from localize import resolve as ls
 from localize.frontend.segmenter import SHIPPED_MODEL, load_segmenter, model_path
 from tests.localize.conftest import palette_segnet
 
@@ -41,7 +41,7 @@ class TestApplyModelSettings:
     def test_from_metadata(self, carrying: Path, caplog) -> None:
         overrides = [f"onnx_model={carrying}"]
         cfg = composed(overrides)
-        with caplog.at_level(logging.INFO, logger="localize.settings"):
+        with caplog.at_level(logging.INFO, logger="localize.resolve"):
             taken = ls.apply_model_settings(cfg, overrides)
         assert cfg.filter.mode_likelihood.cnn.k == 50.0
         assert cfg.filter.mode_likelihood.cnn.orientation_bins == 12  # merged, not replaced
@@ -57,7 +57,7 @@ class TestApplyModelSettings:
         overrides = [f"onnx_model={carrying}", "edges.cnn.snap_px=3", "filter=paper"]
         cfg = composed(overrides)
         paper_k = cfg.filter.mode_likelihood.cnn.k
-        with caplog.at_level(logging.INFO, logger="localize.settings"):
+        with caplog.at_level(logging.INFO, logger="localize.resolve"):
             taken = ls.apply_model_settings(cfg, overrides)
         assert cfg.edges.cnn.snap_px == 3
         assert cfg.filter.mode_likelihood.cnn.k == paper_k != 50.0
@@ -171,7 +171,7 @@ class TestSettingLayers:
         assert set_by["edges.cnn.snap_px"] == set_by["onnx_model"] == "command line"
 
     def test_table(self, carrying: Path) -> None:
-        from localize.report import _settings
+        from localize.offline.report import _settings
 
         overrides = [f"onnx_model={carrying}", "filter.num_particles=300"]
         cfg = composed(overrides)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.camera import project
-from localize.projection import (
+from core.imaging.camera import project
+from localize.filter.projection import (
     ModelSamples,
     cam_from_world,
     camera_centres,
@@ -18,7 +18,7 @@ from localize.projection import (
     sample_segments,
     tilt_from_pose,
 )
-from localize.visibility import (
+from localize.filter.visibility import (
     build_visibility,
     free_bounds,
     grid_layout,
@@ -187,8 +187,8 @@ class TestAgainstRender:
         assert (depth > 0).all()  # closed model: every pixel hits it
 
     def test_visible_samples_on_rendered_boundaries(self, scene):
+        from localize.filter.likelihood import distance_to
         from localize.frontend.boundaries import label_edges
-        from localize.likelihood import distance_to
 
         s, labels, depth, hidden, pr = scene
         vis = pr.in_view[0] & ~hidden
@@ -287,7 +287,7 @@ def test_model_renderer_needs_a_centred_principal_point(camera):
     ``centred`` tells the runner to skip that comparison instead."""
     from dataclasses import replace
 
-    from localize.render import centred
+    from localize.filter.paper_render import centred
 
     assert centred(camera)
     K = camera.K.copy()

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from core.poses import pose_from_xyzyaw, read_tum, xyzyaw_from_pose
-from localize.recorded import run_recording
-from localize.recording_export import export_bag, export_folder
-from localize.runner import run
+from localize.offline.recorded import run_recording
+from localize.offline.runner import run
+from localize.recordings.export import export_bag, export_folder
 from tests.localize.conftest import QUICK, localize_cfg
 
 FLIGHT = "paper"

@@ -15,10 +15,10 @@ from omegaconf import OmegaConf
 
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, read_tum
-from localize.likelihood import LikelihoodParams
+from localize.filter.likelihood import LikelihoodParams
+from localize.filter.particle_filter import FilterParams
 from localize.localizer import mode_likelihood_params
-from localize.particle_filter import FilterParams
-from localize.runner import RunSpec, run, warn_outside_free_space
+from localize.offline.runner import RunSpec, run, warn_outside_free_space
 from tests.localize.conftest import QUICK, localize_cfg
 
 
@@ -41,7 +41,7 @@ def test_defaults_are_the_composed_configs():
     """Settings() and LocalizeConfig() (library use) are what `python -m localize` runs with
     by default: the YAML holds no default of its own."""
     from localize.config import LocalizeConfig, Settings
-    from localize.runner import settings_of
+    from localize.context import settings_of
 
     full = settings_of(localize_cfg([]))
     assert full == LocalizeConfig()
@@ -55,7 +55,7 @@ def test_presets_per_mode_k(preset):
     from hydra import compose, initialize_config_dir
 
     from core.config import CONF
-    from localize.runner import settings_of
+    from localize.context import settings_of
 
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose("localize", overrides=[f"filter={preset}"])
@@ -275,7 +275,7 @@ def test_pose_outside_free_space_is_warned(caplog):
                                        [1.0, 2.0, 1.2, 0.0]]))
     inside = SimpleNamespace(name="walk", groundtruth=truth[[0, 2]])
     source = SimpleNamespace(name="walk", groundtruth=truth)
-    with caplog.at_level(logging.WARNING, logger="localize.runner"):
+    with caplog.at_level(logging.WARNING, logger="localize.offline.runner"):
         warn_outside_free_space(inside, free, 2, np.array([1.0, 1.0, 1.0, 0.0]), 0.25)
         assert not caplog.records
         warn_outside_free_space(source, free, 3, np.array([1.0, 1.0, 2.6, 0.0]), 0.25)

@@ -10,7 +10,7 @@ import socket
 import numpy as np
 import pytest
 
-from localize.mavlink_out import (
+from localize.live.mavlink import (
     MAV_FRAME_BODY_FRD,
     due,
     euler_rpy,
@@ -143,7 +143,7 @@ def receive(rx, kind: str, n: int = 1) -> list:
 
 class TestSender:
     def test_odometry(self, link):
-        from localize.mavlink_out import MavlinkSender
+        from localize.live.mavlink import MavlinkSender
 
         rx, url = link
         tx = MavlinkSender(url, rate_hz=10.0)
@@ -168,7 +168,7 @@ class TestSender:
         np.testing.assert_allclose([b.x, b.y, b.z], [0.5, 0.0, -1.0])
 
     def test_ned_and_vision_position_estimate(self, link):
-        from localize.mavlink_out import MavlinkSender
+        from localize.live.mavlink import MavlinkSender
 
         rx, url = link
         C = np.diag([0.01, 0.02, 0.03, 0.001, 0.002, 0.004])
@@ -185,7 +185,7 @@ class TestSender:
                                    [0.02, 0.01, 0.03, 0.002, 0.001, 0.004], rtol=1e-6)
 
     def test_rate_limit_and_reset_counter_wraps(self, link):
-        from localize.mavlink_out import MavlinkSender
+        from localize.live.mavlink import MavlinkSender
 
         rx, url = link
         tx = MavlinkSender(url, rate_hz=10.0)
@@ -204,7 +204,7 @@ class TestSender:
     def test_answers_timesync(self, link):
         """The autopilot's TIMESYNC request (tc1 = 0) gets the capture clock's time in ns
         and its own ts1 back, from the link thread; a HEARTBEAT comes with the first send."""
-        from localize.mavlink_out import MavlinkSender
+        from localize.live.mavlink import MavlinkSender
 
         rx, url = link
         tx = MavlinkSender(url, rate_hz=0.0, clock=lambda: 1000.5)
@@ -220,7 +220,7 @@ class TestSender:
 
     def test_ids_are_the_dialects(self):
         m = pytest.importorskip("pymavlink.dialects.v20.common")
-        from localize import mavlink_out as mo
+        from localize.live import mavlink as mo
 
         assert mo.LOCAL_FRAMES["frd"][0] == m.MAV_FRAME_LOCAL_FRD
         assert mo.LOCAL_FRAMES["ned"][0] == m.MAV_FRAME_LOCAL_NED
@@ -230,7 +230,7 @@ class TestSender:
 
     def test_bad_settings(self):
         pytest.importorskip("pymavlink")
-        from localize.mavlink_out import MavlinkSender
+        from localize.live.mavlink import MavlinkSender
 
         with pytest.raises(ValueError, match="message 'pose'"):
             MavlinkSender("udpout:127.0.0.1:9", 10.0, message="pose")

@@ -14,12 +14,9 @@ import yaml
 from core.atomic import read_png, write_png
 from core.dataset import Camera, Dataset
 from core.poses import interpolate_poses, odometry_increment, pose_from_xyzyaw, write_tum
-from localize.recording import (
-    Rectifier,
-    SourceCamera,
-    read_recording,
-)
-from localize.recording_export import export_bag, export_folder, main
+from localize.recordings.export import export_bag, export_folder, main
+from localize.recordings.read import read_recording
+from localize.recordings.recording import Rectifier, SourceCamera
 
 FLIGHT = "paper"
 #: The odometry's own frame: moved and turned against the world (only increments matter).
@@ -350,7 +347,7 @@ def write_small_bag(path: Path, image_stamps: list[float], odom_stamps: list[flo
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from localize.recording_export import _camera_info, _header, _odometry
+    from localize.recordings.export import _camera_info, _header, _odometry
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     types = store.types
@@ -403,7 +400,7 @@ class TestSmallBags:
 def test_decode_image_encodings():
     from rosbags.typesys import Stores, get_typestore
 
-    from localize.recording_bag import decode_image
+    from localize.recordings.messages import decode_image
 
     Image = get_typestore(Stores.ROS2_HUMBLE).types["sensor_msgs/msg/Image"]
     rgb = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)

@@ -1,4 +1,4 @@
-"""Overlay of model edges at estimated poses (localize/overlay.py)."""
+"""Overlay of model edges at estimated poses (localize/viewers/overlay.py)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pytest
 
 from core import classes as C
 from core.atomic import read_png
-from core.camera import intrinsics, project
 from core.dataset import Camera, Dataset
+from core.imaging.camera import intrinsics, project
 from core.poses import xyzyaw_from_pose
-from localize.overlay import (
+from localize.viewers.overlay import (
     camera_poses,
     clip_segments,
     draw_segments,

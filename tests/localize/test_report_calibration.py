@@ -1,4 +1,5 @@
-"""The confidence calibration (localize.metrics.calibration) and where the report shows it."""
+"""The confidence calibration (localize.offline.metrics.calibration) and where the report shows
+it."""
 
 from __future__ import annotations
 
@@ -9,9 +10,9 @@ import pytest
 from omegaconf import OmegaConf
 
 from localize.config import LocalizeConfig
-from localize.metrics import calibration
-from localize.report import _calibration_table, calibrations, summarize
-from localize.report_plots import plot_calibration
+from localize.offline.metrics import calibration
+from localize.offline.report import _calibration_table, calibrations, summarize
+from localize.offline.report_plots import plot_calibration
 
 
 def test_accurate_high_confidence_scores_one() -> None:

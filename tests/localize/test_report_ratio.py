@@ -1,10 +1,10 @@
-"""localize.report: the accuracy table compares each mode's mean error with the paper's."""
+"""localize.offline.report: the accuracy table compares each mode's mean error with the paper's."""
 
 from __future__ import annotations
 
 import pytest
 
-from localize.report import versus_paper
+from localize.offline.report import versus_paper
 
 
 @pytest.mark.parametrize("error,paper,text", [

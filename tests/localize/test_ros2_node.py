@@ -1,5 +1,5 @@
 """The live node over the real middleware (rclpy, Fast DDS), on loopback only: the tiny
-dataset's flight played through ``localize.ros2_play`` into ``localize.ros2``'s node tracks as
+dataset's flight played through ``localize.ros2.play`` into ``localize.ros2``'s node tracks as
 the offline run of the same frames; bad input is logged clearly, without a crash or a backlog.
 
 Every participant runs with ``localize.ros2.loopback.loopback_env`` (UDPv4 on 127.0.0.1 only,
@@ -25,11 +25,11 @@ from omegaconf import OmegaConf  # noqa: E402
 from core.config import CONF, typed  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.poses import xyzyaw_from_pose  # noqa: E402
-from localize.ros2 import sync  # noqa: E402
+from localize.live import sync  # noqa: E402
+from localize.live.loop import load_context, offline_estimates  # noqa: E402
 from localize.ros2.config import Ros2Config  # noqa: E402
-from localize.ros2.live import load_context, offline_estimates  # noqa: E402
 from localize.ros2.loopback import loopback_env  # noqa: E402
-from localize.ros2_play import Player, PlaySettings, open_playback  # noqa: E402
+from localize.ros2.play import Player, PlaySettings, open_playback  # noqa: E402
 from tests.localize.conftest import QUICK  # noqa: E402
 
 FLIGHT = "paper"
@@ -93,7 +93,7 @@ def stop(node, executor, *others):
 
 
 def wait_until(cond, timeout_s: float = 10.0) -> bool:
-    """``localize.ros2.sync.wait_until`` with the tests' default timeout."""
+    """``localize.live.sync.wait_until`` with the tests' default timeout."""
     return sync.wait_until(cond, timeout_s)
 
 
@@ -103,8 +103,8 @@ def test_camera_info_makes_no_model_edges(setup, monkeypatch):
     ran no frame was received (the sensor QoS kept the last few, the rest were lost)."""
     import dataclasses
 
+    from localize.live.loop import LiveLocalizer
     from localize.localizer import EdgeModel
-    from localize.ros2.live import LiveLocalizer
 
     cfg, ctx, pb = setup
     fresh = dataclasses.replace(ctx, _models={})
@@ -177,7 +177,7 @@ def publish_frames(player, pb, n, stamps, encoding=None, info=True, crop=0):
 
 def test_plays_a_bag(setup, tmp_path):
     """A ROS 2 bag plays with its own calibration and frames as recorded."""
-    from localize.recording_export import export_bag
+    from localize.recordings.export import export_bag
 
     cfg, ctx, pb = setup
     bag = export_bag(cfg.dataset, FLIGHT, tmp_path / "bag")
@@ -298,7 +298,7 @@ class TestInputsAndResets:
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from std_srvs.srv import Empty
 
-        from localize.ros2_play import _set_pose
+        from localize.ros2.play import _set_pose
 
         def feed(player, pb, node, got):
             client = player.node.create_client(Empty, node.topics.global_localization)
@@ -342,8 +342,8 @@ class TestInputsAndResets:
         with its frame's capture time, and ``/initialpose`` increments its reset counter."""
         from geometry_msgs.msg import PoseWithCovarianceStamped
 
-        from localize.mavlink_out import MAV_FRAME_BODY_FRD
-        from localize.ros2_play import _set_pose
+        from localize.live.mavlink import MAV_FRAME_BODY_FRD
+        from localize.ros2.play import _set_pose
 
         mavutil = pytest.importorskip("pymavlink.mavutil")
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:

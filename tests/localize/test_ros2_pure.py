@@ -13,6 +13,7 @@ import pytest
 
 from core.config import typed
 from core.poses import interpolate_poses, pose_from_xyzyaw
+from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle, wait_until
 from localize.ros2.config import Ros2Config
 from localize.ros2.convert import (
     image_of,
@@ -24,7 +25,6 @@ from localize.ros2.convert import (
     yaw_quaternions,
 )
 from localize.ros2.loopback import loopback_env
-from localize.ros2.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle, wait_until
 
 
 def poses(n: int) -> np.ndarray:

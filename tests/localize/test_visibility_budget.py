@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from localize import visibility_budget
 from localize.config import FilterParams
-from localize.projection import sample_segments
-from localize.visibility import build_visibility
-from localize.visibility_budget import (
+from localize.filter import visibility_budget
+from localize.filter.projection import sample_segments
+from localize.filter.visibility import build_visibility
+from localize.filter.visibility_budget import (
     CELL_STEP,
     RANGE_STEP,
     estimate_grid,

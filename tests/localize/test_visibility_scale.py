@@ -9,11 +9,10 @@ import pytest
 from core import classes as C
 from core.dataset import World
 from core.occupancy import OccupancyMap
-from datagen.edges import extract_edges
+from datagen.mesh.edges import extract_edges
 from localize.config import LikelihoodParams, Settings
-from localize.likelihood import EdgeLikelihood
-from localize.localizer import EdgeModel, scored_segments
-from localize.projection import (
+from localize.filter.likelihood import EdgeLikelihood
+from localize.filter.projection import (
     cam_from_world,
     camera_centres,
     in_view_cone,
@@ -23,7 +22,8 @@ from localize.projection import (
     tilt_from_pose,
     view_half_width,
 )
-from localize.visibility import build_visibility
+from localize.filter.visibility import build_visibility
+from localize.localizer import EdgeModel, scored_segments
 from tests.buildings import BAND, MARGIN, THICK, assemble
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
@@ -98,7 +98,7 @@ def test_half_width_is_everything_looking_straight_up(camera):
 def test_culled_scores_equal_unculled(model, camera, renderer, monkeypatch):
     """Scoring only the samples the block's cells see and its cameras face gives the scores
     of scoring all samples against the same lists (up to float64 summation order)."""
-    import localize.likelihood as L
+    import localize.filter.likelihood as L
     from localize.frontend.boundaries import label_edges
 
     s, vis = model

@@ -9,9 +9,10 @@ import pytest
 from core import classes as C
 from core.poses import read_tum
 from localize.config import Settings
+from localize.context import settings_of
 from localize.localizer import Localizer
-from localize.runner import run, settings_of
-from localize.viz import open_viewer
+from localize.offline.runner import run
+from localize.viewers.viz import open_viewer
 from tests.localize.conftest import QUICK, localize_cfg
 
 

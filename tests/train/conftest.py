@@ -12,7 +12,7 @@ from omegaconf import DictConfig
 
 from core import classes as C
 from core.atomic import atomic_write_json, write_png
-from core.camera import intrinsics
+from core.imaging.camera import intrinsics
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 HEIGHT, WIDTH = 48, 64  # not a multiple of 32: exercises the padding

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 import torch
 
-import train.checkpoint as ck
-import train.export as ex
+import train.deploy.export as ex
+import train.loop.checkpoint as ck
 import train.run as tt
 from core.atomic import DiskFullError, free_bytes
 

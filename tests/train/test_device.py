@@ -1,4 +1,4 @@
-"""The ``device`` key (train/distributed.py ``training_device``): ``auto`` takes a GPU where
+"""The ``device`` key (train/loop/distributed.py ``training_device``): ``auto`` takes a GPU where
 torch sees one, else the CPU, and trains the same weights as ``device=cpu`` there."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import torch
 
 import train.run as tt
 from train.config_checks import resolve_precision
-from train.distributed import SINGLE, World, backend_for, training_device
+from train.loop.distributed import SINGLE, World, backend_for, training_device
 from train.run_identity import train_settings, training_config
 
 

@@ -1,4 +1,4 @@
-"""Data-parallel training (train/distributed.py): a 2-process gloo training step against one
+"""Data-parallel training (train/loop/distributed.py): a 2-process gloo training step against one
 process, and ``torchrun -m train`` end to end."""
 
 from __future__ import annotations
@@ -16,17 +16,17 @@ import torch.distributed as dist
 import torch.multiprocessing as mp
 import torch.nn.functional as F
 
-import train.epoch as te
+import train.loop.epoch as te
 import train.run as tt
 from core.dataset import Dataset
 from tests.train.conftest import TINY_OVERRIDES
 from train.config import AugmentConfig, ModelConfig, OptimConfig
 from train.data import SplitData, augment_batch, batches, downsample_split, load_split
-from train.distributed import SINGLE, World, check_batch_size
+from train.loop.distributed import SINGLE, World, check_batch_size
+from train.loop.optim import make_optimizer
 from train.losses import IGNORE, median_frequency_weights, pixel_loss_weights, segmentation_loss
-from train.optim import make_optimizer
+from train.net.segnet import build_segnet
 from train.run_identity import train_settings
-from train.segnet import build_segnet
 
 REPO = Path(__file__).resolve().parents[2]
 MODEL = ModelConfig(width=0.125, stages=3, convs_per_stage=[1, 1, 1])
@@ -137,7 +137,7 @@ def test_two_processes_match_one(two_process_step: list[dict], synthetic_dataset
 def test_two_processes_are_one_with_per_rank_batchnorm(two_process_step: list[dict],
                                                        synthetic_dataset: Path) -> None:
     """Distinct augmented images: the 2-process gradients are those of one process whose
-    BatchNorm normalizes each half batch on its own (train/distributed.py), and differ from
+    BatchNorm normalizes each half batch on its own (train/loop/distributed.py), and differ from
     the whole-batch statistics' gradients by far more than the tolerance."""
     model, data, weights, settings = one_step(synthetic_dataset, same_pixels=False)
     whole = grads(model)

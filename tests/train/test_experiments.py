@@ -118,7 +118,7 @@ def test_tiny_chain(synthetic_dataset: Path, tmp_path: Path) -> None:
     """best1_fullres then best2_unweighted, a few steps each: the second starts from the
     first's weights (at a vanishing learning rate it keeps them), each folder carries its
     stage's settings, and localize's config takes them."""
-    from localize.settings import apply_model_settings
+    from localize.resolve import apply_model_settings
 
     tiny = [f"dataset={synthetic_dataset}", f"out_root={tmp_path}", *TINY_OVERRIDES,
             "epochs=1", "data.limit=8", "export.int8=false", "model.head_channels=4"]

@@ -1,4 +1,4 @@
-"""train.quantize: an int8 copy of a trained segnet.onnx that segments like the float one."""
+"""train.deploy.quantize: an int8 copy of a trained segnet.onnx that segments like the float one."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from core.atomic import read_png
 from core.dataset import Dataset
 from core.outputs import LOCK_NAME, SETUP_LOCK_NAME
 from core.segmenter import OnnxSegmenter, read_metadata
-from train.quantize import (
+from train.deploy.quantize import (
     INT8_NAME,
     REPORT_NAME,
     float_nodes,
@@ -36,7 +36,7 @@ def test_spread_indices() -> None:
 
 @pytest.fixture(scope="module")
 def quantized(synthetic_dataset: Path, compose_train, tmp_path_factory) -> tuple[Path, dict]:
-    """A tiny model trained 4 epochs, then ``python -m train.quantize`` on its folder."""
+    """A tiny model trained 4 epochs, then ``python -m train.deploy.quantize`` on its folder."""
     out_root = tmp_path_factory.mktemp("models")
     tt.run(compose_train(synthetic_dataset, out_root, "epochs=4"))
     model_dir = out_root / "demo"
@@ -96,7 +96,7 @@ def test_bad_input(tmp_path: Path, quantized) -> None:
 KILLED = """
 import os, signal, sys
 import numpy as np
-import train.quantize as q
+import train.deploy.quantize as q
 from core.segmenter import read_metadata
 import onnx
 meta = read_metadata(onnx.load(sys.argv[1], load_external_data=False))

@@ -6,7 +6,7 @@ import pytest
 import torch
 from torch import nn
 
-from train.segnet import (
+from train.net.segnet import (
     STEM_CONV_KEY,
     SegNet,
     build_segnet,
@@ -14,7 +14,7 @@ from train.segnet import (
     pad_to_multiple,
     vgg_stages,
 )
-from train.window_pool import (
+from train.net.window_pool import (
     WindowMaxPool,
     WindowMaxUnpool,
     code_to_plane_index,

@@ -10,10 +10,10 @@ import torch
 
 from core import classes as C
 from core.atomic import write_png
-from core.colour import to_linear
 from core.config import typed
 from core.dataset import Dataset, open_datasets
-from core.realism import load_realism
+from core.imaging.colour import to_linear
+from core.imaging.realism import load_realism
 from train.data import (
     AugmentConfig,
     SplitData,

@@ -12,7 +12,7 @@ import torch
 
 from core.classes import as_json
 from core.segmenter import OnnxSegmenter, ort_session, read_metadata
-from train.export import (
+from train.deploy.export import (
     ParityError,
     add_label_output,
     check_parity,
@@ -20,8 +20,8 @@ from train.export import (
     onnx_metadata,
     to_onnx_proto,
 )
-from train.predict import main
-from train.segnet import SegNet
+from train.deploy.predict import main
+from train.net.segnet import SegNet
 
 H, W = 40, 56  # not multiples of the model's 8: the graph pads and crops
 

@@ -16,14 +16,14 @@ import train.run as tt
 from core.dataset import Dataset
 from core.segmenter import read_metadata
 from train.budget import MIN_FINISH_BY_SECONDS, fit_epochs, training_budget
-from train.checkpoint import load_init_weights
 from train.config_checks import resolve_precision
 from train.data import AugmentConfig, downsample_split, load_split, to_float
-from train.epoch import train_one_epoch
+from train.loop.checkpoint import load_init_weights
+from train.loop.epoch import train_one_epoch
+from train.loop.optim import make_ema, make_optimizer, make_scheduler
 from train.losses import median_frequency_weights, segmentation_loss
-from train.optim import make_ema, make_optimizer, make_scheduler
+from train.net.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 from train.run_identity import training_config
-from train.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 
 
 @pytest.fixture(scope="module")
@@ -211,7 +211,7 @@ class TestRun:
             for c in Dataset(json.loads((out / "config.json").read_text())["dataset"]).classes
         }
         assert 0.0 <= on_disk["onnx_max_abs_diff"] <= 1e-4
-        # export.int8: the int8 copy's scores, from train.quantize's comparison
+        # export.int8: the int8 copy's scores, from train.deploy.quantize's comparison
         quant = json.loads((out / "quantize.json").read_text())
         assert on_disk["int8"]["label_agreement"] == quant["label_agreement"] > 0.5
         assert on_disk["int8"]["mean_iou"] == quant["int8"]["mean_iou"]

@@ -1,0 +1,1 @@
+"""Cameras, lenses, colour, camera effects, the realism settings and Mitsuba ray casts."""

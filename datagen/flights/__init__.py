@@ -1,0 +1,1 @@
+"""Flights: routes through the free space, trajectories, the free space's local axes."""

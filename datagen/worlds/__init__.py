@@ -1,0 +1,1 @@
+"""Worlds: the procedural corridor and floors, imported buildings built into sites and scenes."""

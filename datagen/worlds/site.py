@@ -1,0 +1,192 @@
+"""A built world: everything the datagen job reads of it, whatever it was built from.
+
+``build_site`` makes one from the world settings: the procedural corridor (``WorldConfig``,
+datagen/worlds/corridor.py), a building model file (``FileWorldConfig``, datagen/importers) or a
+floor drawn from a seed (``ProceduralWorldConfig``, datagen/worlds/procedural.py; built as a file
+is). All give the same structures: the ``World`` the localizer reads (classed mesh, model edges,
+free space as an occupancy map), a map of where distractors and people may stand, and the world's
+own flight route if it has one.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from core import classes as C
+from core.dataset import World
+from core.occupancy import OccupancyMap
+from datagen.config import FileWorldConfig, ProceduralWorldConfig, WorldConfig, world_config
+from datagen.importers import Building, load_building
+from datagen.importers.classify import class_shares
+from datagen.importers.summary import import_summary, summary_lines, vertical_edges
+from datagen.mesh.edges import extract_edges
+from datagen.worlds.corridor import FREE_CELL, MAIN, OPENING, CorridorModel, build_world
+from datagen.worlds.scene import Scene, building_scene, corridor_scene
+
+log = logging.getLogger(__name__)
+
+#: m above the floor: the heights a distractor or a person occupies (the floor map's band).
+STANDING_BAND = (0.05, 1.9)
+
+
+@dataclass
+class Site:
+    """A built world.
+
+    world: the model the localizer reads (world/ files).
+    scene: what the renderer draws: textured surfaces and light panels.
+    floor: where distractors and people may stand: an occupancy map of STANDING_BAND above
+        the floor with no margin (its clearance is the room an object has).
+    route: (K, 2) m the world's own flight route (the corridor's centre line), or None: the
+        flights plan theirs (``flights.<name>.route``).
+    building: the classed mesh with the file's names and colours (for a corridor: its mesh).
+    corridor: the corridor's boxes and lights, None for a file.
+    """
+
+    world: World
+    scene: Scene
+    floor: OccupancyMap
+    route: np.ndarray | None
+    building: Building
+    corridor: CorridorModel | None = None
+
+
+def floor_boxes(model: CorridorModel, margin: float) -> np.ndarray:
+    """(B, 4) floor regions of the corridor and its openings, shrunk by margin (m)."""
+    out = [[b.lo[0] + margin, b.lo[1] + margin, b.hi[0] - margin, b.hi[1] - margin]
+           for b in model.boxes if b.kind in (MAIN, OPENING)]
+    return np.array(out)
+
+
+def corridor_site(spec: WorldConfig) -> Site:
+    """The procedural corridor; its route runs along the main corridor's centre line (+Y)."""
+    model = build_world(spec)
+    w = model.world
+    floor = OccupancyMap.from_boxes(floor_boxes(model, 0.0), STANDING_BAND, FREE_CELL, 0.0)
+    main = model.free_boxes[0]
+    cx = (main[0] + main[2]) / 2
+    route = np.array([[cx, main[1]], [cx, main[3]]])
+    b = Building(w.vertices, w.faces, w.face_class, np.zeros(len(w.faces), np.int32),
+                 [spec.name], np.full((len(w.faces), 3), np.nan), {"floor_z": 0.0})
+    b.info["class_shares"] = w.info["class_shares"] = class_shares(b)
+    return Site(w, corridor_scene(model), floor, route, b, model)
+
+
+def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
+                      source: str | None = None) -> OccupancyMap:
+    """Where a camera may be in a building: ``spec.z_range`` above its floor,
+    ``spec.camera_margin`` from every surface, ``spec.free_cell`` cells; the floor's and the
+    ceiling's footprint closed by ``spec.free_close`` and its holes up to
+    ``spec.free_max_hole`` filled, obstacles where surfaces cover ``spec.obstacle_span`` of
+    the band (``OccupancyMap.from_mesh``).
+
+    Raises:
+        ValueError: a bad z_range, or no free space left, naming ``source`` (None: the file,
+            ``spec.path``) and the keys.
+    """
+    z = np.asarray(spec.z_range, dtype=np.float64)
+    if z.shape != (2,) or not 0 <= z[0] < z[1]:
+        raise ValueError(f"world.z_range {z.tolist()} must be [lo, hi] m above the floor with "
+                         "0 <= lo < hi")
+    try:
+        return OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
+                                      float(b.info["floor_z"]) + z, spec.camera_margin,
+                                      spec.free_cell, ceiling_classes=(C.CEILING,),
+                                      close=spec.free_close, max_hole=spec.free_max_hole,
+                                      obstacle_span=spec.obstacle_span)
+    except ValueError as err:
+        raise ValueError(f"{source or spec.path}: world.camera_margin / world.z_range / "
+                         f"world.free_close / world.free_max_hole / world.obstacle_span: "
+                         f"{err}") from None
+
+
+def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
+                  source: str, t0: float | None = None) -> Site:
+    """A classed building mesh (imported, or drawn by datagen/worlds/procedural.py) made a site:
+    camera free space, standing map, model edges, lights (``building_scene``).
+
+    Args:
+        b: the building; ``info["floor_z"]`` its floor height (m).
+        spec: the free-space keys (``z_range``, ``camera_margin``, ``free_cell``,
+            ``crease_deg``, ``light_spacing``), ``name`` and ``kind``.
+        source: what errors and the log name (the file, or the procedural seed).
+        t0: ``time.perf_counter()`` when building began (the log's time; None: now).
+
+    Raises:
+        ValueError: no free space left, naming the source and keys.
+    """
+    t0 = time.perf_counter() if t0 is None else t0
+    free = camera_free_space(b, spec, source)
+    floor_z = float(b.info["floor_z"])
+    try:
+        floor = OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
+                                       floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
+    except ValueError as err:
+        raise ValueError(f"{source}: {err}") from None
+    segments, seg_classes, crease = extract_edges(b.vertices, b.faces, b.face_class,
+                                                  spec.crease_deg)
+    info = {
+        "name": spec.name, "kind": spec.kind, **b.info,
+        "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
+                       "margin": float(spec.camera_margin), "close": float(spec.free_close),
+                       "max_hole": float(spec.free_max_hole),
+                       "obstacle_span": float(spec.obstacle_span),
+                       "area_m2": round(free.area, 3)},
+        "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
+    }
+    world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
+                  segments=segments, segment_classes=seg_classes, crease_deg=crease,
+                  free=free, info=info)
+    scene = building_scene(b, free, light_spacing=spec.light_spacing)
+    log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
+             source, len(b.faces), len(segments), free.area, scene.num_lights,
+             time.perf_counter() - t0)
+    return Site(world, scene, floor, None, b)
+
+
+def file_site(spec: FileWorldConfig) -> Site:
+    """A building model file (``world.path``): import, model edges, free space, and the
+    import summary (logged, its flags as warnings; ``world.info["import_summary"]``, saved
+    as ``world/import_summary.json``).
+
+    Raises:
+        FileNotFoundError, ValueError: from the import (unknown extension, no floor, no walls,
+            a storey that does not exist, ...) or no free space left, naming the file or key.
+    """
+    t0 = time.perf_counter()
+    site = building_site(load_building(settings=spec), spec, spec.path, t0)
+    w = site.world
+    report = import_summary(site.building, w.free.area, vertical_edges(w.segments))
+    w.info["import_summary"] = report
+    log.info("%s: import summary:\n  %s", spec.path, "\n  ".join(summary_lines(report)))
+    for f in report["flags"]:
+        log.warning("%s: %s%s", spec.path, f["what"], f" (set {f['key']})" if f["key"] else "")
+    return site
+
+
+def procedural_site(spec: ProceduralWorldConfig) -> Site:
+    """A floor drawn from ``spec.seed`` (datagen/worlds/procedural.py), built as a file's building.
+
+    Raises:
+        ValueError: a bad setting (naming the ``world.`` key) or no free space left.
+    """
+    from datagen.worlds.procedural import build_floor
+
+    t0 = time.perf_counter()
+    b, _ = build_floor(spec)
+    return building_site(b, spec, f"world=procedural seed {spec.seed}", t0)
+
+
+def build_site(spec: object) -> Site:
+    """The site of world settings (``WorldConfig``, ``FileWorldConfig``,
+    ``ProceduralWorldConfig`` or a mapping with ``kind``; None: the corridor's defaults)."""
+    spec = world_config(spec)
+    if isinstance(spec, FileWorldConfig):
+        return file_site(spec)
+    if isinstance(spec, ProceduralWorldConfig):
+        return procedural_site(spec)
+    return corridor_site(spec)

@@ -1,0 +1,1 @@
+"""The particle filter and its parts: motion, likelihood, projection, visibility, hypotheses."""

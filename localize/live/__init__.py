@@ -1,0 +1,1 @@
+"""The live loop, free of any middleware: the newest frame, odometry sync, the MAVLink sender."""

@@ -1,0 +1,415 @@
+"""The live localizer: camera frames and odometry as they come, one ``Localizer`` step per
+newest frame, free of any middleware (``localize.ros2.node`` feeds it from ROS topics).
+
+Start-up (``load_context``) opens the dataset, samples the model edges, loads or builds the
+visibility grid (cached under ``<out_root>/<name>/cache/``, shared with offline runs of that
+name) and loads the SegNet (mode cnn). The first CameraInfo gives the camera: frames are
+undistorted and rescaled to the dataset's camera as recordings are
+(``localize.recordings.recording.delivered_camera``) and the ``Localizer`` is made for it.
+
+Per frame (``LiveLocalizer.image`` on the receiving thread, ``step_once`` on the worker):
+the frame goes into a single slot (``sync.LatestSlot``; a frame not taken yet is replaced and
+counted as superseded); the worker takes the newest one, drops it when it is older than
+``realtime.max_age_s`` (stale) or the odometry does not reach its stamp within
+``realtime.odometry_wait_s``, decodes and rectifies it, steps the filter with the odometry
+interpolated at its capture time (``sync.OdometryBuffer``) and hands an ``Output`` stamped with
+that capture time to ``publish``; the capture-to-publish latency is measured when ``publish``
+returns. Re-localizations (``request_reset``: an initial pose or a global start; a track
+declared lost) increment the autopilot link's reset counter.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from omegaconf import DictConfig
+
+from core.config import typed
+from core.dataset import Dataset
+from core.frames import FrameSource
+from core.poses import odometry_increment
+from localize.context import Context, report_folder
+from localize.filter.start_hint import StartHint
+from localize.frontend.segmenter import load_segmenter, model_path
+from localize.live.mavlink import MavlinkSender, quality_of
+from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
+from localize.localizer import EdgeModel, Estimate, Localizer
+from localize.recordings.recording import Rectifier, SourceCamera, check_rigid, delivered_camera
+from localize.ros2.config import Ros2Config
+from localize.ros2.convert import live_status, particle_covariance, shown_particles, world_from_body
+from localize.viewers.viz import open_viewer
+
+log = logging.getLogger(__name__)
+
+#: Particles an ``Output`` carries for display at most.
+SHOWN_PARTICLES = 200
+
+
+def load_context(cfg: DictConfig) -> Context:
+    """The dataset, world, typed settings, model edges (visibility cached under
+    ``<out_root>/<name>/cache``; those of ``cfg.mode`` made here, as they take seconds on a
+    large building) and, in mode cnn, the SegNet of ``cfg``."""
+    settings = typed(Ros2Config, cfg, "ros2 config")
+    dataset = Dataset(cfg.dataset)
+    world = dataset.world()
+    out_dir = report_folder(cfg)
+    model = EdgeModel.build(world, settings, out_dir / "cache")
+    segmenter = None
+    if cfg.mode == "cnn":
+        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
+                                   int(cfg.threads))
+    ctx = Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter)
+    ctx.model_for(cfg.mode)
+    return ctx
+
+
+def start_state(start) -> np.ndarray | None:
+    """(4,) x, y, z (m), yaw (rad) of a ``start: [x, y, z, yaw_deg]`` setting; None: global."""
+    if start is None:
+        return None
+    s = np.asarray(list(start), dtype=np.float64)
+    if s.shape != (4,) or not np.isfinite(s).all():
+        raise ValueError(f"start={list(start)}: give [x, y, z, yaw_deg] in the map frame, or "
+                         "null for a global start")
+    return np.array([*s[:3], np.radians(s[3])])
+
+
+@dataclass(frozen=True)
+class Output:
+    """What one frame publishes.
+
+    Attributes:
+        stamp: the frame's capture time, seconds (the stamp of every output).
+        estimate: the filter's estimate.
+        pose: (4, 4) map world_from_body (the odometry's roll and pitch, corrected).
+        covariance: (6, 6) over x, y, z, roll, pitch, yaw (``convert.particle_covariance``).
+        particles: (K, 4) x, y, z, yaw, at most ``SHOWN_PARTICLES``.
+        status: ``tracking``, ``ambiguous`` or ``lost`` (``convert.live_status``).
+        image: (H, W, 3) uint8 the delivered frame.
+        labels: (H, W) uint8 the SegNet's labels, or None (mode none).
+    """
+
+    stamp: float
+    estimate: Estimate
+    pose: np.ndarray
+    covariance: np.ndarray
+    particles: np.ndarray
+    status: str
+    image: np.ndarray
+    labels: np.ndarray | None
+
+
+@dataclass
+class Counts:
+    """Frames received and what became of them."""
+
+    received: int = 0
+    processed: int = 0
+    superseded: int = 0  # replaced in the slot by a newer frame
+    stale: int = 0  # older than realtime.max_age_s when taken
+    no_odometry: int = 0  # the odometry did not cover the capture time
+    rejected: int = 0  # no CameraInfo yet, a stamp not after the previous, undecodable
+    resets: int = 0  # re-localizations (initial pose, global start, track lost)
+
+    @property
+    def dropped(self) -> int:
+        return self.superseded + self.stale + self.no_odometry + self.rejected
+
+
+@dataclass
+class _Pending:
+    stamp: float
+    decode: Callable[[], np.ndarray]
+    where: str
+
+
+@dataclass
+class LiveLocalizer:
+    """One ``Localizer`` fed by a live camera and odometry (module docstring).
+
+    Args:
+        cfg: the node's config (``localize.ros2.config.Ros2Config``).
+        ctx: ``load_context(cfg)``.
+        publish: called with each frame's ``Output`` on the worker thread.
+        report: called on the worker thread with each frame's ``Output`` once its pose is
+            published and its latency counted (the node publishes the particles and the status
+            there); None: nothing.
+        clock: the capture stamps' clock, seconds (the system clock, as ROS stamps).
+    """
+
+    cfg: DictConfig
+    ctx: Context
+    publish: Callable[[Output], None]
+    report: Callable[[Output], None] | None = None
+    clock: Callable[[], float] = time.time
+    counts: Counts = field(default_factory=Counts)
+    latency: LatencyWindow = field(default_factory=LatencyWindow)
+
+    def __post_init__(self):
+        self.settings: Ros2Config = typed(Ros2Config, self.cfg, "ros2 config")
+        rt = self.settings.realtime
+        self.odometry_buffer = OdometryBuffer(rt.odometry_keep_s)
+        self.slot = LatestSlot()
+        self.warn = Throttle()
+        self.localizer: Localizer | None = None
+        self.rectifier: Rectifier | None = None
+        self.source_camera: SourceCamera | None = None
+        self.last_latency = float("nan")
+        #: the last frame's latency in parts, ms: capture to taken by the worker (transport
+        #: and the slot), the odometry wait, decoding and rectifying, the step, publishing
+        self.last_split: dict[str, float] = {}
+        self.last_output: Output | None = None
+        self._lock = threading.Lock()
+        self._reset: tuple[bool, np.ndarray | None] | None = None
+        self._last_stamp = -np.inf
+        self._last_odometry: np.ndarray | None = None
+        self._last_status = ""
+        self._front = self.ctx.front_end(self.cfg.mode)
+        # made here, not in ``camera_info``: the receiving thread must not stop for seconds
+        self._model = self.ctx.model_for(self.cfg.mode)
+        self._rng = np.random.default_rng(int(self.cfg.seed))  # the filter's alone
+        self._display_rng = np.random.default_rng([int(self.cfg.seed), 1])
+        self._start = start_state(self.cfg.start)
+        self._worker: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.mavlink = (MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz),
+                                      clock=self.clock) if self.cfg.mavlink else None)
+        self.viewer = open_viewer(str(self.cfg.viz), self.ctx.world,
+                                  self.ctx.out_dir / "live.rrd", connect=self.cfg.viz_connect)
+
+    # --- inputs (any thread) -----------------------------------------------------------
+
+    def camera_info(self, source: SourceCamera, where: str) -> None:
+        """The camera (a CameraInfo): the first makes the localizer; a later different one is
+        ignored with a warning."""
+        with self._lock:
+            if self.localizer is not None:
+                if not _same_camera(source, self.source_camera) and self.warn("camera_info"):
+                    log.warning("%s: the CameraInfo changed (%dx%d, K %s); the first one is "
+                                "kept: restart the node for a new calibration", where,
+                                source.width, source.height, source.K.ravel().tolist())
+                return
+            mount = self.settings.body_from_cam
+            mount = None if mount is None else check_rigid(np.asarray(mount), "body_from_cam")
+            camera, rect = delivered_camera(source, self.ctx.dataset.camera, mount, where)
+            loc = Localizer(self.ctx.world, camera, self._front, self.ctx.settings, self._rng,
+                            model=self._model)
+            loc.reset(self._start)
+            self.localizer, self.rectifier, self.source_camera = loc, rect, source
+        log.info("camera %dx%d from %s, frames delivered at %dx%d; %s", source.width,
+                 source.height, where, camera.width, camera.height,
+                 "global start" if self._start is None else f"tracking from {self._start}")
+
+    def odometry(self, stamp: float, pose: np.ndarray, where: str) -> None:
+        """An odometry sample (world_from_body in the odometry's frame)."""
+        why = self.odometry_buffer.add(stamp, pose)
+        if why and self.warn(f"odometry {why[:20]}"):
+            log.warning("%s: %s", where, why)
+
+    def image(self, stamp: float, decode: Callable[[], np.ndarray], where: str) -> None:
+        """A frame captured at ``stamp``; ``decode()`` gives its (h, w, 3) uint8 RGB (called
+        on the worker, only for the frame processed)."""
+        self.counts.received += 1
+        if self.localizer is None:
+            self.counts.rejected += 1
+            if self.warn("no camera_info"):
+                log.warning("%s: frame dropped: no CameraInfo received yet on %s (the node "
+                            "needs the camera's calibration first)", where,
+                            self.settings.topics.camera_info)
+            return
+        if stamp <= self._last_stamp:
+            self.counts.rejected += 1
+            if self.warn("image stamp"):
+                log.warning("%s: frame dropped: its stamp %.6f s is not after the previous "
+                            "frame's %.6f s", where, stamp, self._last_stamp)
+            return
+        self._last_stamp = stamp
+        if self.slot.put(_Pending(stamp, decode, where)):
+            self.counts.superseded += 1
+
+    def request_reset(self, start: np.ndarray | StartHint | None) -> None:
+        """Re-localize: track from ``start`` ((4,) x, y, z, yaw, or a (4, 4) map pose), search
+        inside a ``StartHint``, or, None, globally; applied before the next frame."""
+        if start is not None and not isinstance(start, StartHint):
+            start = np.asarray(start, np.float64)
+        with self._lock:
+            self._reset = (True, start)
+
+    # --- the worker --------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the worker thread."""
+        self._worker = threading.Thread(target=self._work, name="edgeloc-worker", daemon=True)
+        self._worker.start()
+
+    def stop(self) -> None:
+        """Stop the worker; close the autopilot link and the viewer."""
+        self._stop.set()
+        self.slot.close()
+        if self._worker is not None:
+            self._worker.join(timeout=10.0)
+        for sink in (self.mavlink, self.viewer):
+            if sink is not None:
+                sink.close()
+
+    def _work(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self.step_once(0.2)
+            except Exception:  # a bug must not stop a flying drone's localizer silently
+                log.exception("frame failed; the node goes on with the next frame")
+
+    def step_once(self, timeout_s: float) -> Output | None:
+        """Take the newest frame (waiting up to ``timeout_s``), step the filter and publish;
+        None when no frame came or it was dropped."""
+        item = self.slot.take(timeout_s)
+        if item is None:
+            return None
+        self._apply_reset()
+        taken = self.clock()
+        age = taken - item.stamp
+        rt = self.settings.realtime
+        if age > rt.max_age_s:
+            self.counts.stale += 1
+            if self.warn("stale"):
+                log.warning("%s: frame dropped: %.3f s old when taken (realtime.max_age_s = "
+                            "%.3f s; is the stamp the capture time, on this machine's clock?)",
+                            item.where, age, rt.max_age_s)
+            return None
+        attitude, why = self.odometry_buffer.wait_for(item.stamp, rt.odometry_wait_s)
+        if attitude is None:
+            self.counts.no_odometry += 1
+            if self.warn("odometry"):
+                log.warning("%s: frame dropped: %s (topic %s)", item.where, why,
+                            self.settings.topics.odometry)
+            return None
+        try:
+            image = self.rectifier(self._checked_size(item.decode(), item.where))
+        except ValueError as err:
+            self.counts.rejected += 1
+            if self.warn(f"decode {str(err)[-40:]}"):
+                log.warning("frame dropped: %s", err)
+            return None
+        stepped_at = self.clock()
+        out = self._step(item.stamp, image, attitude)
+        published_at = self.clock()
+        self.publish(out)
+        done = self.clock()
+        self.last_latency = done - item.stamp
+        self.last_split = {"wait_ms": 1e3 * age, "prepare_ms": 1e3 * (stepped_at - taken),
+                           "step_ms": 1e3 * (published_at - stepped_at),
+                           "publish_ms": 1e3 * (done - published_at)}
+        self.latency.add(self.last_latency)
+        self.counts.processed += 1
+        if self.report is not None:
+            self.report(out)
+        if self.mavlink is not None and out.status in ("tracking", "ambiguous"):
+            self.mavlink.send(out.stamp, out.pose, out.covariance,
+                              quality_of(out.estimate.confidence, out.status))
+        if self.viewer is not None:
+            self.viewer.log_step(out.stamp, out.image, out.labels, out.estimate, out.particles)
+        return out
+
+    def _checked_size(self, image: np.ndarray, where: str) -> np.ndarray:
+        """The decoded frame, if it has the CameraInfo's size (ValueError naming both)."""
+        cam = self.source_camera
+        if image.shape[:2] != (cam.height, cam.width):
+            raise ValueError(f"{where}: the image is {image.shape[1]}x{image.shape[0]}, the "
+                             f"CameraInfo ({self.settings.topics.camera_info}) says "
+                             f"{cam.width}x{cam.height}; publish the calibration of this "
+                             "camera at this resolution")
+        return image
+
+    def _apply_reset(self) -> None:
+        with self._lock:
+            reset, self._reset = self._reset, None
+        if reset is None or self.localizer is None:
+            if reset is not None:
+                self._start = reset[1]
+            return
+        self.localizer.reset(reset[1])
+        self._last_odometry = None
+        why = ("global start" if reset[1] is None else
+               "initial pose search" if isinstance(reset[1], StartHint) else "initial pose")
+        self._relocalized(why)
+
+    def _relocalized(self, why: str) -> None:
+        self.counts.resets += 1
+        log.info("re-localization (%s): reset counter %d", why, self.counts.resets)
+        if self.mavlink is not None:
+            self.mavlink.reset()
+
+    def _step(self, stamp: float, image: np.ndarray, attitude: np.ndarray) -> Output:
+        loc = self.localizer
+        inc = (None if self._last_odometry is None
+               else odometry_increment(self._last_odometry, attitude))
+        self._last_odometry = attitude
+        frame = self._front.frame(image, None)
+        est = loc.step(frame, inc, attitude, stamp)
+        if est.status == "lost" and self._last_status != "lost":
+            self._relocalized("track lost")
+        self._last_status = est.status
+        f = loc.filter
+        out = Output(stamp, est, world_from_body(est, attitude),
+                     particle_covariance(f.particles, f.logw, f.tilt, est.state),
+                     shown_particles(f.particles, SHOWN_PARTICLES, self._display_rng),
+                     live_status(est, self.settings.realtime.ambiguous_std_m), image,
+                     frame.labels)
+        self.last_output = out
+        return out
+
+    # --- the status --------------------------------------------------------------------
+
+    def status(self) -> tuple[str, dict[str, str]]:
+        """(status, values): ``waiting`` before the first frame's estimate, else the last
+        output's status; the values the status message carries."""
+        c, out = self.counts, self.last_output
+        values = {"frames_received": c.received, "frames_processed": c.processed,
+                  "frames_dropped": c.dropped, "dropped_superseded": c.superseded,
+                  "dropped_stale": c.stale, "dropped_no_odometry": c.no_odometry,
+                  "frames_rejected": c.rejected, "reset_counter": c.resets,
+                  "latency_ms": 1e3 * self.last_latency,
+                  "latency_median_ms": 1e3 * self.latency.percentile(50),
+                  "latency_p95_ms": 1e3 * self.latency.percentile(95)}
+        if out is None:
+            status = "waiting"
+            values["waiting_for"] = ("CameraInfo" if self.localizer is None else "frames")
+        else:
+            status = out.status
+            e = out.estimate
+            values.update(filter_status=e.status, confidence=e.confidence,
+                          position_std_m=e.position_std, yaw_std_deg=np.degrees(e.yaw_std),
+                          **self.last_split)
+        return status, {k: _text(v) for k, v in values.items()}
+
+
+def _text(v) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def _same_camera(a: SourceCamera, b: SourceCamera | None) -> bool:
+    return (b is not None and (a.width, a.height) == (b.width, b.height)
+            and np.allclose(a.K, b.K) and np.allclose(np.resize(a.distortion, 8),
+                                                      np.resize(b.distortion, 8)))
+
+
+
+def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
+                      limit: int | None = None) -> np.ndarray:
+    """The node's filter run offline over a frame source: the same settings, seed and start
+    (``start``; None: a global start), every frame in order, as the live node would with
+    nothing dropped; the reference of the tests and benchmarks/live.py.
+
+    Returns:
+        (T, 4) x, y, z, yaw estimates of the first ``limit`` frames (all: None).
+    """
+    loc = Localizer(ctx.world, ctx.camera, ctx.front_end(cfg.mode), ctx.settings,
+                    np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
+    loc.reset(start_state(cfg.start))
+    return np.stack([loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp).state
+                     for f in source.steps(limit)])

@@ -1,0 +1,1 @@
+"""Recordings: folders and ROS bags read into frame sources, and flights exported as recordings."""

@@ -1,0 +1,1 @@
+"""The global search over a floor: the floor-boundary ray table and the search handing over."""

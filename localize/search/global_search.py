@@ -1,0 +1,427 @@
+"""Global localization over a whole floor: every pose of the free space, scored by a table.
+
+A ``GlobalSearch`` keeps a large set of weighted pose hypotheses (x, y, z, yaw of the body, as
+the particle filter's states) that starts as a dense grid: every cell of the table
+(``ray_table.RayTable``) inside the free space times ``headings`` headings, jittered within
+its cell and heading bin, so the true pose always has hypotheses within half a cell and half a
+heading step of it. Each frame the hypotheses move by the odometry (with noise, as particles)
+and are weighed by the floor boundary the frame shows (``ray_table.floor_boundary``) against
+the table's distances: one look-up per azimuth bin, no projection of the model, so a
+hypothesis costs ~0.3 us against the edge likelihood's ~10 us and the whole floor fits a frame.
+
+Measurement (per hypothesis, over the frame's J azimuth bins): the camera height h that fits
+best (least squares of the first-order angle errors, a second time without the bins that are
+outliers at the first height; clamped to the free space's band), then the angle errors
+``e_j = atan(tan_j) - atan(h / D_j)`` and ``log L = -evidence * min(1, J / max_bins) *
+mean_j min(e_j^2 / 2 sigma^2 + class_cost [class_j != table's], outlier)`` (the class above
+the floor: wall, door or window); a frame takes at most ``frame_floor`` from any hypothesis
+against the best one, so a few bad frames (a person in front of the wall, a wrong label) never
+remove the truth.
+
+The weights are never reset: each frame the hypotheses more than ``prune_band`` below the best
+are dropped and the count is brought to an adaptive one (KLD-style: ``per_bin`` per occupied
+bin of 0.5 m x 0.5 m x 20 deg, within [``min_hypotheses``, ``max_hypotheses``]) by jittered
+copies of the survivors that share their parent's weight, or by a uniform thinning; so a pose
+that fits as well as the best keeps its share however few hypotheses it started with. It
+converges when one cluster (``cluster_radius`` m, ``cluster_yaw_deg``) holds
+``handover_mass`` of the weight for ``handover_frames`` frames in a row; ``sample`` then draws
+the tracking filter's particles from that cluster.
+
+Interface (what the Localizer wires):
+
+- ``search = GlobalSearch(table, camera, world.free, params, rng)``; ``table = ray_table_for(world,
+  params)`` (built once per world and kept).
+- ``search.reset(weights=None)``: the dense start; ``weights`` is an optional callable
+  ``(N, 4) states -> (N,) log prior`` (a region, a pose with covariance, a heading range:
+  ``-inf`` removes a hypothesis).
+- ``search.predict(delta)``: (4,) odometry increment (``core.poses.odometry_increment``).
+- ``search.update(labels, tilt) -> bool``: (H, W) uint8 class labels (oracle or the SegNet's),
+  (3, 3) roll/pitch of the IMU or None; False when the frame shows too little floor boundary
+  (nothing weighed).
+- ``search.hypotheses(k) -> (poses (k', 4), mass (k',))``: the heaviest clusters, their
+  weighted mean poses and the share of the weight each holds (k' <= k).
+- ``search.converged``: one cluster held ``handover_mass`` for ``handover_frames`` frames.
+- ``search.sample(n) -> (n, 4)``: particles drawn from the dominant cluster's hypotheses.
+- ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
+  log-weights.
+
+Settings: ``GlobalSearchParams`` (``filter.global_search``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.special import logsumexp
+
+from core.config import typed
+from core.dataset import Camera, World
+from core.occupancy import OccupancyMap
+from core.poses import wrap_angle
+from localize.filter.particle_filter import apply_increment, systematic_resample
+from localize.filter.pose_stats import mean_pose, spread
+from localize.search.ray_table import RayTable, floor_boundary
+
+
+@dataclass
+class GlobalSearchParams:
+    """Settings of the global search (``filter.global_search``).
+
+    Attributes:
+        cell: m, the table's cell (the start grid's spacing).
+        rays: azimuth bins of the table (2 pi / rays each).
+        headings: headings per cell of the start grid.
+        sigma_deg: angle noise of a boundary pixel's bin, degrees.
+        outlier: most a bin's error costs, in units of its Gaussian's exponent.
+        class_cost: what a bin costs whose class above the floor (wall, door, window) is not
+            the table's (added to its error, within ``outlier``).
+        evidence: log-likelihood scale of a frame that shows ``max_bins`` bins or more (one
+            that shows fewer counts for their share).
+        frame_floor: most log-weight a frame takes from a hypothesis against the best one.
+        min_bins: fewer observed azimuth bins: the frame is not weighed.
+        max_bins: most azimuth bins scored (evenly spaced among the observed ones).
+        motion_std: (3,) per frame: horizontal m, vertical m, yaw degrees.
+        motion_rel: (2,) more noise per m of translation and per rad of yaw change.
+        jitter: (2,) m and degrees of the jitter of a copy.
+        prune_band: hypotheses more than this below the best in log-weight are dropped.
+        inject_every: frames between injections of the best poses of a coarse grid (0: none).
+        inject_headings: headings per cell of that grid.
+        inject_count: poses injected.
+        inject_below: log-weight under the best they start with.
+        per_bin: hypotheses per occupied 0.5 m x 0.5 m x 20 deg bin after pruning.
+        min_hypotheses, max_hypotheses: bounds of the count after resampling.
+        cluster_radius: m, a cluster's radius (the mass of a hypothesis).
+        cluster_yaw_deg: degrees, its half-width in yaw.
+        handover_mass: share of the weight one cluster must hold to converge.
+        handover_frames: frames in a row it must hold it.
+        stride: pixel step of the boundary search in the label image.
+    """
+
+    cell: float = 0.25
+    rays: int = 180
+    headings: int = 60
+    sigma_deg: float = 1.5
+    outlier: float = 2.0
+    class_cost: float = 1.0
+    evidence: float = 3.0
+    frame_floor: float = 3.0
+    min_bins: int = 8
+    max_bins: int = 16
+    motion_std: list[float] = field(default_factory=lambda: [0.03, 0.02, 1.0])
+    motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
+    jitter: list[float] = field(default_factory=lambda: [0.05, 1.0])
+    prune_band: float = 30.0
+    inject_every: int = 10
+    inject_headings: int = 24
+    inject_count: int = 1000
+    inject_below: float = 10.0
+    per_bin: int = 40
+    min_hypotheses: int = 4000
+    max_hypotheses: int = 60000
+    cluster_radius: float = 0.6
+    cluster_yaw_deg: float = 25.0
+    handover_mass: float = 0.999
+    handover_frames: int = 10
+    stride: int = 2
+
+
+def search_params(global_search: dict) -> GlobalSearchParams:
+    """The settings of ``filter.global_search`` (a typo or a bad value raises naming it)."""
+    return typed(GlobalSearchParams, global_search, "filter.global_search")
+
+
+_TABLES: dict = {}
+#: Hypotheses scored at once (bounds the (n, J) temporaries to a few MB).
+CHUNK = 32768
+
+
+def ray_table_for(world: World, params: GlobalSearchParams) -> RayTable:
+    """The world's ``RayTable`` at the params' cell and rays, built once and kept while the
+    world lives (the runner's localizers of one world share it)."""
+    key = (id(world), params.cell, params.rays)
+    hit = _TABLES.get(key)
+    if hit is not None and hit[0] is world:
+        return hit[1]
+    table = RayTable.build(world, params.cell, params.rays)
+    _TABLES.clear()  # one world at a time: a run localizes one dataset
+    _TABLES[key] = (world, table)
+    return table
+
+
+def bin_keys(states: np.ndarray, size: float = 0.5, yaw_deg: float = 20.0) -> np.ndarray:
+    """(N,) int64 dense key of each state's (size m x size m x yaw_deg) bin, from 0 (for
+    ``np.bincount``)."""
+    ij = np.floor(states[:, :2] / size).astype(np.int64)
+    ij -= ij.min(axis=0)
+    ny = int(ij[:, 1].max()) + 1
+    nb = int(np.ceil(360.0 / yaw_deg))
+    kb = np.floor((wrap_angle(states[:, 3]) + np.pi) / np.deg2rad(yaw_deg)).astype(np.int64)
+    return (ij[:, 0] * ny + ij[:, 1]) * nb + np.minimum(kb, nb - 1)
+
+
+class GlobalSearch:
+    """The hypothesis set of a global start (module docstring).
+
+    Args:
+        table: the floor's ray table.
+        camera: K, size, body_from_cam.
+        free: the free space (the start's cells; its band bounds the fitted heights).
+        params: settings.
+        rng: random generator (its only source of randomness).
+    """
+
+    def __init__(self, table: RayTable, camera: Camera, free: OccupancyMap,
+                 params: GlobalSearchParams, rng: np.random.Generator):
+        self.table, self.camera, self.params, self.rng = table, camera, params, rng
+        self.free = free
+        self.band = (float(free.band[0]), float(free.band[1]))
+        d = np.maximum(np.nan_to_num(table.dist.astype(np.float32), nan=table.max_range), 0.05)
+        d = d.reshape(-1, table.rays)
+        self._wrap = M = table.rays // 4  # azimuth bins either side of the heading scored
+        # (cells * (R + 2M),) float32 1 / D, each cell's row wrapped by M bins both ways
+        self._inv_dist = (1.0 / np.concatenate([d[:, -M:], d, d[:, :M]], axis=1)).ravel()
+        k = table.kind.reshape(-1, table.rays)
+        self._kind = np.concatenate([k[:, -M:], k, k[:, :M]], axis=1).ravel()
+        self.states = np.zeros((0, 4))
+        self.logw = np.zeros(0)
+        self._held = self._frames = 0
+        self._dominant = None  # (4,) mean pose of the cluster that held the mass
+        self._clusters = None  # ((version, k), hypotheses) of the last call
+        self._version = 0  # counts the changes of the set: reset, predict, update
+
+    def reset(self, weights=None) -> None:
+        """The dense start: every free cell of the table x ``headings`` headings, jittered
+        within its cell and heading bin; ``weights``: optional ``(N, 4) -> (N,)`` log prior."""
+        self._version += 1
+        self.states = self._grid(self.params.headings)
+        self.logw = np.zeros(len(self.states))
+        self._prior = weights
+        if weights is not None:
+            self.logw = np.asarray(weights(self.states), dtype=np.float64)
+            keep = np.isfinite(self.logw)
+            if not keep.any():
+                raise ValueError("global search: the hint's prior leaves no pose of the free "
+                                 "space; check the region / pose / heading range")
+            self.states, self.logw = self.states[keep], self.logw[keep]
+        self.logw -= logsumexp(self.logw)
+        self._held, self._dominant, self._frames = 0, None, 0
+
+    def _grid(self, headings: int) -> np.ndarray:
+        """(V * headings, 4) the free cells of the table x ``headings`` headings, jittered
+        within their cell and heading bin, at the band's middle height."""
+        t = self.table
+        xy = t.centres()
+        xy = xy[self.free.contains(xy)]
+        n = len(xy) * headings
+        xy = np.repeat(xy, headings, axis=0) + self.rng.uniform(-0.5, 0.5, (n, 2)) * t.cell
+        yaw = (np.tile(np.arange(headings), n // headings) + self.rng.uniform(-0.5, 0.5, n)) \
+            * (2 * np.pi / headings)
+        z = np.full(n, 0.5 * (self.band[0] + self.band[1]))
+        return np.column_stack([xy, z, wrap_angle(yaw)])
+
+    def _inject(self, labels: np.ndarray, tilt: np.ndarray | None) -> None:
+        """Every ``inject_every`` frames: score a coarse grid (``inject_headings`` per cell)
+        on this frame alone and add its ``inject_count`` best poses, ``inject_below`` under the
+        best log-weight (a pose lost to a run of bad frames comes back when a good one
+        shows it)."""
+        p = self.params
+        kept_S, kept_lw = self.states, self.logw
+        self.states = self._grid(p.inject_headings)
+        out = self.log_likelihood(labels, tilt)
+        S = self.states
+        self.states = kept_S
+        if out is None:
+            return
+        ll, z = out
+        if self._prior is not None:  # a hint's prior: injections stay inside it
+            ll = ll + self._prior(S)
+        top = np.argpartition(-ll, min(p.inject_count, len(ll) - 1))[:p.inject_count]
+        top = top[np.isfinite(ll[top])]
+        S[top, 2] = z[top]
+        lw = np.full(len(top), kept_lw.max() - p.inject_below)
+        self.states = np.concatenate([kept_S, S[top]])
+        self.logw = np.concatenate([kept_lw, lw])
+        self.logw -= logsumexp(self.logw)
+
+    def predict(self, delta: np.ndarray) -> None:
+        """Move every hypothesis by an odometry increment (4,) with noise."""
+        p = self.params
+        self._version += 1
+        step = float(np.hypot(delta[0], delta[1]))
+        s_xy = p.motion_std[0] + p.motion_rel[0] * step
+        s_yaw = np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
+        std = np.array([s_xy, s_xy, p.motion_std[1], s_yaw])
+        noise = self.rng.normal(0.0, 1.0, self.states.shape) * std
+        self.states = apply_increment(self.states, np.asarray(delta, np.float64) + noise)
+
+    def log_likelihood(self, labels: np.ndarray, tilt: np.ndarray | None
+                       ) -> tuple[np.ndarray, np.ndarray] | None:
+        """(N,) log-likelihood of the hypotheses and (N,) their fitted body heights (m), or
+        None when the frame shows fewer than ``min_bins`` azimuth bins of floor boundary."""
+        p, t = self.params, self.table
+        fb = floor_boundary(labels, self.camera, tilt, t.rays, p.stride)
+        if len(fb) < p.min_bins:
+            return None
+        if len(fb) > p.max_bins:  # evenly spaced bins: neighbours tell nearly the same
+            keep = np.unique(np.linspace(0, len(fb) - 1, p.max_bins).round().astype(int))
+            fb = fb.take(keep)
+        S = self.states
+        c, s = np.cos(S[:, 3]), np.sin(S[:, 3])
+        cx = S[:, 0] + c * fb.camera[0] - s * fb.camera[1]
+        cy = S[:, 1] + s * fb.camera[0] + c * fb.camera[1]
+        cells = t.cells(np.column_stack([cx, cy]))
+        R, M = t.rays, self._wrap
+        k = np.rint(fb.offsets * (R / (2 * np.pi))).astype(np.int32)  # (J,) bin offsets
+        k = np.clip(k, -M, M)
+        start = (np.maximum(cells, 0) * (R + 2 * M) + M
+                 + np.rint(S[:, 3] * (R / (2 * np.pi))).astype(np.int64) % R).astype(np.int32)
+        tan = fb.tan.astype(np.float32)
+        slope = np.float32(1.0) / (1 + tan * tan)  # d(angle) / d(tan)
+        w2 = slope * slope
+        w2_tan = w2 * tan
+        lo, hi = self.band[0] + fb.camera[2], self.band[1] + fb.camera[2]
+        inv_s2 = np.float32(1.0 / (2 * np.deg2rad(p.sigma_deg) ** 2))
+        rho = np.empty(len(S), dtype=np.float32)
+        h = np.empty(len(S), dtype=np.float32)
+        for a in range(0, len(S), CHUNK):  # chunks of rows: the (n, J) temporaries stay small
+            b = slice(a, a + CHUNK)
+            idx = start[b, None] + k[None]
+            inv_d = self._inv_dist[idx]  # (n, J) 1 / D
+            # the height that fits best: least squares of the first-order angle errors, then
+            # again without the bins that are outliers at the first height
+            num = np.einsum("ij,j->i", inv_d, w2_tan)
+            den = np.einsum("ij,ij,j->i", inv_d, inv_d, w2)
+            hb = np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi)
+            err = (tan[None] - hb[:, None] * inv_d) * slope[None]  # angle error, first order
+            inl = (err * err * inv_s2 < np.float32(p.outlier)).astype(np.float32)
+            inl_d = inl * inv_d
+            num = np.einsum("ij,j->i", inl_d, w2_tan)
+            den = np.einsum("ij,ij,j->i", inl_d, inv_d, w2)
+            hb = np.where(den > 0, np.clip(num / np.maximum(den, np.float32(1e-9)), lo, hi), hb)
+            err = (tan[None] - hb[:, None] * inv_d) * slope[None]
+            r = err * err * inv_s2
+            if p.class_cost > 0:  # a door seen where the table has a wall, ...
+                r += np.where(self._kind[idx] != fb.kind[None], np.float32(p.class_cost),
+                              np.float32(0.0))
+            rho[b] = np.minimum(r, np.float32(p.outlier)).mean(1)
+            h[b] = hb
+        rho = np.where(cells >= 0, rho, np.float32(p.outlier))
+        ll = -p.evidence * min(1.0, len(fb) / p.max_bins) * rho.astype(np.float64)
+        return np.maximum(ll, ll.max() - p.frame_floor), h - fb.camera[2]
+
+    def update(self, labels: np.ndarray, tilt: np.ndarray | None) -> bool:
+        """Weigh the hypotheses by a frame's labels (module docstring), resample when the
+        effective size falls under half; False when the frame was not weighed."""
+        p = self.params
+        self._version += 1
+        out = self.log_likelihood(labels, tilt)
+        if out is None:
+            self._track_dominant()
+            return False
+        ll, z = out
+        self.states[:, 2] = z
+        lw = self.logw + ll
+        self.logw = lw - logsumexp(lw)
+        self._frames += 1
+        if p.inject_every > 0 and self._frames % p.inject_every == 0:
+            self._inject(labels, tilt)
+        self._prune()
+        self._track_dominant()
+        return True
+
+    def _prune(self) -> None:
+        """Drop the hypotheses more than ``prune_band`` below the best in log-weight, then
+        bring the count to ``per_bin`` per occupied bin (within the bounds): copies of the
+        survivors drawn by weight, jittered, each copy sharing its parent's weight (cluster
+        masses are kept), or a uniform random thinning when there are too many (it keeps every
+        cluster's share in expectation)."""
+        p = self.params
+        keep = self.logw >= self.logw.max() - p.prune_band
+        S, lw = self.states[keep], self.logw[keep]
+        occupied = int(np.count_nonzero(np.bincount(bin_keys(S))))
+        n = int(np.clip(occupied * p.per_bin, p.min_hypotheses, p.max_hypotheses))
+        if len(S) > n:
+            sel = np.sort(self.rng.choice(len(S), n, replace=False))
+            S, lw = S[sel], lw[sel]
+        elif len(S) < n:
+            parent = systematic_resample(self.rng, lw, n - len(S))
+            copies = 1 + np.bincount(parent, minlength=len(S))
+            lw = lw - np.log(copies)
+            new = S[parent] + self.rng.normal(0.0, 1.0, (len(parent), 4)) * np.array(
+                [p.jitter[0], p.jitter[0], 0.0, np.deg2rad(p.jitter[1])])
+            new[:, 3] = wrap_angle(new[:, 3])
+            S, lw = np.concatenate([S, new]), np.concatenate([lw, lw[parent]])
+        self.states, self.logw = S, lw - logsumexp(lw)
+
+    def hypotheses(self, k: int = 5) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` heaviest clusters (non-maximum suppression): (k', 4) weighted mean poses,
+        (k',) the share of the weight within ``cluster_radius`` and ``cluster_yaw_deg`` of each,
+        heaviest first (computed once per state of the set and k)."""
+        key = (self._version, int(k))
+        if self._clusters is None or self._clusters[0] != key:
+            self._clusters = (key, self._find_clusters(int(k)))
+        return self._clusters[1]
+
+    def _find_clusters(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``hypotheses``, computed."""
+        w = np.exp(self.logw)
+        S = self.states
+        left = np.ones(len(S), bool)
+        poses, mass = [], []
+        for _ in range(k):  # k clusters, each vectorized over the hypotheses
+            if not left.any():
+                break
+            near = left & self._in_cluster(S, self._densest(S[left], w[left]))
+            m = float(w[near].sum())
+            if m <= 0:
+                break
+            poses.append(mean_pose(S[near], w[near] / m))
+            mass.append(m)
+            left &= ~near
+        return np.array(poses).reshape(-1, 4), np.array(mass)
+
+    def _densest(self, S: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """(4,) the weighted mean pose of the heaviest 0.5 m x 0.5 m x 20 deg bin of (S, w)."""
+        inv = bin_keys(S)
+        best = np.argmax(np.bincount(inv, weights=w))
+        sel = inv == best
+        return mean_pose(S[sel], w[sel] / w[sel].sum())
+
+    def _in_cluster(self, S: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        """(N,) bool: poses (N, 4) within ``cluster_radius`` and ``cluster_yaw_deg`` of
+        ``centre`` (4,)."""
+        p = self.params
+        return (np.hypot(S[:, 0] - centre[0], S[:, 1] - centre[1]) <= p.cluster_radius) \
+            & (np.abs(wrap_angle(S[:, 3] - centre[3])) <= np.deg2rad(p.cluster_yaw_deg))
+
+    def _track_dominant(self) -> None:
+        """Count the frames in a row one cluster holds ``handover_mass``."""
+        poses, mass = self.hypotheses(1)
+        if len(mass) and mass[0] >= self.params.handover_mass:
+            self._held += 1
+            self._dominant = poses[0]
+        else:
+            self._held, self._dominant = 0, None
+
+    def estimate(self) -> tuple[np.ndarray, float, float]:
+        """The heaviest cluster's mean pose (4,), and the weighted horizontal spread (m) and
+        circular yaw spread (rad) of the whole set."""
+        poses, _ = self.hypotheses(1)
+        return poses[0], *spread(self.states, self.logw)
+
+    @property
+    def converged(self) -> bool:
+        """One cluster held ``handover_mass`` for ``handover_frames`` frames in a row."""
+        return self._held >= self.params.handover_frames
+
+    def sample(self, n: int) -> np.ndarray:
+        """(n, 4) particles for the tracking filter: resampled from the hypotheses of the
+        dominant cluster (all of them before one dominates)."""
+        S, lw = self.states, self.logw
+        if self._dominant is not None:
+            near = self._in_cluster(S, self._dominant)
+            if near.any():
+                S, lw = S[near], lw[near]
+        return S[systematic_resample(self.rng, lw, int(n))].copy()
+

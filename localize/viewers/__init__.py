@@ -1,0 +1,1 @@
+"""Viewers: the model-edge overlay image and the rerun log."""

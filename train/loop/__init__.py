@@ -1,0 +1,1 @@
+"""The training loop: epochs, evaluation, optimizer, checkpoints, the log, data parallelism."""

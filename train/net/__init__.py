@@ -1,0 +1,1 @@
+"""The SegNet and its pooling."""
