@@ -179,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     dataset = Dataset(args.dataset)
     with initialize_config_dir(str(CONF_DIR), version_base=None):
         cfg = compose("localize", overrides=list(args.overrides))
-    edges = OmegaConf.to_object(cfg.edges)  # localize.config.EdgeSettings
+    edges = OmegaConf.to_object(cfg.edges)  # localize.config.EdgesConfig
     source = SegmenterLabels(load_segmenter(args.model, dataset.classes), edges.cnn)
     cnn, oracle = FrontEnd(source, edges), FrontEnd("oracle", edges)
     names = {int(c["id"]): c["name"] for c in dataset.classes}

@@ -93,7 +93,7 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="live_bench_"))
     os.environ.update(loopback_env(tmp))  # before rclpy.init: loopback only
     from localize.live.loop import load_context, offline_estimates
-    from localize.ros2.play import Player, PlaySettings, open_playback
+    from localize.ros2.play import PlayConfig, Player, open_playback
 
     flight_dir = Path(args.dataset) / "flights" / args.flight
     pb = open_playback(flight_dir)
@@ -138,7 +138,7 @@ def main() -> None:
             time.sleep(0.5)
             before = dict(listener.status_values())
             listener.clear()
-            player = Player(session.node, PlaySettings(rate=rate, max_frames=n, topics=topics))
+            player = Player(session.node, PlayConfig(rate=rate, max_frames=n, topics=topics))
             player.wait_for_subscriber()
             stamps = np.array(player.play(pb))
             wait_until(lambda last=stamps[-1]: (listener.poses and listener.stamps().max()

@@ -40,7 +40,7 @@ from localize.filter.pose_stats import estimate as estimate_pose  # noqa: E402
 from localize.filter.projection import ModelSamples, tilt_from_pose  # noqa: E402
 from localize.filter.visibility import SparseVisibility  # noqa: E402
 from localize.frontend.edge_image import pair_name  # noqa: E402
-from localize.frontend.front_end import Frame  # noqa: E402
+from localize.frontend.front_end import EdgeFrame  # noqa: E402
 from localize.localizer import mode_likelihood_params  # noqa: E402
 from localize.offline.runner import load_runs, prepare  # noqa: E402
 
@@ -59,7 +59,7 @@ def pair_likelihoods(samples: ModelSamples, vis: SparseVisibility, sample_pairs:
     return out
 
 
-def evidence(liks: dict[str, EdgeLikelihood], frame: Frame, estimate: np.ndarray,
+def evidence(liks: dict[str, EdgeLikelihood], frame: EdgeFrame, estimate: np.ndarray,
              truth: np.ndarray, tilt: np.ndarray | None) -> dict[str, float]:
     """``k * (score(estimate) - score(truth))`` per entry of ``liks`` for one frame.
 

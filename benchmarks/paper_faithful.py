@@ -34,8 +34,8 @@ sys.path.insert(0, str(ROOT))
 
 from core.atomic import atomic_write_json  # noqa: E402
 from core.outputs import releases_claims  # noqa: E402
-from localize.config import HoughSettings  # noqa: E402
-from localize.filter.paper_faithful import PaperFaithfulLikelihood, PaperFaithfulSettings  # noqa: E402
+from localize.config import HoughConfig  # noqa: E402
+from localize.filter.paper_faithful import PaperFaithfulConfig, PaperFaithfulLikelihood  # noqa: E402
 from localize.filter.paper_render import centred  # noqa: E402
 from localize.offline.metrics import error_stats, timing_stats  # noqa: E402
 from localize.offline.runner import RunSpec, check_resume, load_runs, prepare, run_pass  # noqa: E402
@@ -58,7 +58,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--hough", nargs=3, type=int, default=None,
                     metavar=("THRESHOLD", "MIN_LENGTH", "MAX_GAP"),
                     help="Hough segments of the rendered contours (votes, pixels, pixels; "
-                    "default: PaperFaithfulSettings')")
+                    "default: PaperFaithfulConfig')")
     ap.add_argument("overrides", nargs="*", help="more `python -m localize` overrides")
     return ap.parse_args(argv)
 
@@ -74,11 +74,11 @@ def comparison_config(args: argparse.Namespace) -> DictConfig:
             f"max_frames={args.frames}", "progress=false", *args.overrides])
 
 
-def likelihood_settings(args: argparse.Namespace) -> PaperFaithfulSettings:
+def likelihood_settings(args: argparse.Namespace) -> PaperFaithfulConfig:
     """How the paper-faithful likelihood renders and searches: its defaults, with ``--hough``
     where given."""
-    pf = PaperFaithfulSettings()
-    return pf if args.hough is None else replace(pf, hough=HoughSettings(*args.hough))
+    pf = PaperFaithfulConfig()
+    return pf if args.hough is None else replace(pf, hough=HoughConfig(*args.hough))
 
 
 def run_specs(flight: str, mode: str, seeds: list[int], n: int) -> dict[str, list[RunSpec]]:
@@ -89,7 +89,7 @@ def run_specs(flight: str, mode: str, seeds: list[int], n: int) -> dict[str, lis
 
 
 @releases_claims
-def run_comparison(cfg: DictConfig, n: int, pf_settings: PaperFaithfulSettings) -> Path:
+def run_comparison(cfg: DictConfig, n: int, pf_settings: PaperFaithfulConfig) -> Path:
     """Both likelihoods' runs of ``cfg``'s flight and mode with ``n`` particles (finished
     runs are kept unless ``overwrite``).
 

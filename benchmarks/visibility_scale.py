@@ -40,7 +40,7 @@ from core.dataset import Camera, World  # noqa: E402
 from core.imaging.rays import RayCaster  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
 from core.poses import odometry_increment, pose_from_xyzyaw  # noqa: E402
-from localize.config import Settings  # noqa: E402
+from localize.config import LocalizerConfig  # noqa: E402
 from localize.filter.projection import (  # noqa: E402
     cam_from_world,
     camera_centres,
@@ -49,7 +49,7 @@ from localize.filter.projection import (  # noqa: E402
     sample_segments,
 )
 from localize.frontend.edge_image import EdgeImage  # noqa: E402
-from localize.frontend.front_end import Frame  # noqa: E402
+from localize.frontend.front_end import EdgeFrame  # noqa: E402
 from localize.localizer import EdgeModel, Localizer, scored_segments  # noqa: E402
 
 HOSPITAL = ROOT.parent / "shared" / "worlds" / "aws_hospital" / "worlds" / "hospital.world"
@@ -84,7 +84,7 @@ def truth_states(occ: OccupancyMap, frames: int, step: float, z: float) -> np.nd
 
 
 def model_frame(state: np.ndarray, cam: Camera, fine: np.ndarray, caster: RayCaster,
-                max_range: float) -> Frame:
+                max_range: float) -> EdgeFrame:
     """The edge image of the model itself at ``state``: the points ``fine`` (P, 3) that a ray
     from the camera reaches, projected to pixels."""
     c = camera_centres(state[None], cam.body_from_cam)[0]
@@ -96,11 +96,11 @@ def model_frame(state: np.ndarray, cam: Camera, fine: np.ndarray, caster: RayCas
     edges = np.zeros(cam.height * cam.width, bool)
     edges[idx[0][valid[0]]] = True
     edges = edges.reshape(cam.height, cam.width)
-    return Frame(EdgeImage(edges, np.ones_like(edges)), None, {"segmentation": 0.0,
+    return EdgeFrame(EdgeImage(edges, np.ones_like(edges)), None, {"segmentation": 0.0,
                                                                "edges": 0.0})
 
 
-def time_tracking(loc: Localizer, truth: np.ndarray, frames: list[Frame]) -> tuple[list, list]:
+def time_tracking(loc: Localizer, truth: np.ndarray, frames: list[EdgeFrame]) -> tuple[list, list]:
     """Filter ms per frame (the first, a warm-up, left out) and position errors (m)."""
     poses = pose_from_xyzyaw(truth)
     loc.reset(truth[0])
@@ -114,7 +114,7 @@ def time_tracking(loc: Localizer, truth: np.ndarray, frames: list[Frame]) -> tup
     return ms, err
 
 
-def time_global(loc: Localizer, truth: np.ndarray, frames: list[Frame], n: int) -> list:
+def time_global(loc: Localizer, truth: np.ndarray, frames: list[EdgeFrame], n: int) -> list:
     """Filter ms of the first ``n`` updates of a global start."""
     poses = pose_from_xyzyaw(truth)
     loc.reset(None)
@@ -149,7 +149,7 @@ def main() -> int:
     t0 = time.perf_counter()
     world, occ = hospital_world(args.world)
     import_s = time.perf_counter() - t0
-    base = Settings()
+    base = LocalizerConfig()
     settings = replace(base, model_edges=replace(base.model_edges, min_length=args.min_length),
                        visibility=replace(base.visibility, cell_xy=args.cell_xy,
                                           cell_z=args.cell_z, max_range=args.max_range))

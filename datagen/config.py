@@ -16,7 +16,7 @@ from omegaconf import MISSING
 
 from core.config import register_schema
 from core.imaging.realism import RealismConfig
-from datagen.importers.settings import ImportSettings
+from datagen.importers.config import ImportConfig
 
 # --------------------------------------------------------------------------- world
 
@@ -113,9 +113,9 @@ class WorldConfig:
 
 
 @dataclass
-class FileWorldConfig(ImportSettings):
+class FileWorldConfig(ImportConfig):
     """A building model read from a file (``world=file world.path=FILE``; datagen/worlds/site.py):
-    a Gazebo world, a mesh or an IFC file (the import keys: ``ImportSettings``,
+    a Gazebo world, a mesh or an IFC file (the import keys: ``ImportConfig``,
     docs/importers.md), with the free space a camera may fly in."""
 
     kind: str = "file"

@@ -4,8 +4,8 @@ The field defaults below are the defaults, written nowhere else: Hydra composes
 ``conf/localize.yaml`` (its ``filter`` presets in ``conf/filter/``) and the command line onto
 ``LocalizeConfig``, and ``localize.resolve.resolve`` adds the settings a model carries and
 records which layer set each value that differs from its default; a typo or a wrong type fails
-at start-up naming the key. ``Settings`` is the part a ``Localizer`` reads; ``Settings()`` is
-the default config's. Library code builds one from a partial mapping with
+at start-up naming the key. ``LocalizerConfig`` is the part a ``Localizer`` reads;
+``LocalizerConfig()`` is the default config's. Library code builds one from a partial mapping with
 ``core.config.typed``. Why the defaults are what they are: docs/localize.md.
 """
 
@@ -25,7 +25,7 @@ VIZ_KINDS = ("none", "rerun")
 
 
 @dataclass
-class LikelihoodParams:
+class LikelihoodConfig:
     """The edge likelihood (``filter.likelihood``; ``localize.filter.likelihood``).
 
     Attributes:
@@ -75,7 +75,7 @@ class LikelihoodParams:
 
 
 @dataclass
-class FilterParams:
+class FilterConfig:
     """The particle filter (``filter``; ``localize.filter.particle_filter``). Presets:
     conf/filter/*.yaml (``filter=paper``: the paper's settings).
 
@@ -98,7 +98,7 @@ class FilterParams:
         global_method: how a global start searches: ``table`` (``global_search``: every free
             cell x heading weighed by the floor boundary against a precomputed table; the label
             modes) or ``particles`` (the uniform set above; always for mode ``none``).
-        global_search: ``global_search.GlobalSearchParams`` keys that differ from its defaults.
+        global_search: ``global_search.GlobalSearchConfig`` keys that differ from its defaults.
         hypotheses: pose hypotheses reported per frame (``localize.filter.hypotheses``: the
             heaviest modes of the weighted set and their mass).
         hypothesis_radius_m, hypothesis_yaw_deg: a hypothesis's kernel: horizontal radius
@@ -176,7 +176,7 @@ class FilterParams:
     gate: float = 0.3
     lost_frames: int = 30
     tilt_std: list[float] = field(default_factory=lambda: [0.5, 0.05])
-    likelihood: LikelihoodParams = field(default_factory=LikelihoodParams)
+    likelihood: LikelihoodConfig = field(default_factory=LikelihoodConfig)
 
     def __post_init__(self) -> None:
         if self.num_particles < 1 or self.global_particles < 1:
@@ -226,14 +226,14 @@ class FilterParams:
         n = min(int(round(n)), max(self.global_max_particles, self.global_particles))
         return max(n, self.global_particles, self.num_particles)
 
-    def for_mode(self, mode: str) -> FilterParams:
+    def for_mode(self, mode: str) -> FilterConfig:
         """These settings with ``motion_std`` replaced by ``mode_motion_std[mode]`` if set."""
         std = self.mode_motion_std.get(mode)
         return self if std is None else replace(self, motion_std=[float(v) for v in std])
 
 
 @dataclass
-class CannySettings:
+class CannyConfig:
     """``edges.canny``: Canny on the grey image (mode none).
 
     Attributes:
@@ -247,7 +247,7 @@ class CannySettings:
 
 
 @dataclass
-class HoughSettings:
+class HoughConfig:
     """Hough line segments of an edge map (``cv2.HoughLinesP``), drawn 1 px wide.
 
     Attributes:
@@ -262,7 +262,7 @@ class HoughSettings:
 
 
 @dataclass
-class LabelSettings:
+class LabelsConfig:
     """``edges.labels``: class boundaries of a label map (modes cnn and oracle).
 
     Attributes:
@@ -275,7 +275,7 @@ class LabelSettings:
 
 
 @dataclass
-class CnnSettings:
+class CnnConfig:
     """``edges.cnn``: how the cnn mode makes edges of the SegNet's output
     (``localize.frontend.extractor``, ``localize.frontend.boundaries``).
 
@@ -318,7 +318,7 @@ class CnnSettings:
 
 
 @dataclass
-class EdgeSettings:
+class EdgesConfig:
     """``edges``: the image edges of each mode (``localize.frontend.extractor``).
 
     Attributes:
@@ -328,14 +328,14 @@ class EdgeSettings:
         cnn: mode cnn only.
     """
 
-    canny: CannySettings = field(default_factory=CannySettings)
-    hough: HoughSettings = field(default_factory=HoughSettings)
-    labels: LabelSettings = field(default_factory=LabelSettings)
-    cnn: CnnSettings = field(default_factory=CnnSettings)
+    canny: CannyConfig = field(default_factory=CannyConfig)
+    hough: HoughConfig = field(default_factory=HoughConfig)
+    labels: LabelsConfig = field(default_factory=LabelsConfig)
+    cnn: CnnConfig = field(default_factory=CnnConfig)
 
 
 @dataclass
-class ModelEdgeSettings:
+class ModelEdgesConfig:
     """``model_edges``: the world's 3D edge segments as sample points. The label modes score
     only the segments whose two sides differ in class; mode none scores every segment.
 
@@ -352,7 +352,7 @@ class ModelEdgeSettings:
 
 
 @dataclass
-class VisibilitySettings:
+class VisibilityConfig:
     """``visibility``: the samples visible from each camera cell (``localize.filter.visibility``;
     cached under ``<report>/cache/``).
 
@@ -380,21 +380,21 @@ class VisibilitySettings:
 
 
 @dataclass
-class Settings:
+class LocalizerConfig:
     """What a ``Localizer`` is configured by: the localize config's ``filter``, ``edges``,
-    ``model_edges`` and ``visibility`` nodes (``Settings()``: the defaults)."""
+    ``model_edges`` and ``visibility`` nodes (``LocalizerConfig()``: the defaults)."""
 
-    filter: FilterParams = field(default_factory=FilterParams)
-    edges: EdgeSettings = field(default_factory=EdgeSettings)
-    model_edges: ModelEdgeSettings = field(default_factory=ModelEdgeSettings)
-    visibility: VisibilitySettings = field(default_factory=VisibilitySettings)
+    filter: FilterConfig = field(default_factory=FilterConfig)
+    edges: EdgesConfig = field(default_factory=EdgesConfig)
+    model_edges: ModelEdgesConfig = field(default_factory=ModelEdgesConfig)
+    visibility: VisibilityConfig = field(default_factory=VisibilityConfig)
 
     @property
-    def likelihood(self) -> LikelihoodParams:
+    def likelihood(self) -> LikelihoodConfig:
         """The tracking likelihood (``filter.likelihood``)."""
         return self.filter.likelihood
 
-    def with_particles(self, n: int) -> Settings:
+    def with_particles(self, n: int) -> LocalizerConfig:
         """These settings with ``n`` tracking particles (and at least ``n`` global ones)."""
         f = replace(self.filter, num_particles=int(n),
                     global_particles=max(int(n), self.filter.global_particles))
@@ -402,7 +402,7 @@ class Settings:
 
 
 @dataclass
-class BagTopics:
+class BagTopicsConfig:
     """``recording_topics``: the topics a ROS bag recording is read from (ignored for
     folders; ``localize.recordings.bag``).
 
@@ -420,7 +420,7 @@ class BagTopics:
 
 
 @dataclass
-class MetricsSettings:
+class MetricsConfig:
     """``metrics``: what the report counts as converged and failed.
 
     Attributes:
@@ -441,7 +441,7 @@ class MetricsSettings:
 
 
 @dataclass
-class ReportSettings:
+class ReportConfig:
     """``report``: the report's figure and reference figures.
 
     Attributes:
@@ -458,7 +458,7 @@ class ReportSettings:
 
 
 @dataclass
-class HintSettings:
+class HintConfig:
     """``hint``: where the global starts begin (``localize.filter.start_hint.StartHint``); every key
     null: anywhere in the free space.
 
@@ -479,8 +479,8 @@ class HintSettings:
 
 
 @dataclass
-class LocalizeConfig(Settings):
-    """The whole localize config (``conf/localize.yaml``): the ``Settings`` and the run.
+class LocalizeConfig(LocalizerConfig):
+    """The whole localize config (``conf/localize.yaml``): the ``LocalizerConfig`` and the run.
 
     Attributes:
         name: report folder ``<out_root>/<name>/``.
@@ -506,7 +506,7 @@ class LocalizeConfig(Settings):
             dataset's.
         start: recording: [x, y, z, yaw_deg] world pose to track from; None: the first
             ground-truth pose, else a global start.
-        hint: where the global starts begin (``HintSettings``).
+        hint: where the global starts begin (``HintConfig``).
         max_frames: only the first N >= 1 frames of each flight or recording (quick runs,
             tests); null: every frame; 0 is refused, naming the key.
         threads: onnxruntime intra-op threads.
@@ -533,18 +533,18 @@ class LocalizeConfig(Settings):
     inits: list[str] = field(default_factory=lambda: ["tracking", "global"])
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     recording: str | None = None
-    recording_topics: BagTopics = field(default_factory=BagTopics)
+    recording_topics: BagTopicsConfig = field(default_factory=BagTopicsConfig)
     recording_body_from_cam: list[Any] | None = None
     start: list[float] | None = None
-    hint: HintSettings = field(default_factory=HintSettings)
+    hint: HintConfig = field(default_factory=HintConfig)
     max_frames: int | None = None
     threads: int = 2
     overwrite: bool = False
     progress: bool = True
     viz: str = "none"
     viz_connect: str | None = None
-    metrics: MetricsSettings = field(default_factory=MetricsSettings)
-    report: ReportSettings = field(default_factory=ReportSettings)
+    metrics: MetricsConfig = field(default_factory=MetricsConfig)
+    report: ReportConfig = field(default_factory=ReportConfig)
     set_by: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

@@ -14,13 +14,13 @@ weighs them by how well the model's edges fall on the frame's edges and returns 
 
 Several filters on the same frames (the runner's inits x seeds of one flight and mode) share
 the costly per-frame work: they share one ``FrontEnd`` and one ``EdgeModel``; the caller makes
-each frame once, ``frame = front_end.frame(image, labels)``, and passes the ``Frame`` to every
-localizer's ``step`` instead of the image. A ``Frame`` makes each likelihood's score maps (the
+each frame once, ``frame = front_end.frame(image, labels)``, and passes the ``EdgeFrame`` to every
+localizer's ``step`` instead of the image. An ``EdgeFrame`` makes each likelihood's score maps (the
 distance transforms) once and hands them to every filter with the same map settings, so N
 filters cost one segmentation, one edge image and one set of score maps per frame, plus N
 filter updates. Given an image, ``step`` makes the frame itself.
 
-Settings (``localize.config.Settings``) are the localize config's ``filter`` (particle filter
+Settings (``localize.config.LocalizerConfig``) are the localize config's ``filter`` (particle filter
 and likelihood), ``edges``, ``model_edges`` and ``visibility`` nodes; a mode's own likelihood and
 motion noise (``filter.mode_likelihood``, ``filter.mode_motion_std``) apply by the front end's
 mode.
@@ -42,7 +42,7 @@ from core.config import typed
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
-from localize.config import FilterParams, LikelihoodParams, Settings
+from localize.config import FilterConfig, LikelihoodConfig, LocalizerConfig
 from localize.filter.hypotheses import Hypothesis, top_hypotheses
 from localize.filter.likelihood import EdgeLikelihood
 from localize.filter.particle_filter import LogLikelihood, ParticleFilter
@@ -56,7 +56,7 @@ from localize.filter.start_hint import StartHint
 from localize.filter.visibility import SparseVisibility, load_or_build
 from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage, pair_code
-from localize.frontend.front_end import Frame, FrontEnd
+from localize.frontend.front_end import EdgeFrame, FrontEnd
 from localize.search.global_search import GlobalSearch, ray_table_for, search_params
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
@@ -73,21 +73,21 @@ MIN_EDGE_FRACTION = 0.001
 MAX_CHANCE = 0.5
 
 
-def mode_likelihood_params(lp: LikelihoodParams, fparams: FilterParams,
-                           mode: str) -> LikelihoodParams:
+def mode_likelihood_params(lp: LikelihoodConfig, fparams: FilterConfig,
+                           mode: str) -> LikelihoodConfig:
     """The likelihood settings of one edge mode: ``lp`` updated by
     ``filter.mode_likelihood[mode]`` (a typo or a bad value raises naming
     ``filter.mode_likelihood.<mode>``)."""
     over = fparams.mode_likelihood.get(mode)
     if not over:
         return lp
-    return typed(LikelihoodParams, {**asdict(lp), **over}, f"filter.mode_likelihood.{mode}")
+    return typed(LikelihoodConfig, {**asdict(lp), **over}, f"filter.mode_likelihood.{mode}")
 
 
-def global_likelihood_params(lp: LikelihoodParams, fparams: FilterParams) -> LikelihoodParams:
+def global_likelihood_params(lp: LikelihoodConfig, fparams: FilterConfig) -> LikelihoodConfig:
     """The global phase's likelihood settings: ``lp`` updated by ``filter.global_likelihood``
     (a typo or a bad value raises naming ``filter.global_likelihood``)."""
-    return typed(LikelihoodParams, {**asdict(lp), **fparams.global_likelihood},
+    return typed(LikelihoodConfig, {**asdict(lp), **fparams.global_likelihood},
                  "filter.global_likelihood")
 
 
@@ -123,7 +123,7 @@ class EdgeModel:
     _thinned: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
-    def build(cls, world: World, settings: Settings, cache_dir: str | Path | None = None,
+    def build(cls, world: World, settings: LocalizerConfig, cache_dir: str | Path | None = None,
               occlusion: bool = True, free: OccupancyMap | None = None) -> EdgeModel:
         """The world's structural edges (``scored_segments``), sampled every
         ``settings.model_edges.spacing`` m, with their visibility lists (ray-cast from the
@@ -241,7 +241,7 @@ class Localizer:
             comparison).
     """
 
-    def __init__(self, world: World, camera: Camera, front_end, settings: Settings,
+    def __init__(self, world: World, camera: Camera, front_end, settings: LocalizerConfig,
                  rng: np.random.Generator, *, model: EdgeModel | None = None,
                  likelihood_override: LikelihoodOverride | None = None):
         if not isinstance(rng, np.random.Generator):
@@ -301,13 +301,13 @@ class Localizer:
             self.filter.init_tracking(s)
         self._last_time = self._lost_at = None
 
-    def step(self, image: np.ndarray | Frame | None, odometry_increment: np.ndarray | None,
+    def step(self, image: np.ndarray | EdgeFrame | None, odometry_increment: np.ndarray | None,
              attitude: np.ndarray | None, timestamp: float,
              labels: np.ndarray | None = None) -> Estimate:
         """One frame: move by the odometry, weigh by the edges, resample; the estimate.
 
         Args:
-            image: (H, W, 3) uint8 RGB of the camera's size, or a ``Frame`` of the shared
+            image: (H, W, 3) uint8 RGB of the camera's size, or an ``EdgeFrame`` of the shared
                 front end (``FrontEnd.frame``), or None for a source that reads no image
                 (``TrueLabels``).
             odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since
@@ -317,7 +317,7 @@ class Localizer:
                 this frame; only its roll and pitch are used (``tilt_from_pose``); None: level.
             timestamp: seconds; not before the previous frame's.
             labels: (H, W) uint8 true class ids for sources that read them (``oracle``); with
-                a ``Frame``, give them to ``FrontEnd.frame`` instead.
+                an ``EdgeFrame``, give them to ``FrontEnd.frame`` instead.
 
         Returns:
             The estimate, computed before resampling.
@@ -366,7 +366,7 @@ class Localizer:
         self.search.reset(None if hint is None else hint.log_prior)
         return True
 
-    def _search_step(self, frame: Frame, delta: np.ndarray | None, tilt: np.ndarray | None,
+    def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float) -> Estimate:
         """A frame of the global search; on its convergence the tracking filter takes over
         from the dominant cluster's hypotheses (status ``ambiguous`` until then, the estimate
@@ -405,11 +405,11 @@ class Localizer:
                         timestamp - self._lost_at)
             self._lost_at = None
 
-    def _frame(self, image, labels) -> Frame:
-        """The frame of ``image``: itself if already a Frame, else made by the front end."""
-        if isinstance(image, Frame):
+    def _frame(self, image, labels) -> EdgeFrame:
+        """The frame of ``image``: itself if already a EdgeFrame, else made by the front end."""
+        if isinstance(image, EdgeFrame):
             if labels is not None:
-                raise ValueError("step(Frame, labels=...): the frame is made already; pass the "
+                raise ValueError("step(EdgeFrame, labels=...): the frame is made already; pass the "
                                  "labels to FrontEnd.frame(image, labels)")
             frame = image
         else:
@@ -421,7 +421,7 @@ class Localizer:
                              "camera's size (or the Localizer the camera of the frames)")
         return frame
 
-    def _log_likelihood(self, frame: Frame, tilt: np.ndarray | None
+    def _log_likelihood(self, frame: EdgeFrame, tilt: np.ndarray | None
                         ) -> tuple[LogLikelihood | None, float]:
         """The likelihood of this step (override, global phase or tracking) over the frame,
         or None when the frame shows nothing to weigh by (``MIN_EDGE_FRACTION``,

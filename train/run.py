@@ -68,7 +68,7 @@ from train.loop.checkpoint import (
 from train.loop.distributed import (
     CPU,
     SINGLE,
-    World,
+    DistWorld,
     check_batch_size,
     process_group,
     training_device,
@@ -87,7 +87,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class Job:
+class TrainJob:
     """What ``prepare`` sets up for ``fit`` and ``finish``: the config, the folder, the data
     (at the network's resolution), the network, its weight average and its optimizer."""
 
@@ -108,7 +108,7 @@ class Job:
     steps_per_epoch: int
     requested: int  # the configured epochs (the longest schedule)
     bf16: bool
-    world: World = SINGLE  # the torchrun processes (train/loop/distributed.py)
+    world: DistWorld = SINGLE  # the torchrun processes (train/loop/distributed.py)
     ddp: torch.nn.parallel.DistributedDataParallel | None = None  # under torchrun
     device: torch.device = CPU  # where the network trains (``device``)
 
@@ -171,8 +171,8 @@ def build_network(cfg: TrainConfig, num_classes: int) -> SegNet:
     return model
 
 
-def prepare(cfg: TrainConfig, world: World = SINGLE,
-            device: torch.device = CPU) -> Job:
+def prepare(cfg: TrainConfig, world: DistWorld = SINGLE,
+            device: torch.device = CPU) -> TrainJob:
     """Check the config, claim the output folder, load the data, build network and optimizer
     (the network, its weight average and the class weights on ``device``; the data on the
     CPU).
@@ -225,7 +225,7 @@ def prepare(cfg: TrainConfig, world: World = SINGLE,
     steps_per_epoch = num_batches(len(train_data), batch_size, drop_last=True)
     # the longest schedule: refit_schedule may span fewer epochs
     optimizer, scheduler = make_optimizer(model, cfg.optim, cfg.epochs * steps_per_epoch)
-    job = Job(cfg, out_dir, datasets, num_classes, info, model, make_ema(model, cfg.ema_decay),
+    job = TrainJob(cfg, out_dir, datasets, num_classes, info, model, make_ema(model, cfg.ema_decay),
               optimizer, scheduler, train_data, val_data,
               cfg.data.augment.at_resolution(model.training_factor), weights, batch_size,
               steps_per_epoch, cfg.epochs, bf16, world,
@@ -245,7 +245,7 @@ def prepare(cfg: TrainConfig, world: World = SINGLE,
     return job
 
 
-def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -> None:
+def refit_schedule(job: TrainJob, state: dict, budget: float, epoch_seconds: float) -> None:
     """Re-span the one-cycle schedule over the epochs that fit the budget left
     (``fit_epochs``), in place (``job.scheduler``, ``state["epochs"]``): a run the budget cuts
     off still anneals."""
@@ -263,7 +263,7 @@ def refit_schedule(job: Job, state: dict, budget: float, epoch_seconds: float) -
                                    job.scheduler.last_epoch)
 
 
-def run_epoch(job: Job, state: dict, budget: float) -> bool:
+def run_epoch(job: TrainJob, state: dict, budget: float) -> bool:
     """Train one epoch, validate, keep the best weights, save the checkpoint and the log.
 
     Under torchrun rank 0 alone validates and writes; the others take its epoch time.
@@ -318,7 +318,7 @@ def run_epoch(job: Job, state: dict, budget: float) -> bool:
     return True
 
 
-def fit(job: Job) -> dict:
+def fit(job: TrainJob) -> dict:
     """Train (resuming from ``checkpoint_last.pt`` if there is one) until the schedule ends or
     the time budget is used up.
 
@@ -339,7 +339,7 @@ def fit(job: Job) -> dict:
     return state
 
 
-def load_best(job: Job) -> tuple[SegNet, dict]:
+def load_best(job: TrainJob) -> tuple[SegNet, dict]:
     """The network with the best checkpoint's weights, on the CPU in eval mode (what is
     exported), and the checkpoint."""
     path = job.out_dir / "checkpoint_best.pt"
@@ -355,7 +355,7 @@ def load_best(job: Job) -> tuple[SegNet, dict]:
     return model, best
 
 
-def export_onnx(job: Job, model: SegNet, test_data: SplitData, metrics: dict) -> Path:
+def export_onnx(job: TrainJob, model: SegNet, test_data: SplitData, metrics: dict) -> Path:
     """Export ``segnet.onnx`` checked against torch on the first test images; its parity
     figures go into ``metrics``. A failed check writes metrics.json, then raises ParityError."""
     cfg, out_dir = job.cfg, job.out_dir
@@ -382,7 +382,7 @@ def export_onnx(job: Job, model: SegNet, test_data: SplitData, metrics: dict) ->
     return onnx_path
 
 
-def run_metrics(job: Job, state: dict, model: SegNet, best: dict, images: dict) -> dict:
+def run_metrics(job: TrainJob, state: dict, model: SegNet, best: dict, images: dict) -> dict:
     """metrics.json without the test scores and the export's figures (``finish`` adds them)."""
     return {
         "test": None,  # segnet.onnx's labels output on the test split (``finish``)
@@ -412,7 +412,7 @@ def run_metrics(job: Job, state: dict, model: SegNet, best: dict, images: dict) 
     }
 
 
-def score_graph(job: Job, onnx_path: Path, test_data: SplitData) -> dict:
+def score_graph(job: TrainJob, onnx_path: Path, test_data: SplitData) -> dict:
     """Score ``segnet.onnx``'s labels on the test split (the labels localize reads), draw
     ``confusion.png`` and record the scores in the graph's metadata (``test_metrics``)."""
     cfg = job.cfg
@@ -428,7 +428,7 @@ def score_graph(job: Job, onnx_path: Path, test_data: SplitData) -> dict:
     return test
 
 
-def quantize(job: Job, metrics: dict) -> None:
+def quantize(job: TrainJob, metrics: dict) -> None:
     """``export.int8``: write segnet_int8.onnx scored against the float graph (metrics'
     ``int8``); otherwise remove an int8 copy of an earlier export."""
     cfg, out_dir = job.cfg, job.out_dir
@@ -446,7 +446,7 @@ def quantize(job: Job, metrics: dict) -> None:
              100 * q["label_agreement"])
 
 
-def finish(job: Job, state: dict, t_start: float) -> dict:
+def finish(job: TrainJob, state: dict, t_start: float) -> dict:
     """Export the best checkpoint, score the exported graph on the test split, write
     metrics.json (and the int8 copy).
 

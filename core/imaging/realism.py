@@ -257,7 +257,7 @@ class RealismConfig:
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
 
 
-REALISM_DIR = Path(__file__).resolve().parents[1] / "conf" / "realism"
+REALISM_DIR = Path(__file__).resolve().parents[2] / "conf" / "realism"
 
 
 def load_realism(name: str, where: str = "realism") -> RealismConfig:

@@ -20,9 +20,9 @@ from core.atomic import atomic_write_json, write_png
 from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, RouteConfig
 from datagen.flights.routes import find_turns, plan_route, route_length
+from datagen.importers.config import ImportConfig
 from datagen.importers.load import EXTENSIONS, load_building
 from datagen.importers.orient import AXES
-from datagen.importers.settings import ImportSettings
 from datagen.importers.summary import import_summary, summary_lines, vertical_edges
 from datagen.mesh.building import Building
 from datagen.mesh.plan import write_plan
@@ -102,7 +102,7 @@ def summary(info: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(message)s")
     args = parse_args(argv)
-    settings = ImportSettings(path=args.file, model_path=args.model_path, units=args.units,
+    settings = ImportConfig(path=args.file, model_path=args.model_path, units=args.units,
                               up_axis=args.up_axis, storey=args.storey, doors=args.doors,
                               ceiling=args.ceiling)
     try:

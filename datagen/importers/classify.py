@@ -17,7 +17,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from core import classes as C
-from datagen.importers.settings import NameRule
+from datagen.importers.config import NameRule
 from datagen.mesh.building import UNSET, Building, face_areas_normals, weighted_quantile
 
 HORIZONTAL = 0.9  # |normal z| from which a face is horizontal (within ~25 deg)

@@ -12,8 +12,8 @@ import numpy as np
 from core import classes as C
 from core.config import as_config
 from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
+from datagen.importers.config import ImportConfig
 from datagen.importers.orient import axis_name
-from datagen.importers.settings import ImportSettings
 from datagen.mesh.building import (
     Building,
     Part,
@@ -32,7 +32,7 @@ FAR_FACTOR, FAR_M = 10.0, 100.0  # a part this many times the model's size away,
 CHOICES = {"doors": ("open", "closed"), "ceiling": ("auto", "none")}
 
 
-def check_settings(s: ImportSettings) -> None:
+def check_settings(s: ImportConfig) -> None:
     """Raise ValueError naming the setting for a value out of its range."""
     for key, allowed in CHOICES.items():
         if getattr(s, key) not in allowed:
@@ -79,7 +79,7 @@ def far_parts(parts: list[Part], factor: float = FAR_FACTOR, least: float = FAR_
     return out
 
 
-def read_parts(path: Path, s: ImportSettings) -> tuple[list[Part], dict]:
+def read_parts(path: Path, s: ImportConfig) -> tuple[list[Part], dict]:
     """The reader for the file's extension: parts and the reader's info."""
     ext = path.suffix.lower()
     if ext in SDF_EXTENSIONS:
@@ -102,13 +102,13 @@ def read_parts(path: Path, s: ImportSettings) -> tuple[list[Part], dict]:
 
 
 def load_building(path: str | Path | None = None,
-                  settings: ImportSettings | Mapping | None = None) -> Building:
+                  settings: ImportConfig | Mapping | None = None) -> Building:
     """Import a building model as one triangle mesh with a class per face.
 
     Args:
         path: the model file, chosen by extension: .world/.sdf (Gazebo), .glb/.gltf/.obj/
             .ply/.dae/.stl (a mesh), .ifc; None: ``settings.path``.
-        settings: ``ImportSettings`` or a mapping of the keys that differ (None: defaults).
+        settings: ``ImportConfig`` or a mapping of the keys that differ (None: defaults).
 
     Returns:
         the Building (metres, Z up); ``info`` holds format, counts, missing models and
@@ -122,7 +122,7 @@ def load_building(path: str | Path | None = None,
             floor or no walls, a storey that does not exist; each naming the file or key.
     """
     t0 = time.perf_counter()
-    s = as_config(ImportSettings, settings, "world")
+    s = as_config(ImportConfig, settings, "world")
     check_settings(s)
     raw = str(path if path is not None else s.path)
     if not raw:

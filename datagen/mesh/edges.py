@@ -18,7 +18,7 @@ from core import classes as C
 from datagen.mesh.building import face_areas_normals
 from datagen.mesh.edge_polylines import merge_near_collinear, simplify_segments
 from datagen.mesh.planar_regions import (
-    RegionSettings,
+    RegionConfig,
     face_pairs,
     planar_regions,
     winding_agrees,
@@ -37,12 +37,12 @@ FLAT_DEG = 0.01
 
 
 @dataclass(frozen=True)
-class EdgeSettings:
+class EdgeExtractionConfig:
     """How model edges are found beyond the crease threshold (``extract_edges``).
 
     Attributes:
         regions: how faces are grown into planar regions, whose fitted normals the crease
-            test compares (``planar_regions.RegionSettings``).
+            test compares (``planar_regions.RegionConfig``).
         simplify_m: metres, the tolerance of straightening chained pieces
             (``edge_polylines.simplify_segments``; 0: exactly collinear points only).
         min_length: metres; shorter segments (after merging) are dropped.
@@ -53,7 +53,7 @@ class EdgeSettings:
             docs/notes/edges.md).
     """
 
-    regions: RegionSettings = field(default_factory=RegionSettings)
+    regions: RegionConfig = field(default_factory=RegionConfig)
     simplify_m: float = 0.02
     min_length: float = 0.05
     straighten_class_changes: bool = False
@@ -61,7 +61,7 @@ class EdgeSettings:
 
 def extract_edges(
     vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray, crease_deg: float = 20.0,
-    probe: BoundaryProbe | None = None, settings: EdgeSettings | None = None,
+    probe: BoundaryProbe | None = None, settings: EdgeExtractionConfig | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Model edges of a mesh.
 
@@ -94,7 +94,7 @@ def extract_edges(
     """
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise ValueError(f"faces must be (F, 3), got {faces.shape}")
-    settings = settings or EdgeSettings()
+    settings = settings or EdgeExtractionConfig()
     vertices = np.asarray(vertices, dtype=np.float64)
     face_class = np.asarray(face_class)
     normals = face_normals(vertices, faces)

@@ -21,7 +21,7 @@ from datagen.mesh.building import face_areas_normals
 
 
 @dataclass(frozen=True)
-class RegionSettings:
+class RegionConfig:
     """How faces are grown into planar regions.
 
     Attributes:
@@ -69,7 +69,7 @@ def winding_agrees(faces: np.ndarray, edges: np.ndarray, f0: np.ndarray,
 
 
 def planar_regions(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
-                   pairs: np.ndarray, settings: RegionSettings | None = None
+                   pairs: np.ndarray, settings: RegionConfig | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Grow faces into planar regions.
 
@@ -88,7 +88,7 @@ def planar_regions(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
         region (F,) int64 region id per face (0..R-1); normal (R, 3) each region's fitted
         unit normal, oriented as the region's seed face.
     """
-    s = settings or RegionSettings()
+    s = settings or RegionConfig()
     n_f = len(faces)
     area = face_areas_normals(vertices, faces)[0]
     centre = vertices[faces].mean(axis=1)

@@ -22,7 +22,7 @@ import numpy as np
 from core.atomic import atomic_write_bytes, atomic_write_json
 from core.dataset import read_json
 from datagen.config import WorldConfig
-from datagen.mesh.edges import EdgeSettings, extract_edges
+from datagen.mesh.edges import EdgeExtractionConfig, extract_edges
 
 #: the folders of a dataset that hold a world model.
 WORLD_DIRS = ("world", "world_truth")
@@ -37,7 +37,7 @@ def dataset_crease_deg(root: Path) -> float:
 
 
 def rebuild_world_edges(world_dir: Path, crease_deg: float,
-                        settings: EdgeSettings | None = None) -> tuple[int, int]:
+                        settings: EdgeExtractionConfig | None = None) -> tuple[int, int]:
     """Replace ``world_dir/edges.npz`` with the edges of ``world_dir/model.npz``
     (``extract_edges`` with ``crease_deg`` and ``settings``, None: the defaults).
 
@@ -75,13 +75,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("dataset", type=Path, nargs="+", help="dataset folder(s)")
     p.add_argument("--crease-deg", type=float, default=None,
                    help="crease threshold, degrees (default: the dataset's own)")
-    p.add_argument("--simplify-m", type=float, default=EdgeSettings.simplify_m,
+    p.add_argument("--simplify-m", type=float, default=EdgeExtractionConfig.simplify_m,
                    help="metres, tolerance of straightening chained pieces (default "
-                   f"{EdgeSettings.simplify_m})")
-    p.add_argument("--min-length", type=float, default=EdgeSettings.min_length,
-                   help=f"metres, shortest segment kept (default {EdgeSettings.min_length})")
+                   f"{EdgeExtractionConfig.simplify_m})")
+    p.add_argument("--min-length", type=float, default=EdgeExtractionConfig.min_length,
+                   help="metres, shortest segment kept (default "
+                        f"{EdgeExtractionConfig.min_length})")
     args = p.parse_args(argv)
-    settings = replace(EdgeSettings(), simplify_m=args.simplify_m, min_length=args.min_length)
+    settings = replace(EdgeExtractionConfig(), simplify_m=args.simplify_m,
+                       min_length=args.min_length)
     for root in args.dataset:
         crease = args.crease_deg if args.crease_deg is not None else dataset_crease_deg(root)
         dirs = [root / d for d in WORLD_DIRS if (root / d / "model.npz").is_file()]

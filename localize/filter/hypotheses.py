@@ -15,7 +15,7 @@ mass ~1.
 least ``dominant_mass`` for ``dominant_frames`` frames in a row, ``ambiguous`` until then
 and whenever it falls below again.
 
-Settings: ``localize.config.FilterParams`` (``filter.hypotheses``, ``hypothesis_radius_m``,
+Settings: ``localize.config.FilterConfig`` (``filter.hypotheses``, ``hypothesis_radius_m``,
 ``hypothesis_yaw_deg``, ``dominant_mass``, ``dominant_frames``).
 """
 

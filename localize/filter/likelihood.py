@@ -66,7 +66,7 @@ import cv2
 import numpy as np
 
 from core.dataset import Camera
-from localize.config import LikelihoodParams
+from localize.config import LikelihoodConfig
 from localize.filter.projection import (
     ModelSamples,
     cam_from_world,
@@ -192,7 +192,7 @@ class _ScoreMaps:
         params: sigma, search_px.
     """
 
-    def __init__(self, known: np.ndarray, params: LikelihoodParams):
+    def __init__(self, known: np.ndarray, params: LikelihoodConfig):
         self.known = known
         self.unknown = ~known
         s2 = 2.0 * float(params.sigma) ** 2
@@ -235,7 +235,7 @@ class _ScoreMaps:
             np.copyto(out, np.float32(0.0), where=self.unknown)
 
 
-def observe(edge: EdgeImage, params: LikelihoodParams,
+def observe(edge: EdgeImage, params: LikelihoodConfig,
             pair_codes: np.ndarray | None = None) -> Observation:
     """Score maps g(d) of an edge image (see the module docstring).
 
@@ -298,7 +298,7 @@ class EdgeLikelihood:
             separates; needed with ``params.class_pairs``.
     """
 
-    def __init__(self, samples: ModelSamples, camera: Camera, params: LikelihoodParams,
+    def __init__(self, samples: ModelSamples, camera: Camera, params: LikelihoodConfig,
                  visibility: SparseVisibility | None = None,
                  sample_pairs: np.ndarray | None = None):
         if visibility is not None and visibility.num_samples != len(samples):

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from core.dataset import Camera, World
-from localize.config import HoughSettings, LikelihoodParams
+from localize.config import HoughConfig, LikelihoodConfig
 from localize.filter.paper_render import ModelRenderer
 from localize.filter.projection import cam_from_world
 from localize.frontend.boundaries import label_edges
@@ -29,7 +29,7 @@ from localize.frontend.edge_image import EdgeImage
 
 
 @dataclass
-class PaperFaithfulSettings:
+class PaperFaithfulConfig:
     """How the paper-faithful likelihood renders and searches (benchmarks/paper_faithful.py).
 
     Attributes:
@@ -40,7 +40,7 @@ class PaperFaithfulSettings:
     """
 
     render_variant: str = "auto"
-    hough: HoughSettings = field(default_factory=lambda: HoughSettings(20, 15, 3))
+    hough: HoughConfig = field(default_factory=lambda: HoughConfig(20, 15, 3))
     samples_per_line: int = 10
     search_px: float = 10.0
 
@@ -76,13 +76,13 @@ class PaperFaithfulLikelihood:
     Args:
         world, camera: the model and camera.
         params: k, sigma (same units as the vectorized likelihood).
-        settings: ``PaperFaithfulSettings``: ``hough`` (on the rendered contours),
+        settings: ``PaperFaithfulConfig``: ``hough`` (on the rendered contours),
             ``samples_per_line`` (S points per model line), ``search_px`` (normal search reach,
             pixels; d is divided by it), ``render_variant`` (Mitsuba variant of the renders).
     """
 
-    def __init__(self, world: World, camera: Camera, params: LikelihoodParams,
-                 settings: PaperFaithfulSettings):
+    def __init__(self, world: World, camera: Camera, params: LikelihoodConfig,
+                 settings: PaperFaithfulConfig):
         self.camera, self.params = camera, params
         self.hough = settings.hough
         self.S = int(settings.samples_per_line)

@@ -31,7 +31,7 @@ Motion: the odometry increment between two frames is expressed in the gravity-al
 frame of the earlier pose (forward, left, up, yaw change), the frame a VIO's increments are
 integrated in; each particle applies it in its own heading frame.
 
-Settings: ``localize.config.FilterParams`` (``filter``).
+Settings: ``localize.config.FilterConfig`` (``filter``).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from scipy.special import logsumexp
 
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
-from localize.config import FilterParams
+from localize.config import FilterConfig
 from localize.filter.hypotheses import Dominance, Hypothesis, top_hypotheses
 from localize.filter.pose_stats import estimate, normalize_log_weights, spread
 from localize.filter.start_hint import StartHint
@@ -270,7 +270,7 @@ class ParticleFilter:
         rng: random generator (the only source of randomness).
     """
 
-    def __init__(self, params: FilterParams, free: OccupancyMap, rng: np.random.Generator):
+    def __init__(self, params: FilterConfig, free: OccupancyMap, rng: np.random.Generator):
         self.params, self.rng, self.free = params, rng, free
         self.particles = np.zeros((0, 4))
         self.logw = np.zeros(0)

@@ -7,9 +7,9 @@ around a pose (ROS's ``/initialpose``: a pose and its (6, 6) covariance), headin
 range. The free space stays a soft prior (``filter.outside_log_penalty_per_m``): a pose
 drawn from a Gaussian may lie outside it and only loses weight. The hinted area (and heading
 span) sets the particle count at the density of an unhinted start
-(``FilterParams.global_count``).
+(``FilterConfig.global_count``).
 
-Settings: ``localize.config.HintSettings`` (``hint`` on the command line).
+Settings: ``localize.config.HintConfig`` (``hint`` on the command line).
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ class StartHint:
     def area(self, free: OccupancyMap) -> float:
         """m2 x heading share the hint covers: its free area (the polygon's own where it holds
         no free cell; a pose's 2-sigma ellipse) x ``heading_span`` / 2 pi; the particle count
-        follows it (``FilterParams.global_count``)."""
+        follows it (``FilterConfig.global_count``)."""
         if self.pose is not None:
             sx, sy = np.sqrt(np.maximum(np.diag(self.covariance)[:2], 1e-6))
             a = np.pi * 4 * sx * sy
@@ -251,7 +251,7 @@ def named_space(world_info: Mapping, name: str) -> np.ndarray:
 
 
 def hint_from_settings(hint, world_info: Mapping) -> StartHint | None:
-    """The ``StartHint`` of the ``hint`` settings (``localize.config.HintSettings``), None
+    """The ``StartHint`` of the ``hint`` settings (``localize.config.HintConfig``), None
     when none is set; ``world_info`` (world.json) resolves ``hint.space``."""
     if hint is None:
         return None

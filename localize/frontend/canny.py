@@ -19,7 +19,7 @@ def canny_edges(rgb: np.ndarray, low: float = 50.0, high: float = 150.0, blur: i
         low, high: Canny hysteresis thresholds on the gradient magnitude.
         blur: Gaussian blur kernel size before Canny (odd; <= 1 disables it).
         hough: None or a mapping with ``threshold`` (votes), ``min_length`` and ``max_gap``
-            (pixels) for ``cv2.HoughLinesP`` (``config.HoughSettings``); the found segments
+            (pixels) for ``cv2.HoughLinesP`` (``config.HoughConfig``); the found segments
             are drawn 1 px wide.
         colour: False: Canny on the grey image; True: on the RGB image (OpenCV takes, at each
             pixel, the gradient of the channel where it is strongest: a step between colours

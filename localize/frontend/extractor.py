@@ -25,16 +25,16 @@ import numpy as np
 
 from core import classes as C
 from core.config import as_config
-from localize.config import MODES, EdgeSettings
+from localize.config import MODES, EdgesConfig
 from localize.frontend.boundaries import dilate, label_edges, snap_to_image_edges
 from localize.frontend.canny import canny_edges
 from localize.frontend.edge_image import EdgeImage
 
 
-def edge_settings(edges: EdgeSettings | Mapping | None) -> EdgeSettings:
+def edge_settings(edges: EdgesConfig | Mapping | None) -> EdgesConfig:
     """The ``edges`` settings: ``edges`` itself, or a (partial) mapping of them over the
-    defaults (``localize.config.EdgeSettings``; a typo raises naming the key)."""
-    return as_config(EdgeSettings, edges, "edges")
+    defaults (``localize.config.EdgesConfig``; a typo raises naming the key)."""
+    return as_config(EdgesConfig, edges, "edges")
 
 
 class EdgeExtractor:
@@ -43,11 +43,11 @@ class EdgeExtractor:
 
     Args:
         mode: ``none`` | ``cnn`` | ``oracle``.
-        edges: the ``edges`` settings (``edge_settings``: an ``EdgeSettings`` or a partial
+        edges: the ``edges`` settings (``edge_settings``: an ``EdgesConfig`` or a partial
             mapping of them).
     """
 
-    def __init__(self, mode: str, edges: EdgeSettings | Mapping | None = None):
+    def __init__(self, mode: str, edges: EdgesConfig | Mapping | None = None):
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {MODES}")
         self.mode, self.settings = mode, edge_settings(edges)

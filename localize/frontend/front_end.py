@@ -3,9 +3,9 @@
 ``FrontEnd(source, edges)`` takes an edge source (``localize.frontend.sources``: a mode name,
 a labelling callable or an ``EdgeSource``) and the ``edges`` config;
 ``FrontEnd.frame(image, true_labels)`` runs the source and the edge extraction
-(``localize.frontend.extractor``) once and returns a ``Frame``;
-``Frame.observation(likelihood)`` makes a likelihood's score maps of it once and hands the
-same maps to every later caller with the same map settings, so filters sharing a ``Frame``
+(``localize.frontend.extractor``) once and returns an ``EdgeFrame``;
+``EdgeFrame.observation(likelihood)`` makes a likelihood's score maps of it once and hands the
+same maps to every later caller with the same map settings, so filters sharing an ``EdgeFrame``
 share its segmentation, edge image and distance transforms.
 """
 
@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from localize.config import MODES, EdgeSettings
+from localize.config import MODES, EdgesConfig
 from localize.frontend.edge_image import EdgeImage, check_rgb
 from localize.frontend.extractor import EdgeExtractor, edge_settings
 from localize.frontend.sources import edge_source
@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # the filter reads the front end, never the other way round
 
 
 @dataclass
-class Frame:
+class EdgeFrame:
     """One frame through the front end.
 
     Attributes:
@@ -63,12 +63,12 @@ class FrontEnd:
 
     Args:
         source: an edge source, a mode name or a labelling callable (``edge_source``).
-        edges: the ``edges`` settings (``localize.config.EdgeSettings``, or a partial mapping
+        edges: the ``edges`` settings (``localize.config.EdgesConfig``, or a partial mapping
             of them; None: the defaults).
         segmenter: the SegNet when ``source`` is ``"cnn"``.
     """
 
-    def __init__(self, source, edges: EdgeSettings | Mapping | None = None, segmenter=None):
+    def __init__(self, source, edges: EdgesConfig | Mapping | None = None, segmenter=None):
         edges = edge_settings(edges)
         self.source = edge_source(source, segmenter, edges.cnn)
         if self.source.mode not in MODES:
@@ -80,7 +80,7 @@ class FrontEnd:
         """The edge mode: ``none`` | ``cnn`` | ``oracle``."""
         return self.source.mode
 
-    def frame(self, image: np.ndarray | None, true_labels: np.ndarray | None = None) -> Frame:
+    def frame(self, image: np.ndarray | None, true_labels: np.ndarray | None = None) -> EdgeFrame:
         """The edge image of a frame.
 
         Args:
@@ -105,4 +105,4 @@ class FrontEnd:
         t1 = time.perf_counter()
         edge = self.extractor.edges(image, labels)
         t2 = time.perf_counter()
-        return Frame(edge, labels, {"segmentation": (t1 - t0) * 1e3, "edges": (t2 - t1) * 1e3})
+        return EdgeFrame(edge, labels, {"segmentation": (t1 - t0) * 1e3, "edges": (t2 - t1) * 1e3})

@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from localize.config import MODES, CnnSettings
+from localize.config import MODES, CnnConfig
 from localize.frontend.segmenter import LabelPredictor
 
 
@@ -86,8 +86,8 @@ class SegmenterLabels:
     needs_image = True
     needs_truth = False
 
-    def __init__(self, segmenter, cnn: CnnSettings | None = None):
-        cnn = cnn or CnnSettings()
+    def __init__(self, segmenter, cnn: CnnConfig | None = None):
+        cnn = cnn or CnnConfig()
         self.predictor = LabelPredictor(segmenter, cnn.prior_correction)
 
     def labels(self, rgb, true_labels):
@@ -123,7 +123,7 @@ class LabelFunction:
         return labels.astype(np.uint8, copy=False)
 
 
-def edge_source(spec, segmenter=None, cnn: CnnSettings | None = None) -> EdgeSource:
+def edge_source(spec, segmenter=None, cnn: CnnConfig | None = None) -> EdgeSource:
     """An edge source from a mode name, a labelling callable or an edge source (returned as is).
 
     Args:

@@ -1,8 +1,8 @@
 """ROS 1 ``.bag`` and ROS 2 bag (``metadata.yaml`` + .db3/.mcap) recordings via rosbags.
 
-Topics (``BagTopics``): an image topic (sensor_msgs/Image in rgb8, bgr8, rgba8, bgra8 or mono8,
-or sensor_msgs/CompressedImage), a sensor_msgs/CameraInfo topic (its first message is used), an
-odometry topic (nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped:
+Topics (``BagTopicsConfig``): an image topic (sensor_msgs/Image in rgb8, bgr8, rgba8, bgra8 or
+mono8, or sensor_msgs/CompressedImage), a sensor_msgs/CameraInfo topic (its first message is
+used), an odometry topic (nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped:
 world_from_body of the odometry's child frame) and an optional ground-truth topic of the same
 kinds. Times are the messages' header stamps. Frames stay in the bag: the reader keeps each
 frame's bag time and fetches it when asked (one pass for ``Recording.images()``), so memory
@@ -24,7 +24,7 @@ from rosbags.typesys import Stores, get_typestore
 from core.config import as_config
 from core.dataset import Camera
 from core.poses import interpolate_poses
-from localize.config import BagTopics
+from localize.config import BagTopicsConfig
 from localize.recordings.messages import decode_image, header_seconds, pose_matrix, source_camera
 from localize.recordings.recording import (
     Recording,
@@ -153,10 +153,10 @@ def _read_images(reader: AnyReader, conns, path: Path, topic: str):
     return t, np.asarray(log_times, np.int64), np.asarray(ranks, np.int64)
 
 
-def read_bag(path: Path, target: Camera | None, *, topics: Mapping | BagTopics | None = None,
+def read_bag(path: Path, target: Camera | None, *, topics: Mapping | BagTopicsConfig | None = None,
              body_from_cam: np.ndarray | None = None, name: str | None = None) -> Recording:
     """Read a ROS 1 or ROS 2 bag recording (see ``localize.recordings.read.read_recording``)."""
-    topics = as_config(BagTopics, topics, CONFIG_KEY)
+    topics = as_config(BagTopicsConfig, topics, CONFIG_KEY)
     path = Path(path)
     with _open(path) as reader:
         img = _connections(reader, topics.image, "image", IMAGE_TYPES, path)

@@ -27,7 +27,7 @@ from core.atomic import atomic_write_bytes, atomic_write_text, read_png
 from core.dataset import Camera, Dataset, Flight
 from core.imaging.lens import coefficients
 from core.poses import pose_from_xyzyaw, write_tum
-from localize.recordings.bag import BagTopics
+from localize.recordings.bag import BagTopicsConfig
 
 #: Nanoseconds per second (ROS stamps and bag times are integer nanoseconds).
 NS = 1_000_000_000
@@ -210,7 +210,7 @@ def _image(types, header, rgb: np.ndarray, jpeg_quality: int):
 
 
 def export_bag(dataset: str | Path, flight: str, out: str | Path, *, ros1: bool = False,
-               mcap: bool = False, jpeg_quality: int = 0, topics: BagTopics | None = None,
+               mcap: bool = False, jpeg_quality: int = 0, topics: BagTopicsConfig | None = None,
                odometry_frame: np.ndarray | None = None, scale: float = 1.0,
                distortion: Sequence[float] | None = None) -> Path:
     """Write a flight as a ROS 2 bag folder (sqlite3 or MCAP storage) or a ROS 1 ``.bag``.
@@ -225,7 +225,7 @@ def export_bag(dataset: str | Path, flight: str, out: str | Path, *, ros1: bool 
     from rosbags.rosbag2 import Writer as Writer2
     from rosbags.typesys import Stores, get_typestore
 
-    topics = topics or BagTopics(groundtruth="/groundtruth")
+    topics = topics or BagTopicsConfig(groundtruth="/groundtruth")
     ds = Dataset(dataset)
     f = ds.flight(flight)
     frames = FlightFrames(f, ds.camera, scale, distortion)
@@ -290,7 +290,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
         frame = pose_from_xyzyaw([x, y, z, np.deg2rad(yaw)])[0]
     common = {"odometry_frame": frame, "scale": a.scale, "distortion": a.distortion}
     if a.bag or a.bag1:
-        topics = BagTopics(groundtruth="/groundtruth")
+        topics = BagTopicsConfig(groundtruth="/groundtruth")
         if a.image_topic:
             topics = replace(topics, image=a.image_topic)
         out = export_bag(a.dataset, a.flight, a.out, ros1=a.bag1, mcap=a.mcap, topics=topics,

@@ -22,7 +22,7 @@ def read_recording(path: str | Path, target: Camera | None = None, *,
         path: the recording.
         target: camera the frames are delivered for (size; default body_from_cam), usually the
             dataset's; None keeps the recorded size (frames are still undistorted).
-        topics: bag topics (``localize.recordings.bag.BagTopics`` keys: image, camera_info,
+        topics: bag topics (``localize.recordings.bag.BagTopicsConfig`` keys: image, camera_info,
             odometry, groundtruth); ignored for folders.
         body_from_cam: (4, 4) camera mount overriding the recording's own.
         name: recording name (default: the file or folder name without suffix).

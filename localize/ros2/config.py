@@ -26,7 +26,7 @@ RELIABILITIES = ("best_effort", "reliable")
 
 
 @dataclass
-class NodeTopics:
+class NodeTopicsConfig:
     """``topics``: what the node subscribes and publishes (the player publishes the inputs).
 
     Attributes:
@@ -73,7 +73,7 @@ class NodeTopics:
 
 
 @dataclass
-class FrameIds:
+class FrameIdsConfig:
     """``frames``: the frame ids of what the node publishes (REP 105).
 
     Attributes:
@@ -86,7 +86,7 @@ class FrameIds:
 
 
 @dataclass
-class QosSettings:
+class QosConfig:
     """``qos``: reliability and depth of the inputs and the outputs.
 
     Attributes:
@@ -112,7 +112,7 @@ class QosSettings:
 
 
 @dataclass
-class RealTimeSettings:
+class RealTimeConfig:
     """``realtime``: how the node keeps up with the camera.
 
     Attributes:
@@ -166,10 +166,10 @@ class Ros2Config(LocalizeConfig):
     mode: str = "cnn"
     seed: int = 0
     body_from_cam: list[Any] | None = None
-    topics: NodeTopics = field(default_factory=NodeTopics)
-    frames: FrameIds = field(default_factory=FrameIds)
-    qos: QosSettings = field(default_factory=QosSettings)
-    realtime: RealTimeSettings = field(default_factory=RealTimeSettings)
+    topics: NodeTopicsConfig = field(default_factory=NodeTopicsConfig)
+    frames: FrameIdsConfig = field(default_factory=FrameIdsConfig)
+    qos: QosConfig = field(default_factory=QosConfig)
+    realtime: RealTimeConfig = field(default_factory=RealTimeConfig)
     mavlink: str = ""
     mavlink_rate_hz: float = 30.0
 

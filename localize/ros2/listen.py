@@ -11,7 +11,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from localize.ros2.config import NodeTopics
+from localize.ros2.config import NodeTopicsConfig
 from localize.ros2.convert import position_quaternion, stamp_seconds
 
 
@@ -24,7 +24,7 @@ class Listener:
         statuses: the DiagnosticArray messages.
     """
 
-    def __init__(self, node, topics: NodeTopics):
+    def __init__(self, node, topics: NodeTopicsConfig):
         self.poses: list = []
         self.arrivals: list[float] = []
         self.statuses: list = []
@@ -62,7 +62,7 @@ class Session:
     publisher, spinning on a thread (benchmarks/live.py; a player can publish on ``node``).
     Set the DDS environment (``localize.ros2.loopback``) before making one."""
 
-    def __init__(self, topics: NodeTopics, name: str = "edgeloc_listener"):
+    def __init__(self, topics: NodeTopicsConfig, name: str = "edgeloc_listener"):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 

@@ -11,7 +11,7 @@ odometry (nav_msgs/Odometry, frame ``odom`` to ``base_link``, or PoseStamped wit
 CameraInfo and the image (sensor_msgs/Image rgb8, or CompressedImage JPEG with
 ``topics.image_transport=compressed``), all stamped with the wall-clock time the frame is
 published at (a live camera's capture time), and the true pose (PoseStamped, map frame) when
-the source has one. Topics: ``localize.ros2.config.NodeTopics``, as the node reads them.
+the source has one. Topics: ``localize.ros2.config.NodeTopicsConfig``, as the node reads them.
 """
 
 from __future__ import annotations
@@ -32,14 +32,14 @@ from core.dataset import Dataset
 from localize.live.sync import wait_until
 from localize.recordings.read import read_recording
 from localize.recordings.recording import SourceCamera
-from localize.ros2.config import NodeTopics
+from localize.ros2.config import NodeTopicsConfig
 from localize.ros2.convert import position_quaternion, stamp_parts
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
-class PlaySettings:
+class PlayConfig:
     """The player's ``key=value`` settings.
 
     Attributes:
@@ -59,7 +59,7 @@ class PlaySettings:
     odom_frame: str = "odom"
     base_frame: str = "base_link"
     map_frame: str = "map"
-    topics: NodeTopics = field(default_factory=NodeTopics)
+    topics: NodeTopicsConfig = field(default_factory=NodeTopicsConfig)
 
     def __post_init__(self) -> None:
         if self.rate <= 0:
@@ -105,7 +105,7 @@ def open_playback(path: str | Path) -> Playback:
 class Player:
     """Publishes a ``Playback`` on a node's publishers (rclpy)."""
 
-    def __init__(self, node, settings: PlaySettings):
+    def __init__(self, node, settings: PlayConfig):
         from geometry_msgs.msg import PoseStamped
         from nav_msgs.msg import Odometry
         from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -225,7 +225,7 @@ def main(argv: list[str] | None = None) -> None:
     if len(paths) != 1:
         raise SystemExit("usage: python -m localize.ros2.play RECORDING_OR_FLIGHT [rate=1.0] "
                          "[max_frames=N] [loop=true] [topics.image=/camera/image_raw] ...")
-    settings = typed(PlaySettings, OmegaConf.from_dotlist([a for a in args if "=" in a]),
+    settings = typed(PlayConfig, OmegaConf.from_dotlist([a for a in args if "=" in a]),
                      "ros2_play")
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
     pb = open_playback(paths[0])

@@ -45,7 +45,7 @@ Interface (what the Localizer wires):
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
   log-weights.
 
-Settings: ``GlobalSearchParams`` (``filter.global_search``).
+Settings: ``GlobalSearchConfig`` (``filter.global_search``).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ from localize.search.ray_table import RayTable, floor_boundary
 
 
 @dataclass
-class GlobalSearchParams:
+class GlobalSearchConfig:
     """Settings of the global search (``filter.global_search``).
 
     Attributes:
@@ -126,9 +126,9 @@ class GlobalSearchParams:
     stride: int = 2
 
 
-def search_params(global_search: dict) -> GlobalSearchParams:
+def search_params(global_search: dict) -> GlobalSearchConfig:
     """The settings of ``filter.global_search`` (a typo or a bad value raises naming it)."""
-    return typed(GlobalSearchParams, global_search, "filter.global_search")
+    return typed(GlobalSearchConfig, global_search, "filter.global_search")
 
 
 _TABLES: dict = {}
@@ -136,7 +136,7 @@ _TABLES: dict = {}
 CHUNK = 32768
 
 
-def ray_table_for(world: World, params: GlobalSearchParams) -> RayTable:
+def ray_table_for(world: World, params: GlobalSearchConfig) -> RayTable:
     """The world's ``RayTable`` at the params' cell and rays, built once and kept while the
     world lives (the runner's localizers of one world share it)."""
     key = (id(world), params.cell, params.rays)
@@ -172,7 +172,7 @@ class GlobalSearch:
     """
 
     def __init__(self, table: RayTable, camera: Camera, free: OccupancyMap,
-                 params: GlobalSearchParams, rng: np.random.Generator):
+                 params: GlobalSearchConfig, rng: np.random.Generator):
         self.table, self.camera, self.params, self.rng = table, camera, params, rng
         self.free = free
         self.band = (float(free.band[0]), float(free.band[1]))

@@ -13,7 +13,7 @@ import trimesh
 
 from core import classes as C
 from datagen.mesh.edge_polylines import simplify_segments
-from datagen.mesh.edges import EdgeSettings, extract_edges
+from datagen.mesh.edges import EdgeExtractionConfig, extract_edges
 from datagen.mesh.planar_regions import face_pairs, planar_regions
 from datagen.worlds.corridor import build_world
 
@@ -102,7 +102,7 @@ def test_a_scanned_room_keeps_its_vertical_corners():
     assert _lengths(seg[floor]).min() >= 0.05
     # straightened too, it is the room's four foot lines
     seg, cls, _ = extract_edges(v, f, classes,
-                                settings=EdgeSettings(straighten_class_changes=True))
+                                settings=EdgeExtractionConfig(straighten_class_changes=True))
     floor = (cls == [C.FLOOR, C.WALL]).all(axis=1)
     assert floor.sum() == 4 and _lengths(seg[floor]).sum() == pytest.approx(14.0, abs=0.1)
     assert len(seg) == 12

@@ -14,7 +14,7 @@ from core import classes as C
 from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig
 from datagen.importers import load_building
-from datagen.importers.settings import ImportSettings
+from datagen.importers.config import ImportConfig
 from datagen.worlds.site import camera_free_space
 
 WORLDS = Path(__file__).resolve().parents[2] / ".." / "shared" / "worlds"
@@ -39,7 +39,7 @@ def scan(tmp_path_factory):
     up = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])
     path = tmp_path_factory.mktemp("scan") / "office_zup.obj"
     trimesh.Trimesh(np.asarray(mesh.vertices) @ up.T, mesh.faces, process=False).export(path)
-    return load_building(settings=ImportSettings(path=str(path), up_axis="z"))
+    return load_building(settings=ImportConfig(path=str(path), up_axis="z"))
 
 
 def test_scan_gets_its_room(scan):

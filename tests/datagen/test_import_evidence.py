@@ -11,8 +11,8 @@ import trimesh
 from core import classes as C
 from datagen.importers import load_building
 from datagen.importers.classify import name_evidence
+from datagen.importers.config import default_name_rules
 from datagen.importers.orient import AXES, find_up_axis, to_z_up
-from datagen.importers.settings import default_name_rules
 from datagen.importers.summary import import_summary, unit_guess, vertical_edges
 from tests.datagen.building_files import open_room, write_dae, write_model, write_world
 

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from core import classes as C
-from datagen.importers import ImportSettings, NameRule, load_building
+from datagen.importers import ImportConfig, NameRule, load_building
 from datagen.importers.classify import name_classes
 from datagen.importers.meshfile import Y_UP_TO_Z_UP
 from tests.datagen.building_files import ROOM, open_room, write_dae
@@ -114,7 +114,7 @@ def test_geometry_fallback(tmp_path):
 
 
 def test_name_rules():
-    rules = ImportSettings().name_rules
+    rules = ImportConfig().name_rules
     names = ["hospital_floor_01_walls/aws_robomaker_hospital_floor_01_doorframes_big",
              "hospital_floor_01_walls/aws_robomaker_hospital_floor_01_doorsign",
              "hospital_floor_01_walls/aws_robomaker_hospital_floor_01_walls",

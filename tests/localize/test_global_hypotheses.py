@@ -7,7 +7,7 @@ import pytest
 
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, wrap_angle
-from localize.config import FilterParams, HintSettings
+from localize.config import FilterConfig, HintConfig
 from localize.filter.hypotheses import Dominance, top_hypotheses
 from localize.filter.particle_filter import ParticleFilter
 from localize.filter.start_hint import (
@@ -73,7 +73,7 @@ class TestDominance:
 
     def test_two_equal_modes_stay_ambiguous(self):
         """A filter whose likelihood has two equal modes never declares tracking."""
-        params = FilterParams(num_particles=2000, global_particles=20000, global_frames=15,
+        params = FilterConfig(num_particles=2000, global_particles=20000, global_frames=15,
                               recovery=False)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_global()
@@ -96,7 +96,7 @@ class TestDominance:
         assert last.confidence == 0.0
 
     def test_one_mode_becomes_tracking(self):
-        params = FilterParams(num_particles=500, global_particles=20000, global_frames=15)
+        params = FilterConfig(num_particles=500, global_particles=20000, global_frames=15)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_global()
         target = np.array([0.0, 2.0, 1.2, 0.5])
@@ -111,14 +111,14 @@ class TestDominance:
         assert first >= params.dominant_frames - 1 and status[-1] == "tracking"
 
     def test_a_tracking_start_is_dominant_at_once(self):
-        pf = ParticleFilter(FilterParams(), FREE, np.random.default_rng(0))
+        pf = ParticleFilter(FilterConfig(), FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0.0, 2.0, 1.2, 0.5]))
         flat = lambda s, t: (np.zeros(len(s)), np.full(len(s), 0.5))  # noqa: E731
         assert pf.update(flat).status == "tracking"
 
 
 def test_a_search_hands_over_its_poses():
-    pf = ParticleFilter(FilterParams(num_particles=400), FREE, np.random.default_rng(0))
+    pf = ParticleFilter(FilterConfig(num_particles=400), FREE, np.random.default_rng(0))
     rng = np.random.default_rng(1)
     a, b = np.array([0.0, 2.0, 1.2, 0.5]), np.array([0.0, 8.0, 1.2, -2.5])
     pf.init_particles(cloud(rng, a, 400))
@@ -132,7 +132,7 @@ def test_a_search_hands_over_its_poses():
 class TestStartHint:
     def test_region_restricts_the_particles(self):
         region = [-0.7, 4.0, 0.7, 6.0]
-        pf = ParticleFilter(FilterParams(global_particles=4000), FREE,
+        pf = ParticleFilter(FilterConfig(global_particles=4000), FREE,
                             np.random.default_rng(0))
         pf.init_global(StartHint(region=region, heading=(0.0, np.pi / 2)))
         p = pf.particles
@@ -183,17 +183,17 @@ class TestStartHint:
         assert hint.heading_span == pytest.approx(np.deg2rad(20))
 
     def test_settings_and_named_spaces(self):
-        assert hint_from_settings(HintSettings(), {}) is None
+        assert hint_from_settings(HintConfig(), {}) is None
         info = {"spaces": {"Lobby": [[-0.7, 0.3], [0.7, 0.3], [0.7, 2.0], [-0.7, 2.0]]}}
-        hint = hint_from_settings(HintSettings(space="lobby", heading_deg=[0, 90]), info)
+        hint = hint_from_settings(HintConfig(space="lobby", heading_deg=[0, 90]), info)
         assert hint.region.shape == (4, 2) and hint.heading_span == pytest.approx(np.pi / 2)
         with pytest.raises(ValueError, match="its spaces: Lobby"):
             named_space(info, "kitchen")
         with pytest.raises(ValueError, match="no 'spaces'"):
             named_space({}, "kitchen")
         with pytest.raises(ValueError, match=r"xmax > xmin"):
-            hint_from_settings(HintSettings(region=[1, 0, 0, 1]), {})
-        pose = hint_from_settings(HintSettings(pose=[0, 3, 1.2, 90]), {})
+            hint_from_settings(HintConfig(region=[1, 0, 0, 1]), {})
+        pose = hint_from_settings(HintConfig(pose=[0, 3, 1.2, 90]), {})
         assert pose.pose[3] == pytest.approx(np.pi / 2)
 
 

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
-from localize.config import FilterParams, Settings
+from localize.config import FilterConfig, LocalizerConfig
 from localize.filter.start_hint import StartHint
 from localize.localizer import EdgeModel, Localizer
-from localize.search.global_search import GlobalSearch, GlobalSearchParams, ray_table_for
+from localize.search.global_search import GlobalSearch, GlobalSearchConfig, ray_table_for
 from localize.search.ray_table import RayTable, floor_boundary
 
 #: A path through the small corridor (free x in [-1.9, 0.7], y in [0.3, 3.7]), low enough to
@@ -20,7 +20,7 @@ FRAMES = 30
 #: Coarser and quicker to hand over than the defaults: the corridor is 5.5 m2 and 30 frames.
 SMALL = {"headings": 36, "max_hypotheses": 30000, "evidence": 8.0, "frame_floor": 6.0,
          "handover_mass": 0.99, "handover_frames": 5}
-PARAMS = GlobalSearchParams(**SMALL)
+PARAMS = GlobalSearchConfig(**SMALL)
 
 
 def path() -> np.ndarray:
@@ -110,7 +110,7 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
     """``reset(None)`` in a label mode runs the search (status ``ambiguous``, its pose
     hypotheses reported), then the tracking filter takes over near the truth."""
     poses, labels = rendered
-    settings = Settings(filter=FilterParams(num_particles=150, global_search=SMALL))
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=SMALL))
     model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
                                                                              "oracle")
     loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
@@ -128,14 +128,14 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
     assert loc.search is None
     err = np.hypot(*(np.array(est)[-5:, :2] - path()[-5:, :2]).T)
     assert (err < 0.3).all(), err
-    assert ray_table_for(small_world, GlobalSearchParams(headings=36)) is ray_table_for(
-        small_world, GlobalSearchParams(headings=36))
+    assert ray_table_for(small_world, GlobalSearchConfig(headings=36)) is ray_table_for(
+        small_world, GlobalSearchConfig(headings=36))
 
 
 def test_localizer_hint_weighs_the_search(small_world, camera):
     """A ``StartHint`` given to ``Localizer.reset`` restricts the search's start: a region
     keeps only its poses, a pose with covariance weighs them by its Gaussian."""
-    settings = Settings(filter=FilterParams(num_particles=150, global_search=SMALL))
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=SMALL))
     model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
                                                                              "oracle")
     loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),

@@ -12,7 +12,7 @@ from core.atomic import write_png
 from core.dataset import Flight
 from core.poses import odometry_increment, pose_from_xyzyaw, xyzyaw_from_pose
 from core.spliced import flight_segment, kidnapped
-from localize.config import FilterParams
+from localize.config import FilterConfig
 from localize.filter.particle_filter import apply_increment
 from localize.filter.projection import cam_from_world
 from localize.localizer import EdgeModel, Localizer
@@ -74,7 +74,7 @@ def test_a_kidnapping_is_detected_and_never_tracked_falsely(small_world, camera,
     """Oracle labels of the small corridor: 12 frames tracked, then the truth teleported 2 m
     to the far end, facing back. The loss is declared within 10 frames, a global set drawn
     again, and the filter never reports ``tracking`` while more than 1 m off for over 1 s."""
-    settings = replace(SETTINGS, filter=FilterParams(num_particles=300, global_particles=4000,
+    settings = replace(SETTINGS, filter=FilterConfig(num_particles=300, global_particles=4000,
                                                      global_frames=15, lost_frames=5))
     model = EdgeModel.build(small_world, settings).for_mode(small_world, "oracle")
     odo_b = pose_from_xyzyaw(np.array([[3.0, -1.0, 0.0, 0.7]]))[0]

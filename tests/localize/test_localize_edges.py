@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from localize.config import HoughSettings
+from localize.config import HoughConfig
 from localize.frontend.boundaries import label_edges
 from localize.frontend.canny import canny_edges
 from localize.frontend.edge_image import EdgeImage, pair_classes, pair_code, pair_name
@@ -241,7 +241,7 @@ class TestSegmenter:
             edge_source("cnn")
         # a partial edges config takes the defaults for the rest
         assert EdgeExtractor("none", {"canny": EDGES_CFG["canny"]}).settings.hough == \
-            HoughSettings()
+            HoughConfig()
         with pytest.raises(ValueError, match="needs a label map"):
             EdgeExtractor("oracle", EDGES_CFG).edges(np.zeros((20, 30, 3), np.uint8))
         e = EdgeExtractor("oracle", EDGES_CFG).edges(None, two_walls())

@@ -15,7 +15,7 @@ from core.poses import (
     xyzyaw_from_pose,
 )
 from localize.filter.particle_filter import (
-    FilterParams,
+    FilterConfig,
     ParticleFilter,
     apply_increment,
     effective_sample_size,
@@ -95,7 +95,7 @@ class TestMotion:
         """A filter step with a flat likelihood: a particle outside the free space loses
         log-weight in proportion to its distance beyond the slack, one inside keeps its
         weight, and none is removed, clamped or moved."""
-        params = FilterParams(num_particles=200, recovery=False, free_space_slack=0.25,
+        params = FilterConfig(num_particles=200, recovery=False, free_space_slack=0.25,
                               outside_log_penalty_per_m=20.0, tilt_std=[0.0, 0.0])
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0.0, 5.0, 1.0, 0.0]))
@@ -113,7 +113,7 @@ class TestMotion:
 
     def test_prior_settings(self):
         with pytest.raises(ValueError, match="outside_log_penalty_per_m"):
-            FilterParams(outside_log_penalty_per_m=-1.0)
+            FilterConfig(outside_log_penalty_per_m=-1.0)
 
 
 class TestWeights:
@@ -139,26 +139,26 @@ class TestWeights:
 
     def test_params(self):
         with pytest.raises(ValueError, match="init_std"):
-            FilterParams(init_std=(0.1, 0.1))
+            FilterConfig(init_std=(0.1, 0.1))
         with pytest.raises(ValueError, match="filter.particles: Key 'particles' not in"):
-            typed(FilterParams, {"particles": 3}, "filter")
-        assert typed(FilterParams, {"motion_std": [0.1, 0.1, 1.0]}, "filter").motion_std == [
+            typed(FilterConfig, {"particles": 3}, "filter")
+        assert typed(FilterConfig, {"motion_std": [0.1, 0.1, 1.0]}, "filter").motion_std == [
             0.1, 0.1, 1.0]
         with pytest.raises(ValueError, match="mode_likelihood: unknown edge modes"):
-            FilterParams(mode_likelihood={"segnet": {"k": 5.0}})
-        per_mode = typed(FilterParams, {"mode_likelihood": {"cnn": {"k": 5.0}}}, "filter")
+            FilterConfig(mode_likelihood={"segnet": {"k": 5.0}})
+        per_mode = typed(FilterConfig, {"mode_likelihood": {"cnn": {"k": 5.0}}}, "filter")
         assert per_mode.mode_likelihood["cnn"] == {"k": 5.0, "orientation_bins": 12}  # merged
 
     def test_mode_motion_std(self):
-        fp = FilterParams(motion_std=[0.01, 0.005, 0.5],
+        fp = FilterConfig(motion_std=[0.01, 0.005, 0.5],
                           mode_motion_std={"cnn": [0.01, 0.005, 0.2]})
         assert fp.for_mode("cnn").motion_std == [0.01, 0.005, 0.2]
         assert fp.for_mode("cnn").num_particles == fp.num_particles
         assert fp.for_mode("none") is fp  # modes without an entry keep motion_std
         with pytest.raises(ValueError, match="mode_motion_std: unknown edge modes"):
-            FilterParams(mode_motion_std={"segnet": [0.01, 0.005, 0.2]})
+            FilterConfig(mode_motion_std={"segnet": [0.01, 0.005, 0.2]})
         with pytest.raises(ValueError, match="mode_motion_std.cnn needs 3 values"):
-            FilterParams(mode_motion_std={"cnn": [0.01, 0.2]})
+            FilterConfig(mode_motion_std={"cnn": [0.01, 0.2]})
 
 
 def bowl(target: np.ndarray, k: float = 50.0):
@@ -171,7 +171,7 @@ def bowl(target: np.ndarray, k: float = 50.0):
 
 class TestParticleFilter:
     def test_tracking_follows_the_target(self):
-        params = FilterParams(num_particles=300, recovery=False)
+        params = FilterConfig(num_particles=300, recovery=False)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         truth = np.array([0.0, 1.0, 1.0, 1.5])
         pf.init_tracking(truth)
@@ -186,7 +186,7 @@ class TestParticleFilter:
         assert len(pf.particles) == 300
 
     def test_global_set_is_thinned(self):
-        params = FilterParams(num_particles=100, global_particles=1000, global_frames=2)
+        params = FilterConfig(num_particles=100, global_particles=1000, global_frames=2)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_global()
         assert len(pf.particles) == 1000 and pf.in_global_phase
@@ -196,7 +196,7 @@ class TestParticleFilter:
         assert len(pf.particles) == 100 and not pf.in_global_phase
 
     def test_recovery_injects_on_collapse(self):
-        params = FilterParams(num_particles=200, recovery_patience=2, recovery_threshold=0.5)
+        params = FilterConfig(num_particles=200, recovery_patience=2, recovery_threshold=0.5)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
         good = lambda s, t: (np.zeros(len(s)), np.full(len(s), 0.9))  # noqa: E731
@@ -208,7 +208,7 @@ class TestParticleFilter:
         assert np.isfinite(pf.logw).all() and len(pf.particles) == 200
 
     def test_poor_fit_coasts_then_relocalizes(self):
-        params = FilterParams(num_particles=200, global_particles=1000, lost_frames=4)
+        params = FilterConfig(num_particles=200, global_particles=1000, lost_frames=4)
         pf = ParticleFilter(params, FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
         truth = np.array([0.0, 2.0, 1.0, 0.0])
@@ -260,14 +260,14 @@ class TestParticleFilter:
             e2 = ((tilt - error) ** 2).sum(1) / np.deg2rad(0.2) ** 2
             return -50.0 * d2 - 0.5 * e2, np.ones(len(states))
 
-        pf = ParticleFilter(FilterParams(num_particles=300, tilt_std=[1.0, 0.1]), FREE,
+        pf = ParticleFilter(FilterConfig(num_particles=300, tilt_std=[1.0, 0.1]), FREE,
                             np.random.default_rng(0))
         pf.init_tracking(truth)
         for _ in range(15):
             pf.predict(np.zeros(4))
             info = pf.update(lik)
         assert np.rad2deg(np.abs(info.tilt - error)).max() < 0.15
-        off = ParticleFilter(FilterParams(num_particles=300, tilt_std=[0.0, 0.0]), FREE,
+        off = ParticleFilter(FilterConfig(num_particles=300, tilt_std=[0.0, 0.0]), FREE,
                              np.random.default_rng(0))
         off.init_tracking(truth)
         off.predict(np.zeros(4))
@@ -275,7 +275,7 @@ class TestParticleFilter:
 
     @pytest.mark.parametrize("case", ["nan_quality", "flat", "huge"])
     def test_degenerate_likelihood_keeps_the_filter_alive(self, case):
-        pf = ParticleFilter(FilterParams(num_particles=100), FREE, np.random.default_rng(0))
+        pf = ParticleFilter(FilterConfig(num_particles=100), FREE, np.random.default_rng(0))
         pf.init_tracking(np.array([0, 2, 1, 0]))
         for _ in range(5):
             def f(s, t):

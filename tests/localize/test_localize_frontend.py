@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from localize.config import CnnSettings
-from localize.filter.likelihood import EdgeLikelihood, LikelihoodParams
+from localize.config import CnnConfig
+from localize.filter.likelihood import EdgeLikelihood, LikelihoodConfig
 from localize.filter.projection import sample_segments
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import (
@@ -20,7 +20,7 @@ from localize.frontend.sources import (
 )
 from tests.localize.test_localize_edges import EDGES_CFG, two_walls
 
-PLAIN = CnnSettings(prior_correction=0.0)  # the stub has no class weights to take out
+PLAIN = CnnConfig(prior_correction=0.0)  # the stub has no class weights to take out
 
 
 class Labeller:
@@ -74,7 +74,7 @@ class TestFrame:
 
     def test_score_maps_made_once_per_settings(self, small_world, camera):
         samples = sample_segments(small_world.segments, 0.2)
-        lik = [EdgeLikelihood(samples, camera, LikelihoodParams(sigma=s)) for s in (0.1, 0.1,
+        lik = [EdgeLikelihood(samples, camera, LikelihoodConfig(sigma=s)) for s in (0.1, 0.1,
                                                                                       0.3)]
         labels = np.full((camera.height, camera.width), C.WALL, np.uint8)
         labels[:, 80:] = C.DOOR

@@ -12,7 +12,7 @@ from core.config import typed
 from localize.filter.likelihood import (
     FIT_EPS,
     EdgeLikelihood,
-    LikelihoodParams,
+    LikelihoodConfig,
     distance_to,
     edge_normal_angle,
     frame_k,
@@ -63,7 +63,7 @@ class TestObserve:
         edges[:, 10] = True
         known = np.ones_like(edges)
         known[:, 30:] = False
-        p = LikelihoodParams(sigma=0.3, search_px=10)
+        p = LikelihoodConfig(sigma=0.3, search_px=10)
         obs = observe(EdgeImage(edges, known), p)
         g = obs.g[:-1].reshape(20, 40)
         np.testing.assert_allclose(g[:, 10], 1.0)
@@ -76,7 +76,7 @@ class TestObserve:
 
     def test_no_edges_is_flat(self):
         obs = observe(EdgeImage(np.zeros((8, 8), bool), np.ones((8, 8), bool)),
-                      LikelihoodParams())
+                      LikelihoodConfig())
         np.testing.assert_allclose(obs.g[:-1], obs.g[0])
         assert np.isfinite(obs.g).all()
 
@@ -87,7 +87,7 @@ class TestObserve:
         theta = edge_normal_angle(edges)
         assert min(theta[15, 10], np.pi - theta[15, 10]) < 0.2
         assert abs(theta[30, 25] - np.pi / 2) < 0.2
-        obs = observe(EdgeImage(edges, np.ones_like(edges)), LikelihoodParams(orientation_bins=4))
+        obs = observe(EdgeImage(edges, np.ones_like(edges)), LikelihoodConfig(orientation_bins=4))
         g = obs.g[:-1].reshape(4, 40, 40)
         assert g[0, 15, 10] == pytest.approx(1.0) and g[2, 15, 10] < 0.5
         assert g[2, 30, 25] == pytest.approx(1.0) and g[0, 30, 25] < 0.5
@@ -119,7 +119,7 @@ class TestObserve:
         """Without unknown pixels (the shortcut): g from the distance, the chance level the
         mean of g, the fit map the log-ratio, nowhere exactly 0."""
         edges = _random_lines(np.random.default_rng(5))
-        p = LikelihoodParams(sigma=0.1, search_px=10)
+        p = LikelihoodConfig(sigma=0.1, search_px=10)
         obs = observe(EdgeImage(edges, np.ones_like(edges)), p)
         g = np.exp(-(np.minimum(distance_to(edges), 10) / 10) ** 2 / (2 * 0.1 ** 2))
         np.testing.assert_allclose(obs.g[:-1].reshape(edges.shape), g, rtol=1e-5, atol=1e-30)
@@ -138,29 +138,29 @@ class TestObserve:
         pairs[:, 20] = pair_code(C.WALL, C.WINDOW)
         known = np.ones_like(edges)
         codes = np.array([pair_code(C.WALL, C.DOOR), pair_code(C.WALL, C.WINDOW)])
-        p = LikelihoodParams(class_pairs=True)
+        p = LikelihoodConfig(class_pairs=True)
         obs = observe(EdgeImage(edges, known, pairs), p, codes)
         g = obs.g[:-1].reshape(2, 20, 40)
         assert obs.pairs == 2
         assert g[0, 5, 10] == pytest.approx(1.0) and g[0, 5, 20] < 0.01  # door map
         assert g[1, 5, 20] == pytest.approx(1.0) and g[1, 5, 10] < 0.01  # window map
-        plain = observe(EdgeImage(edges, known, pairs), LikelihoodParams(), codes)
+        plain = observe(EdgeImage(edges, known, pairs), LikelihoodConfig(), codes)
         assert plain.pairs == 0 and plain.g0 == pytest.approx(obs.g0)
         # without classes (mode none) the maps are not split
         assert observe(EdgeImage(edges, known), p, codes).pairs == 0
 
     def test_bad_params(self):
         with pytest.raises(ValueError, match="sigma"):
-            LikelihoodParams(sigma=0.0)
+            LikelihoodConfig(sigma=0.0)
         with pytest.raises(ValueError, match="filter.likelihood.kappa: Key 'kappa' not in"):
-            typed(LikelihoodParams, {"kappa": 1}, "filter.likelihood")
+            typed(LikelihoodConfig, {"kappa": 1}, "filter.likelihood")
 
 
 @pytest.mark.parametrize("bins", [0, 4])
 def test_peaks_at_true_pose(model, camera, rendered, bins):
     s, vis = model
     paper = {"k": 3.0, "sigma": 0.3, "lines_ref": 0}  # the paper's likelihood
-    lik = EdgeLikelihood(s, camera, LikelihoodParams(orientation_bins=bins, min_lines=1, chunk=3,
+    lik = EdgeLikelihood(s, camera, LikelihoodConfig(orientation_bins=bins, min_lines=1, chunk=3,
                                                      **paper), vis)
     obs = lik.observe(label_edges(rendered, dilate_px=0))
     states = np.vstack([TRUE, TRUE + OFFSETS])
@@ -178,7 +178,7 @@ def test_frame_k():
     assert frame_k(25.0, np.array([4]), 0) == 25.0  # off
     assert frame_k(25.0, np.array([], int), 15) == 25.0
     with pytest.raises(ValueError, match="lines_ref"):
-        LikelihoodParams(lines_ref=-1)
+        LikelihoodConfig(lines_ref=-1)
 
 
 def test_lines_ref_scales_the_frame_not_the_particles(model, camera, rendered):
@@ -187,7 +187,7 @@ def test_lines_ref_scales_the_frame_not_the_particles(model, camera, rendered):
     s, vis = model
     states = np.vstack([TRUE, TRUE + OFFSETS])
     edge = label_edges(rendered, dilate_px=0)
-    base = LikelihoodParams(k=25.0, min_lines=1)
+    base = LikelihoodConfig(k=25.0, min_lines=1)
     for ref, lo, hi in ((1, 25.0, 25.0), (10_000, 1e-6, 0.5)):
         lik = EdgeLikelihood(s, camera, replace(base, lines_ref=ref), vis)
         obs = lik.observe(edge)
@@ -205,7 +205,7 @@ def test_class_pairs_peak_and_need_sample_pairs(model, camera, rendered, small_w
     s, vis = model
     sc = small_world.segment_classes[s.segment]
     pairs = pair_code(sc[:, 0], sc[:, 1])
-    p = LikelihoodParams(orientation_bins=4, class_pairs=True)
+    p = LikelihoodConfig(orientation_bins=4, class_pairs=True)
     lik = EdgeLikelihood(s, camera, p, vis, pairs)
     edge = label_edges(rendered, dilate_px=0)
     states = np.vstack([TRUE, TRUE + OFFSETS])
@@ -232,7 +232,7 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     keep = world.segment_classes[:, 0] != world.segment_classes[:, 1]
     s, _ = s.select(keep)
     vis = build_visibility(world, s.points, cell_xy=0.4, cell_z=0.5)
-    lik = EdgeLikelihood(s, cam, LikelihoodParams(), vis)
+    lik = EdgeLikelihood(s, cam, LikelihoodConfig(), vis)
     wins = 0
     for t in (5, 15, 25):
         obs = lik.observe(label_edges(read_png(fl.label[t], rgb=False)))
@@ -257,7 +257,7 @@ def test_per_particle_tilts_correct_an_imu_error(model, camera, renderer):
 
     T = cam_from_world(TRUE[None], camera.body_from_cam, tilt(1.5, -2.0))[0]
     labels, _ = renderer.render(np.linalg.inv(T))
-    lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
+    lik = EdgeLikelihood(s, camera, LikelihoodConfig(), vis)
     obs = lik.observe(label_edges(labels))
     imu = tilt(0.5, -1.0)
     corr = np.deg2rad([[0.0, 0.0], [1.0, -1.0], [-1.0, 1.0], [1.0, 0.0], [0.0, -1.0]])
@@ -285,7 +285,7 @@ class TestDegenerate:
             edge = label_edges(np.full((H, W), C.CLUTTER, np.uint8))
         else:
             edge = canny_edges(np.zeros((H, W, 3), np.uint8))
-        lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
+        lik = EdgeLikelihood(s, camera, LikelihoodConfig(), vis)
         obs = lik.observe(edge)
         states = np.vstack([TRUE, TRUE + OFFSETS])
         logw, quality = lik.log_likelihood(states, obs)
@@ -294,7 +294,7 @@ class TestDegenerate:
 
     def test_nothing_in_view(self, model, camera):
         s, vis = model
-        lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
+        lik = EdgeLikelihood(s, camera, LikelihoodConfig(), vis)
         edges = np.zeros((camera.height, camera.width), bool)
         edges[60] = True
         obs = lik.observe(EdgeImage(edges, np.ones_like(edges)))
@@ -304,7 +304,7 @@ class TestDegenerate:
 
     def test_shape_checks(self, model, camera):
         s, vis = model
-        lik = EdgeLikelihood(s, camera, LikelihoodParams(), vis)
+        lik = EdgeLikelihood(s, camera, LikelihoodConfig(), vis)
         with pytest.raises(ValueError, match="does not match the camera"):
             lik.observe(EdgeImage(np.zeros((4, 4), bool), np.ones((4, 4), bool)))
         obs = lik.observe(EdgeImage(np.zeros((camera.height, camera.width), bool),
@@ -328,7 +328,7 @@ def test_workers_do_not_change_results(model, camera, rendered, small_world, cla
     states = np.vstack([TRUE, TRUE + OFFSETS, TRUE + 0.5 * OFFSETS])
     out = []
     for workers, chunk in ((1, 2), (2, 2), (2, 64)):
-        p = LikelihoodParams(orientation_bins=4, class_pairs=class_pairs, chunk=chunk,
+        p = LikelihoodConfig(orientation_bins=4, class_pairs=class_pairs, chunk=chunk,
                              workers=workers)
         lik = EdgeLikelihood(s, camera, p, vis, pairs)
         obs = lik.observe(edge)
@@ -337,7 +337,7 @@ def test_workers_do_not_change_results(model, camera, rendered, small_world, cla
         for a, b in zip(out[0], other, strict=True):
             np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="workers"):
-        LikelihoodParams(workers=0)
+        LikelihoodConfig(workers=0)
 
 
 def _child_run_all(queue) -> None:

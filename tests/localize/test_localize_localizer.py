@@ -13,7 +13,7 @@ import pytest
 from core import classes as C
 from core.dataset import Dataset
 from core.poses import odometry_increment
-from localize.config import FilterParams, LikelihoodParams, Settings, VisibilitySettings
+from localize.config import FilterConfig, LikelihoodConfig, LocalizerConfig, VisibilityConfig
 from localize.context import settings_of
 from localize.filter.projection import cam_from_world
 from localize.frontend.extractor import edge_settings
@@ -28,15 +28,15 @@ TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 
 # one likelihood and motion model for every mode and phase, no "few lines" scaling; the uniform
 # particle set of a global start (the global search: test_global_search.py)
-SETTINGS = Settings(
-    filter=FilterParams(num_particles=150, global_particles=600, global_frames=2,
+SETTINGS = LocalizerConfig(
+    filter=FilterConfig(num_particles=150, global_particles=600, global_frames=2,
                         global_method="particles",
                         global_likelihood={}, mode_likelihood={}, global_motion_scale=1.0,
                         global_thin=1, mode_motion_std={}, init_std=[0.05, 0.05, 0.02, 2.0],
                         recovery=False,
-                        likelihood=LikelihoodParams(k=20.0, sigma=0.1, min_lines=2,
+                        likelihood=LikelihoodConfig(k=20.0, sigma=0.1, min_lines=2,
                                                     lines_ref=0)),
-    edges=edge_settings(EDGES_CFG), visibility=VisibilitySettings(cell_xy=0.3, cell_z=0.4))
+    edges=edge_settings(EDGES_CFG), visibility=VisibilityConfig(cell_xy=0.3, cell_z=0.4))
 
 
 @pytest.fixture(scope="module")

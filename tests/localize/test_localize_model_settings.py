@@ -97,7 +97,7 @@ class TestApplyModelSettings:
         (carrying.parent / "localize.yaml").write_text("edges:\n  cnn:\n    snap_band: true\n")
         overrides = [f"onnx_model={carrying}"]
         with pytest.raises(ValueError, match=r"localize.yaml: edges.cnn.snap_band=True: Key "
-                                             r"'snap_band' not in 'CnnSettings'"):
+                                             r"'snap_band' not in 'CnnConfig'"):
             ls.apply_model_settings(composed(overrides), overrides)
 
     def test_not_a_mapping(self, carrying: Path) -> None:

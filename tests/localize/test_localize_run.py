@@ -15,8 +15,8 @@ from omegaconf import OmegaConf
 
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, read_tum
-from localize.filter.likelihood import LikelihoodParams
-from localize.filter.particle_filter import FilterParams
+from localize.filter.likelihood import LikelihoodConfig
+from localize.filter.particle_filter import FilterConfig
 from localize.localizer import mode_likelihood_params
 from localize.offline.runner import RunSpec, run, warn_outside_free_space
 from tests.localize.conftest import QUICK, localize_cfg
@@ -38,14 +38,15 @@ def report(flat_dataset, flat_segnet, tmp_path_factory):
 
 
 def test_defaults_are_the_composed_configs():
-    """Settings() and LocalizeConfig() (library use) are what `python -m localize` runs with
+    """LocalizerConfig() and LocalizeConfig() (library use) are what `python -m localize` runs with
     by default: the YAML holds no default of its own."""
-    from localize.config import LocalizeConfig, Settings
+    from localize.config import LocalizeConfig, LocalizerConfig
     from localize.context import settings_of
 
     full = settings_of(localize_cfg([]))
     assert full == LocalizeConfig()
-    assert Settings(full.filter, full.edges, full.model_edges, full.visibility) == Settings()
+    assert (LocalizerConfig(full.filter, full.edges, full.model_edges, full.visibility)
+            == LocalizerConfig())
 
 
 @pytest.mark.parametrize("preset", ["default", "paper"])
@@ -167,13 +168,13 @@ class TestEndToEnd:
 
 
 def test_mode_likelihood_params():
-    lp = LikelihoodParams(k=25.0)
-    fp = FilterParams(mode_likelihood={"cnn": {"k": 5.0, "orientation_bins": 8}})
+    lp = LikelihoodConfig(k=25.0)
+    fp = FilterConfig(mode_likelihood={"cnn": {"k": 5.0, "orientation_bins": 8}})
     cnn = mode_likelihood_params(lp, fp, "cnn")
     assert (cnn.k, cnn.orientation_bins, cnn.sigma) == (5.0, 8, lp.sigma)
     assert mode_likelihood_params(lp, fp, "oracle") is lp
     with pytest.raises(ValueError, match=r"filter.mode_likelihood.cnn.kk: Key 'kk' not in"):
-        mode_likelihood_params(lp, FilterParams(mode_likelihood={"cnn": {"kk": 1}}), "cnn")
+        mode_likelihood_params(lp, FilterConfig(mode_likelihood={"cnn": {"kk": 1}}), "cnn")
 
 
 class TestBadInput:

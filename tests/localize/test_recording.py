@@ -164,7 +164,8 @@ class TestBagRecording:
     def test_wrong_topic_type_and_unknown_key(self, recordings, dataset):
         with pytest.raises(ValueError, match="carries .*Odometry"):
             read_recording(recordings["ros2"], dataset.camera, topics={"image": "/odom"})
-        with pytest.raises(ValueError, match=r"recording_topics.imu: Key 'imu' not in 'BagTopics'"):
+        with pytest.raises(ValueError,
+                           match=r"recording_topics.imu: Key 'imu' not in 'BagTopicsConfig'"):
             read_recording(recordings["ros2"], dataset.camera, topics={"imu": "/imu"})
 
 

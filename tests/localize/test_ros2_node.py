@@ -29,7 +29,7 @@ from localize.live import sync  # noqa: E402
 from localize.live.loop import load_context, offline_estimates  # noqa: E402
 from localize.ros2.config import Ros2Config  # noqa: E402
 from localize.ros2.loopback import loopback_env  # noqa: E402
-from localize.ros2.play import Player, PlaySettings, open_playback  # noqa: E402
+from localize.ros2.play import PlayConfig, Player, open_playback  # noqa: E402
 from tests.localize.conftest import QUICK  # noqa: E402
 
 FLIGHT = "paper"
@@ -124,7 +124,7 @@ def test_the_flight_through_the_node_tracks_as_offline(ros, setup):
     cfg, ctx, pb = setup
     node, got, executor, player_node, listener = start(ros, cfg, ctx)
     try:
-        player = Player(player_node, PlaySettings(rate=0.5))  # 5 Hz: room on a busy machine
+        player = Player(player_node, PlayConfig(rate=0.5))  # 5 Hz: room on a busy machine
         assert player.wait_for_subscriber()
         stamps = player.play(pb)
         assert wait_until(lambda: node.live.counts.processed + node.live.counts.dropped
@@ -195,7 +195,7 @@ def run_node(ros, setup, feed, settings=None, **topics):
         cfg = OmegaConf.merge(cfg, settings or {}, {"topics": topics})
     node, got, executor, player_node, listener = start(ros, cfg, ctx)
     try:
-        player = Player(player_node, PlaySettings(topics=node.topics))
+        player = Player(player_node, PlayConfig(topics=node.topics))
         assert player.wait_for_subscriber()
         feed(player, pb, node, got)
     finally:
@@ -414,7 +414,7 @@ def test_python_m_localize_ros2(ros, setup, tmp_path):
         assert wait_until(lambda: got.statuses or proc.poll() is not None, 120.0)
         assert proc.poll() is None, proc.stdout.read()
         assert got.status_values()["status"] == "waiting"
-        player = Player(node, PlaySettings(max_frames=5))
+        player = Player(node, PlayConfig(max_frames=5))
         assert player.wait_for_subscriber()
         player.play(pb)
         assert wait_until(lambda: len(got.poses) >= 3, 20.0)

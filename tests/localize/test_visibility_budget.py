@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from localize.config import FilterParams
+from localize.config import FilterConfig
 from localize.filter import visibility_budget
 from localize.filter.projection import sample_segments
 from localize.filter.visibility import build_visibility
@@ -71,13 +71,13 @@ def test_the_grid_choice_is_remembered_in_the_cache(long_corridor, tmp_path, mon
 def test_global_particles_grow_with_the_free_area():
     """The corridor (16 m2 or less) keeps global_particles; a floor gets the same density up to
     global_max_particles."""
-    p = FilterParams()
+    p = FilterConfig()
     assert p.global_count(5.5) == p.global_count(16.0) == p.global_particles
     assert p.global_count(32.0) == 2 * p.global_particles
     assert p.global_count(1021.0) == p.global_max_particles
-    few = FilterParams(global_particles=600, global_max_particles=1000)
+    few = FilterConfig(global_particles=600, global_max_particles=1000)
     assert few.global_count(1021.0) == 1000
-    assert FilterParams(global_particles=600, global_max_particles=100).global_count(1e3) == 600
+    assert FilterConfig(global_particles=600, global_max_particles=100).global_count(1e3) == 600
     with pytest.raises(ValueError, match="global_area"):
-        FilterParams(global_area=0.0)
+        FilterConfig(global_area=0.0)
     assert np.isfinite(p.global_count(0.0))

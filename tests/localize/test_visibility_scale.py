@@ -10,7 +10,7 @@ from core import classes as C
 from core.dataset import World
 from core.occupancy import OccupancyMap
 from datagen.mesh.edges import extract_edges
-from localize.config import LikelihoodParams, Settings
+from localize.config import LikelihoodConfig, LocalizerConfig
 from localize.filter.likelihood import EdgeLikelihood
 from localize.filter.projection import (
     cam_from_world,
@@ -106,7 +106,7 @@ def test_culled_scores_equal_unculled(model, camera, renderer, monkeypatch):
     states = TRUE + rng.normal(0, 1, (300, 4)) * [0.3, 0.3, 0.1, 0.3]
     labels, _ = renderer.render(np.linalg.inv(cam_from_world(TRUE[None],
                                                              camera.body_from_cam)[0]))
-    params = LikelihoodParams(orientation_bins=8, chunk=64, workers=1)
+    params = LikelihoodConfig(orientation_bins=8, chunk=64, workers=1)
     lik = EdgeLikelihood(s, camera, params, vis)
     obs = lik.observe(label_edges(labels))
     culled, q_culled = lik.scores(states, obs)
@@ -126,5 +126,5 @@ def test_clutter_and_short_segments_are_not_sampled(small_world):
                   np.zeros(6), small_world.free, {})
     np.testing.assert_array_equal(scored_segments(world), [1, 0, 0, 1, 1, 1])
     np.testing.assert_array_equal(scored_segments(world, 0.05), [1, 0, 0, 1, 1, 0])
-    model = EdgeModel.build(world, Settings(), occlusion=False)  # min_length 0.05 by default
+    model = EdgeModel.build(world, LocalizerConfig(), occlusion=False)  # min_length 0.05 by default
     assert set(np.unique(model.samples.segment)) == {0, 3, 4}

@@ -8,7 +8,7 @@ import pytest
 
 from core import classes as C
 from core.poses import read_tum
-from localize.config import Settings
+from localize.config import LocalizerConfig
 from localize.context import settings_of
 from localize.localizer import Localizer
 from localize.offline.runner import run
@@ -42,7 +42,7 @@ def test_none_is_no_viewer(small_world, tmp_path):
 def test_viewer_logs_a_run(small_world, camera, renderer, tmp_path):
     pytest.importorskip("rerun")
     start = np.array([0.6, 0.0, 1.2, 0.0])
-    loc = Localizer(small_world, camera, "oracle", Settings(), np.random.default_rng(0))
+    loc = Localizer(small_world, camera, "oracle", LocalizerConfig(), np.random.default_rng(0))
     loc.reset(start)
     out = tmp_path / "viz" / "run.rrd"
     with open_viewer("rerun", small_world, out, camera=camera) as viewer:

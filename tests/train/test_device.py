@@ -10,7 +10,7 @@ import torch
 
 import train.run as tt
 from train.config_checks import resolve_precision
-from train.loop.distributed import SINGLE, World, backend_for, training_device
+from train.loop.distributed import SINGLE, DistWorld, backend_for, training_device
 from train.run_identity import train_settings, training_config
 
 
@@ -42,7 +42,7 @@ def test_auto_is_the_cpu_here() -> None:
 
 def test_collectives_keep_the_device_when_alone() -> None:
     t = torch.ones(3)
-    assert World(0, 1, torch.device("cpu")).sum(t) is t
+    assert DistWorld(0, 1, torch.device("cpu")).sum(t) is t
 
 
 def test_device_is_not_in_the_config_hash(synthetic_dataset: Path, compose_train,

@@ -22,7 +22,7 @@ from core.dataset import Dataset
 from tests.train.conftest import TINY_OVERRIDES
 from train.config import AugmentConfig, ModelConfig, OptimConfig
 from train.data import SplitData, augment_batch, batches, downsample_split, load_split
-from train.loop.distributed import SINGLE, World, check_batch_size
+from train.loop.distributed import SINGLE, DistWorld, check_batch_size
 from train.loop.optim import make_optimizer
 from train.losses import IGNORE, median_frequency_weights, pixel_loss_weights, segmentation_loss
 from train.net.segnet import build_segnet
@@ -51,7 +51,7 @@ def step_data(dataset: Path, same_pixels: bool) -> SplitData:
     return downsample_split(data, 4)
 
 
-def one_step(dataset: Path, same_pixels: bool, world: World = SINGLE,
+def one_step(dataset: Path, same_pixels: bool, world: DistWorld = SINGLE,
              ddp: bool = False) -> tuple[torch.nn.Module, SplitData, torch.Tensor, dict]:
     """``train_one_epoch`` over one global batch of ``BATCH`` images (seed 0), as ``python -m
     train`` runs it; returns the network (its gradients of the step in ``.grad``), the data,
@@ -83,7 +83,7 @@ def _worker(rank: int, store: str, dataset: str, out: str) -> None:
     torch.set_num_threads(1)
     dist.init_process_group("gloo", init_method=f"file://{store}", rank=rank, world_size=2)
     try:
-        world, result = World(rank, 2), {}
+        world, result = DistWorld(rank, 2), {}
         for same in (True, False):
             model, _, _, settings = one_step(Path(dataset), same, world, ddp=True)
             result[same] = {"grads": grads(model), "loss": settings["loss"]}
@@ -177,12 +177,12 @@ def test_split_loss_adds_up(boundary_weight: float) -> None:
 
 
 def test_batch_size_must_split(synthetic_dataset: Path, compose_train, tmp_path: Path) -> None:
-    check_batch_size(4, World(1, 2))
+    check_batch_size(4, DistWorld(1, 2))
     with pytest.raises(ValueError, match=r"batch_size=4 .* multiple of 3"):
-        check_batch_size(4, World(0, 3))
+        check_batch_size(4, DistWorld(0, 3))
     cfg = train_settings(compose_train(synthetic_dataset, tmp_path))  # batch_size=4
     with pytest.raises(ValueError, match="batch_size=4"):
-        tt.prepare(cfg, World(0, 3))
+        tt.prepare(cfg, DistWorld(0, 3))
     assert not (tmp_path / "demo").exists()  # refused before anything is written
 
 

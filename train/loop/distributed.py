@@ -6,7 +6,7 @@
 > 1 ``process_group`` joins them (``init_method="env://"``), backend gloo on CPU and nccl on
 CUDA, each process on the GPU of its ``LOCAL_RANK`` (``training_device``). Every rank draws the
 same global batch (same indices and augmentation from the same seeded generator) and trains on
-its slice of ``batch_size / N`` images (``World.shard``);
+its slice of ``batch_size / N`` images (``DistWorld.shard``);
 ``torch.nn.parallel.DistributedDataParallel`` averages the gradients, and the loss is scaled so
 that the average is the gradient of the whole batch's loss (``train.loop.epoch.train_one_epoch``).
 Rank 0 alone validates and writes the model folder.
@@ -36,7 +36,7 @@ CPU = torch.device("cpu")
 
 
 @dataclass(frozen=True)
-class World:
+class DistWorld:
     """This process's place among the training processes.
 
     Attributes:
@@ -97,7 +97,7 @@ class World:
             dist.barrier()
 
 
-SINGLE = World()
+SINGLE = DistWorld()
 
 
 def training_device(device: str) -> torch.device:
@@ -121,15 +121,15 @@ def training_device(device: str) -> torch.device:
     return torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
 
 
-def world_from_env(device: torch.device = CPU) -> World:
-    """The ``World`` that ``torchrun`` describes in ``RANK`` and ``WORLD_SIZE`` (one process
+def world_from_env(device: torch.device = CPU) -> DistWorld:
+    """The ``DistWorld`` that ``torchrun`` describes in ``RANK`` and ``WORLD_SIZE`` (one process
     when they are not set), its collectives on ``device``."""
     size = int(os.environ.get("WORLD_SIZE", "1"))
     rank = int(os.environ.get("RANK", "0"))
     if size < 1 or not 0 <= rank < size:
         raise ValueError(f"RANK={rank} and WORLD_SIZE={size} from the environment do not fit "
                          "together; start several processes with torchrun")
-    return World(rank, size, device)
+    return DistWorld(rank, size, device)
 
 
 def backend_for(device: torch.device) -> str:
@@ -137,7 +137,7 @@ def backend_for(device: torch.device) -> str:
     return "nccl" if device.type == "cuda" else "gloo"
 
 
-def check_batch_size(batch_size: int, world: World) -> None:
+def check_batch_size(batch_size: int, world: DistWorld) -> None:
     """Raise ValueError naming ``batch_size`` when it does not split evenly between the ranks."""
     if batch_size % world.size:
         raise ValueError(
@@ -147,7 +147,7 @@ def check_batch_size(batch_size: int, world: World) -> None:
 
 
 @contextmanager
-def process_group(device: torch.device = CPU, timeout_minutes: float = 30.0) -> Iterator[World]:
+def process_group(device: torch.device = CPU, timeout_minutes: float = 30.0) -> Iterator[DistWorld]:
     """Join ``torchrun``'s processes for the block (nothing to join for one process).
 
     Args:
@@ -156,7 +156,7 @@ def process_group(device: torch.device = CPU, timeout_minutes: float = 30.0) -> 
             wait while rank 0 validates and saves after each epoch).
 
     Yields:
-        This process's ``World``. On a normal exit every rank meets at a barrier before the
+        This process's ``DistWorld``. On a normal exit every rank meets at a barrier before the
         group is destroyed; after an error the group is destroyed at once (torchrun then
         stops the other processes).
     """

@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from train.config import AugmentConfig
 from train.data import SplitData, augment_batch, batches, block_majority, num_batches
-from train.loop.distributed import SINGLE, World
+from train.loop.distributed import SINGLE, DistWorld
 from train.losses import IGNORE, pixel_loss_weights, segmentation_loss
 from train.net.segnet import SegNet
 
@@ -63,7 +63,7 @@ def uses_head(model: SegNet, full_labels: bool) -> bool:
     return full_labels and model.sharpen_head is not None
 
 
-def data_parallel(model: SegNet, full_labels: bool, bf16: bool, world: World
+def data_parallel(model: SegNet, full_labels: bool, bf16: bool, world: DistWorld
                   ) -> torch.nn.parallel.DistributedDataParallel | None:
     """The training forward pass (``TrainingForward``) in DistributedDataParallel, which
     averages the gradients over the ranks (rank 0's weights and buffers copied to all at
@@ -119,7 +119,7 @@ def train_one_epoch(
     ema: AveragedModel | None = None,
     boundary_weight: float = 1.0,
     full_labels: bool = False,
-    world: World = SINGLE,
+    world: DistWorld = SINGLE,
     ddp: torch.nn.parallel.DistributedDataParallel | None = None,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution (the
@@ -195,7 +195,7 @@ def train_one_epoch(
 
 
 def batch_loss(logits: torch.Tensor, y: torch.Tensor, class_weights: torch.Tensor | None,
-               boundary_weight: float, world: World) -> tuple[torch.Tensor, float]:
+               boundary_weight: float, world: DistWorld) -> tuple[torch.Tensor, float]:
     """The loss this rank backpropagates, and its share of the global batch's loss value.
 
     One process: ``segmentation_loss`` and its value. Under torchrun the loss of a global

@@ -42,7 +42,7 @@ def default_name_rules() -> list[NameRule]:
 
 
 @dataclass
-class ImportSettings:
+class ImportConfig:
     """How ``datagen.importers.load_building`` reads a building model.
 
     Classes come first from the format (IFC type), then from ``name_rules`` (the most
