@@ -443,6 +443,8 @@ class FlightConfig:
     the paper's: the 10 m corridor flown by hand along +Y."""
 
     num_frames: int = 240
+    seed: int = 0  # another flight of the preset: each seed draws its own trajectory, scene
+    # and planned route from the dataset's seed (datagen.job.flight_stream)
     fps: float = 10.0
     distractors: str = "paper"  # a key of distractor_presets (conf/distractors/<name>.yaml)
     route: Any = "auto"  # "auto": the world's own route (the corridor's centre line), else

@@ -93,7 +93,7 @@ def write_metadata(job: Job, variant: str) -> None:
         info = {
             "name": name, "fps": float(preset.fps), "num_frames": int(len(f["timestamps"])),
             "distractors": preset.distractors, "preset": asdict(preset),
-            "realism": asdict(cfg.realism), "seed_stream": flight_stream(name),
+            "realism": asdict(cfg.realism), "seed_stream": flight_stream(name, preset.seed),
             "dropout": [d.as_json() for d in f["dropout"]],
             "set": f["set"], "preset_name": f["preset_name"], **flight_camera(job)}
         if timing.is_active(cfg.realism.timing):

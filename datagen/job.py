@@ -72,8 +72,11 @@ def rng_for(seed: int, *keys: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([int(seed), *map(int, keys)]))
 
 
-def flight_stream(name: str) -> int:
-    return 1000 + zlib.crc32(name.encode()) % 1_000_000
+def flight_stream(name: str, seed: int = 0) -> int:
+    """The random stream of flight ``name`` drawn with its preset's ``seed`` (0: the name's own
+    stream; s: that of ``<name>/seed<s>``, another flight of the same preset)."""
+    key = name if seed == 0 else f"{name}/seed{seed}"
+    return 1000 + zlib.crc32(key.encode()) % 1_000_000
 
 
 def content_config(cfg: DatagenConfig) -> dict:
@@ -324,9 +327,9 @@ def _make_map(job: Job, c: MapErrorConfig) -> None:
 def prepare_flight(cfg: DatagenConfig, site: Site, camera: Camera, name: str,
                    preset_name: str) -> dict[str, Any]:
     """One flight's poses, odometry, clocks and image-effect series (``Job.flights``), drawn
-    from the flight's own stream (``flight_stream(name)``)."""
+    from the flight's own stream (``flight_stream(name, preset.seed)``)."""
     preset = cfg.flights[preset_name]
-    stream, z_range = flight_stream(name), site.world.z_range
+    stream, z_range = flight_stream(name, preset.seed), site.world.z_range
     r = rng_for(cfg.seed, stream, 0)
     n, fps = preset.num_frames, preset.fps
     route = trajectories.flight_route(preset, site.world.free, site.route,

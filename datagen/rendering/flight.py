@@ -36,7 +36,7 @@ def flight_effect(job: Job, name: str, i: int) -> Callable[[np.ndarray], np.ndar
     if not camera_effects.is_active(cfg.realism):
         return None
     return functools.partial(camera_effects.apply_effects,
-                             rng=rng_for(cfg.seed, flight_stream(name), 5, i),
+                             rng=rng_for(cfg.seed, flight_stream(name, f["preset"].seed), 5, i),
                              settings=cfg.realism, ev=float(f["exposure_ev"][i]),
                              dropout=camera_effects.dropout_kind(f["dropout"], i),
                              where="realism")
@@ -64,7 +64,7 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     """One appearance, fixed clutter placed off the flight path, and people walking."""
     cfg, f = job.cfg, job.flights[name]
     gt, preset = f["groundtruth"], f["preset"]
-    rng = rng_for(cfg.seed, flight_stream(name), 1)
+    rng = rng_for(cfg.seed, flight_stream(name, preset.seed), 1)
     dp = cfg.distractor_presets[preset.distractors]
     n_clutter, n_people = preset_counts(rng, dp)
     clutter = [make_clutter_mesh(k, rng)
@@ -120,7 +120,7 @@ def render_flight(job: Job, name: str, progress: bool = True) -> int:
         for i in tqdm(todo, desc=f"flight {name}", unit="img", disable=not progress):
             renderer.set_objects(np.concatenate([scene.placed, scene.tracks[:, i]], axis=0),
                                  scene.colours)
-            seeds = rng_for(cfg.seed, flight_stream(name), 2, i)
+            seeds = rng_for(cfg.seed, flight_stream(name, job.flights[name]["preset"].seed), 2, i)
             if fo is None:
                 render_frame(job, renderer, d, i, gt[i], int(seeds.integers(2**31)), pipe,
                               flight_effect(job, name, i))

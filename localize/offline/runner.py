@@ -92,9 +92,9 @@ class RunSpec:
         return all(p.is_file() for p in self.paths(out_dir))
 
     def rng(self) -> np.random.Generator:
-        """The run's generator, seeded from (seed, flight, mode, init, likelihood)."""
-        key = [zlib.crc32(s.encode()) for s in (self.flight, self.mode, self.init,
-                                                 self.likelihood)]
+        """The run's generator, seeded from (seed, mode, init, likelihood): not from the flight's
+        or recording's name, so a result never depends on a folder's name."""
+        key = [zlib.crc32(s.encode()) for s in (self.mode, self.init, self.likelihood)]
         return np.random.default_rng([int(self.seed), *key])
 
 

@@ -167,7 +167,8 @@ class TestRealismPreset:
         job = prepare(cfg)
         free = job.site.world.free
         for name, f in job.flights.items():
-            preset, stream = cfg.flights[f["preset_name"]], flight_stream(name)
+            preset = cfg.flights[f["preset_name"]]
+            stream = flight_stream(name, preset.seed)
             route = TR.flight_route(preset, free, job.site.route,
                                     rng_for(cfg.seed, stream, 3), f"flights.{name}")
             r = rng_for(cfg.seed, stream, 0)
