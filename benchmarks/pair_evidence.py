@@ -41,7 +41,6 @@ from localize.filter.projection import ModelSamples, tilt_from_pose  # noqa: E40
 from localize.filter.visibility import SparseVisibility  # noqa: E402
 from localize.frontend.edge_image import pair_name  # noqa: E402
 from localize.frontend.front_end import EdgeFrame  # noqa: E402
-from localize.localizer import mode_likelihood_params  # noqa: E402
 from localize.offline.runner import load_runs, prepare  # noqa: E402
 
 
@@ -124,8 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     liks, fronts = {}, {}
     for mode in args.edges:
         model = ctx.model_for(mode)
-        params = mode_likelihood_params(ctx.settings.likelihood,
-                                        ctx.settings.filter.for_mode(mode), mode)
+        params = ctx.settings.filter.likelihood_for(mode)
         liks[mode] = pair_likelihoods(model.samples, model.visibility, model.pairs, ctx.camera,
                                       params)
         fronts[mode] = ctx.front_end(mode)

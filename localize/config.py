@@ -11,10 +11,10 @@ at start-up naming the key. ``LocalizerConfig`` is the part a ``Localizer`` read
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
-from core.config import register_schema
+from core.config import register_schema, typed
 
 #: The edge modes (``localize.frontend.extractor``).
 MODES = ("none", "cnn", "oracle")
@@ -75,6 +75,89 @@ class LikelihoodConfig:
 
 
 @dataclass
+class GlobalSearchConfig:
+    """Settings of the global search (``filter.global_search``).
+
+    Attributes:
+        cell: m, the table's cell (the start grid's spacing).
+        rays: azimuth bins of the table (2 pi / rays each).
+        headings: headings per cell of the start grid.
+        sigma_deg: angle noise of a boundary pixel's bin, degrees.
+        outlier: most a bin's error costs, in units of its Gaussian's exponent.
+        class_cost: what a bin costs whose class above the floor (wall, door, window) is not
+            the table's (added to its error, within ``outlier``).
+        evidence: log-likelihood scale of a frame that shows ``max_bins`` bins or more (one
+            that shows fewer counts for their share).
+        frame_floor: most log-weight a frame takes from a hypothesis against the best one.
+        min_bins: fewer observed azimuth bins: the frame is not weighed.
+        max_bins: most azimuth bins scored (evenly spaced among the observed ones).
+        motion_std: (3,) per frame: horizontal m, vertical m, yaw degrees.
+        motion_rel: (2,) more noise per m of translation and per rad of yaw change.
+        jitter: (2,) m and degrees of the jitter of a copy.
+        prune_band: hypotheses more than this below the best in log-weight are dropped.
+        inject_every: frames between injections of the best poses of a coarse grid (0: none).
+        inject_headings: headings per cell of that grid.
+        inject_count: poses injected.
+        inject_below: log-weight under the best they start with.
+        per_bin: hypotheses per occupied 0.5 m x 0.5 m x 20 deg bin after pruning.
+        min_hypotheses, max_hypotheses: bounds of the count after resampling.
+        cluster_radius: m, a cluster's radius (the mass of a hypothesis).
+        cluster_yaw_deg: degrees, its half-width in yaw.
+        handover_mass: share of the weight one cluster must hold to converge.
+        handover_frames: frames in a row it must hold it.
+        stride: pixel step of the boundary search in the label image.
+    """
+
+    cell: float = 0.25
+    rays: int = 180
+    headings: int = 60
+    sigma_deg: float = 1.5
+    outlier: float = 2.0
+    class_cost: float = 1.0
+    evidence: float = 3.0
+    frame_floor: float = 3.0
+    min_bins: int = 8
+    max_bins: int = 16
+    motion_std: list[float] = field(default_factory=lambda: [0.03, 0.02, 1.0])
+    motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
+    jitter: list[float] = field(default_factory=lambda: [0.05, 1.0])
+    prune_band: float = 30.0
+    inject_every: int = 10
+    inject_headings: int = 24
+    inject_count: int = 1000
+    inject_below: float = 10.0
+    per_bin: int = 40
+    min_hypotheses: int = 4000
+    max_hypotheses: int = 60000
+    cluster_radius: float = 0.6
+    cluster_yaw_deg: float = 25.0
+    handover_mass: float = 0.999
+    handover_frames: int = 10
+    stride: int = 2
+
+    def __post_init__(self) -> None:
+        counts = ("rays", "headings", "min_bins", "max_bins", "inject_headings", "per_bin",
+                  "min_hypotheses", "max_hypotheses", "handover_frames", "stride")
+        bad = [k for k in counts if getattr(self, k) < 1]
+        bad += [k for k in ("cell", "sigma_deg", "outlier", "evidence", "cluster_radius",
+                            "cluster_yaw_deg") if getattr(self, k) <= 0]
+        if bad:
+            raise ValueError(f"filter.global_search.{bad[0]} must be positive, got "
+                             f"{getattr(self, bad[0])}")
+        if self.min_bins > self.max_bins or self.min_hypotheses > self.max_hypotheses:
+            raise ValueError("filter.global_search: min_bins <= max_bins and min_hypotheses <= "
+                             f"max_hypotheses, got {self.min_bins}, {self.max_bins}, "
+                             f"{self.min_hypotheses}, {self.max_hypotheses}")
+        if not 0.0 < self.handover_mass <= 1.0:
+            raise ValueError(f"filter.global_search.handover_mass must be in (0, 1], got "
+                             f"{self.handover_mass}")
+        for key, n in (("motion_std", 3), ("motion_rel", 2), ("jitter", 2)):
+            if len(getattr(self, key)) != n:
+                raise ValueError(f"filter.global_search.{key} needs {n} values, got "
+                                 f"{list(getattr(self, key))}")
+
+
+@dataclass
 class FilterConfig:
     """The particle filter (``filter``; ``localize.filter.particle_filter``). Presets:
     conf/filter/*.yaml (``filter=paper``: the paper's settings).
@@ -90,15 +173,17 @@ class FilterConfig:
         global_max_particles: most particles of a global start (time: a global update of
             the hospital floor costs about 10 ms per 1,000 particles in mode oracle).
         global_frames: frames the global set is kept.
-        global_likelihood: ``likelihood`` keys that differ while the global set is kept.
-        mode_likelihood: ``likelihood`` keys that differ per edge mode, ``{mode: {key: value}}``.
+        global_likelihood: ``likelihood`` keys that differ while the global set is kept
+            (``global_likelihood_config``); null: the tracking likelihood.
+        mode_likelihood: ``likelihood`` keys that differ per edge mode, ``{mode: {key: value}}``
+            (``likelihood_for``); null: every mode scores with ``likelihood``.
         global_motion_scale: motion noise multiplier while the global set is kept (the uniform
             set is sparse and must move to find the peak).
         global_thin: the global phase scores every n-th model sample.
         global_method: how a global start searches: ``table`` (``global_search``: every free
             cell x heading weighed by the floor boundary against a precomputed table; the label
             modes) or ``particles`` (the uniform set above; always for mode ``none``).
-        global_search: ``global_search.GlobalSearchConfig`` keys that differ from its defaults.
+        global_search: the global search (``GlobalSearchConfig``, ``localize.search``).
         hypotheses: pose hypotheses reported per frame (``localize.filter.hypotheses``: the
             heaviest modes of the weighted set and their mass).
         hypothesis_radius_m, hypothesis_yaw_deg: a hypothesis's kernel: horizontal radius
@@ -110,7 +195,8 @@ class FilterConfig:
         init_std: (4,) tracking start noise: x, y, z (metres), yaw (degrees).
         motion_std: (3,) motion noise per frame: horizontal (metres), vertical (metres), yaw
             (degrees).
-        mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}``.
+        mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}``; null:
+            ``motion_std`` for every mode.
         motion_rel: (2,) extra noise per unit of odometry translation and of yaw change.
         resample_ess: resample when ESS < this fraction of the particle count.
         free_space_slack: metres beyond the free space (cells and band) before the free-space prior
@@ -143,15 +229,15 @@ class FilterConfig:
     global_area: float = 16.0
     global_max_particles: int = 200000
     global_frames: int = 40
-    global_likelihood: dict[str, Any] = field(default_factory=lambda: {
+    global_likelihood: dict[str, Any] | None = field(default_factory=lambda: {
         "k": 20.0, "sigma": 0.3, "class_pairs": True, "min_line_samples": 2})
-    mode_likelihood: dict[str, dict[str, Any]] = field(default_factory=lambda: {
+    mode_likelihood: dict[str, dict[str, Any]] | None = field(default_factory=lambda: {
         "cnn": {"k": 40.0, "orientation_bins": 12}, "none": {"sigma": 0.3},
         "oracle": {"k": 50.0}})
     global_motion_scale: float = 15.0
     global_thin: int = 3
     global_method: str = "table"
-    global_search: dict[str, Any] = field(default_factory=dict)
+    global_search: GlobalSearchConfig = field(default_factory=GlobalSearchConfig)
     hypotheses: int = 3
     hypothesis_radius_m: float = 0.5
     hypothesis_yaw_deg: float = 20.0
@@ -159,7 +245,7 @@ class FilterConfig:
     dominant_frames: int = 10
     init_std: list[float] = field(default_factory=lambda: [0.1, 0.1, 0.05, 3.0])
     motion_std: list[float] = field(default_factory=lambda: [0.01, 0.005, 0.5])
-    mode_motion_std: dict[str, list[float]] = field(default_factory=lambda: {
+    mode_motion_std: dict[str, list[float]] | None = field(default_factory=lambda: {
         "cnn": [0.01, 0.005, 0.2], "oracle": [0.01, 0.005, 0.2]})
     motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
     resample_ess: float = 0.5
@@ -190,14 +276,15 @@ class FilterConfig:
         if not 0.0 < self.resample_ess <= 1.0:
             raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
         for key in ("mode_likelihood", "mode_motion_std"):
-            bad_modes = set(getattr(self, key)) - set(MODES)
+            bad_modes = set(getattr(self, key) or {}) - set(MODES)
             if bad_modes:
                 raise ValueError(f"filter.{key}: unknown edge modes {sorted(bad_modes)}; "
                                  "use none, cnn, oracle")
         sized = [(key, getattr(self, key), n) for key, n in
                  (("init_std", 4), ("motion_std", 3), ("motion_rel", 2), ("recovery_local_std", 4),
                   ("tilt_std", 2))]
-        sized += [(f"mode_motion_std.{mode}", std, 3) for mode, std in self.mode_motion_std.items()]
+        sized += [(f"mode_motion_std.{mode}", std, 3)
+                  for mode, std in (self.mode_motion_std or {}).items()]
         for key, values, n in sized:
             if len(values) != n:
                 raise ValueError(f"filter.{key} needs {n} values, got {list(values)}")
@@ -217,6 +304,28 @@ class FilterConfig:
                              f"({self.dominant_mass}) in (0, 1]")
         if min(self.tilt_std) < 0:
             raise ValueError(f"filter.tilt_std must be >= 0 degrees, got {list(self.tilt_std)}")
+        for mode in MODES:  # a typo or a bad value in an override fails here, at start-up
+            self.likelihood_for(mode)
+        self.global_likelihood_config()
+
+    def likelihood_for(self, mode: str) -> LikelihoodConfig:
+        """The likelihood settings of one edge mode: ``likelihood`` updated by
+        ``mode_likelihood[mode]`` (a typo or a bad value raises naming
+        ``filter.mode_likelihood.<mode>``)."""
+        over = (self.mode_likelihood or {}).get(mode)
+        if not over:
+            return self.likelihood
+        return typed(LikelihoodConfig, {**asdict(self.likelihood), **over},
+                     f"filter.mode_likelihood.{mode}")
+
+    def global_likelihood_config(self, base: LikelihoodConfig | None = None) -> LikelihoodConfig:
+        """The global phase's likelihood settings: ``base`` (default ``likelihood``) updated by
+        ``global_likelihood`` (a typo or a bad value raises naming it)."""
+        base = self.likelihood if base is None else base
+        if not self.global_likelihood:
+            return base
+        return typed(LikelihoodConfig, {**asdict(base), **self.global_likelihood},
+                     "filter.global_likelihood")
 
     def global_count(self, free_area: float) -> int:
         """Particles of a global start over ``free_area`` m2 of free space:
@@ -228,7 +337,7 @@ class FilterConfig:
 
     def for_mode(self, mode: str) -> FilterConfig:
         """These settings with ``motion_std`` replaced by ``mode_motion_std[mode]`` if set."""
-        std = self.mode_motion_std.get(mode)
+        std = (self.mode_motion_std or {}).get(mode)
         return self if std is None else replace(self, motion_std=[float(v) for v in std])
 
 
@@ -479,24 +588,61 @@ class HintConfig:
 
 
 @dataclass
-class LocalizeConfig(LocalizerConfig):
-    """The whole localize config (``conf/localize.yaml``): the ``LocalizerConfig`` and the run.
+class AppConfig(LocalizerConfig):
+    """What both localize apps read, ``python -m localize`` (``LocalizeConfig``) and the live
+    node ``python -m localize.ros2`` (``localize.ros2.config.Ros2Config``): the
+    ``LocalizerConfig``, the dataset and model, where outputs and caches go, the start, the
+    viewer.
 
     Attributes:
-        name: report folder ``<out_root>/<name>/``.
-        dataset: the dataset made by ``python -m datagen``.
+        name: output folder ``<out_root>/<name>/`` (reports; the visibility cache under
+            ``cache/``, shared by the offline runs and the node of one name).
+        dataset: the dataset made by ``python -m datagen`` (the model, the camera).
         onnx_model: the SegNet of cnn mode, a segnet.onnx made by ``python -m train``; the
             localize settings it carries apply under the command line's. ``auto``: the
             dataset's own, ``outputs/models/<dataset folder name>/segnet.onnx``, where it
             exists, else the generalist shipped in ``models/generalist/``
             (``localize.frontend.segmenter.model_path``).
-        out_root: where report folders go.
+        out_root: where output folders go.
+        hint: where a start begins (``HintConfig``): a pose to track from, or where a global
+            search looks; all null: anywhere in the free space.
+        threads: onnxruntime intra-op threads.
+        viz: ``rerun``: log frames, labels, model edges at the estimate, particles,
+            trajectory and the model in 3D (``localize.viewers.viz``); ``none``: no viewer.
+        viz_connect: with ``viz=rerun``, a running rerun viewer to stream to instead of the
+            file, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
+        set_by: written by the app (``localize.resolve.resolve``), not read: for each setting
+            whose value differs from its default, the layer that set it (``conf/...yaml``,
+            ``model <file>``, ``onnx_model=auto``, ``command line``).
+    """
+
+    name: str = "demo"
+    dataset: str = "outputs/datasets/demo"
+    onnx_model: str = "auto"
+    out_root: str = "outputs/reports"
+    hint: HintConfig = field(default_factory=HintConfig)
+    threads: int = 2
+    viz: str = "none"
+    viz_connect: str | None = None
+    set_by: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.viz not in VIZ_KINDS:
+            raise ValueError(f"viz={self.viz!r}: use one of {', '.join(VIZ_KINDS)}")
+
+
+@dataclass
+class LocalizeConfig(AppConfig):
+    """The offline app's config (``conf/localize.yaml``, ``python -m localize``): the
+    ``AppConfig`` and the runs over a dataset's flights or a recording.
+
+    Attributes:
         flight_set: the dataset's flights to run: ``test`` (the default: ``render_flights``,
             the flights figures are reported on) or ``val`` (``val_flights``, ``<name>_val``:
             the flights settings are tuned on). The report names the set.
         flight_names: flights of that set to run; None: every flight of the set.
         modes: edge modes: none (Canny + Hough), cnn (the SegNet), oracle (true labels).
-        inits: tracking (start around the first true pose) and/or global (uniform start).
+        inits: tracking (start around the first true pose) and/or global (from ``hint``).
         seeds: one filter run per seed.
         recording: a recording (a folder or a ROS 1/2 bag, docs/recording.md) to localize
             instead of the dataset's flights; outputs go to
@@ -506,27 +652,15 @@ class LocalizeConfig(LocalizerConfig):
             dataset's.
         start: recording: [x, y, z, yaw_deg] world pose to track from; None: the first
             ground-truth pose, else a global start.
-        hint: where the global starts begin (``HintConfig``).
         max_frames: only the first N >= 1 frames of each flight or recording (quick runs,
             tests); null: every frame; 0 is refused, naming the key.
-        threads: onnxruntime intra-op threads.
         overwrite: re-run trajectories that already exist.
         progress: tqdm progress bars.
-        viz: ``rerun``: log each pass (frames, labels, model edges at the estimate, particles,
-            trajectory, the model in 3D) to ``<report>/viz/<source>_<mode>.rrd``
-            (``localize.viewers.viz``); ``none``: no viewer.
-        viz_connect: with ``viz=rerun``, a running rerun viewer to stream to instead of the
-            file, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
         metrics, report: the report's settings.
-        set_by: written by ``python -m localize`` (``localize.resolve.resolve``), not read:
-            for each setting whose value differs from its default, the layer that set it
-            (``conf/...yaml``, ``model <file>``, ``onnx_model=auto``, ``command line``).
+
+    With ``viz=rerun`` each pass logs to ``<report>/viz/<source>_<mode>.rrd``.
     """
 
-    name: str = "demo"
-    dataset: str = "outputs/datasets/demo"
-    onnx_model: str = "auto"
-    out_root: str = "outputs/reports"
     flight_set: str = "test"
     flight_names: list[str] | None = None
     modes: list[str] = field(default_factory=lambda: list(MODES))
@@ -536,20 +670,11 @@ class LocalizeConfig(LocalizerConfig):
     recording_topics: BagTopicsConfig = field(default_factory=BagTopicsConfig)
     recording_body_from_cam: list[Any] | None = None
     start: list[float] | None = None
-    hint: HintConfig = field(default_factory=HintConfig)
     max_frames: int | None = None
-    threads: int = 2
     overwrite: bool = False
     progress: bool = True
-    viz: str = "none"
-    viz_connect: str | None = None
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     report: ReportConfig = field(default_factory=ReportConfig)
-    set_by: dict[str, str] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        if self.viz not in VIZ_KINDS:
-            raise ValueError(f"viz={self.viz!r}: use one of {', '.join(VIZ_KINDS)}")
 
 
 register_schema("localize_schema", LocalizeConfig)

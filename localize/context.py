@@ -13,7 +13,7 @@ from omegaconf import DictConfig
 
 from core.config import typed
 from core.dataset import Camera, Dataset, World
-from localize.config import LocalizeConfig
+from localize.config import AppConfig, LocalizeConfig
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import EdgeSource, edge_source
 from localize.localizer import EdgeModel
@@ -33,7 +33,7 @@ class Context:
     dataset: Dataset
     camera: Camera
     world: World
-    settings: LocalizeConfig
+    settings: AppConfig  # LocalizeConfig offline, Ros2Config live
     model: EdgeModel
     out_dir: Path
     segmenter: object | None = None

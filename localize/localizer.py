@@ -31,18 +31,17 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from core import classes as C
-from core.config import typed
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
-from localize.config import FilterConfig, LikelihoodConfig, LocalizerConfig
+from localize.config import LocalizerConfig
 from localize.filter.hypotheses import Hypothesis, top_hypotheses
 from localize.filter.likelihood import EdgeLikelihood
 from localize.filter.particle_filter import LogLikelihood, ParticleFilter
@@ -57,7 +56,7 @@ from localize.filter.visibility import SparseVisibility, load_or_build
 from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage, pair_code
 from localize.frontend.front_end import EdgeFrame, FrontEnd
-from localize.search.global_search import GlobalSearch, ray_table_for, search_params
+from localize.search.global_search import GlobalSearch, ray_table_for
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
@@ -71,24 +70,6 @@ log = logging.getLogger(__name__)
 MIN_EDGE_FRACTION = 0.001
 #: ...or when the chance score of its edges (``Observation.chance``) is above this.
 MAX_CHANCE = 0.5
-
-
-def mode_likelihood_params(lp: LikelihoodConfig, fparams: FilterConfig,
-                           mode: str) -> LikelihoodConfig:
-    """The likelihood settings of one edge mode: ``lp`` updated by
-    ``filter.mode_likelihood[mode]`` (a typo or a bad value raises naming
-    ``filter.mode_likelihood.<mode>``)."""
-    over = fparams.mode_likelihood.get(mode)
-    if not over:
-        return lp
-    return typed(LikelihoodConfig, {**asdict(lp), **over}, f"filter.mode_likelihood.{mode}")
-
-
-def global_likelihood_params(lp: LikelihoodConfig, fparams: FilterConfig) -> LikelihoodConfig:
-    """The global phase's likelihood settings: ``lp`` updated by ``filter.global_likelihood``
-    (a typo or a bad value raises naming ``filter.global_likelihood``)."""
-    return typed(LikelihoodConfig, {**asdict(lp), **fparams.global_likelihood},
-                 "filter.global_likelihood")
 
 
 #: classes that make a segment worth scoring: one of its sides must be one of them (an edge
@@ -254,7 +235,7 @@ class Localizer:
         if model is None:
             model = EdgeModel.build(world, settings).for_mode(world, mode)
         self.model = model
-        lp = mode_likelihood_params(settings.likelihood, self.filter_params, mode)
+        lp = self.filter_params.likelihood_for(mode)
         self.likelihood = EdgeLikelihood(model.samples, camera, lp, model.visibility,
                                          model.pairs)
         self._global_likelihood = None
@@ -273,7 +254,7 @@ class Localizer:
             return self.likelihood
         if self._global_likelihood is None:
             coarse = self.model.thin(fp.global_thin)
-            gp = global_likelihood_params(self.likelihood.params, fp)
+            gp = fp.global_likelihood_config(self.likelihood.params)
             self._global_likelihood = EdgeLikelihood(coarse.samples, self.camera, gp,
                                                      coarse.visibility, coarse.pairs)
         return self._global_likelihood
@@ -341,8 +322,8 @@ class Localizer:
                 self.filter.predict(delta)
             info = self.filter.update(loglik) if loglik is not None else self.filter.coast()
         filter_ms = (time.perf_counter() - t0) * 1e3
-        if info.status == "lost":
-            self._start_search()
+        if info.status == "lost" and not self._start_search():  # the one re-localization
+            self.filter.relocalize_uniform(info.estimate)
         self._log_events(info.status, timestamp)
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
@@ -360,7 +341,7 @@ class Localizer:
         if (fp.global_method != "table" or self.front_end.mode == "none"
                 or self.likelihood_override is not None):
             return False
-        params = search_params(fp.global_search)
+        params = fp.global_search
         self.search = GlobalSearch(ray_table_for(self.world, params), self.camera,
                                    self.world.free, params, self.filter.rng)
         self.search.reset(None if hint is None else hint.log_prior)

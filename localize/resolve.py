@@ -27,7 +27,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from core.model_folder import model_localize_settings
 from core.outputs import flatten
-from localize.config import LocalizeConfig
+from localize.config import AppConfig, LocalizeConfig
 from localize.frontend.segmenter import model_path
 
 log = logging.getLogger(__name__)
@@ -114,16 +114,16 @@ def _apply_model_settings(cfg: DictConfig, overrides: Sequence[str]) -> tuple[di
     return taken, source
 
 
-def defaults() -> dict[str, Any]:
-    """Every localize setting's default, ``{"dotted.key": value}`` (``LocalizeConfig``)."""
-    return flatten(OmegaConf.to_container(OmegaConf.structured(LocalizeConfig)))
+def defaults(schema: type[AppConfig] = LocalizeConfig) -> dict[str, Any]:
+    """Every setting's default of an app's schema, ``{"dotted.key": value}``."""
+    return flatten(OmegaConf.to_container(OmegaConf.structured(schema)))
 
 
-def non_defaults(cfg: DictConfig) -> dict[str, Any]:
-    """The settings of ``cfg`` whose value differs from the default (a key the defaults do
-    not have, e.g. a mode of ``filter.mode_likelihood``, counts), ``{"dotted.key": value}``;
-    ``set_by`` itself is not a setting."""
-    base = defaults()
+def non_defaults(cfg: DictConfig, schema: type[AppConfig] = LocalizeConfig) -> dict[str, Any]:
+    """The settings of ``cfg`` whose value differs from the default of ``schema`` (a key the
+    defaults do not have, e.g. a mode of ``filter.mode_likelihood``, counts),
+    ``{"dotted.key": value}``; ``set_by`` itself is not a setting."""
+    base = defaults(schema)
     cfg = OmegaConf.to_container(cfg, resolve=True)
     cfg.pop("set_by", None)
     cfg.pop("hydra", None)
@@ -132,7 +132,8 @@ def non_defaults(cfg: DictConfig) -> dict[str, Any]:
 
 def layers(cfg: DictConfig, overrides: Sequence[str], choices: Mapping[str, str | None],
            model_keys: Sequence[str] = (), model_source: str | None = None,
-           auto_model: bool = False) -> dict[str, str]:
+           auto_model: bool = False, schema: type[AppConfig] = LocalizeConfig,
+           app_yaml: str = "conf/localize.yaml") -> dict[str, str]:
     """The layer that set each value of ``cfg`` that differs from its default.
 
     Args:
@@ -143,16 +144,17 @@ def layers(cfg: DictConfig, overrides: Sequence[str], choices: Mapping[str, str 
         model_keys: the dotted keys taken from the model (``apply_model_settings``).
         model_source: where the model's settings were read.
         auto_model: ``onnx_model`` was ``auto`` and ``model_path`` chose it.
+        schema, app_yaml: the app's schema and its config file.
 
     Returns:
         ``{"dotted.key": layer}``: ``command line``, ``model <where>``, ``onnx_model=auto``,
-        ``conf/<group>/<choice>.yaml`` (a key under a group's node) or ``conf/localize.yaml``.
+        ``conf/<group>/<choice>.yaml`` (a key under a group's node) or ``app_yaml``.
     """
     groups = {g: c for g, c in choices.items() if c is not None and not g.startswith("hydra")}
     given = [k for k in override_keys(overrides) if k not in groups]
     model = list(model_keys)
     out = {}
-    for key in non_defaults(cfg):
+    for key in non_defaults(cfg, schema):
         group = key.split(".", 1)[0]
         if key == "onnx_model" and auto_model:
             out[key] = AUTO
@@ -163,12 +165,14 @@ def layers(cfg: DictConfig, overrides: Sequence[str], choices: Mapping[str, str 
         elif group in groups:
             out[key] = f"conf/{group}/{groups[group]}.yaml"
         else:
-            out[key] = "conf/localize.yaml"
+            out[key] = app_yaml
     return out
 
 
 def resolve(cfg: DictConfig, overrides: Sequence[str],
-            choices: Mapping[str, str | None] | None = None) -> dict[str, str]:
+            choices: Mapping[str, str | None] | None = None,
+            schema: type[AppConfig] = LocalizeConfig,
+            app_yaml: str = "conf/localize.yaml") -> dict[str, str]:
     """Resolve a composed localize config in place: ``onnx_model=auto`` becomes its path, the
     model's settings merge in under the command line, and ``cfg.set_by`` records the layer of
     each value that differs from its default (``layers``).
@@ -178,6 +182,8 @@ def resolve(cfg: DictConfig, overrides: Sequence[str],
         overrides: the command line's overrides (``HydraConfig.get().overrides.task``).
         choices: the config groups' choices (``HydraConfig.get().runtime.choices``; None:
             none recorded).
+        schema, app_yaml: the app's schema and config file (the live node's:
+            ``Ros2Config``, ``conf/ros2.yaml``).
 
     Returns:
         ``cfg.set_by``.
@@ -187,7 +193,7 @@ def resolve(cfg: DictConfig, overrides: Sequence[str],
         cfg.onnx_model = str(model_path("auto", cfg.dataset))
         log.info("onnx_model=auto: %s", cfg.onnx_model)
     taken, source = _apply_model_settings(cfg, overrides)
-    set_by = layers(cfg, overrides, choices or {}, list(taken), source, auto)
+    set_by = layers(cfg, overrides, choices or {}, list(taken), source, auto, schema, app_yaml)
     with open_dict(cfg):
         cfg.set_by = set_by
     return set_by

@@ -20,7 +20,9 @@ the weighted mean with a circular mean for yaw.
 Knowing when it is lost: a frame whose best particle fits the image far worse than the
 long-run level (below ``gate`` of it: a dropout, a covered lens, a wrong pose) does not weigh
 the particles; the filter *coasts* on the odometry. ``lost_frames`` such frames in a row
-declare the track lost, and the filter re-localizes over the free space (a global start).
+declare the track lost; the ``Localizer`` then re-localizes as it starts from nowhere: the
+global search where it applies, else ``relocalize_uniform`` (a uniform set over the free space
+joined by the tracked particles).
 Each step reports its status and a confidence in [0, 1] (``StepInfo``), and the heaviest
 pose hypotheses of the weighted set with their mass (``localize.filter.hypotheses``): the status is
 ``ambiguous`` until one hypothesis has held ``dominant_mass`` of the mass for
@@ -429,18 +431,24 @@ class ParticleFilter:
         return bool(np.isfinite(best) and best < p.gate * self._slow)
 
     def _relocalize(self, best: float) -> StepInfo:
-        """Declare the track lost: the estimate of the poor frames is reported, and a global
-        start over the free space begins, its uniform set joined by the tracked particles (so
-        that a track that was right after all wins back at once)."""
+        """Declare the track lost: the estimate of the poor frames is reported; the particles
+        stay as they are until the caller re-localizes (``Localizer``: the global search, or
+        ``relocalize_uniform`` where the search does not apply)."""
         info = self.coast(best)
+        info.status, info.confidence = "lost", 0.0
+        return info
+
+    def relocalize_uniform(self, lost_pose: np.ndarray) -> None:
+        """Re-localize after a declared loss with the uniform set: a global start over the free
+        space joined by the tracked particles (so that a track that was right after all wins
+        back at once); until a hypothesis dominates, the lost track's pose (4,), moved by the
+        odometry, is reported."""
         kept, tilt = self.particles, self.tilt
         self.init_global()
-        self._reckoned = info.estimate.copy()
+        self._reckoned = np.asarray(lost_pose, dtype=np.float64).copy()
         self.particles = np.concatenate([self.particles, kept])
         self.tilt = np.concatenate([self.tilt, tilt])
         self.logw = np.full(len(self.particles), -np.log(len(self.particles)))
-        info.status, info.confidence = "lost", 0.0
-        return info
 
     def _reported(self, est: np.ndarray, global_phase: bool) -> np.ndarray:
         """The pose a step reports: while a re-localization keeps its global set, the lost

@@ -48,7 +48,6 @@ from localize.localizer import (
     Estimate,
     LikelihoodOverride,
     Localizer,
-    mode_likelihood_params,
 )
 from localize.offline.metrics import position_errors, yaw_errors_deg
 from localize.viewers.viz import open_viewer
@@ -181,8 +180,6 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     if recording is not None:
         out_dir = out_dir / "recordings" / recording.name
     settings = settings_of(cfg)
-    for mode in cfg.modes:  # fail before any run on a bad per-mode setting
-        mode_likelihood_params(settings.likelihood, settings.filter, mode)
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:

@@ -16,7 +16,7 @@ from omegaconf import DictConfig
 
 from localize.live.loop import load_context
 from localize.resolve import resolve
-from localize.ros2 import config as _config  # noqa: F401  (registers the schema)
+from localize.ros2.config import Ros2Config
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +51,8 @@ def serve(cfg: DictConfig, args: list[str] | None = None) -> None:
 @hydra.main(version_base="1.3", config_path="../../conf", config_name="ros2")
 def main(cfg: DictConfig) -> None:
     hydra_cfg = HydraConfig.get()
-    resolve(cfg, hydra_cfg.overrides.task, hydra_cfg.runtime.choices)
+    resolve(cfg, hydra_cfg.overrides.task, hydra_cfg.runtime.choices, Ros2Config,
+            "conf/ros2.yaml")
     serve(cfg)
 
 

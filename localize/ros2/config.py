@@ -1,8 +1,9 @@
 """The live node's settings: the schema of ``conf/ros2.yaml`` (``python -m localize.ros2``).
 
-The localize settings (``localize.config.LocalizeConfig``: ``dataset``, ``onnx_model``, the
-``filter``, ``edges``, ``model_edges``, ``visibility``) plus the node's: one edge ``mode``, the
-start, the topics, frame ids and QoS, the real-time limits, the autopilot link and the viewer.
+The settings both localize apps read (``localize.config.AppConfig``: ``dataset``,
+``onnx_model``, the ``filter``, ``edges``, ``model_edges``, ``visibility``, the start ``hint``,
+the viewer) plus the node's: one edge ``mode``, the topics, frame ids and QoS, the real-time
+limits and the autopilot link; nothing the node does not read.
 Defaults follow REP 105 (frame ids ``map``, ``odom``, ``base_link``), REP 103 (x forward, y
 left, z up; the model's frame is the ``map`` frame) and nav2 AMCL (``/initialpose``, a
 ``global_localization`` service of ``std_srvs/Empty``, ``particle_cloud``). Documented in
@@ -15,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from core.config import register_schema
-from localize.config import LocalizeConfig
+from localize.config import AppConfig
 
 #: ``topics.image_transport`` choices: sensor_msgs/Image or sensor_msgs/CompressedImage.
 IMAGE_TRANSPORTS = ("raw", "compressed")
@@ -143,8 +144,8 @@ class RealTimeConfig:
 
 
 @dataclass
-class Ros2Config(LocalizeConfig):
-    """The live node's config (``conf/ros2.yaml``): the localize settings and the node's.
+class Ros2Config(AppConfig):
+    """The live node's config (``conf/ros2.yaml``): the ``AppConfig`` and the node's.
 
     Attributes:
         node_name: the ROS node name.
@@ -158,13 +159,13 @@ class Ros2Config(LocalizeConfig):
             ``udpout:127.0.0.1:14550``; empty: off.
         mavlink_rate_hz: most MAVLink messages per second.
 
-    The viewer is ``LocalizeConfig``'s ``viz`` / ``viz_connect`` (``localize.viewers.viz``), logged
-    to ``<out_root>/<name>/live.rrd``.
+    With ``viz=rerun`` the node logs to ``<out_root>/<name>/live.rrd``.
     """
 
     node_name: str = "edgeloc"
     mode: str = "cnn"
     seed: int = 0
+    start: list[float] | None = None
     body_from_cam: list[Any] | None = None
     topics: NodeTopicsConfig = field(default_factory=NodeTopicsConfig)
     frames: FrameIdsConfig = field(default_factory=FrameIdsConfig)

@@ -45,91 +45,21 @@ Interface (what the Localizer wires):
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
   log-weights.
 
-Settings: ``GlobalSearchConfig`` (``filter.global_search``).
+Settings: ``localize.config.GlobalSearchConfig`` (``filter.global_search``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy.special import logsumexp
 
-from core.config import typed
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
+from localize.config import GlobalSearchConfig
 from localize.filter.particle_filter import apply_increment, systematic_resample
 from localize.filter.pose_stats import mean_pose, spread
 from localize.search.ray_table import RayTable, floor_boundary
-
-
-@dataclass
-class GlobalSearchConfig:
-    """Settings of the global search (``filter.global_search``).
-
-    Attributes:
-        cell: m, the table's cell (the start grid's spacing).
-        rays: azimuth bins of the table (2 pi / rays each).
-        headings: headings per cell of the start grid.
-        sigma_deg: angle noise of a boundary pixel's bin, degrees.
-        outlier: most a bin's error costs, in units of its Gaussian's exponent.
-        class_cost: what a bin costs whose class above the floor (wall, door, window) is not
-            the table's (added to its error, within ``outlier``).
-        evidence: log-likelihood scale of a frame that shows ``max_bins`` bins or more (one
-            that shows fewer counts for their share).
-        frame_floor: most log-weight a frame takes from a hypothesis against the best one.
-        min_bins: fewer observed azimuth bins: the frame is not weighed.
-        max_bins: most azimuth bins scored (evenly spaced among the observed ones).
-        motion_std: (3,) per frame: horizontal m, vertical m, yaw degrees.
-        motion_rel: (2,) more noise per m of translation and per rad of yaw change.
-        jitter: (2,) m and degrees of the jitter of a copy.
-        prune_band: hypotheses more than this below the best in log-weight are dropped.
-        inject_every: frames between injections of the best poses of a coarse grid (0: none).
-        inject_headings: headings per cell of that grid.
-        inject_count: poses injected.
-        inject_below: log-weight under the best they start with.
-        per_bin: hypotheses per occupied 0.5 m x 0.5 m x 20 deg bin after pruning.
-        min_hypotheses, max_hypotheses: bounds of the count after resampling.
-        cluster_radius: m, a cluster's radius (the mass of a hypothesis).
-        cluster_yaw_deg: degrees, its half-width in yaw.
-        handover_mass: share of the weight one cluster must hold to converge.
-        handover_frames: frames in a row it must hold it.
-        stride: pixel step of the boundary search in the label image.
-    """
-
-    cell: float = 0.25
-    rays: int = 180
-    headings: int = 60
-    sigma_deg: float = 1.5
-    outlier: float = 2.0
-    class_cost: float = 1.0
-    evidence: float = 3.0
-    frame_floor: float = 3.0
-    min_bins: int = 8
-    max_bins: int = 16
-    motion_std: list[float] = field(default_factory=lambda: [0.03, 0.02, 1.0])
-    motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
-    jitter: list[float] = field(default_factory=lambda: [0.05, 1.0])
-    prune_band: float = 30.0
-    inject_every: int = 10
-    inject_headings: int = 24
-    inject_count: int = 1000
-    inject_below: float = 10.0
-    per_bin: int = 40
-    min_hypotheses: int = 4000
-    max_hypotheses: int = 60000
-    cluster_radius: float = 0.6
-    cluster_yaw_deg: float = 25.0
-    handover_mass: float = 0.999
-    handover_frames: int = 10
-    stride: int = 2
-
-
-def search_params(global_search: dict) -> GlobalSearchConfig:
-    """The settings of ``filter.global_search`` (a typo or a bad value raises naming it)."""
-    return typed(GlobalSearchConfig, global_search, "filter.global_search")
-
 
 _TABLES: dict = {}
 #: Hypotheses scored at once (bounds the (n, J) temporaries to a few MB).

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
-from localize.config import FilterConfig, LocalizerConfig
+from localize.config import FilterConfig, GlobalSearchConfig, LocalizerConfig
 from localize.filter.start_hint import StartHint
 from localize.localizer import EdgeModel, Localizer
-from localize.search.global_search import GlobalSearch, GlobalSearchConfig, ray_table_for
+from localize.search.global_search import GlobalSearch, ray_table_for
 from localize.search.ray_table import RayTable, floor_boundary
 
 #: A path through the small corridor (free x in [-1.9, 0.7], y in [0.3, 3.7]), low enough to
@@ -110,7 +110,7 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
     """``reset(None)`` in a label mode runs the search (status ``ambiguous``, its pose
     hypotheses reported), then the tracking filter takes over near the truth."""
     poses, labels = rendered
-    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=SMALL))
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=PARAMS))
     model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
                                                                              "oracle")
     loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
@@ -135,7 +135,7 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
 def test_localizer_hint_weighs_the_search(small_world, camera):
     """A ``StartHint`` given to ``Localizer.reset`` restricts the search's start: a region
     keeps only its poses, a pose with covariance weighs them by its Gaussian."""
-    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=SMALL))
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=PARAMS))
     model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
                                                                              "oracle")
     loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),

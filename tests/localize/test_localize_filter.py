@@ -227,6 +227,8 @@ class TestParticleFilter:
         assert np.linalg.norm(coast[-1].estimate[:3] - truth[:3]) < 0.05
         lost = pf.update(poor)
         assert lost.status == "lost" and lost.confidence == 0.0
+        assert len(pf.particles) == 200  # the caller re-localizes
+        pf.relocalize_uniform(lost.estimate)
         assert pf.in_global_phase and len(pf.particles) == 1000 + 200
         # while the global set is kept, the lost track's pose moved by the odometry is
         # reported, not the middle of the free space

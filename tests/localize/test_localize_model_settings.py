@@ -56,11 +56,11 @@ class TestApplyModelSettings:
         every key under it; the other settings still come from the model."""
         overrides = [f"onnx_model={carrying}", "edges.cnn.snap_px=3", "filter=paper"]
         cfg = composed(overrides)
-        paper_k = cfg.filter.mode_likelihood.cnn.k
+        assert cfg.filter.mode_likelihood is None  # the paper: one likelihood for every mode
         with caplog.at_level(logging.INFO, logger="localize.resolve"):
             taken = ls.apply_model_settings(cfg, overrides)
         assert cfg.edges.cnn.snap_px == 3
-        assert cfg.filter.mode_likelihood.cnn.k == paper_k != 50.0
+        assert cfg.filter.mode_likelihood is None
         assert cfg.edges.cnn.refine == "none"  # from the model
         assert set(taken) == {"edges.cnn.prior_correction", "edges.cnn.snap_nearest",
                               "edges.cnn.refine"}
@@ -167,7 +167,7 @@ class TestSettingLayers:
         model = f"model {carrying} (metadata key 'localize')"
         assert set_by["edges.cnn.refine"] == set_by["edges.cnn.snap_nearest"] == model
         assert set_by["edges.cnn.prior_correction"] == model
-        assert set_by["filter.mode_likelihood.cnn.k"] == "conf/filter/paper.yaml"  # kept
+        assert set_by["filter.mode_likelihood"] == "conf/filter/paper.yaml"  # kept: null
         assert set_by["edges.cnn.snap_px"] == set_by["onnx_model"] == "command line"
 
     def test_table(self, carrying: Path) -> None:

@@ -17,7 +17,6 @@ from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, read_tum
 from localize.filter.likelihood import LikelihoodConfig
 from localize.filter.particle_filter import FilterConfig
-from localize.localizer import mode_likelihood_params
 from localize.offline.runner import RunSpec, run, warn_outside_free_space
 from tests.localize.conftest import QUICK, localize_cfg
 
@@ -62,10 +61,11 @@ def test_presets_per_mode_k(preset):
         cfg = compose("localize", overrides=[f"filter={preset}"])
     settings = settings_of(cfg)
     fp, lp = settings.filter, settings.likelihood
-    k = {m: mode_likelihood_params(lp, fp, m).k for m in ("none", "cnn", "oracle")}
+    k = {m: fp.likelihood_for(m).k for m in ("none", "cnn", "oracle")}
     if preset == "paper":
         assert k == {"none": 3.0, "cnn": 3.0, "oracle": 3.0}
-        assert {mode_likelihood_params(lp, fp, m).sigma for m in k} == {0.3}
+        assert {fp.likelihood_for(m).sigma for m in k} == {0.3}
+        assert fp.global_likelihood_config() == lp
     else:
         assert k["oracle"] > k["none"] and k["oracle"] > k["cnn"]
 
@@ -167,14 +167,17 @@ class TestEndToEnd:
         assert run(faster) == path and traj.stat().st_mtime_ns == before
 
 
-def test_mode_likelihood_params():
+def test_likelihood_for_mode():
     lp = LikelihoodConfig(k=25.0)
-    fp = FilterConfig(mode_likelihood={"cnn": {"k": 5.0, "orientation_bins": 8}})
-    cnn = mode_likelihood_params(lp, fp, "cnn")
+    fp = FilterConfig(likelihood=lp, mode_likelihood={"cnn": {"k": 5.0, "orientation_bins": 8}})
+    cnn = fp.likelihood_for("cnn")
     assert (cnn.k, cnn.orientation_bins, cnn.sigma) == (5.0, 8, lp.sigma)
-    assert mode_likelihood_params(lp, fp, "oracle") is lp
+    assert fp.likelihood_for("oracle") is lp
+    # a typo in an override fails when the settings are made, at start-up
     with pytest.raises(ValueError, match=r"filter.mode_likelihood.cnn.kk: Key 'kk' not in"):
-        mode_likelihood_params(lp, FilterConfig(mode_likelihood={"cnn": {"kk": 1}}), "cnn")
+        FilterConfig(mode_likelihood={"cnn": {"kk": 1}})
+    with pytest.raises(ValueError, match=r"filter.global_likelihood.sigmaa: Key 'sigmaa'"):
+        FilterConfig(global_likelihood={"sigmaa": 1})
 
 
 class TestBadInput:
