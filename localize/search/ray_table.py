@@ -231,6 +231,8 @@ def floor_boundary(labels: np.ndarray, camera: Camera, tilt: np.ndarray | None, 
     width = 2 * np.pi / rays
     b = np.rint(np.arctan2(d[down, 1], d[down, 0]) / width).astype(np.int64)
     tan, kind = tan[down], lab[:-1][vs[down], us[down]]
+    if not len(tan):  # floor meets a wall only above the horizon (a SegNet's stray labels)
+        return FloorBoundary(np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), cam)
     order = np.lexsort((tan, b))  # by bin, then tan: each bin's last is its nearest boundary
     b, tan, kind = b[order], tan[order], kind[order]
     last = np.flatnonzero(np.r_[b[1:] != b[:-1], True])

@@ -149,3 +149,14 @@ def test_localizer_hint_weighs_the_search(small_world, camera):
     s, w = loc.search.states, np.exp(loc.search.logw)
     near = np.hypot(*(s[:, :2] - centre[:2]).T) < 0.5
     assert w[near].sum() > 0.9
+
+
+def test_floor_boundary_only_above_the_horizon_is_none(camera):
+    """Floor under a wall only in the image's top rows (rays going up: labels no real floor
+    shows, a poorly trained SegNet's): no boundary bin, not an IndexError."""
+    from core import classes as C
+
+    lab = np.full((camera.height, camera.width), C.CEILING, np.uint8)
+    lab[0], lab[1] = C.WALL, C.FLOOR
+    fb = floor_boundary(lab, camera, None, 180)
+    assert len(fb.offsets) == 0
