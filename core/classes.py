@@ -1,4 +1,4 @@
-"""Semantic classes shared by every stage (ids are fixed; see DESIGN.md)."""
+"""Semantic classes shared by every stage (ids are fixed; docs/conventions.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The dataset layout on disk (DESIGN.md) and readers for the later stages.
+"""The dataset layout on disk (docs/datagen.md) and readers for the later stages.
 
 ```
 <dataset>/

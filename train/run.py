@@ -388,7 +388,7 @@ def run_metrics(job: TrainJob, state: dict, model: SegNet, best: dict, images: d
         "test": None,  # segnet.onnx's labels output on the test split (``finish``)
         "test_source": "segnet.onnx labels output (onnxruntime), as localize reads them",
         # The loss's class weights: localize takes this prior out of its structural decisions
-        # (localize.segmenter.structural_prior_labels); null without class weighting.
+        # (localize.frontend.segmenter.structural_prior_labels); null without class weighting.
         "class_weights": job.class_weights,
         "onnx_max_abs_diff": None,
         "train_seconds": round(state["train_seconds"], 1),

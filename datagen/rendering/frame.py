@@ -47,7 +47,7 @@ def render_frame(job: Job, renderer, d: Path, i: int, body_pose: np.ndarray, see
     traced = renderer.trace(r.spp, seed, albedo=sigma > 0)
     # The worker gets the renderer's numpy-only developer, never the renderer: the last
     # reference to a Mitsuba scene must not be dropped on the worker
-    # (datagen.rendering.render.trace).
+    # (datagen.rendering.render.Renderer.trace).
     pipe.submit(_finish_frame, renderer.developer, traced, d, i,
                 r.exposure, sigma, r.depth, effect)
 

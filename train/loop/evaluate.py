@@ -2,7 +2,7 @@
 
 The test score is that of the labels the localizer reads: the ``labels`` output of
 ``segnet.onnx`` run by onnxruntime through ``core.segmenter.OnnxSegmenter``, the class reader of
-``localize.edges.load_segmenter``. Validation, run after every epoch, scores the torch
+``localize.frontend.segmenter.load_segmenter``. Validation, run after every epoch, scores the torch
 network's argmax (the export's parity check holds the two to the same labels).
 """
 
