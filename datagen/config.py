@@ -188,10 +188,10 @@ class ProceduralWorldConfig:
     light_spacing: float = 2.0  # m between the ceiling panels added along the free space
 
 
-WorldSettings = WorldConfig | FileWorldConfig | ProceduralWorldConfig
+AnyWorldConfig = WorldConfig | FileWorldConfig | ProceduralWorldConfig
 
 
-def world_config(world: object, where: str = "world") -> WorldSettings:
+def world_config(world: object, where: str = "world") -> AnyWorldConfig:
     """The typed world settings of ``world``: a ``WorldConfig``, ``FileWorldConfig`` or
     ``ProceduralWorldConfig``, or a mapping with ``kind`` corridor (the default), file or
     procedural (None: the corridor's defaults)."""
