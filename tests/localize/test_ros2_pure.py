@@ -152,6 +152,21 @@ def test_settings_name_the_key():
         typed(Ros2Config, {"topics": {"imgae": "/x"}}, "ros2 config")
 
 
+def test_the_node_faces_only_the_settings_it_reads():
+    """The offline app's keys (its flights, seeds, recordings, report) are not the node's: a
+    user giving one is told, not ignored."""
+    from dataclasses import fields
+
+    from localize.config import LocalizeConfig
+
+    node = {f.name for f in fields(Ros2Config)}
+    offline_only = {f.name for f in fields(LocalizeConfig)} - node
+    assert {"modes", "seeds", "inits", "recording", "metrics", "report", "max_frames",
+            "flight_set", "progress", "overwrite"} <= offline_only
+    with pytest.raises(ValueError, match="seeds"):
+        typed(Ros2Config, {"seeds": [0, 1]}, "ros2 config")
+
+
 def test_loopback_profile(tmp_path):
     env = loopback_env(tmp_path, 42)
     xml = (tmp_path / "fastdds_loopback.xml").read_text()
