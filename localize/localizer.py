@@ -31,7 +31,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -127,8 +127,8 @@ class EdgeModel:
                 g = fit_grid_cached(cache_dir, world, samples.points, free, cell_xy, cell_z,
                                     v.pad, v.eps, max_range, v.max_gb, v.variant)
                 cell_xy, cell_z, max_range = g.cell_xy, g.cell_z, g.max_range
-            vis = load_or_build(world, samples.points, free, cache_dir, cell_xy, cell_z,
-                                v.pad, v.eps, max_range, v.variant)
+            vis = load_or_build(world, samples.points, free, cache_dir,
+                                replace(v, cell_xy=cell_xy, cell_z=cell_z, max_range=max_range))
         sc = np.asarray(world.segment_classes)[samples.segment]
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 

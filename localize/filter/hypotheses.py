@@ -72,8 +72,8 @@ def _inside(p: np.ndarray, centre: np.ndarray, radius_m: float, yaw_rad: float) 
     return d2 + (wrap_angle(p[:, 3] - centre[3]) / yaw_rad) ** 2 <= 1.0
 
 
-def top_hypotheses(poses: np.ndarray, logw: np.ndarray, k: int = 3, radius_m: float = 0.5,
-                   yaw_deg: float = 20.0, min_mass: float = 1e-4,
+def top_hypotheses(poses: np.ndarray, logw: np.ndarray, k: int, radius_m: float,
+                   yaw_deg: float, min_mass: float = 1e-4,
                    max_poses: int = MAX_POSES) -> list[Hypothesis]:
     """The ``k`` heaviest modes of a weighted pose set, heaviest first.
 

@@ -30,6 +30,7 @@ from core.atomic import atomic_write
 from core.dataset import World
 from core.imaging.rays import RayCaster
 from core.occupancy import OccupancyMap
+from localize.config import VisibilityConfig
 
 log = logging.getLogger(__name__)
 
@@ -239,8 +240,7 @@ def _batches(counts: np.ndarray, chunk: int) -> list[slice]:
 
 
 def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None = None,
-                     cell_xy: float = 0.2, cell_z: float = 0.25, pad: float = 0.3,
-                     eps: float = 0.02, max_range: float = 15.0, variant: str = "auto",
+                     settings: VisibilityConfig | None = None,
                      chunk: int = 2_000_000) -> SparseVisibility:
     """Ray-cast the visibility of sample points from the stored cells' centres.
 
@@ -249,12 +249,14 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
         points: (P, 3) edge samples, metres.
         free: where the camera may be (None: ``world.free``); the grid covers its free
             cells x band, padded by ``pad`` metres (``stored_cells``).
-        cell_xy, cell_z: cell sizes, metres.
-        eps: tolerance at the sample (metres).
-        max_range: metres; only samples this near a cell centre are cast and listed.
-        variant: Mitsuba variant, see ``RayCaster``.
+        settings: ``cell_xy``, ``cell_z``, ``pad``, ``eps`` (tolerance at the sample), metres;
+            ``max_range`` (only samples this near a cell centre are cast and listed) and the
+            Mitsuba ``variant`` (``RayCaster``); None: ``VisibilityConfig()``.
         chunk: rays per batch (memory: about 100 bytes a ray).
     """
+    v = VisibilityConfig() if settings is None else settings
+    cell_xy, cell_z, pad, eps, max_range = v.cell_xy, v.cell_z, v.pad, v.eps, v.max_range
+    variant = v.variant
     if max_range <= 0:
         raise ValueError(f"visibility.max_range must be positive, got {max_range}")
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -294,14 +296,13 @@ def cache_key(world: World, points: np.ndarray, free: OccupancyMap, settings: di
 
 
 def load_or_build(world: World, points: np.ndarray, free: OccupancyMap | None,
-                  cache_dir: str | Path | None, cell_xy: float = 0.2, cell_z: float = 0.25,
-                  pad: float = 0.3, eps: float = 0.02, max_range: float = 15.0,
-                  variant: str = "auto") -> SparseVisibility:
+                  cache_dir: str | Path | None, settings: VisibilityConfig) -> SparseVisibility:
     """The visibility lists from ``cache_dir/visibility_<key>.npz``, built and saved if
-    missing (``free`` None: ``world.free``)."""
+    missing (``free`` None: ``world.free``; ``settings`` as ``build_visibility``'s)."""
     free = world.free if free is None else free
-    settings = {"cell_xy": cell_xy, "cell_z": cell_z, "pad": pad, "eps": eps,
-                "max_range": max_range, "layout": "sparse"}
+    vis_settings = settings
+    settings = {"cell_xy": settings.cell_xy, "cell_z": settings.cell_z, "pad": settings.pad,
+                "eps": settings.eps, "max_range": settings.max_range, "layout": "sparse"}
     path = None
     if cache_dir is not None:
         path = Path(cache_dir) / f"visibility_{cache_key(world, points, free, settings)}.npz"
@@ -309,7 +310,7 @@ def load_or_build(world: World, points: np.ndarray, free: OccupancyMap | None,
             with np.load(path) as f:
                 return SparseVisibility(*(f[k] for k in _ARRAYS), int(f["num_samples"]),
                                         float(f["max_range"]))
-    vis = build_visibility(world, points, free, cell_xy, cell_z, pad, eps, max_range, variant)
+    vis = build_visibility(world, points, free, vis_settings)
     if path is not None:
         atomic_write(path, lambda p: np.savez(
             p, **{k: getattr(vis, k) for k in _ARRAYS}, num_samples=vis.num_samples,

@@ -22,6 +22,10 @@ from localize.offline.metrics import false_convergence
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 FREE = OccupancyMap.from_boxes(BOXES, np.array([0.5, 2.2]), 0.05, margin=0.3)
 
+#: The pose kernel of the filter's defaults: (k, radius_m, yaw_deg).
+KERNEL = (FilterConfig().hypotheses, FilterConfig().hypothesis_radius_m,
+          FilterConfig().hypothesis_yaw_deg)
+
 
 def cloud(rng, centre, n, std=(0.1, 0.1, 0.02, 0.05)):
     p = np.asarray(centre, float)[None] + rng.normal(0, 1, (n, 4)) * np.asarray(std)
@@ -35,32 +39,32 @@ class TestTopHypotheses:
         a, b = np.array([0.0, 2.0, 1.2, 0.5]), np.array([0.0, 8.0, 1.2, -2.5])
         p = np.concatenate([cloud(rng, a, 3000), cloud(rng, b, 1000)])
         logw = np.log(np.r_[np.full(3000, 1.0), np.full(1000, 2.0)])  # masses 0.6, 0.4
-        h = top_hypotheses(p, logw, k=3)
+        h = top_hypotheses(p, logw, *KERNEL)
         assert len(h) == 2  # nothing is left for a third
         np.testing.assert_allclose([h[0].mass, h[1].mass], [0.6, 0.4], atol=0.01)
         assert np.linalg.norm(h[0].state[:2] - a[:2]) < 0.02
         assert np.linalg.norm(h[1].state[:2] - b[:2]) < 0.03
         assert abs(wrap_angle(h[1].state[3] - b[3])) < 0.02
         assert h[0].position_std == pytest.approx(0.14, abs=0.02)  # sqrt(2) x 0.1
-        thinned = top_hypotheses(p, logw, k=3, max_poses=1000)  # a large set's shortcut
+        thinned = top_hypotheses(p, logw, *KERNEL, max_poses=1000)  # a large set's shortcut
         np.testing.assert_allclose([t.mass for t in thinned], [0.6, 0.4], atol=0.01)
 
     def test_a_cluster_across_the_yaw_seam_is_one(self):
         rng = np.random.default_rng(1)
         p = cloud(rng, [1.0, 1.0, 1.0, np.pi], 2000)
-        h = top_hypotheses(p, np.zeros(len(p)))
+        h = top_hypotheses(p, np.zeros(len(p)), *KERNEL)
         assert h[0].mass > 0.99 and abs(wrap_angle(h[0].state[3] - np.pi)) < 0.01
 
     def test_uniform_set_has_no_heavy_hypothesis(self):
         rng = np.random.default_rng(2)
         p = np.column_stack([FREE.sample(rng, 20000), np.full(20000, 1.2),
                              rng.uniform(-np.pi, np.pi, 20000)])
-        h = top_hypotheses(p, np.zeros(len(p)))
+        h = top_hypotheses(p, np.zeros(len(p)), *KERNEL)
         assert 1 <= len(h) <= 3 and h[0].mass < 0.05
 
     def test_bad_shapes(self):
         with pytest.raises(ValueError, match="poses must be"):
-            top_hypotheses(np.zeros((3, 3)), np.zeros(3))
+            top_hypotheses(np.zeros((3, 3)), np.zeros(3), *KERNEL)
 
 
 class TestDominance:

@@ -9,6 +9,7 @@ import pytest
 
 from core import classes as C
 from core.config import typed
+from localize.config import VisibilityConfig
 from localize.filter.likelihood import (
     FIT_EPS,
     EdgeLikelihood,
@@ -35,7 +36,8 @@ def model(small_world):
     s = sample_segments(small_world.segments, 0.05)
     keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
     s, _ = s.select(keep)
-    return s, build_visibility(small_world, s.points, cell_xy=0.2, cell_z=0.3)
+    return s, build_visibility(small_world, s.points,
+                               settings=VisibilityConfig(cell_xy=0.2, cell_z=0.3))
 
 
 @pytest.fixture(scope="module")
@@ -231,7 +233,7 @@ def test_peaks_on_a_really_rendered_frame(tiny_dataset):
     s = sample_segments(world.segments, 0.1)
     keep = world.segment_classes[:, 0] != world.segment_classes[:, 1]
     s, _ = s.select(keep)
-    vis = build_visibility(world, s.points, cell_xy=0.4, cell_z=0.5)
+    vis = build_visibility(world, s.points, settings=VisibilityConfig(cell_xy=0.4, cell_z=0.5))
     lik = EdgeLikelihood(s, cam, LikelihoodConfig(), vis)
     wins = 0
     for t in (5, 15, 25):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core.imaging.camera import project
+from localize.config import VisibilityConfig
 from localize.filter.projection import (
     ModelSamples,
     cam_from_world,
@@ -218,7 +219,8 @@ class TestAgainstRender:
         """Each stored cell lists exactly the samples a ray from its centre reaches (the
         dense grid of before, one row per cell), here with every sample within range."""
         s = scene[0]
-        vis = build_visibility(small_world, s.points, cell_xy=0.3, cell_z=0.4)
+        vis = build_visibility(small_world, s.points,
+                               settings=VisibilityConfig(cell_xy=0.3, cell_z=0.4))
         centres = vis.centres()
         pick = np.random.default_rng(0).choice(len(centres), 20, replace=False)
         direct = ~occluded(small_world, centres[pick], s.points)
@@ -229,8 +231,10 @@ class TestAgainstRender:
 
     def test_range_culls_far_samples(self, small_world, scene):
         s = scene[0]
-        full = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6)
-        near = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6, max_range=2.0)
+        full = build_visibility(small_world, s.points,
+                                settings=VisibilityConfig(cell_xy=0.5, cell_z=0.6))
+        near = build_visibility(small_world, s.points,
+                                settings=VisibilityConfig(cell_xy=0.5, cell_z=0.6, max_range=2.0))
         c = full.centres()
         far = np.linalg.norm(c[:, None] - s.points[None], axis=2) > 2.0
         got = near.mask(c)
@@ -240,7 +244,8 @@ class TestAgainstRender:
 
     def test_outside_cells_use_the_nearest_stored_one(self, small_world, scene):
         s = scene[0]
-        vis = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6)
+        vis = build_visibility(small_world, s.points,
+                               settings=VisibilityConfig(cell_xy=0.5, cell_z=0.6))
         grid = np.stack(np.meshgrid(*[vis.origin[a] + vis.cell[a] * np.arange(vis.shape[a])
                                       for a in range(3)], indexing="ij"), -1).reshape(-1, 3)
         outside = np.setdiff1d(np.arange(len(grid)), vis.flat)
@@ -252,7 +257,8 @@ class TestAgainstRender:
 
     def test_select_keeps_the_subsets_lists(self, small_world, scene):
         s = scene[0]
-        vis = build_visibility(small_world, s.points, cell_xy=0.5, cell_z=0.6)
+        vis = build_visibility(small_world, s.points,
+                               settings=VisibilityConfig(cell_xy=0.5, cell_z=0.6))
         cols = np.flatnonzero(np.arange(len(s)) % 3 == 1)
         sub = vis.select(cols)
         c = vis.centres()
@@ -264,14 +270,16 @@ class TestAgainstRender:
 
     def test_cache_round_trip(self, small_world, scene, tmp_path):
         s = scene[0]
-        a = load_or_build(small_world, s.points, None, tmp_path, cell_xy=0.5, cell_z=0.5)
+        a = load_or_build(small_world, s.points, None, tmp_path,
+                          VisibilityConfig(cell_xy=0.5, cell_z=0.5))
         assert len(list(tmp_path.glob("visibility_*.npz"))) == 1
-        b = load_or_build(small_world, s.points, None, tmp_path, cell_xy=0.5, cell_z=0.5)
+        b = load_or_build(small_world, s.points, None, tmp_path,
+                          VisibilityConfig(cell_xy=0.5, cell_z=0.5))
         for key in ("origin", "cell", "shape", "row_of", "flat", "indptr", "ids"):
             np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
         assert (a.num_samples, a.max_range) == (b.num_samples, b.max_range)
-        load_or_build(small_world, s.points, None, tmp_path, cell_xy=0.5, cell_z=0.5,
-                      max_range=3.0)
+        load_or_build(small_world, s.points, None, tmp_path,
+                      VisibilityConfig(cell_xy=0.5, cell_z=0.5, max_range=3.0))
         assert len(list(tmp_path.glob("visibility_*.npz"))) == 2  # another range, another key
 
     def test_grid_covers_free_space(self, small_world):

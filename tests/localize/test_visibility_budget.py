@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from localize.config import FilterConfig
+from localize.config import FilterConfig, VisibilityConfig
 from localize.filter import visibility_budget
 from localize.filter.projection import sample_segments
 from localize.filter.visibility import build_visibility
@@ -29,7 +29,8 @@ def long_corridor():
 def test_estimate_matches_the_built_lists(long_corridor):
     """The probes' estimate is within 15 % of the lists' bytes; the in-range bound is above."""
     world, pts = long_corridor
-    vis = build_visibility(world, pts, world.free, cell_xy=0.5, cell_z=0.6, max_range=6.0)
+    vis = build_visibility(world, pts, world.free,
+                           settings=VisibilityConfig(cell_xy=0.5, cell_z=0.6, max_range=6.0))
     est = estimate_grid(world, pts, world.free, 0.5, 0.6, 0.3, 0.02, 6.0)
     upper = estimate_grid(world, pts, world.free, 0.5, 0.6, 0.3, 0.02, 6.0, max_bytes=1e12)
     assert est.exact and not upper.exact and est.rows == len(vis.counts())

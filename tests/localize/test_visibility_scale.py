@@ -10,7 +10,7 @@ from core import classes as C
 from core.dataset import World
 from core.occupancy import OccupancyMap
 from datagen.mesh.edges import extract_edges
-from localize.config import LikelihoodConfig, LocalizerConfig
+from localize.config import LikelihoodConfig, LocalizerConfig, VisibilityConfig
 from localize.filter.likelihood import EdgeLikelihood
 from localize.filter.projection import (
     cam_from_world,
@@ -47,7 +47,8 @@ def test_memory_grows_with_the_cells_not_the_building():
     for length in (15.0, 45.0):
         world = straight(length)
         s = sample_segments(world.segments, 0.2)
-        vis = build_visibility(world, s.points, world.free, cell_xy=0.5, cell_z=0.6, max_range=4.0)
+        vis = build_visibility(world, s.points, world.free,
+                               settings=VisibilityConfig(cell_xy=0.5, cell_z=0.6, max_range=4.0))
         c = vis.centres()
         in_range = (np.linalg.norm(c[:, None] - s.points[None], axis=2) <= 4.0).sum(axis=1)
         assert (vis.counts() <= in_range).all()
@@ -62,7 +63,8 @@ def model(small_world):
     s = sample_segments(small_world.segments, 0.05)
     sc = small_world.segment_classes
     s, _ = s.select(sc[:, 0] != sc[:, 1])
-    return s, build_visibility(small_world, s.points, cell_xy=0.3, cell_z=0.4)
+    return s, build_visibility(small_world, s.points,
+                               settings=VisibilityConfig(cell_xy=0.3, cell_z=0.4))
 
 
 def test_view_cone_keeps_every_sample_in_view(model, camera):
