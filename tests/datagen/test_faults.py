@@ -1,4 +1,5 @@
-"""datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG."""
+"""datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG;
+building models with an include cycle."""
 
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ import pytest
 import datagen.generate as gen
 from core.atomic import png_complete, read_png
 from core.dataset import Dataset
+from datagen.importers import load_building
+from tests.datagen.building_files import visual, write_model, write_world
 from tests.datagen.test_generate import SMALL, small_cfg
 
 REPO = Path(__file__).resolve().parents[2]
@@ -196,3 +199,39 @@ def test_full_disk_names_the_folder_and_the_fix(tmp_path: Path,
     with pytest.raises(atomic.DiskFullError, match=rf"writing \S+ into {out}(/\S+)? failed: "
                                                    r"the disk is full .* Free space"):
         gen.run(small_cfg(out), progress=False)
+
+
+@pytest.mark.parametrize("through", [False, True], ids=["itself", "through_another"])
+def test_include_cycle_names_the_model_files(tmp_path: Path, through: bool) -> None:
+    """A model including itself, directly or through another model: a ValueError naming the
+    model files of the cycle, not a RecursionError."""
+    models = tmp_path / "models"
+    box = visual("<box><size>1 1 1</size></box>", "0 0 0.5 0 0 0")
+    if through:
+        write_model(models, "a", box + "<include><uri>model://b</uri></include>")
+        write_model(models, "b", "<include><uri>model://a</uri></include>")
+        cycle = [models / "a" / "model.sdf", models / "b" / "model.sdf",
+                 models / "a" / "model.sdf"]
+    else:
+        write_model(models, "a", box + "<include><uri>model://a</uri></include>")
+        cycle = [models / "a" / "model.sdf", models / "a" / "model.sdf"]
+    world = write_world(tmp_path / "worlds" / "w.world",
+                        "<include><uri>model://a</uri></include>")
+    names = " -> ".join(str(p.resolve()) for p in cycle)
+    with pytest.raises(ValueError, match=re.escape(f"{world}: <include> cycle: {names} ")):
+        load_building(world)
+
+
+def test_model_included_twice_is_no_cycle(tmp_path: Path) -> None:
+    """One model included by the world and twice by another model is no cycle: each
+    include is read."""
+    models = tmp_path / "models"
+    write_model(models, "box", visual("<box><size>1 1 1</size></box>", "0 0 0.5 0 0 0"))
+    include = "<include><uri>model://box</uri><pose>{} 0 0 0 0 0</pose></include>"
+    write_model(models, "pair", include.format(0) + include.format(2))
+    floor = "<model name='ground'>" + visual("<plane><size>20 20</size></plane>") + "</model>"
+    world = write_world(tmp_path / "worlds" / "w.world", floor + include.format(5)
+                        + "<include><uri>model://pair</uri></include>")
+    b = load_building(world)
+    assert b.info["includes"] == 4
+    np.testing.assert_allclose(b.vertices.max(axis=0), [5.5, 0.5, 1.0])
