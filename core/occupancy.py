@@ -369,6 +369,9 @@ def _check_mesh(vertices: np.ndarray, faces: np.ndarray,
     cls_ = np.asarray(face_class).reshape(-1)
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
         raise ValueError(f"vertices must be (V, 3), got {v.shape}")
+    bad = int((~np.isfinite(v).all(axis=1)).sum())
+    if bad:
+        raise ValueError(f"vertices: {bad} of {len(v)} are not finite (NaN or infinite)")
     if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or not np.issubdtype(f.dtype, np.integer):
         raise ValueError(f"faces must be (F, 3) integer vertex indices, got {f.shape} {f.dtype}")
     if f.min() < 0 or f.max() >= len(v):

@@ -18,6 +18,7 @@ from datagen.mesh.building import (
     Building,
     Part,
     assemble,
+    check_finite,
     face_areas_normals,
     weighted_quantile,
 )
@@ -118,8 +119,9 @@ def load_building(path: str | Path | None = None,
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: an unknown extension, a bad setting, an unreadable file, a model with no
-            floor or no walls, a storey that does not exist; each naming the file or key.
+        ValueError: an unknown extension, a bad setting, an unreadable file, vertices that are
+            NaN or infinite, a model with no floor or no walls, a storey that does not exist;
+            each naming the file or key.
     """
     t0 = time.perf_counter()
     s = as_config(ImportConfig, settings, "world")
@@ -133,6 +135,7 @@ def load_building(path: str | Path | None = None,
         raise FileNotFoundError(f"{path}: no such file (path / world.path must name a "
                                 f"building model file: {', '.join(EXTENSIONS)})")
     parts, info = read_parts(path, s)
+    check_finite(parts, path)
     far = far_parts(parts)
     info["far_parts"] = {parts[i].name: d for i, d in far.items()}
     if far:

@@ -180,3 +180,10 @@ class TestBadInput:
             OccupancyMap.from_mesh(v[:5], f, c, BAND, MARGIN, 0.1)
         with pytest.raises(ValueError, match="free_boxes must be"):
             OccupancyMap.from_boxes(np.array([[1.0, 0.0, 0.0, 1.0]]), BAND, 0.1)
+
+    def test_nan_vertices(self):
+        v, f, c = ring()
+        v = v.copy()
+        v[[0, 3]] = np.nan
+        with pytest.raises(ValueError, match=rf"vertices: 2 of {len(v)} are not finite"):
+            OccupancyMap.from_mesh(v, f, c, BAND, MARGIN, 0.1)

@@ -1,5 +1,5 @@
 """datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG;
-building models with an include cycle."""
+building models with an include cycle or with NaN vertices."""
 
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ import datagen.generate as gen
 from core.atomic import png_complete, read_png
 from core.dataset import Dataset
 from datagen.importers import load_building
-from tests.datagen.building_files import visual, write_model, write_world
+from datagen.worlds.site import build_site
+from tests.datagen.building_files import open_room, visual, write_model, write_world
 from tests.datagen.test_generate import SMALL, small_cfg
 
 REPO = Path(__file__).resolve().parents[2]
@@ -235,3 +236,16 @@ def test_model_included_twice_is_no_cycle(tmp_path: Path) -> None:
     b = load_building(world)
     assert b.info["includes"] == 4
     np.testing.assert_allclose(b.vertices.max(axis=0), [5.5, 0.5, 1.0])
+
+
+def test_nan_vertices_name_the_file_and_count(tmp_path: Path) -> None:
+    """An OBJ with two NaN vertices (and one infinite): the import fails naming the file and
+    the number of bad vertices, not a setting of the free space."""
+    lines = open_room((10.0, 8.0, 3.0)).export(file_type="obj").splitlines()
+    rows = [i for i, line in enumerate(lines) if line.startswith("v ")]
+    for i, bad in zip(rows[:3], ("nan nan nan", "0 nan 0", "inf 0 0"), strict=True):
+        lines[i] = f"v {bad}"
+    path = tmp_path / "nan_room.obj"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=rf"{path}: 3 of {len(rows)} vertices are not finite"):
+        build_site({"kind": "file", "path": str(path)})
