@@ -1,5 +1,5 @@
 """datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG;
-building models with an include cycle or with NaN vertices."""
+building models in the wrong units, with an include cycle or with NaN vertices."""
 
 from __future__ import annotations
 
@@ -19,7 +19,9 @@ import pytest
 import datagen.generate as gen
 from core.atomic import png_complete, read_png
 from core.dataset import Dataset
+from core.occupancy import OccupancyMap
 from datagen.importers import load_building
+from datagen.importers.__main__ import main as import_main
 from datagen.worlds.site import build_site
 from tests.datagen.building_files import open_room, visual, write_model, write_world
 from tests.datagen.test_generate import SMALL, small_cfg
@@ -200,6 +202,31 @@ def test_full_disk_names_the_folder_and_the_fix(tmp_path: Path,
     with pytest.raises(atomic.DiskFullError, match=rf"writing \S+ into {out}(/\S+)? failed: "
                                                    r"the disk is full .* Free space"):
         gen.run(small_cfg(out), progress=False)
+
+
+def test_millimetre_mesh_refused_before_the_free_space(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    """An OBJ room of 10 x 8 x 3 m drawn in millimetres, read at the default 1 m per unit
+    (10 km across): the import refuses it naming the file and the units to set, before the
+    free space (whose cost grows with the model's area) is built."""
+    room = open_room((10.0, 8.0, 3.0))
+    room.vertices *= 1000.0
+    path = tmp_path / "mm_room.obj"
+    room.export(path)
+
+    def never(*args, **kwargs):
+        raise AssertionError("the free space of a model in the wrong units was built")
+
+    monkeypatch.setattr(OccupancyMap, "from_mesh", never)
+    fix = r"in mm it would be 10\.0 m across and 3\.0 m high: set world\.units=0\.001"
+    with pytest.raises(ValueError, match=rf"{path}: .*10000\.0 m across.*{fix}"):
+        build_site({"kind": "file", "path": str(path)})
+    assert import_main([str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "--units 0.001" in err, err
+    b = load_building(path, {"units": 0.001})
+    np.testing.assert_allclose(b.vertices.max(axis=0)[:2], [10.0, 8.0], atol=1e-6)
 
 
 @pytest.mark.parametrize("through", [False, True], ids=["itself", "through_another"])
