@@ -36,6 +36,9 @@ from core.atomic import atomic_write
 _TOL = 1e-6  # m, slack of the margin test (distances are sums of cell multiples)
 _MAX_POINTS = 1 << 19  # surface samples per chunk (memory bound of from_mesh)
 _KEYS = ("free", "clearance", "origin", "cell", "band", "margin")
+#: The most cells a map may have: 0.5 km^2 of 0.1 m cells (a 700 m square; building it from a
+#: mesh takes a few GB and minutes). A model read in the wrong units is far larger.
+MAX_CELLS = 50_000_000
 
 #: plot colours (RGB): free, within the margin of an obstacle, obstacle / outside.
 FREE_RGB, MARGIN_RGB, BLOCKED_RGB = (255, 255, 255), (200, 200, 200), (60, 60, 60)
@@ -113,6 +116,11 @@ class OccupancyMap:
 
         Returns:
             The map; its grid covers the mesh's XY bounds plus one cell.
+
+        Raises:
+            ValueError: bad arguments, vertices that are NaN or infinite, a grid of more than
+                ``MAX_CELLS`` cells (a model in the wrong units), no floor below the band or
+                no free space left.
         """
         v, f, cls_ = _check_mesh(vertices, faces, face_class)
         z_lo, z_hi = _check_band(band)
@@ -369,6 +377,9 @@ def _check_mesh(vertices: np.ndarray, faces: np.ndarray,
     cls_ = np.asarray(face_class).reshape(-1)
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
         raise ValueError(f"vertices must be (V, 3), got {v.shape}")
+    bad = int((~np.isfinite(v).all(axis=1)).sum())
+    if bad:
+        raise ValueError(f"vertices: {bad} of {len(v)} are not finite (NaN or infinite)")
     if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or not np.issubdtype(f.dtype, np.integer):
         raise ValueError(f"faces must be (F, 3) integer vertex indices, got {f.shape} {f.dtype}")
     if f.min() < 0 or f.max() >= len(v):
@@ -379,9 +390,17 @@ def _check_mesh(vertices: np.ndarray, faces: np.ndarray,
 
 
 def _grid(lo: np.ndarray, hi: np.ndarray, cell: float) -> tuple[np.ndarray, tuple[int, int]]:
-    """Origin and (H, W) of the lattice grid covering [lo, hi] plus one cell on each side."""
-    k0 = np.floor(lo / cell + 0.5).astype(np.int64) - 1  # lattice index of the first centre
-    k1 = np.floor(hi / cell + 0.5).astype(np.int64) + 1
+    """Origin and (H, W) of the lattice grid covering [lo, hi] plus one cell on each side;
+    ValueError for more than ``MAX_CELLS`` cells."""
+    k0 = np.floor(lo / cell + 0.5) - 1  # lattice index of the first centre
+    k1 = np.floor(hi / cell + 0.5) + 1
+    cells = float(np.prod(k1 - k0 + 1))
+    if cells > MAX_CELLS:
+        size = np.asarray(hi, np.float64) - lo
+        raise ValueError(f"the grid over {size[0]:.1f} x {size[1]:.1f} m at {cell} m cells "
+                         f"would have {cells:,.0f} cells, more than {MAX_CELLS:,} (memory and "
+                         f"time grow with them): is the model in metres? (one drawn in mm and "
+                         f"read as metres is 1000 x too wide); else use a larger cell")
     origin = (k0 - 0.5) * cell
     return origin, (int(k1[1] - k0[1] + 1), int(k1[0] - k0[0] + 1))
 

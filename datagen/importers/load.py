@@ -14,10 +14,12 @@ from core.config import as_config
 from datagen.importers.classify import add_ceiling, ceiling_height, class_shares, classify
 from datagen.importers.config import ImportConfig
 from datagen.importers.orient import axis_name
+from datagen.importers.summary import check_size, file_units
 from datagen.mesh.building import (
     Building,
     Part,
     assemble,
+    check_finite,
     face_areas_normals,
     weighted_quantile,
 )
@@ -26,6 +28,7 @@ log = logging.getLogger(__name__)
 SDF_EXTENSIONS = (".world", ".sdf")
 MESH_EXTENSIONS = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
 IFC_EXTENSIONS = (".ifc",)
+UNIT_FORMATS = ("obj", "ply", "stl")  # the formats whose units are world.units
 EXTENSIONS = SDF_EXTENSIONS + MESH_EXTENSIONS + IFC_EXTENSIONS
 FAR_FACTOR, FAR_M = 10.0, 100.0  # a part this many times the model's size away, and at
 # least these metres, is left out (far_parts)
@@ -118,8 +121,10 @@ def load_building(path: str | Path | None = None,
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: an unknown extension, a bad setting, an unreadable file, a model with no
-            floor or no walls, a storey that does not exist; each naming the file or key.
+        ValueError: an unknown extension, a bad setting, an unreadable file, vertices that are
+            NaN or infinite, a model larger than a building (``summary.check_size``: read in
+            the wrong units), a model with no floor or no walls, a storey that does not
+            exist; each naming the file or key.
     """
     t0 = time.perf_counter()
     s = as_config(ImportConfig, settings, "world")
@@ -133,6 +138,7 @@ def load_building(path: str | Path | None = None,
         raise FileNotFoundError(f"{path}: no such file (path / world.path must name a "
                                 f"building model file: {', '.join(EXTENSIONS)})")
     parts, info = read_parts(path, s)
+    check_finite(parts, path)
     far = far_parts(parts)
     info["far_parts"] = {parts[i].name: d for i, d in far.items()}
     if far:
@@ -142,6 +148,9 @@ def load_building(path: str | Path | None = None,
         parts = [p for i, p in enumerate(parts) if i not in far]
     if not any(len(p.faces) for p in parts):
         raise ValueError(f"{path}: no triangles found (nothing to import)")
+    points = np.concatenate([p.vertices for p in parts if len(p.faces)])
+    check_size(path, points.min(axis=0), points.max(axis=0), file_units(info),
+               info["format"] in UNIT_FORMATS)
     b = assemble(parts)
     floor_z = classify(b, s.name_rules, s.floor_tolerance, str(path))
     added = 0

@@ -14,7 +14,7 @@ import numpy as np
 from datagen.importers.dae import load_dae
 from datagen.importers.images import linear_image
 from datagen.importers.orient import axis_name, find_up_axis, to_z_up
-from datagen.mesh.building import Part
+from datagen.mesh.building import Part, check_finite
 
 #: Y-up to Z-up: (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], np.float64)
@@ -56,7 +56,8 @@ def _trimesh_texture(mesh, images: dict[int, np.ndarray]
 
 
 def _load_trimesh(path: Path) -> list[Part]:
-    """Parts of a file trimesh reads, in the file's frame and units (scene graph applied)."""
+    """Parts of a file trimesh reads, in the file's frame and units (scene graph applied);
+    ValueError for a vertex that is NaN or infinite (``check_finite``)."""
     import trimesh
 
     try:
@@ -64,7 +65,7 @@ def _load_trimesh(path: Path) -> list[Part]:
     except Exception as err:  # trimesh raises many kinds for broken files
         raise ValueError(f"{path}: not a readable mesh file ({type(err).__name__}: {err})"
                          ) from None
-    parts, images = [], {}
+    parts, matrices, images = [], [], {}
     for node in scene.graph.nodes_geometry:
         matrix, gname = scene.graph[node]
         mesh = scene.geometry[gname]
@@ -72,10 +73,11 @@ def _load_trimesh(path: Path) -> list[Part]:
             continue
         material = getattr(getattr(mesh.visual, "material", None), "name", None)
         texture, uv = _trimesh_texture(mesh, images)
-        part = Part(mesh.vertices, mesh.faces, f"{node}/{material or gname}",
-                    _trimesh_colour(mesh), texture=texture, uv=uv)
-        parts.append(part.moved(np.asarray(matrix, np.float64)))
-    return parts
+        parts.append(Part(mesh.vertices, mesh.faces, f"{node}/{material or gname}",
+                          _trimesh_colour(mesh), texture=texture, uv=uv))
+        matrices.append(np.asarray(matrix, np.float64))
+    check_finite(parts, path)
+    return [p.moved(m) for p, m in zip(parts, matrices, strict=True)]
 
 
 def load_mesh_file(path: Path, units: float = 1.0, up_axis: str = "z"
@@ -92,11 +94,16 @@ def load_mesh_file(path: Path, units: float = 1.0, up_axis: str = "z"
         parts (face_class UNSET) and info: ``units`` (metres per file unit applied),
         ``up_axis`` (the axis turned to +Z), ``up_axis_from`` (``format``, ``setting`` or
         ``auto``) and, for ``auto``, ``up_axis_found`` (``orient.UpAxis.as_info``).
+
+    Raises:
+        ValueError: an unreadable file, or vertices that are NaN or infinite (naming the file
+            and their number).
     """
     ext = path.suffix.lower()
     info: dict = {}
     if ext == ".dae":
         parts, scale = load_dae(path)
+        check_finite(parts, path)
     else:
         parts = _load_trimesh(path)
         gltf = ext in (".glb", ".gltf")

@@ -9,7 +9,8 @@ ground plane) is cut to the rest of the world's XY extent. A mesh URI that is re
 (``file://models/...``, ``meshes/a.dae``) is found next to the file naming it, else on the
 resource path (``resource_roots``: the world's repository root first), else as a file name
 differing only in case. A model or mesh that
-cannot be found is counted, reported once and skipped.
+cannot be found is counted, reported once and skipped; a model including itself (directly or
+through others) is an error naming the files of the cycle.
 """
 
 from __future__ import annotations
@@ -96,6 +97,8 @@ class _Walk:
     meshes: dict[Path, list[Part]] = field(default_factory=dict)
     units: dict[Path, float] = field(default_factory=dict)  # mesh file -> metres per unit
     trees: dict[Path, ET.Element] = field(default_factory=dict)
+    reading: list[Path] = field(default_factory=list)  # the files whose models are being
+    # read, outermost first (resolved): an include of one of them is a cycle
     notes: set[str] = field(default_factory=set)
     includes: int = 0
     lights: list[list[float]] = field(default_factory=list)  # point and spot lights, m
@@ -278,6 +281,11 @@ def _include(w: _Walk, inc: ET.Element, parent: np.ndarray, prefix: str, base: P
     if not sdf.is_file():
         w.missing[label] += 1
         return
+    key = sdf.resolve()
+    if key in w.reading:
+        cycle = " -> ".join(map(str, [*w.reading[w.reading.index(key):], key]))
+        raise ValueError(f"{w.source}: <include> cycle: {cycle} ({uri} includes a model that "
+                         f"is being read); remove the <include> that closes the cycle")
     if sdf not in w.trees:
         w.trees[sdf] = parse_xml(sdf)
     model = w.trees[sdf].find("model")
@@ -286,7 +294,9 @@ def _include(w: _Walk, inc: ET.Element, parent: np.ndarray, prefix: str, base: P
         for light in w.trees[sdf].findall("light"):
             w.light(light, parent @ (np.eye(4) if pose is None else pose))
         return
+    w.reading.append(key)
     _model(w, model, parent, prefix, sdf.parent, pose, (inc.findtext("name") or "").strip())
+    w.reading.pop()
 
 
 def _cut_planes(w: _Walk) -> None:
@@ -320,13 +330,18 @@ def load_sdf(path: Path, model_path: list[str]) -> tuple[list[Part], dict]:
         ``model_path`` (the folders searched), ``units`` (metres per file unit -> mesh files),
         ``lights`` ([[x, y, z], ...] m, the point and spot lights of the world and its
         models' links) and ``directional_lights`` (their count, not placed).
+
+    Raises:
+        ValueError: XML that is not well-formed, no ``<sdf>`` root or no ``<world>`` or
+            ``<model>`` in it, a bad ``<pose>`` or number, an ``<include>`` cycle (a model
+            including itself, directly or through others: the files of the cycle named).
     """
     root = parse_xml(path)
     if root.tag != "sdf":
         raise ValueError(f"{path}: the root element is <{root.tag}>, not <sdf>; is this a "
                          f"Gazebo world or model file?")
     search = model_search_path(path, model_path)
-    w = _Walk(path, search, resource_roots(path, search))
+    w = _Walk(path, search, resource_roots(path, search), reading=[path.resolve()])
     tops = root.findall("world") + root.findall("model")
     if not tops:
         raise ValueError(f"{path}: no <world> or <model> in the file")

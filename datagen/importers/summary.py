@@ -44,6 +44,42 @@ def unit_guess(height: float, units: float) -> tuple[str, float] | None:
     return min(fits)[1:] if fits else None
 
 
+def check_size(source: object, lo: np.ndarray, hi: np.ndarray, units: float,
+               unit_key: bool) -> None:
+    """Refuse a model wider than any building (``EXTENT``): one drawn in mm or cm read as
+    metres. ``load_building`` calls it on the parts as read, before anything whose cost grows
+    with the model's area (the free space, the plan image).
+
+    Args:
+        source: the file, named in the error.
+        lo, hi: (3,) m, the model's bounds (Z up).
+        units: metres per file unit the import applied.
+        unit_key: whether the format takes ``world.units`` (OBJ, PLY, STL); else its units
+            come from the file.
+
+    Raises:
+        ValueError: naming the file, the size and the ``world.units`` value to set (for a
+            height that fits a storey in mm, cm, inch or foot, that unit's).
+    """
+    extent, height = float(max(hi[:2] - lo[:2])), float(hi[2] - lo[2])
+    if extent <= EXTENT[1]:
+        return
+    what = (f"{source}: the model is {extent:.1f} m across and {height:.1f} m high at {units} "
+            f"m per file unit, wider than a building (at most {EXTENT[1]:.0f} m)")
+    if not unit_key:
+        raise ValueError(f"{what}; this format gives its own units (world.units does not "
+                         f"apply): scale the model in the file")
+    guess = unit_guess(height, units)
+    if guess is None:
+        raise ValueError(f"{what}; set world.units to the metres per file unit ("
+                         + ", ".join(f"{k}: {v}" for k, v in UNITS.items() if k != "m")
+                         + "; python -m datagen.importers: --units U)")
+    name, value = guess
+    raise ValueError(f"{what}; in {name} it would be {extent / units * value:.1f} m across and "
+                     f"{height / units * value:.1f} m high: set world.units={value} (python -m "
+                     f"datagen.importers: --units {value})")
+
+
 def footprint(points: np.ndarray) -> float:
     """Area (m^2) of the convex hull of (n, 3) points seen from above (holes and furniture
     in a floor do not shrink it); 0 for fewer than three or collinear points."""

@@ -95,6 +95,22 @@ class Building:
         return n
 
 
+def check_finite(parts: list[Part], source: object) -> None:
+    """Raise ValueError naming ``source`` (the file) and the parts if any vertex of
+    ``parts`` has a coordinate that is NaN or infinite (a broken export): such a vertex has
+    no place in the building, and the faces using it would break the classes and the free
+    space."""
+    bad = [(p.name, int((~np.isfinite(p.vertices).all(axis=1)).sum())) for p in parts]
+    count = sum(n for _, n in bad)
+    if not count:
+        return
+    total = sum(len(p.vertices) for p in parts)
+    names = [name for name, n in bad if n]
+    listed = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+    raise ValueError(f"{source}: {count} of {total} vertices are not finite numbers (NaN or "
+                     f"infinite) in {listed}; repair or export the model again")
+
+
 def assemble(parts: list[Part], merge_tol: float = 1e-6) -> Building:
     """Join parts into one mesh; vertices closer than about ``merge_tol`` metres are merged
     and faces that become degenerate dropped. ``info`` is left empty."""

@@ -85,8 +85,9 @@ def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig
     the band (``OccupancyMap.from_mesh``).
 
     Raises:
-        ValueError: a bad z_range, or no free space left, naming ``source`` (None: the file,
-            ``spec.path``) and the keys.
+        ValueError: a bad z_range, a grid of too many cells (``core.occupancy.MAX_CELLS``) or
+            no free space left, naming ``source`` (None: the file, ``spec.path``) and the
+            keys.
     """
     z = np.asarray(spec.z_range, dtype=np.float64)
     if z.shape != (2,) or not 0 <= z[0] < z[1]:
@@ -100,8 +101,8 @@ def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig
                                       obstacle_span=spec.obstacle_span)
     except ValueError as err:
         raise ValueError(f"{source or spec.path}: world.camera_margin / world.z_range / "
-                         f"world.free_close / world.free_max_hole / world.obstacle_span: "
-                         f"{err}") from None
+                         f"world.free_cell / world.free_close / world.free_max_hole / "
+                         f"world.obstacle_span: {err}") from None
 
 
 def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,

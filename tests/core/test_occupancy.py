@@ -180,3 +180,38 @@ class TestBadInput:
             OccupancyMap.from_mesh(v[:5], f, c, BAND, MARGIN, 0.1)
         with pytest.raises(ValueError, match="free_boxes must be"):
             OccupancyMap.from_boxes(np.array([[1.0, 0.0, 0.0, 1.0]]), BAND, 0.1)
+
+    def test_nan_vertices(self):
+        v, f, c = ring()
+        v = v.copy()
+        v[[0, 3]] = np.nan
+        with pytest.raises(ValueError, match=rf"vertices: 2 of {len(v)} are not finite"):
+            OccupancyMap.from_mesh(v, f, c, BAND, MARGIN, 0.1)
+
+
+class TestGridSize:
+    """A grid of more than MAX_CELLS cells is refused before anything is built."""
+
+    def test_a_model_in_millimetres(self):
+        """The ring (10.4 m across with its walls) drawn in mm, read as metres: 1e10 cells of
+        0.1 m; refused at once (not built into tens of GB)."""
+        v, f, c = ring()
+        with pytest.raises(ValueError, match=r"the grid over 10400\.0 x 10400\.0 m at 0\.1 m "
+                                             r"cells would have 10,816,624,009 cells, more than "
+                                             r"50,000,000 .*is the model in metres"):
+            OccupancyMap.from_mesh(v * 1000.0, f, c, BAND, MARGIN, 0.1)
+        with pytest.raises(ValueError, match="cells would have 10,0"):
+            OccupancyMap.from_boxes(np.array([[0.0, 0.0, 1e4, 1e4]]), BAND, 0.1)
+
+    def test_the_bound(self, monkeypatch: pytest.MonkeyPatch):
+        """A grid of exactly MAX_CELLS cells is built, one of a cell more is refused."""
+        import core.occupancy as occupancy
+
+        v, f, c = ring()
+        cells = int(np.prod(OccupancyMap.from_mesh(v, f, c, BAND, MARGIN, 0.1).shape))
+        monkeypatch.setattr(occupancy, "MAX_CELLS", cells)
+        assert OccupancyMap.from_mesh(v, f, c, BAND, MARGIN, 0.1).free.size == cells
+        monkeypatch.setattr(occupancy, "MAX_CELLS", cells - 1)
+        with pytest.raises(ValueError, match=f"would have {cells:,} cells, more than "
+                                             f"{cells - 1:,} "):
+            OccupancyMap.from_mesh(v, f, c, BAND, MARGIN, 0.1)

@@ -1,4 +1,5 @@
-"""datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG."""
+"""datagen under faults: two runs on one folder, a missing shard, a killed write, a cut PNG;
+building models in the wrong units, with an include cycle or with NaN vertices."""
 
 from __future__ import annotations
 
@@ -18,6 +19,11 @@ import pytest
 import datagen.generate as gen
 from core.atomic import png_complete, read_png
 from core.dataset import Dataset
+from core.occupancy import OccupancyMap
+from datagen.importers import load_building
+from datagen.importers.__main__ import main as import_main
+from datagen.worlds.site import build_site
+from tests.datagen.building_files import open_room, visual, write_model, write_world
 from tests.datagen.test_generate import SMALL, small_cfg
 
 REPO = Path(__file__).resolve().parents[2]
@@ -196,3 +202,77 @@ def test_full_disk_names_the_folder_and_the_fix(tmp_path: Path,
     with pytest.raises(atomic.DiskFullError, match=rf"writing \S+ into {out}(/\S+)? failed: "
                                                    r"the disk is full .* Free space"):
         gen.run(small_cfg(out), progress=False)
+
+
+def test_millimetre_mesh_refused_before_the_free_space(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    """An OBJ room of 10 x 8 x 3 m drawn in millimetres, read at the default 1 m per unit
+    (10 km across): the import refuses it naming the file and the units to set, before the
+    free space (whose cost grows with the model's area) is built."""
+    room = open_room((10.0, 8.0, 3.0))
+    room.vertices *= 1000.0
+    path = tmp_path / "mm_room.obj"
+    room.export(path)
+
+    def never(*args, **kwargs):
+        raise AssertionError("the free space of a model in the wrong units was built")
+
+    monkeypatch.setattr(OccupancyMap, "from_mesh", never)
+    fix = r"in mm it would be 10\.0 m across and 3\.0 m high: set world\.units=0\.001"
+    with pytest.raises(ValueError, match=rf"{path}: .*10000\.0 m across.*{fix}"):
+        build_site({"kind": "file", "path": str(path)})
+    assert import_main([str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "--units 0.001" in err, err
+    b = load_building(path, {"units": 0.001})
+    np.testing.assert_allclose(b.vertices.max(axis=0)[:2], [10.0, 8.0], atol=1e-6)
+
+
+@pytest.mark.parametrize("through", [False, True], ids=["itself", "through_another"])
+def test_include_cycle_names_the_model_files(tmp_path: Path, through: bool) -> None:
+    """A model including itself, directly or through another model: a ValueError naming the
+    model files of the cycle, not a RecursionError."""
+    models = tmp_path / "models"
+    box = visual("<box><size>1 1 1</size></box>", "0 0 0.5 0 0 0")
+    if through:
+        write_model(models, "a", box + "<include><uri>model://b</uri></include>")
+        write_model(models, "b", "<include><uri>model://a</uri></include>")
+        cycle = [models / "a" / "model.sdf", models / "b" / "model.sdf",
+                 models / "a" / "model.sdf"]
+    else:
+        write_model(models, "a", box + "<include><uri>model://a</uri></include>")
+        cycle = [models / "a" / "model.sdf", models / "a" / "model.sdf"]
+    world = write_world(tmp_path / "worlds" / "w.world",
+                        "<include><uri>model://a</uri></include>")
+    names = " -> ".join(str(p.resolve()) for p in cycle)
+    with pytest.raises(ValueError, match=re.escape(f"{world}: <include> cycle: {names} ")):
+        load_building(world)
+
+
+def test_model_included_twice_is_no_cycle(tmp_path: Path) -> None:
+    """One model included by the world and twice by another model is no cycle: each
+    include is read."""
+    models = tmp_path / "models"
+    write_model(models, "box", visual("<box><size>1 1 1</size></box>", "0 0 0.5 0 0 0"))
+    include = "<include><uri>model://box</uri><pose>{} 0 0 0 0 0</pose></include>"
+    write_model(models, "pair", include.format(0) + include.format(2))
+    floor = "<model name='ground'>" + visual("<plane><size>20 20</size></plane>") + "</model>"
+    world = write_world(tmp_path / "worlds" / "w.world", floor + include.format(5)
+                        + "<include><uri>model://pair</uri></include>")
+    b = load_building(world)
+    assert b.info["includes"] == 4
+    np.testing.assert_allclose(b.vertices.max(axis=0), [5.5, 0.5, 1.0])
+
+
+def test_nan_vertices_name_the_file_and_count(tmp_path: Path) -> None:
+    """An OBJ with two NaN vertices (and one infinite): the import fails naming the file and
+    the number of bad vertices, not a setting of the free space."""
+    lines = open_room((10.0, 8.0, 3.0)).export(file_type="obj").splitlines()
+    rows = [i for i, line in enumerate(lines) if line.startswith("v ")]
+    for i, bad in zip(rows[:3], ("nan nan nan", "0 nan 0", "inf 0 0"), strict=True):
+        lines[i] = f"v {bad}"
+    path = tmp_path / "nan_room.obj"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=rf"{path}: 3 of {len(rows)} vertices are not finite"):
+        build_site({"kind": "file", "path": str(path)})
