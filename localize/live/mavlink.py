@@ -21,6 +21,7 @@ capture times).
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 import math
 import threading
@@ -50,6 +51,43 @@ HEARTBEAT_PERIOD_S = 1.0
 LINK_POLL_S = 0.05
 #: A frame this fraction of the period early still goes (camera timestamps jitter).
 RATE_SLACK = 0.05
+#: pymavlink's network connections the sender takes, as ``SCHEME:HOST:PORT``.
+NETWORK_SCHEMES = ("udpout", "udpin", "udp", "udpbcast", "tcp", "tcpin")
+#: The forms of a connection url, for messages.
+URL_FORMS = ("udpout:HOST:PORT (e.g. udpout:127.0.0.1:14550: to the autopilot or a MAVLink "
+             "router), udpin:HOST:PORT, tcp:HOST:PORT or a serial device path (/dev/ttyUSB0)")
+
+
+def check_url(url: str) -> str:
+    """``url`` if it is a connection the sender opens: ``SCHEME:HOST:PORT`` with a scheme of
+    ``NETWORK_SCHEMES``, a HOST (a name or an IPv4 address) and a PORT in 1-65535, or a
+    serial device's absolute path (no ``:``; pymavlink would take it for UDP); else
+    ValueError saying what is wrong and the form that works (the caller names the url).
+    The host name is not resolved.
+    """
+    scheme, sep, rest = url.partition(":")
+    if url.startswith("/"):
+        if ":" in url:
+            raise ValueError("a serial device path has no ':' (pymavlink would take it for "
+                             "UDP): give the device alone, e.g. /dev/ttyUSB0")
+        return url
+    if not sep or scheme not in NETWORK_SCHEMES:
+        raise ValueError(f"not a MAVLink connection: give {URL_FORMS}")
+    parts = rest.split(":")
+    if len(parts) != 2:
+        raise ValueError(f"give {scheme}:HOST:PORT, e.g. {scheme}:127.0.0.1:14550")
+    host, port = parts
+    if not host:
+        raise ValueError(f"no host: give {scheme}:HOST:PORT, e.g. {scheme}:127.0.0.1:{port}")
+    if all(c.isdigit() or c == "." for c in host):
+        try:
+            ipaddress.IPv4Address(host)
+        except ValueError:
+            raise ValueError(f"host {host} is not an IPv4 address: four numbers 0-255, e.g. "
+                             f"{scheme}:127.0.0.1:{port}") from None
+    if not (port.isdigit() and 1 <= int(port) <= 65535):
+        raise ValueError(f"port {port} is not in 1-65535: give e.g. {scheme}:{host}:14550")
+    return url
 
 
 def local_from_model(frame: str) -> np.ndarray:
@@ -162,7 +200,8 @@ class MavlinkSender:
     """Sends pose estimates to an autopilot as external vision (pymavlink, MAVLink 2).
 
     Args:
-        url: a pymavlink connection, e.g. ``udpout:127.0.0.1:14550`` or ``/dev/ttyUSB0``.
+        url: a pymavlink connection, e.g. ``udpout:127.0.0.1:14550`` or ``/dev/ttyUSB0``
+            (``check_url``).
         rate_hz: most messages per second of capture time (0: every frame).
         message: ``odometry`` (``ODOMETRY``) or ``vision_position_estimate``.
         frame: ``frd`` (``MAV_FRAME_LOCAL_FRD``, the model's heading: PX4 and ArduPilot) or
@@ -184,6 +223,10 @@ class MavlinkSender:
         local_from_model(frame)
         if not rate_hz >= 0:
             raise ValueError(f"mavlink rate_hz must be >= 0 (0: every frame), got {rate_hz}")
+        try:
+            check_url(url)
+        except ValueError as err:
+            raise ValueError(f"mavlink url {url!r}: {err}") from None
         try:
             from pymavlink import mavutil
             from pymavlink.dialects.v20 import common as mavlink2

@@ -17,6 +17,7 @@ from typing import Any
 
 from core.config import register_schema
 from localize.config import AppConfig
+from localize.live.mavlink import check_url
 
 #: ``topics.image_transport`` choices: sensor_msgs/Image or sensor_msgs/CompressedImage.
 IMAGE_TRANSPORTS = ("raw", "compressed")
@@ -156,7 +157,7 @@ class Ros2Config(AppConfig):
         body_from_cam: (4, 4) camera mount on the body; None: the dataset's.
         topics, frames, qos, realtime: the node's interface and limits.
         mavlink: the autopilot link (``localize.live.mavlink``), e.g.
-            ``udpout:127.0.0.1:14550``; empty: off.
+            ``udpout:127.0.0.1:14550`` (``check_url``: checked at start-up); empty: off.
         mavlink_rate_hz: most MAVLink messages per second.
 
     With ``viz=rerun`` the node logs to ``<out_root>/<name>/live.rrd``.
@@ -181,6 +182,12 @@ class Ros2Config(AppConfig):
                              "mode=cnn (the SegNet) or mode=none (Canny)")
         if self.mavlink_rate_hz <= 0:
             raise ValueError(f"mavlink_rate_hz must be positive, got {self.mavlink_rate_hz}")
+        if self.mavlink:
+            try:
+                check_url(self.mavlink)
+            except ValueError as err:
+                raise ValueError(f"mavlink={self.mavlink}: {err}; or mavlink='' for no "
+                                 "autopilot link") from None
 
 
 register_schema("ros2_schema", Ros2Config)

@@ -12,6 +12,7 @@ import pytest
 
 from localize.live.mavlink import (
     MAV_FRAME_BODY_FRD,
+    check_url,
     due,
     euler_rpy,
     mavlink_pose,
@@ -114,6 +115,37 @@ class TestConversion:
             rotate_covariance(np.eye(3))
         with pytest.raises(ValueError, match="capture_time_s"):
             time_usec(float("nan"))
+
+
+class TestUrl:
+    """A connection pymavlink would open but the sender could not use (a port out of range
+    killed the link thread after the node reported ready) or would misread is refused, with
+    what is wrong and the form that works."""
+
+    @pytest.mark.parametrize("url, why", [
+        ("udpout:127.0.0.1:99999", "port 99999 is not in 1-65535: give e.g. "
+                                   "udpout:127.0.0.1:14550"),
+        ("udpout:127.0.0.1:0", "port 0 is not in 1-65535"),
+        ("udpin:127.0.0.1:-1", "port -1 is not in 1-65535"),
+        ("tcp:127.0.0.1:abc", "port abc is not in 1-65535"),
+        ("udpout:127.0.0.1", "give udpout:HOST:PORT, e.g. udpout:127.0.0.1:14550"),
+        ("udpout:127.0.0.1:14550:7", "give udpout:HOST:PORT"),
+        ("udpout::14550", "no host: give udpout:HOST:PORT, e.g. udpout:127.0.0.1:14550"),
+        ("udpout:256.1.1.1:14550", "host 256.1.1.1 is not an IPv4 address"),
+        ("udpot:127.0.0.1:14550", "not a MAVLink connection: give udpout:HOST:PORT"),
+        (" udpout:127.0.0.1:14550", "not a MAVLink connection"),
+        ("127.0.0.1:14550", "not a MAVLink connection"),
+        ("/dev/ttyUSB0:57600", "a serial device path has no ':'"),
+    ])
+    def test_malformed(self, url, why):
+        with pytest.raises(ValueError, match=why):
+            check_url(url)
+
+    @pytest.mark.parametrize("url", ["udpout:127.0.0.1:14550", "udpin:0.0.0.0:14550",
+                                     "tcp:localhost:5760", "udpbcast:127.255.255.255:14550",
+                                     "/dev/ttyUSB0"])
+    def test_well_formed(self, url):
+        assert check_url(url) == url
 
 
 def free_port() -> int:
@@ -236,6 +268,9 @@ class TestSender:
             MavlinkSender("udpout:127.0.0.1:9", 10.0, message="pose")
         with pytest.raises(ValueError, match="rate_hz"):
             MavlinkSender("udpout:127.0.0.1:9", -1.0)
+        with pytest.raises(ValueError, match="mavlink url 'udpout:127.0.0.1:99999': port 99999 "
+                                             "is not in 1-65535"):
+            MavlinkSender("udpout:127.0.0.1:99999", 10.0)
         tx = MavlinkSender("udpout:127.0.0.1:9", 10.0)
         with pytest.raises(ValueError, match="quality"):
             tx.send(1.0, pose(0.0), None, 101)

@@ -167,6 +167,20 @@ def test_the_node_faces_only_the_settings_it_reads():
         typed(Ros2Config, {"seeds": [0, 1]}, "ros2 config")
 
 
+@pytest.mark.parametrize("url, why", [
+    ("udpout:127.0.0.1:99999", "port 99999 is not in 1-65535: give e.g. "
+                               "udpout:127.0.0.1:14550"),
+    ("udpout:127.0.0.1", "give udpout:HOST:PORT"),
+    ("udpot:127.0.0.1:14550", "not a MAVLink connection: give udpout:HOST:PORT"),
+])
+def test_a_malformed_mavlink_setting_fails_at_start_up(url, why):
+    """The settings are checked first at start-up (``load_context``), before the node is
+    made or reports ready: the message names the ``mavlink`` setting and the fix."""
+    with pytest.raises(ValueError, match=f"mavlink={url}: {why}"):
+        typed(Ros2Config, {"mavlink": url}, "ros2 config")
+    assert typed(Ros2Config, {"mavlink": "udpout:127.0.0.1:14550"}, "ros2 config").mavlink
+
+
 def test_loopback_profile(tmp_path):
     env = loopback_env(tmp_path, 42)
     xml = (tmp_path / "fastdds_loopback.xml").read_text()
