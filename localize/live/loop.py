@@ -41,7 +41,13 @@ from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Thrott
 from localize.localizer import EdgeModel, Estimate, Localizer
 from localize.recordings.recording import Rectifier, SourceCamera, check_rigid, delivered_camera
 from localize.ros2.config import Ros2Config
-from localize.ros2.convert import live_status, particle_covariance, shown_particles, world_from_body
+from localize.ros2.convert import (
+    hypotheses_covariance,
+    live_status,
+    particle_covariance,
+    shown_particles,
+    world_from_body,
+)
 from localize.viewers.viz import open_viewer
 
 log = logging.getLogger(__name__)
@@ -87,8 +93,10 @@ class Output:
         stamp: the frame's capture time, seconds (the stamp of every output).
         estimate: the filter's estimate.
         pose: (4, 4) map world_from_body (the odometry's roll and pitch, corrected).
-        covariance: (6, 6) over x, y, z, roll, pitch, yaw (``convert.particle_covariance``).
-        particles: (K, 4) x, y, z, yaw, at most ``SHOWN_PARTICLES``.
+        covariance: (6, 6) over x, y, z, roll, pitch, yaw (``convert.particle_covariance``; in
+            a global search's frames ``convert.hypotheses_covariance``).
+        particles: (K, 4) x, y, z, yaw, at most ``SHOWN_PARTICLES`` (of the search's poses in
+            a global search's frames).
         status: ``tracking``, ``ambiguous`` or ``lost`` (``convert.live_status``).
         image: (H, W, 3) uint8 the delivered frame.
         labels: (H, W) uint8 the SegNet's labels, or None (mode none).
@@ -350,14 +358,20 @@ class LiveLocalizer:
                else odometry_increment(self._last_odometry, attitude))
         self._last_odometry = attitude
         frame = self._front.frame(image, None)
+        search = loc.search  # a global search steps this frame, not the particle filter
         est = loc.step(frame, inc, attitude, stamp)
         if est.status == "lost" and self._last_status != "lost":
             self._relocalized("track lost")
         self._last_status = est.status
-        f = loc.filter
-        out = Output(stamp, est, world_from_body(est, attitude),
-                     particle_covariance(f.particles, f.logw, f.tilt, est.state),
-                     shown_particles(f.particles, SHOWN_PARTICLES, self._display_rng),
+        if search is not None:
+            covariance = hypotheses_covariance(est)
+            poses = search.states
+        else:
+            f = loc.filter
+            covariance = particle_covariance(f.particles, f.logw, f.tilt, est.state)
+            poses = f.particles
+        out = Output(stamp, est, world_from_body(est, attitude), covariance,
+                     shown_particles(poses, SHOWN_PARTICLES, self._display_rng),
                      live_status(est, self.settings.realtime.ambiguous_std_m), image,
                      frame.labels)
         self.last_output = out

@@ -1,5 +1,6 @@
 """ROS messages <-> numpy for the live node, without a middleware: stamps, images, camera
-info, poses, the covariance of the particles and the status the node reports.
+info, poses, the covariance of the particles (or of a global search's hypotheses)
+and the status the node reports.
 
 Messages are read by their fields (a deserialized bag message and an rclpy one alike), with
 the recordings' own decoders (``localize.recordings.bag``: ``decode_image``, ``source_camera``,
@@ -99,6 +100,32 @@ def particle_covariance(particles: np.ndarray, logw: np.ndarray, tilt: np.ndarra
     d[:, 3:5] = tilt - (w @ tilt)
     d[:, 5] = wrap_angle(particles[:, 3] - estimate[3])
     return (d * w[:, None]).T @ d
+
+
+def hypotheses_covariance(estimate: Estimate) -> np.ndarray:
+    """(6, 6) covariance over x, y, z (m2), roll, pitch, yaw (rad2) in the map frame of a
+    global search's estimate, around its pose ``estimate.state`` (the heaviest hypothesis):
+    the mixture of its hypotheses (``estimate.hypotheses``), each weighted by its mass with its
+    own spread plus its offset from the pose, squared; the mass no hypothesis holds weighs the
+    whole set's spread (``estimate.position_std``, ``estimate.yaw_std``). A horizontal spread
+    (m, the root of the x and y variances' sum) bounds each of x and y; roll and pitch carry
+    none (the search holds no tilt). O(hypotheses): no pass over the search's poses.
+    """
+    centre = np.asarray(estimate.state, dtype=np.float64)
+    cov = np.zeros((6, 6))
+    held = 0.0
+    for h in estimate.hypotheses:
+        d = np.zeros(6)
+        d[:3] = h.state[:3] - centre[:3]
+        d[5] = wrap_angle(h.state[3] - centre[3])
+        own = np.diag([h.position_std ** 2, h.position_std ** 2, 0.0, 0.0, 0.0,
+                       h.yaw_std ** 2])
+        cov += h.mass * (own + np.outer(d, d))
+        held += h.mass
+    rest = max(1.0 - held, 0.0)
+    cov += rest * np.diag([estimate.position_std ** 2, estimate.position_std ** 2, 0.0, 0.0,
+                           0.0, estimate.yaw_std ** 2])
+    return cov / max(held, 1.0)
 
 
 def shown_particles(particles: np.ndarray, most: int, rng: np.random.Generator) -> np.ndarray:

@@ -1,5 +1,6 @@
 """The live node's pure parts, without a middleware: the odometry at frame times, the
-newest-frame slot, message conversions, the covariance of the particles, the settings."""
+newest-frame slot, message conversions, the covariance of the particles and of a global search's
+hypotheses, the settings."""
 
 from __future__ import annotations
 
@@ -13,9 +14,11 @@ import pytest
 
 from core.config import typed
 from core.poses import interpolate_poses, pose_from_xyzyaw
+from localize.filter.hypotheses import Hypothesis
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle, wait_until
 from localize.ros2.config import Ros2Config
 from localize.ros2.convert import (
+    hypotheses_covariance,
     image_of,
     live_status,
     particle_covariance,
@@ -132,6 +135,42 @@ def test_covariance_of_the_particles():
     assert np.allclose(cov, cov.T) and abs(cov[0, 1]) < 1e-3
     shown = shown_particles(particles, 100, rng)
     assert shown.shape == (100, 4)
+
+
+def hypothesis(x: float, y: float, yaw: float, mass: float, position_std: float = 0.1,
+               yaw_std: float = 0.05) -> Hypothesis:
+    return Hypothesis(np.array([x, y, 1.0, yaw]), mass, position_std, yaw_std, 10)
+
+
+def search_estimate(hyps: list[Hypothesis], position_std: float, yaw_std: float):
+    """A global search's estimate: the heaviest hypothesis's pose, the whole set's spread."""
+    return SimpleNamespace(state=hyps[0].state, hypotheses=tuple(hyps),
+                           position_std=position_std, yaw_std=yaw_std)
+
+
+class TestCovarianceOfAGlobalSearch:
+    def test_one_hypothesis_holding_the_mass(self):
+        cov = hypotheses_covariance(search_estimate([hypothesis(1.0, 2.0, 0.3, 1.0, 0.2, 0.1)],
+                                                    5.0, 2.0))
+        np.testing.assert_allclose(np.diag(cov), [0.04, 0.04, 0.0, 0.0, 0.0, 0.01])
+
+    def test_as_wide_as_the_hypotheses_around_the_best(self):
+        """Two places 4 m apart and headings across the wrap: the covariance around the
+        heaviest reaches the other (its mass times its offset, squared, at least), and the
+        yaw offset is the short way round."""
+        hyps = [hypothesis(0.0, 0.0, np.pi - 0.1, 0.5), hypothesis(0.0, 4.0, -np.pi + 0.1, 0.4)]
+        cov = hypotheses_covariance(search_estimate(hyps, 2.0, 0.2))
+        assert cov[1, 1] >= 0.4 * 4.0 ** 2 and cov[0, 0] < cov[1, 1]
+        assert 0.4 * 0.2 ** 2 <= cov[5, 5] < 0.5  # not (2 pi - 0.2) squared
+        assert np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() >= -1e-12
+
+    def test_the_mass_outside_the_hypotheses_has_the_whole_sets_spread(self):
+        """A search just started: hypotheses of tiny mass, the pose anywhere on the floor."""
+        hyps = [hypothesis(0.0, 0.0, 0.0, 0.01), hypothesis(0.3, 0.0, 0.0, 0.01)]
+        cov = hypotheses_covariance(search_estimate(hyps, 3.0, 1.5))
+        assert np.all(np.sqrt(np.diag(cov)[[0, 1]]) > 0.9 * 3.0)
+        assert np.sqrt(cov[5, 5]) > 0.9 * 1.5
+        assert np.isfinite(cov).all()
 
 
 def test_status_of_an_estimate():
