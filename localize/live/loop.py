@@ -123,6 +123,9 @@ class Counts:
     no_odometry: int = 0  # the odometry did not cover the capture time
     rejected: int = 0  # no CameraInfo yet, a stamp not after the previous, undecodable
     resets: int = 0  # re-localizations (initial pose, global start, track lost)
+    #: messages dropped by their callback: an odometry or initial pose that is not a finite
+    #: pose, an odometry stamp not after the previous one, a CameraInfo that cannot be used
+    messages_rejected: int = 0
 
     @property
     def dropped(self) -> int:
@@ -214,10 +217,22 @@ class LiveLocalizer:
                  "global start" if self._start is None else f"tracking from {self._start}")
 
     def odometry(self, stamp: float, pose: np.ndarray, where: str) -> None:
-        """An odometry sample (world_from_body in the odometry's frame)."""
+        """An odometry sample (world_from_body in the odometry's frame); one the buffer
+        refuses is counted in ``messages_rejected``."""
         why = self.odometry_buffer.add(stamp, pose)
-        if why and self.warn(f"odometry {why[:20]}"):
-            log.warning("%s: %s", where, why)
+        if why:
+            self.counts.messages_rejected += 1
+            if self.warn(f"odometry {why[:20]}"):
+                log.warning("%s: %s", where, why)
+
+    def reject_message(self, where: str, err: Exception) -> None:
+        """A message whose callback failed with ``err`` (on topic ``where``): counted in
+        ``messages_rejected`` and logged, at most once per 5 s per topic (with the traceback
+        unless ``err`` is a ValueError, which says what is wrong with the message)."""
+        self.counts.messages_rejected += 1
+        if self.warn(f"message {where}"):
+            why = str(err) if str(err).startswith(where) else f"{where}: message dropped: {err}"
+            log.warning("%s", why, exc_info=not isinstance(err, ValueError))
 
     def image(self, stamp: float, decode: Callable[[], np.ndarray], where: str) -> None:
         """A frame captured at ``stamp``; ``decode()`` gives its (h, w, 3) uint8 RGB (called
@@ -242,9 +257,14 @@ class LiveLocalizer:
 
     def request_reset(self, start: np.ndarray | StartHint | None) -> None:
         """Re-localize: track from ``start`` ((4,) x, y, z, yaw, or a (4, 4) map pose), search
-        inside a ``StartHint``, or, None, globally; applied before the next frame."""
+        inside a ``StartHint``, or, None, globally; applied before the next frame. ValueError
+        for a pose that is not a finite (4,) or (4, 4) (nothing changes then)."""
         if start is not None and not isinstance(start, StartHint):
             start = np.asarray(start, np.float64)
+            if start.shape not in ((4,), (4, 4)) or not np.isfinite(start).all():
+                raise ValueError(f"re-localization from {start.tolist()} refused: give a finite "
+                                 "(4,) x, y, z, yaw or (4, 4) map pose; the current state is "
+                                 "kept")
         with self._lock:
             self._reset = (True, start)
 
@@ -386,7 +406,8 @@ class LiveLocalizer:
         values = {"frames_received": c.received, "frames_processed": c.processed,
                   "frames_dropped": c.dropped, "dropped_superseded": c.superseded,
                   "dropped_stale": c.stale, "dropped_no_odometry": c.no_odometry,
-                  "frames_rejected": c.rejected, "reset_counter": c.resets,
+                  "frames_rejected": c.rejected, "messages_rejected": c.messages_rejected,
+                  "reset_counter": c.resets,
                   "latency_ms": 1e3 * self.last_latency,
                   "latency_median_ms": 1e3 * self.latency.percentile(50),
                   "latency_p95_ms": 1e3 * self.latency.percentile(95)}

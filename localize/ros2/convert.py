@@ -1,6 +1,6 @@
 """ROS messages <-> numpy for the live node, without a middleware: stamps, images, camera
-info, poses, the covariance of the particles (or of a global search's hypotheses)
-and the status the node reports.
+info, poses, an initial pose's start, the covariance of the particles (or of a global
+search's hypotheses) and the status the node reports.
 
 Messages are read by their fields (a deserialized bag message and an rclpy one alike), with
 the recordings' own decoders (``localize.recordings.bag``: ``decode_image``, ``source_camera``,
@@ -10,11 +10,14 @@ messages by ``localize.ros2.node``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from core.poses import wrap_angle
 from localize.filter.projection import corrected_tilts, tilt_from_pose, yaw_rotation
+from localize.filter.start_hint import StartHint
 from localize.localizer import Estimate
 from localize.recordings.messages import decode_image, pose_matrix, source_camera
 from localize.recordings.recording import SourceCamera
@@ -26,6 +29,8 @@ POSE_TYPE = {"odometry": "nav_msgs/msg/Odometry", "pose": "geometry_msgs/msg/Pos
 #: Statuses the node reports, and their diagnostic_msgs levels (OK, WARN, ERROR).
 STATUS_LEVEL = {"tracking": 0, "ambiguous": 1, "lost": 2}
 NS = 1_000_000_000
+#: An orientation quaternion shorter than this has no direction to normalize (a zero one).
+MIN_QUATERNION_NORM = 1e-6
 
 
 def stamp_seconds(stamp) -> float:
@@ -51,10 +56,47 @@ def camera_of(msg, where: str) -> SourceCamera:
     return source_camera(msg, where)
 
 
-def pose_of(msg, kind: str) -> np.ndarray:
+def pose_of(msg, kind: str, where: str) -> np.ndarray:
     """(4, 4) pose of an Odometry (``kind`` odometry), PoseStamped (pose) or
-    PoseWithCovarianceStamped (initial_pose) message."""
+    PoseWithCovarianceStamped (initial_pose) message; ValueError naming ``where`` and the
+    field for a position that is not finite or an orientation that is not a rotation (a
+    quaternion not finite or of norm below ``MIN_QUATERNION_NORM``)."""
+    pose = msg.pose if kind == "pose" else msg.pose.pose
+    p, q = pose.position, pose.orientation
+    position = np.array([p.x, p.y, p.z], dtype=np.float64)
+    quaternion = np.array([q.x, q.y, q.z, q.w], dtype=np.float64)
+    if not np.isfinite(position).all():
+        raise ValueError(f"{where}: pose.position (x, y, z) = {position.tolist()} is not "
+                         "finite; message dropped")
+    if not (np.isfinite(quaternion).all()
+            and np.linalg.norm(quaternion) >= MIN_QUATERNION_NORM):
+        raise ValueError(f"{where}: pose.orientation (x, y, z, w) = {quaternion.tolist()} is "
+                         "not a rotation: give a finite unit quaternion (w = 1 for none); "
+                         "message dropped")
     return pose_matrix(msg, POSE_TYPE[kind])
+
+
+def initial_pose_start(msg, init_std: Sequence[float], where: str) -> np.ndarray | StartHint:
+    """What a geometry_msgs/PoseWithCovarianceStamped ``/initialpose`` starts
+    (``StartHint.start_of_initial_pose``): (4,) x, y, z, yaw to track from, or a search
+    around the pose; ValueError naming ``where`` and the field for a pose ``pose_of`` refuses
+    or a covariance that is not 36 finite values of a positive semi-definite matrix.
+
+    Args:
+        msg: the message (map frame).
+        init_std: ``filter.init_std`` (x, y, z m, yaw deg): the tracking start's noise.
+        where: the topic, for messages.
+    """
+    T = pose_of(msg, "initial_pose", where)
+    cov = np.asarray(msg.pose.covariance, dtype=np.float64)
+    if cov.shape != (36,) or not np.isfinite(cov).all():
+        raise ValueError(f"{where}: pose.covariance must be 36 finite values (row-major 6x6 "
+                         "over x, y, z, roll, pitch, yaw; all zero to track from the pose), "
+                         f"got {cov.ravel().tolist()}; message dropped")
+    try:
+        return StartHint.start_of_initial_pose(T, cov, init_std)
+    except ValueError as err:
+        raise ValueError(f"{where}: pose.covariance: {err}; message dropped") from None
 
 
 def position_quaternion(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -40,6 +41,7 @@ from localize.ros2.convert import (
     STATUS_LEVEL,
     camera_of,
     image_of,
+    initial_pose_start,
     pose_of,
     position_quaternion,
     stamp_parts,
@@ -87,12 +89,16 @@ class LocalizerNode(Node):
         t, q = s.topics, s.qos
         sensors, outputs = qos(q.sensors, q.sensors_depth), qos(q.outputs, q.outputs_depth)
         image_type = Image if t.image_transport == "raw" else CompressedImage
-        self.create_subscription(image_type, t.image, self._on_image, sensors)
-        self.create_subscription(CameraInfo, t.camera_info, self._on_camera_info, sensors)
+        self.create_subscription(image_type, t.image, self._guarded(t.image, self._on_image),
+                                 sensors)
+        self.create_subscription(CameraInfo, t.camera_info,
+                                 self._guarded(t.camera_info, self._on_camera_info), sensors)
         odo_type = Odometry if t.odometry_type == "odometry" else PoseStamped
-        self.create_subscription(odo_type, t.odometry, self._on_odometry, sensors)
+        self.create_subscription(odo_type, t.odometry,
+                                 self._guarded(t.odometry, self._on_odometry), sensors)
         self.create_subscription(PoseWithCovarianceStamped, t.initial_pose,
-                                 self._on_initial_pose, qos("reliable", 1))
+                                 self._guarded(t.initial_pose, self._on_initial_pose),
+                                 qos("reliable", 1))
         self.create_service(Empty, t.global_localization, self._on_global_localization)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, t.pose, outputs)
         self.odometry_pub = self.create_publisher(Odometry, t.odometry_out, outputs)
@@ -112,6 +118,18 @@ class LocalizerNode(Node):
 
     # --- inputs --------------------------------------------------------------------------
 
+    def _guarded(self, topic: str, callback: Callable[[object], None]
+                 ) -> Callable[[object], None]:
+        """``callback`` with any error it raises on a message logged and counted
+        (``LiveLocalizer.reject_message``): a bad message is dropped, never raised into the
+        executor, where it would stop the node."""
+        def guarded(msg) -> None:
+            try:
+                callback(msg)
+            except Exception as err:  # a bad message must not stop a flying drone's node
+                self.live.reject_message(topic, err)
+        return guarded
+
     def _on_image(self, msg) -> None:
         stamp = stamp_seconds(msg.header.stamp)
         where = f"{self.topics.image} frame at {stamp:.6f} s"
@@ -119,16 +137,12 @@ class LocalizerNode(Node):
         self.live.image(stamp, lambda: image_of(msg, transport, where), where)
 
     def _on_camera_info(self, msg: CameraInfo) -> None:
-        try:
-            self.live.camera_info(camera_of(msg, self.topics.camera_info),
-                                  self.topics.camera_info)
-        except ValueError as err:
-            if self.live.warn("camera_info error"):
-                log.error("%s", err)
+        self.live.camera_info(camera_of(msg, self.topics.camera_info), self.topics.camera_info)
 
     def _on_odometry(self, msg) -> None:
         self.live.odometry(stamp_seconds(msg.header.stamp),
-                           pose_of(msg, self.topics.odometry_type), self.topics.odometry)
+                           pose_of(msg, self.topics.odometry_type, self.topics.odometry),
+                           self.topics.odometry)
 
     def _on_initial_pose(self, msg: PoseWithCovarianceStamped) -> None:
         frame = msg.header.frame_id
@@ -136,17 +150,16 @@ class LocalizerNode(Node):
             log.warning("%s: initial pose in frame %r ignored: give it in the map frame %r",
                         self.topics.initial_pose, frame, self.frames.map)
             return
-        T = pose_of(msg, "initial_pose")
-        start = StartHint.start_of_initial_pose(T, msg.pose.covariance,
-                                                self.live.ctx.settings.filter.init_std)
+        start = initial_pose_start(msg, self.live.ctx.settings.filter.init_std,
+                                   self.topics.initial_pose)
+        self.live.request_reset(start)
         if isinstance(start, StartHint):
             sx, sy, _, syaw = np.sqrt(np.diag(start.covariance))
             log.info("%s: searching around x %.2f, y %.2f (std %.2f, %.2f m, yaw %.0f deg)",
-                     self.topics.initial_pose, *T[:2, 3], sx, sy, np.degrees(syaw))
+                     self.topics.initial_pose, *start.pose[:2], sx, sy, np.degrees(syaw))
         else:
             log.info("%s: tracking from x %.2f, y %.2f, z %.2f", self.topics.initial_pose,
-                     *T[:3, 3])
-        self.live.request_reset(start)
+                     *start[:3])
 
     def _on_global_localization(self, request, response):
         log.info("%s: global localization over the free space", self.topics.global_localization)

@@ -1,14 +1,17 @@
 """The live loop without a middleware (``localize.live.loop.LiveLocalizer``), fed by hand on
 the synthetic copy of the tiny dataset with the palette SegNet (mode cnn): a global start
-publishes every frame of its search."""
+publishes every frame of its search; a re-localization that is not a pose is refused and the
+track goes on; refused odometry is counted."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 
 from core.config import CONF
+from core.poses import xyzyaw_from_pose
 from localize.live.loop import LiveLocalizer, load_context
 from localize.ros2.play import open_playback
 from tests.localize.conftest import QUICK
@@ -76,3 +79,43 @@ def test_a_global_start_publishes_every_frame_of_its_search(setup):
     finally:
         feed.live.stop()
 
+
+def tracking(cfg, pb):
+    """``cfg`` tracking from the flight's first true pose."""
+    x, y, z, yaw = xyzyaw_from_pose(pb.groundtruth[0])[0]
+    return OmegaConf.merge(cfg, {"start": [float(x), float(y), float(z),
+                                           float(np.degrees(yaw))]})
+
+
+def test_a_relocalization_that_is_not_a_pose_is_refused(setup):
+    """A start that is not finite (an ``/initialpose`` with a NaN position) is refused where
+    it is requested; the next frame is processed from the current state, not failed."""
+    cfg, ctx, pb = setup
+    feed = Feed(tracking(cfg, pb), ctx, pb)
+    try:
+        assert feed.step() is not None
+        nan_pose = np.eye(4)
+        nan_pose[0, 3] = np.nan
+        for start in (np.array([np.nan, 0.0, 1.0, 0.0]), nan_pose):
+            with pytest.raises(ValueError, match="re-localization from .* refused: give a "
+                                                 "finite"):
+                feed.live.request_reset(start)
+        assert feed.step() is not None
+        assert feed.live.counts.processed == 2 and feed.live.counts.resets == 0
+    finally:
+        feed.live.stop()
+
+
+def test_refused_odometry_is_counted(setup):
+    cfg, ctx, pb = setup
+    feed = Feed(tracking(cfg, pb), ctx, pb)
+    try:
+        live = feed.live
+        live.odometry(T0, np.eye(4), "test odometry")
+        live.odometry(T0 + 0.1, np.full((4, 4), np.nan), "test odometry")  # not finite
+        live.odometry(T0 - 1.0, np.eye(4), "test odometry")  # back in time
+        live.reject_message("/initialpose", ValueError("test: a bad message"))
+        assert live.counts.messages_rejected == 3
+        assert live.status()[1]["messages_rejected"] == "3"
+    finally:
+        feed.live.stop()

@@ -256,6 +256,58 @@ class TestBadInput:
         assert "stamps went backwards or repeat; sample ignored" in caplog.text
         assert node.live.counts.processed >= 1
 
+    def test_bad_pose_messages_are_dropped_and_counted(self, ros, setup, caplog):
+        """An odometry with a zero quaternion and initial poses with a NaN or zero
+        quaternion, a NaN covariance or a NaN position are each dropped with a warning and
+        counted; the node goes on spinning and tracks the next frames from its own state."""
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+
+        from localize.ros2.play import _set_pose
+
+        nan = float("nan")
+
+        def feed(player, pb, node, got):
+            now = time.time()
+            odo = player.odometry_message(pb.odometry[0], now - 0.5)
+            odo.pose.pose.orientation.x = odo.pose.pose.orientation.y = 0.0
+            odo.pose.pose.orientation.z = odo.pose.pose.orientation.w = 0.0
+            player.odometry_pub.publish(odo)
+            assert wait_until(lambda: node.live.counts.messages_rejected == 1, 5.0)
+            pub = player.node.create_publisher(PoseWithCovarianceStamped,
+                                               node.topics.initial_pose, 1)
+            assert wait_until(lambda: pub.get_subscription_count() > 0, 5.0)
+            for n, bad in enumerate(("nan quaternion", "zero quaternion", "nan covariance",
+                                     "nan position"), start=2):
+                msg = PoseWithCovarianceStamped()
+                msg.header.frame_id = "map"
+                _set_pose(msg.pose.pose, pb.groundtruth[0])
+                q, p = msg.pose.pose.orientation, msg.pose.pose.position
+                if bad == "nan quaternion":
+                    q.x = nan
+                elif bad == "zero quaternion":
+                    q.x = q.y = q.z = q.w = 0.0
+                elif bad == "nan covariance":
+                    msg.pose.covariance[0] = nan
+                else:
+                    p.x = nan
+                pub.publish(msg)
+                assert wait_until(lambda n=n: node.live.counts.messages_rejected == n, 5.0), bad
+            publish_frames(player, pb, 2, time.time() + 0.3 + 0.1 * np.arange(2))
+            wait_until(lambda: node.live.counts.processed >= 2)
+
+        with caplog.at_level(logging.WARNING):
+            node, got = run_node(ros, setup, feed)
+        c = node.live.counts
+        assert c.messages_rejected == 5 and c.resets == 0, c
+        assert c.processed == 2 and len(got.poses) == 2, c
+        assert "/odom: pose.orientation (x, y, z, w) = [0.0, 0.0, 0.0, 0.0] is not a rotation" \
+            in caplog.text
+        assert "/initialpose: pose.orientation" in caplog.text  # once per 5 s: the first
+        assert "/odom: /odom" not in caplog.text
+        assert got.status_values()["messages_rejected"] == "5"
+        truth = xyzyaw_from_pose(setup[2].groundtruth[:2])
+        assert np.linalg.norm(got.positions()[-1] - truth[-1, :3]) < 0.5
+
     def test_a_burst_of_frames_builds_no_backlog(self, ros, setup):
         """30 frames at 30 Hz, then 30 as fast as they go, then, after a pause, one more: the
         node takes the newest, counts the others as dropped, and the last frame is processed

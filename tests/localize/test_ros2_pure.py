@@ -1,6 +1,6 @@
 """The live node's pure parts, without a middleware: the odometry at frame times, the
-newest-frame slot, message conversions, the covariance of the particles and of a global search's
-hypotheses, the settings."""
+newest-frame slot, message conversions (bad poses refused), the covariance of the particles
+and of a global search's hypotheses, the settings."""
 
 from __future__ import annotations
 
@@ -15,13 +15,16 @@ import pytest
 from core.config import typed
 from core.poses import interpolate_poses, pose_from_xyzyaw
 from localize.filter.hypotheses import Hypothesis
+from localize.filter.start_hint import StartHint
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle, wait_until
 from localize.ros2.config import Ros2Config
 from localize.ros2.convert import (
     hypotheses_covariance,
     image_of,
+    initial_pose_start,
     live_status,
     particle_covariance,
+    pose_of,
     position_quaternion,
     shown_particles,
     stamp_parts,
@@ -135,6 +138,58 @@ def test_covariance_of_the_particles():
     assert np.allclose(cov, cov.T) and abs(cov[0, 1]) < 1e-3
     shown = shown_particles(particles, 100, rng)
     assert shown.shape == (100, 4)
+
+
+def pose_message(position=(1.0, 2.0, 0.5), orientation=(0.0, 0.0, 0.0, 1.0),
+                 covariance=(0.0,) * 36) -> SimpleNamespace:
+    """A PoseWithCovarianceStamped- or Odometry-like message (``msg.pose.pose``)."""
+    x, y, z = position
+    qx, qy, qz, qw = orientation
+    pose = SimpleNamespace(position=SimpleNamespace(x=x, y=y, z=z),
+                           orientation=SimpleNamespace(x=qx, y=qy, z=qz, w=qw))
+    return SimpleNamespace(pose=SimpleNamespace(pose=pose, covariance=list(covariance)))
+
+
+class TestBadPoseMessages:
+    """A pose that is not one is refused with a ValueError naming the topic and the field
+    (the node drops and counts the message), never a scipy error or a NaN pose."""
+
+    NAN = float("nan")
+
+    @pytest.mark.parametrize("orientation", [(0.0, 0.0, 0.0, 0.0), (NAN, 0.0, 0.0, 1.0),
+                                             (0.0, 0.0, 0.0, float("inf"))])
+    def test_an_orientation_that_is_not_a_rotation(self, orientation):
+        with pytest.raises(ValueError, match=r"^/odom: pose.orientation .* is not a rotation"):
+            pose_of(pose_message(orientation=orientation), "odometry", "/odom")
+
+    def test_a_position_that_is_not_finite(self):
+        with pytest.raises(ValueError, match=r"^/odom: pose.position .* is not finite"):
+            pose_of(pose_message(position=(self.NAN, 0.0, 0.0)), "odometry", "/odom")
+
+    def test_a_good_pose(self):
+        T = pose_of(pose_message(orientation=(0.0, 0.0, np.sin(0.35), np.cos(0.35))),
+                    "odometry", "/odom")
+        np.testing.assert_allclose(T, pose_from_xyzyaw([1.0, 2.0, 0.5, 0.7])[0], atol=1e-12)
+
+    @pytest.mark.parametrize("bad, field", [
+        ({"position": (NAN, 2.0, 0.5)}, "pose.position"),
+        ({"orientation": (NAN, 0.0, 0.0, 1.0)}, "pose.orientation"),
+        ({"orientation": (0.0, 0.0, 0.0, 0.0)}, "pose.orientation"),
+        ({"covariance": (NAN,) * 36}, "pose.covariance"),
+        ({"covariance": (0.25,) * 35}, "pose.covariance"),
+        ({"covariance": -np.eye(6).ravel()}, "pose.covariance"),  # not semi-definite
+    ])
+    def test_an_initial_pose_that_is_not_one(self, bad, field):
+        with pytest.raises(ValueError, match=rf"^/initialpose: {field}"):
+            initial_pose_start(pose_message(**bad), [0.1, 0.1, 0.05, 5.0], "/initialpose")
+
+    def test_an_initial_pose(self):
+        init_std = [0.1, 0.1, 0.05, 5.0]
+        start = initial_pose_start(pose_message(), init_std, "/initialpose")
+        np.testing.assert_allclose(start, [1.0, 2.0, 0.5, 0.0])  # no covariance: tracking
+        wide = np.diag([0.25, 0.25, 0.0, 0.0, 0.0, 0.07]).ravel()
+        hint = initial_pose_start(pose_message(covariance=wide), init_std, "/initialpose")
+        assert isinstance(hint, StartHint) and hint.covariance[0, 0] == 0.25
 
 
 def hypothesis(x: float, y: float, yaw: float, mass: float, position_std: float = 0.1,
