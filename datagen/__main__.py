@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-import hydra
 from omegaconf import DictConfig
 
+from core.config import hydra_app
+from datagen.config import DatagenConfig
 
-@hydra.main(version_base="1.3", config_path="../conf", config_name="datagen")
+
+@hydra_app("datagen", DatagenConfig)
 def main(cfg: DictConfig) -> None:
     from datagen.generate import run
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from core import classes as C
 from core.atomic import read_png, write_png
+from core.config import user_errors
 from core.dataset import Dataset
 
 
@@ -69,4 +70,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with user_errors():
+        main()

@@ -7,15 +7,16 @@ which layer set each value that differs from its default (report.md prints them)
 
 from __future__ import annotations
 
-import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from core.config import hydra_app
+from localize.config import LocalizeConfig
 from localize.offline.runner import run
 from localize.resolve import resolve
 
 
-@hydra.main(version_base="1.3", config_path="../conf", config_name="localize")
+@hydra_app("localize", LocalizeConfig)
 def main(cfg: DictConfig) -> None:
     hydra_cfg = HydraConfig.get()
     resolve(cfg, hydra_cfg.overrides.task, hydra_cfg.runtime.choices)

@@ -9,9 +9,10 @@ from __future__ import annotations
 import os
 import sys
 
-import hydra
 from omegaconf import DictConfig
 
+from core.config import hydra_app
+from train.config import TrainConfig
 from train.run import run
 
 #: Hydra overrides for the torchrun processes of rank > 0: no .hydra/ record, no log file,
@@ -20,7 +21,7 @@ SILENT_HYDRA = ("hydra.output_subdir=null", "hydra/job_logging=stdout",
                 "hydra.job_logging.root.level=WARNING", "hydra.run.dir=.")
 
 
-@hydra.main(version_base="1.3", config_path="../conf", config_name="train")
+@hydra_app("train", TrainConfig)
 def main(cfg: DictConfig) -> None:
     run(cfg)
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import atomic_write_json, write_png
+from core.config import user_errors
 from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, RouteConfig
 from datagen.flights.routes import find_turns, plan_route, route_length
@@ -132,4 +133,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with user_errors():
+        sys.exit(main())

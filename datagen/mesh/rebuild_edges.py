@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import atomic_write_bytes, atomic_write_json
+from core.config import user_errors
 from core.dataset import read_json
 from datagen.config import WorldConfig
 from datagen.mesh.edges import EdgeExtractionConfig, extract_edges
@@ -102,4 +103,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with user_errors():
+        sys.exit(main())

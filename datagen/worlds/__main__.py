@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.config import user_errors
 from datagen.config import ProceduralWorldConfig
 from datagen.worlds.procedural import build_floor
 
@@ -57,4 +58,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    with user_errors():
+        raise SystemExit(main())

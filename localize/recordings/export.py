@@ -24,6 +24,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from core.atomic import atomic_write_bytes, atomic_write_text, read_png
+from core.config import user_errors
 from core.dataset import Camera, Dataset, Flight
 from core.imaging.lens import coefficients
 from core.poses import pose_from_xyzyaw, write_tum
@@ -303,4 +304,5 @@ def main(argv: Sequence[str] | None = None) -> Path:
 
 
 if __name__ == "__main__":
-    main()
+    with user_errors():
+        main()

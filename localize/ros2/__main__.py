@@ -10,10 +10,10 @@ from __future__ import annotations
 import logging
 import time
 
-import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from core.config import hydra_app
 from localize.live.loop import load_context
 from localize.resolve import resolve
 from localize.ros2.config import Ros2Config
@@ -48,7 +48,7 @@ def serve(cfg: DictConfig, args: list[str] | None = None) -> None:
             rclpy.shutdown()
 
 
-@hydra.main(version_base="1.3", config_path="../../conf", config_name="ros2")
+@hydra_app("ros2", Ros2Config)
 def main(cfg: DictConfig) -> None:
     hydra_cfg = HydraConfig.get()
     resolve(cfg, hydra_cfg.overrides.task, hydra_cfg.runtime.choices, Ros2Config,

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 from omegaconf import OmegaConf
 
-from core.config import typed
+from core.config import typed, user_errors
 from core.dataset import Dataset
 from localize.live.sync import wait_until
 from localize.recordings.read import read_recording
@@ -252,4 +252,5 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with user_errors():
+        main()

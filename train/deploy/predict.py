@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import read_png, write_png
+from core.config import user_errors
 from core.model_folder import MODELS_ROOT
 from core.segmenter import OnnxSegmenter
 
@@ -50,4 +51,5 @@ def main(argv: list[str] | None = None) -> Path:
 
 
 if __name__ == "__main__":
-    main()
+    with user_errors():
+        main()

@@ -36,6 +36,7 @@ from onnxruntime.quantization.shape_inference import quant_pre_process
 from tqdm import tqdm
 
 from core.atomic import atomic_write, atomic_write_json, read_png
+from core.config import user_errors
 from core.dataset import open_datasets
 from core.segmenter import INPUT_NAME, OnnxSegmenter, network_input, read_metadata
 from train.config import ExportConfig
@@ -270,4 +271,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    with user_errors():
+        raise SystemExit(main())
