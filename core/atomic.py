@@ -26,6 +26,11 @@ os.umask(_UMASK)
 TEMP_NAME = re.compile(r"^\..+\.[a-z0-9_]{8}(\.[A-Za-z0-9]+)?$")
 #: The last 12 bytes of every complete PNG: the IEND chunk (length 0, type, CRC).
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+#: The first bytes of every PNG (its signature) and of every JPEG (the SOI marker).
+PNG_START = b"\x89PNG\r\n\x1a\n"
+JPEG_START = b"\xff\xd8"
+#: The last bytes of every complete JPEG: the EOI marker.
+JPEG_END = b"\xff\xd9"
 
 
 #: What to do about a full disk, unless a stage says better.
@@ -156,6 +161,21 @@ def remove_temp_files(folder: str | Path) -> list[Path]:
     for p in found:
         p.unlink(missing_ok=True)
     return found
+
+
+def encoded_image_complete(data: bytes) -> bool:
+    """Whether encoded image bytes end as a complete image does: a PNG with its IEND chunk, a
+    JPEG with its EOI marker (NUL padding after it allowed). Bytes of another format: True
+    (their decoder judges them).
+
+    OpenCV decodes a cut-short JPEG without an error, grey below the cut; this finds bytes cut
+    short (a killed copy, a full disk, a lost packet's tail), not bytes corrupted in place.
+    """
+    if data.startswith(PNG_START):
+        return data.endswith(PNG_END)
+    if data.startswith(JPEG_START):
+        return data.rstrip(b"\x00").endswith(JPEG_END)
+    return True
 
 
 def png_complete(path: str | Path) -> bool:

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 import yaml
 
+from core.atomic import encoded_image_complete
 from core.dataset import Camera
 from core.poses import interpolate_poses
 from localize.recordings.recording import (
@@ -107,10 +108,17 @@ class FolderFrames:
 
     def read(self, index: int) -> np.ndarray:
         path = self.paths[index]
-        bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        fix = "replace it or remove it (and its images.txt line)"
+        try:
+            data = path.read_bytes()
+        except OSError as err:
+            raise UnreadableFrame(f"cannot read image {path}: {err.strerror}; {fix}") from None
+        if not encoded_image_complete(data):
+            raise UnreadableFrame(f"cannot read image {path}: the file is cut short (no end "
+                                  f"marker after {len(data)} bytes); {fix}")
+        bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
         if bgr is None:
-            raise UnreadableFrame(f"cannot read image {path}: not a readable PNG or JPEG; "
-                                  f"replace it or remove it (and its images.txt line)")
+            raise UnreadableFrame(f"cannot read image {path}: not a readable PNG or JPEG; {fix}")
         if bgr.shape[:2] != (self.height, self.width):
             raise ValueError(f"{path}: image is {bgr.shape[1]}x{bgr.shape[0]}, but camera.yaml "
                              f"says {self.width}x{self.height}; fix image_width/image_height")

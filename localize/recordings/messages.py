@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from core.atomic import encoded_image_complete
 from localize.recordings.recording import SourceCamera, UnreadableFrame, check_distortion
 
 #: Channels and the channel order to RGB of the raw encodings decoded.
@@ -29,7 +30,11 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
         where: topic and message index, for messages.
     """
     if msgtype.endswith("CompressedImage"):
-        bgr = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
+        data = np.asarray(msg.data, dtype=np.uint8)
+        if not encoded_image_complete(data.tobytes()):
+            raise UnreadableFrame(f"{where}: the CompressedImage ({msg.format!r}) is cut short "
+                                  f"(no end marker after {data.size} bytes)")
+        bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)
         if bgr is None:
             raise UnreadableFrame(f"{where}: cannot decode the CompressedImage ({msg.format!r})")
         return np.ascontiguousarray(bgr[..., ::-1])

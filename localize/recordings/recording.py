@@ -7,8 +7,8 @@ either into a ``Recording``:
 
 - frames are read lazily, one at a time, when asked (``image(i)``, ``images()``,
   ``steps()``: the ``core.frames.FrameSource`` a run loops over); a frame that cannot be
-  decoded (``UnreadableFrame``) is dropped from ``steps()`` with a warning, as a camera's
-  dropped frame;
+  decoded (``UnreadableFrame``; a PNG or JPEG cut short too) is dropped from ``steps()`` with a
+  warning, as a camera's dropped frame;
 - every frame is rectified to the target camera (the dataset's, which the SegNet was trained
   on): undistorted at the recorded size (OpenCV ``plumb_bob`` / ``rational_polynomial``),
   then scaled to cover the target size and centre-cropped (the aspect ratio is kept, the
@@ -48,8 +48,8 @@ SPAN_SLACK = 1e-6
 
 
 class UnreadableFrame(ValueError):
-    """A recorded frame that cannot be decoded (a broken file or message): ``Recording.steps``
-    drops it as a dropped frame."""
+    """A recorded frame that cannot be decoded (a broken file or message, or one cut short:
+    ``core.atomic.encoded_image_complete``): ``Recording.steps`` drops it as a dropped frame."""
 
 
 class RawFrames(Protocol):

@@ -5,10 +5,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
-from core.atomic import atomic_write_json, is_temp, png_complete, remove_temp_files, write_png
+from core.atomic import (
+    atomic_write_json,
+    encoded_image_complete,
+    is_temp,
+    png_complete,
+    remove_temp_files,
+    write_png,
+)
 from core.dataset import Dataset, _ranges
 
 COMMAND = "python -m datagen name=mini splits.train=6"
@@ -135,6 +143,19 @@ class TestAtomicHelpers:
         assert not png_complete(p)
         p.write_bytes(b"abc")
         assert not png_complete(p) and not png_complete(tmp_path / "none.png")
+
+    def test_encoded_image_complete(self) -> None:
+        """A PNG or JPEG cut short is found; NUL padding after a JPEG's end marker is allowed;
+        other bytes are the decoder's to judge."""
+        image = np.random.default_rng(0).integers(0, 255, (48, 64, 3), dtype=np.uint8)
+        for ext in (".png", ".jpg"):
+            data = cv2.imencode(ext, image)[1].tobytes()
+            assert encoded_image_complete(data), ext
+            cut = data[: len(data) * 2 // 3]
+            assert not encoded_image_complete(cut), ext
+            assert not encoded_image_complete(data[:-1]), ext
+        assert encoded_image_complete(data + b"\x00" * 16)
+        assert encoded_image_complete(b"not an image")
 
 
 def test_ranges() -> None:

@@ -158,6 +158,19 @@ def test_unreadable_frame_is_dropped(flat_dataset, folder_recording, tmp_path):
     assert "1 frames could not be read" in report.read_text()
 
 
+def test_cut_short_jpeg_is_dropped(flat_dataset, tmp_path):
+    """A JPEG cut short is not fed to the filter: it counts as a dropped frame."""
+    import json
+
+    rec = export_folder(flat_dataset, FLIGHT, tmp_path / FLIGHT)
+    cut = sorted((rec / "images").iterdir())[2]
+    cut.write_bytes(cut.read_bytes()[:-400])
+    report = run_recording(recording_cfg(flat_dataset, rec, tmp_path / "out", "max_frames=6"))
+    m = json.loads((report.parent / "metrics.json").read_text())["flights"][FLIGHT]["none"]
+    assert m["num_frames"] == 5 and m["dropped_frames"] == 1
+    assert "1 frames could not be read" in report.read_text()
+
+
 def test_max_frames_zero_names_the_key(flat_dataset, folder_recording, tmp_path):
     with pytest.raises(ValueError, match=r"max_frames=0: .*max_frames=null"):
         run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=0"))

@@ -16,7 +16,7 @@ from core.dataset import Camera, Dataset
 from core.poses import interpolate_poses, odometry_increment, pose_from_xyzyaw, write_tum
 from localize.recordings.export import export_bag, export_folder, main
 from localize.recordings.read import read_recording
-from localize.recordings.recording import Rectifier, SourceCamera
+from localize.recordings.recording import Rectifier, SourceCamera, UnreadableFrame
 
 FLIGHT = "paper"
 #: The odometry's own frame: moved and turned against the world (only increments matter).
@@ -238,6 +238,35 @@ class TestErrors:
         assert [s.index for s in steps] == [i for i in range(len(flight.timestamps)) if i != 3]
         np.testing.assert_allclose(steps[3].odometry_increment,
                                    increments(flight.odometry[[2, 4]])[0], atol=1e-6)
+
+    def test_cut_short_jpeg_is_dropped(self, recordings, dataset, flight, tmp_path, caplog):
+        """A JPEG cut short (OpenCV decodes it, grey below the cut) is an unreadable frame:
+        named, and dropped from the steps with a warning naming the file."""
+        root = copy_of(recordings, "folder", tmp_path)
+        path = root / "images" / "000003.jpg"
+        path.write_bytes(path.read_bytes()[:-300])
+        rec = read_recording(root, dataset.camera)
+        with pytest.raises(UnreadableFrame, match=r"000003\.jpg: the file is cut short"):
+            rec.image(3)
+        with caplog.at_level(logging.WARNING):
+            steps = list(rec.steps())
+        assert [s.index for s in steps] == [i for i in range(len(flight.timestamps)) if i != 3]
+        assert "000003.jpg: the file is cut short" in caplog.text
+
+    def test_cut_short_compressed_image(self, recordings, dataset):
+        """The bag path: a CompressedImage cut short is an unreadable frame."""
+        from rosbags.typesys import Stores, get_typestore
+
+        from localize.recordings.messages import decode_image
+
+        msgtype = "sensor_msgs/msg/CompressedImage"
+        data = (recordings["folder"] / "images" / "000003.jpg").read_bytes()
+        msg = get_typestore(Stores.ROS2_HUMBLE).types[msgtype](
+            None, "jpeg", np.frombuffer(data[:-300], dtype=np.uint8))
+        with pytest.raises(UnreadableFrame, match=r"frame 3: the CompressedImage .*cut short"):
+            decode_image(msg, msgtype, "frame 3")
+        msg.data = np.frombuffer(data, dtype=np.uint8)
+        assert decode_image(msg, msgtype, "frame 3").shape[2] == 3
 
     def test_image_size_not_the_calibrated_one(self, recordings, dataset, tmp_path):
         root = copy_of(recordings, "distorted", tmp_path)
