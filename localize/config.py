@@ -573,7 +573,7 @@ class HintConfig:
 
     Attributes:
         region: [xmin, ymin, xmax, ymax] or a polygon [[x, y], ...], metres (the world's
-            frame).
+            frame), overlapping the free space.
         space: a space (room) the world names (world.json ``spaces``), instead of ``region``.
         pose: [x, y, z, yaw_deg] the start lies around (as ROS's ``/initialpose``)...
         pose_std: ...with this spread [sx, sy, sz (m), syaw (deg)].
@@ -650,7 +650,8 @@ class LocalizeConfig(AppConfig):
         recording_topics: the bag topics.
         recording_body_from_cam: (4, 4) camera mount; None: the recording's, else the
             dataset's.
-        start: recording: [x, y, z, yaw_deg] world pose to track from; None: the first
+        start: recording: [x, y, z, yaw_deg] world pose to track from (at most
+            ``start_hint.START_MAX_OUTSIDE_M`` outside the free space); None: the first
             ground-truth pose, else a global start.
         max_frames: only the first N >= 1 frames of each flight or recording (quick runs,
             tests); null: every frame; 0 is refused, naming the key.

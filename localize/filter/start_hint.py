@@ -26,6 +26,11 @@ from core.poses import wrap_angle, xyzyaw_from_pose
 ROS_XYZYAW = (0, 1, 2, 5)
 #: Redraws of the Gaussian's poses that fall outside the region or the heading range.
 REDRAWS = 20
+#: m a start pose given in the settings (``start``, ``hint.pose``) may lie outside the free
+#: space (its cells and its band of heights): a start measured by hand beside a wall, or a
+#: drone on the floor below the band, lies within it (and is warned about); farther is an
+#: error (a start in another frame or unit).
+START_MAX_OUTSIDE_M = 1.0
 
 
 def polygon_contains(polygon: np.ndarray, xy: np.ndarray) -> np.ndarray:
@@ -238,6 +243,68 @@ class StartHint:
         return out[:n]
 
 
+def free_space_extent(free: OccupancyMap) -> str:
+    """The free space's extent as messages give it: x, y (m) of its cells and its band of
+    heights."""
+    x0, y0, x1, y1 = free.free_bounds + np.array([-0.5, -0.5, 0.5, 0.5]) * free.cell
+    return (f"x {x0:.2f} to {x1:.2f} m, y {y0:.2f} to {y1:.2f} m, heights {free.band[0]:.2f} "
+            f"to {free.band[1]:.2f} m")
+
+
+def region_overlaps(region: np.ndarray, free: OccupancyMap) -> bool:
+    """Whether a polygon (K, 2), m, overlaps the free cells: a free cell's centre lies inside
+    it, or a point of its outline (its corners and points along its edges, half a cell apart)
+    lies in a free cell."""
+    if len(StartHint(region=region).region_cells(free)):
+        return True
+    step = 0.5 * free.cell
+    outline = [region]
+    for a, b in zip(region, np.roll(region, -1, axis=0), strict=True):
+        n = int(np.ceil(np.linalg.norm(b - a) / step)) + 1
+        outline.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
+    return bool(free.contains(np.concatenate(outline)).any())
+
+
+def check_region(region: np.ndarray, free: OccupancyMap, where: str) -> None:
+    """ValueError naming ``where`` (e.g. ``hint.region=[...]``) and the free space's extent
+    when the polygon (K, 2) does not overlap the free space (``region_overlaps``)."""
+    if not region_overlaps(region, free):
+        raise ValueError(f"{where}: the region does not overlap the map's free space "
+                         f"({free_space_extent(free)}; world/free.npz); give a region inside "
+                         f"it, in the model's frame")
+
+
+def check_start_position(xyz: Sequence[float], free: OccupancyMap, where: str) -> None:
+    """ValueError naming ``where`` (e.g. ``start=[...]``) and the free space's extent when the
+    position (3,) m lies more than ``START_MAX_OUTSIDE_M`` outside the free space."""
+    d = float(free.outside_distance_xyz(np.asarray(xyz, dtype=np.float64)[None, :3])[0])
+    if d > START_MAX_OUTSIDE_M:
+        raise ValueError(f"{where}: the position lies {d:.2f} m outside the map's free space "
+                         f"({free_space_extent(free)}; world/free.npz), more than the "
+                         f"{START_MAX_OUTSIDE_M:g} m allowed; give a pose inside it, in the "
+                         f"model's frame")
+
+
+def start_from_setting(start: Sequence[float] | None, free: OccupancyMap,
+                       key: str = "start") -> np.ndarray | None:
+    """(4,) x, y, z (m), yaw (rad) of a ``start: [x, y, z, yaw_deg]`` setting (in the model's
+    frame); None for none.
+
+    Raises:
+        ValueError: not four finite numbers, or a position more than ``START_MAX_OUTSIDE_M``
+            outside the free space (``check_start_position``), naming ``key``.
+    """
+    if start is None:
+        return None
+    s = np.asarray(list(start), dtype=np.float64)
+    where = f"{key}={s.tolist()}"
+    if s.shape != (4,) or not np.isfinite(s).all():
+        raise ValueError(f"{where}: give [x, y, z, yaw_deg] in the model's frame, or null for a "
+                         "global start")
+    check_start_position(s[:3], free, where)
+    return np.array([*s[:3], np.radians(s[3])])
+
+
 def named_space(world_info: Mapping, name: str) -> np.ndarray:
     """(K, 2) polygon of a space (room) the world names (world.json ``spaces``:
     ``{name: [[x, y], ...]}``); ValueError listing the names there are."""
@@ -250,9 +317,16 @@ def named_space(world_info: Mapping, name: str) -> np.ndarray:
                      "give hint.region=[xmin,ymin,xmax,ymax] or a polygon instead")
 
 
-def hint_from_settings(hint, world_info: Mapping) -> StartHint | None:
+def hint_from_settings(hint, world_info: Mapping, free: OccupancyMap) -> StartHint | None:
     """The ``StartHint`` of the ``hint`` settings (``localize.config.HintConfig``), None
-    when none is set; ``world_info`` (world.json) resolves ``hint.space``."""
+    when none is set; ``world_info`` (world.json) resolves ``hint.space``.
+
+    Raises:
+        ValueError: a setting malformed, a region (``hint.region``, ``hint.space``) that does
+            not overlap the free space ``free`` (``check_region``), or a ``hint.pose`` more
+            than ``START_MAX_OUTSIDE_M`` outside it, naming the key and the free space's
+            extent.
+    """
     if hint is None:
         return None
     region = pose = cov = heading = None
@@ -260,14 +334,17 @@ def hint_from_settings(hint, world_info: Mapping) -> StartHint | None:
         raise ValueError("hint.region and hint.space both set: give one")
     if hint.region is not None:
         region = as_polygon(hint.region)
+        check_region(region, free, f"hint.region={list(hint.region)}")
     elif hint.space is not None:
         region = named_space(world_info, hint.space)
+        check_region(region, free, f"hint.space={hint.space!r} (world.json spaces)")
     if hint.pose is not None:
         p = np.asarray(hint.pose, dtype=np.float64)
         s = np.asarray(hint.pose_std, dtype=np.float64)
         if p.shape != (4,) or s.shape != (4,) or (s < 0).any():
             raise ValueError(f"hint.pose is [x, y, z, yaw_deg] and hint.pose_std [sx, sy, sz, "
                              f"syaw_deg] >= 0, got {list(hint.pose)}, {list(hint.pose_std)}")
+        check_start_position(p[:3], free, f"hint.pose={list(hint.pose)}")
         pose = np.array([p[0], p[1], p[2], np.deg2rad(p[3])])
         cov = np.diag(np.array([s[0], s[1], s[2], np.deg2rad(s[3])]) ** 2)
     if hint.heading_deg is not None:

@@ -34,7 +34,7 @@ from core.dataset import Dataset
 from core.frames import FrameSource
 from core.poses import odometry_increment
 from localize.context import Context, report_folder
-from localize.filter.start_hint import StartHint
+from localize.filter.start_hint import StartHint, start_from_setting
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.live.mavlink import MavlinkSender, quality_of
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
@@ -72,17 +72,6 @@ def load_context(cfg: DictConfig) -> Context:
     ctx = Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter)
     ctx.model_for(cfg.mode)
     return ctx
-
-
-def start_state(start) -> np.ndarray | None:
-    """(4,) x, y, z (m), yaw (rad) of a ``start: [x, y, z, yaw_deg]`` setting; None: global."""
-    if start is None:
-        return None
-    s = np.asarray(list(start), dtype=np.float64)
-    if s.shape != (4,) or not np.isfinite(s).all():
-        raise ValueError(f"start={list(start)}: give [x, y, z, yaw_deg] in the map frame, or "
-                         "null for a global start")
-    return np.array([*s[:3], np.radians(s[3])])
 
 
 @dataclass(frozen=True)
@@ -185,7 +174,7 @@ class LiveLocalizer:
         self._model = self.ctx.model_for(self.cfg.mode)
         self._rng = np.random.default_rng(int(self.cfg.seed))  # the filter's alone
         self._display_rng = np.random.default_rng([int(self.cfg.seed), 1])
-        self._start = start_state(self.cfg.start)
+        self._start = start_from_setting(self.cfg.start, self.ctx.world.free)
         self._worker: threading.Thread | None = None
         self._stop = threading.Event()
         self.mavlink = (MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz),
@@ -445,6 +434,6 @@ def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
     """
     loc = Localizer(ctx.world, ctx.camera, ctx.front_end(cfg.mode), ctx.settings,
                     np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
-    loc.reset(start_state(cfg.start))
+    loc.reset(start_from_setting(cfg.start, ctx.world.free))
     return np.stack([loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp).state
                      for f in source.steps(limit)])

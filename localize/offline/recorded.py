@@ -40,9 +40,11 @@ from omegaconf import DictConfig, OmegaConf
 
 from core.atomic import atomic_write_json, atomic_write_text, disk_full_guard
 from core.dataset import Dataset
+from core.occupancy import OccupancyMap
 from core.outputs import FolderPolicy, releases_claims
 from core.poses import xyzyaw_from_pose
 from localize.context import Context, report_folder
+from localize.filter.start_hint import start_from_setting
 from localize.offline.report import model_of, results_sections, summarize
 from localize.offline.runner import (
     REPORT_DISK_FULL_FIX,
@@ -71,13 +73,12 @@ RECORDING_POLICY = FolderPolicy(
     grow=("onnx_sha256",), speed_only=SPEED_ONLY, results=("runs",))
 
 
-def start_state(cfg: DictConfig, rec: Recording) -> np.ndarray | None:
-    """(4,) x, y, z (m), yaw (rad) to track from, or None for a global start."""
+def start_state(cfg: DictConfig, rec: Recording, free: OccupancyMap) -> np.ndarray | None:
+    """(4,) x, y, z (m), yaw (rad) to track from: ``cfg.start`` (checked against the free
+    space ``free``: ``start_hint.start_from_setting``), else the first true pose; None for a
+    global start."""
     if cfg.start is not None:
-        start = np.asarray(OmegaConf.to_container(cfg.start), dtype=np.float64)
-        if start.shape != (4,):
-            raise ValueError(f"start={list(start)}: give [x, y, z, yaw_deg] in the world frame")
-        return np.array([*start[:3], np.radians(start[3])])
+        return start_from_setting(cfg.start, free)
     if rec.groundtruth is not None:
         return xyzyaw_from_pose(rec.groundtruth[0])[0]
     return None
@@ -175,7 +176,7 @@ def run_recording(cfg: DictConfig) -> Path:
     with disk_full_guard(report_folder(cfg), "the report", REPORT_DISK_FULL_FIX):
         ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
         check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY)
-        start = start_state(cfg, rec)
+        start = start_state(cfg, rec, ctx.world.free)
         how = ("global (uniform)" if start is None else
                f"tracking from x {start[0]:.2f}, y {start[1]:.2f}, z {start[2]:.2f} m, "
                f"yaw {np.degrees(start[3]):.1f} deg")

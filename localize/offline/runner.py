@@ -41,7 +41,7 @@ from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES
 from localize.context import Context, SourceWrappers, report_folder, settings_of
-from localize.filter.start_hint import hint_from_settings
+from localize.filter.start_hint import hint_from_settings, start_from_setting
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.localizer import (
     EdgeModel,
@@ -180,6 +180,9 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     if recording is not None:
         out_dir = out_dir / "recordings" / recording.name
     settings = settings_of(cfg)
+    # fail before any run on a hint or a start off the map
+    hint_from_settings(settings.hint, world.info, world.free)
+    start_from_setting(settings.start, world.free)
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
@@ -298,7 +301,7 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
                              "has no ground truth; give start=[x, y, z, yaw_deg]")
         start = xyzyaw_from_pose(source.groundtruth[0])[0]
     warn_outside_free_space(source, ctx.world.free, T, start, settings.filter.free_space_slack)
-    hint = hint_from_settings(ctx.settings.hint, ctx.world.info)
+    hint = hint_from_settings(ctx.settings.hint, ctx.world.info, ctx.world.free)
     localizers = []
     for r in runs:
         loc = Localizer(ctx.world, ctx.camera, front, settings, r.rng(),

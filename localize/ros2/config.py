@@ -152,7 +152,8 @@ class Ros2Config(AppConfig):
         node_name: the ROS node name.
         mode: the edge mode (``cnn`` or ``none``: a live camera has no true labels).
         seed: the filter's random seed.
-        start: [x, y, z, yaw_deg] map pose to track from at start-up; None: a global start
+        start: [x, y, z, yaw_deg] map pose to track from at start-up (at most
+            ``start_hint.START_MAX_OUTSIDE_M`` outside the free space); None: a global start
             over the free space (``/initialpose`` or the service restart it at any time).
         body_from_cam: (4, 4) camera mount on the body; None: the dataset's.
         topics, frames, qos, realtime: the node's interface and limits.

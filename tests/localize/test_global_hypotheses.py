@@ -11,11 +11,13 @@ from localize.config import FilterConfig, HintConfig
 from localize.filter.hypotheses import Dominance, top_hypotheses
 from localize.filter.particle_filter import ParticleFilter
 from localize.filter.start_hint import (
+    START_MAX_OUTSIDE_M,
     StartHint,
     as_polygon,
     hint_from_settings,
     named_space,
     polygon_contains,
+    start_from_setting,
 )
 from localize.offline.metrics import false_convergence
 
@@ -187,18 +189,69 @@ class TestStartHint:
         assert hint.heading_span == pytest.approx(np.deg2rad(20))
 
     def test_settings_and_named_spaces(self):
-        assert hint_from_settings(HintConfig(), {}) is None
+        assert hint_from_settings(HintConfig(), {}, FREE) is None
         info = {"spaces": {"Lobby": [[-0.7, 0.3], [0.7, 0.3], [0.7, 2.0], [-0.7, 2.0]]}}
-        hint = hint_from_settings(HintConfig(space="lobby", heading_deg=[0, 90]), info)
+        hint = hint_from_settings(HintConfig(space="lobby", heading_deg=[0, 90]), info, FREE)
         assert hint.region.shape == (4, 2) and hint.heading_span == pytest.approx(np.pi / 2)
         with pytest.raises(ValueError, match="its spaces: Lobby"):
             named_space(info, "kitchen")
         with pytest.raises(ValueError, match="no 'spaces'"):
             named_space({}, "kitchen")
         with pytest.raises(ValueError, match=r"xmax > xmin"):
-            hint_from_settings(HintConfig(region=[1, 0, 0, 1]), {})
-        pose = hint_from_settings(HintConfig(pose=[0, 3, 1.2, 90]), {})
+            hint_from_settings(HintConfig(region=[1, 0, 0, 1]), {}, FREE)
+        pose = hint_from_settings(HintConfig(pose=[0, 3, 1.2, 90]), {}, FREE)
         assert pose.pose[3] == pytest.approx(np.pi / 2)
+
+    @pytest.mark.parametrize("region", [[100.0, 100.0, 110.0, 110.0],
+                                        [[5.0, 5.0], [6.0, 5.0], [6.0, 6.0]],
+                                        [0.8, 0.0, 3.0, 12.0]])  # beside the corridor
+    def test_region_off_the_free_space_is_refused(self, region):
+        """A region that does not overlap the free space is an error naming hint.region, the
+        region and the free space's extent."""
+        with pytest.raises(ValueError, match=r"^hint\.region=\[.*\]: the region does not "
+                                             r"overlap the map's free space \(x -2\.7\d to 0\.7\d "
+                                             r"m, y 0\.\d+ to 9\.7\d m, heights 0\.50 to 2\.20 m"):
+            hint_from_settings(HintConfig(region=region), {}, FREE)
+
+    @pytest.mark.parametrize("region", [[0.5, 9.0, 3.0, 12.0],  # a corner of it in the corridor
+                                        [0.01, 5.01, 0.02, 5.02],  # inside one cell
+                                        [[0.69, 1.0], [0.9, 0.9], [0.9, 1.1]]])  # a tip in it
+    def test_region_overlapping_the_free_space_is_taken(self, region):
+        hint = hint_from_settings(HintConfig(region=region), {}, FREE)
+        p = hint.draw(np.random.default_rng(0), FREE, 200)
+        assert polygon_contains(hint.region, p[:, :2]).all()
+
+    def test_named_space_and_pose_off_the_free_space_are_refused(self):
+        info = {"spaces": {"Annex": [[50.0, 50.0], [60.0, 50.0], [60.0, 60.0]]}}
+        with pytest.raises(ValueError, match=r"^hint\.space='annex' .*does not overlap"):
+            hint_from_settings(HintConfig(space="annex"), info, FREE)
+        with pytest.raises(ValueError, match=r"^hint\.pose=\[140\.0, 0\.0, 1\.2, 0\.0\]: the "
+                                             r"position lies 139\.\d+ m outside"):
+            hint_from_settings(HintConfig(pose=[140.0, 0.0, 1.2, 0.0]), {}, FREE)
+
+
+class TestStartSetting:
+    def test_start_far_off_the_free_space_is_refused(self):
+        with pytest.raises(ValueError, match=r"^start=\[140\.0, 5\.0, 1\.2, 90\.0\]: the position "
+                                             r"lies 139\.\d+ m outside the map's free space \(x "
+                                             r"-2\.7\d to 0\.7\d m, y 0\.\d+ to 9\.7\d m"):
+            start_from_setting([140.0, 5.0, 1.2, 90.0], FREE)
+        with pytest.raises(ValueError, match=r"^start=\[0\.0, 5\.0, 4\.0, 0\.0\]: .* 1\.80 m "
+                                             r"outside"):
+            start_from_setting([0.0, 5.0, 4.0, 0.0], FREE)  # above the band
+
+    def test_start_near_the_free_space_is_taken(self):
+        """Within START_MAX_OUTSIDE_M (a start measured by hand beside a wall, a drone on the
+        floor): taken, in radians."""
+        assert START_MAX_OUTSIDE_M == 1.0
+        np.testing.assert_allclose(start_from_setting([1.5, 5.0, 1.2, 90.0], FREE),
+                                   [1.5, 5.0, 1.2, np.pi / 2])
+        assert start_from_setting([0.0, 5.0, 0.0, 0.0], FREE) is not None  # 0.5 m below
+        assert start_from_setting(None, FREE) is None
+
+    def test_start_not_four_numbers(self):
+        with pytest.raises(ValueError, match=r"^start=\[1\.0, 2\.0\]: give \[x, y, z, yaw_deg\]"):
+            start_from_setting([1.0, 2.0], FREE)
 
 
 def test_false_convergence():

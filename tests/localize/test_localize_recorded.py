@@ -171,6 +171,19 @@ def test_cut_short_jpeg_is_dropped(flat_dataset, tmp_path):
     assert "1 frames could not be read" in report.read_text()
 
 
+@pytest.mark.parametrize("setting, match", [
+    ("start=[140,0,1.2,0]", r"^start=\[140\.0, 0\.0, 1\.2, 0\.0\]: the position lies \d+\.\d+ m "
+                            r"outside the map's free space \(x .* m, y .* m, heights"),
+    ("hint.region=[100,100,110,110]", r"^hint\.region=\[100, 100, 110, 110\]: the region does "
+                                      r"not overlap the map's free space \(x .* m, y .* m"),
+])
+def test_start_off_the_map_is_refused(flat_dataset, folder_recording, tmp_path, setting, match):
+    """A start pose or a hint region off the map is refused before any run."""
+    with pytest.raises(ValueError, match=match):
+        run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, setting))
+    assert not list(tmp_path.glob("**/trajectory.txt"))
+
+
 def test_max_frames_zero_names_the_key(flat_dataset, folder_recording, tmp_path):
     with pytest.raises(ValueError, match=r"max_frames=0: .*max_frames=null"):
         run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=0"))
