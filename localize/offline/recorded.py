@@ -109,17 +109,40 @@ def write_overlay(path: Path, rec: Recording, ctx: Context, record: dict) -> Non
                   [f"frame {i}" for i in picks])
 
 
+def frames_run(metrics: dict, name: str) -> tuple[int, int]:
+    """The frames the runs of recording ``name`` covered (delivered or dropped; ``max_frames``
+    limits them) and the frames dropped, the most of any mode (metrics.json entries)."""
+    entries = [e if "num_frames" in e else e.get("global", {})
+               for e in metrics["flights"][name].values()]
+    covered = max((e.get("num_frames", 0) + e.get("dropped_frames", 0) for e in entries),
+                  default=0)
+    return covered, max((e.get("dropped_frames", 0) for e in entries), default=0)
+
+
+def model_line(metrics: dict) -> str:
+    """The dataset and the SegNet (the cnn mode's) a recording's report was made with."""
+    model = metrics.get("model") or {}
+    if model.get("onnx_model"):
+        digest = model.get("onnx_sha256")
+        segnet = f"SegNet `{model['onnx_model']}`" + (f" (sha256 {digest[:12]})" if digest
+                                                       else "")
+    else:
+        segnet = "no SegNet (no cnn mode run)"
+    return f"Dataset `{metrics['dataset']}` (the building model and the camera); {segnet}."
+
+
 def markdown(rec: Recording, metrics: dict, cfg: DictConfig, start: str) -> str:
-    """report.md of a recording: its header, then the sections of a flight's report
-    (``report.results_sections``: accuracy and convergence where there is ground truth, time
-    per frame) and the overlay."""
-    dropped = max((e.get("dropped_frames", e.get("global", {}).get("dropped_frames", 0))
-                   for e in metrics["flights"][rec.name].values()), default=0)
+    """report.md of a recording: its header (the recording, the frames run, the dataset and
+    the SegNet), then the sections of a flight's report (``report.results_sections``: accuracy
+    and convergence where there is ground truth, time per frame) and the overlay."""
+    covered, dropped = frames_run(metrics, rec.name)
+    frames = (f"{covered} frames" if covered == len(rec) else
+              f"its first {covered} of {len(rec)} frames (max_frames={cfg.max_frames})")
     lines = [f"# {rec.name}: localized against the model", "",
-             f"Recording `{rec.source}`, {len(rec)} frames, camera {rec.camera.width}x"
+             f"Recording `{rec.source}`: {frames}, camera {rec.camera.width}x"
              f"{rec.camera.height}; start: {start}."
              + (f" {dropped} frames could not be read and were dropped." if dropped else ""),
-             "", *results_sections(metrics, cfg)]
+             model_line(metrics), "", *results_sections(metrics, cfg)]
     if rec.groundtruth is None:
         lines += ["No ground truth in the recording: errors are not measured.", ""]
     lines += ["![model edges at the estimate (green) and the truth (magenta)](overlay.png)", ""]

@@ -184,6 +184,20 @@ def test_start_off_the_map_is_refused(flat_dataset, folder_recording, tmp_path, 
     assert not list(tmp_path.glob("**/trajectory.txt"))
 
 
+def test_report_names_dataset_model_and_frames_run(flat_dataset, flat_segnet, folder_recording,
+                                                   tmp_path):
+    """report.md names the dataset and the SegNet and counts the frames run, not the
+    recording's."""
+    report = run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=4",
+                                         "modes=[cnn]", f"onnx_model={flat_segnet}"))
+    text = report.read_text()
+    assert "its first 4 of 30 frames (max_frames=4)" in text, text
+    assert f"Dataset `{flat_dataset}`" in text and f"SegNet `{flat_segnet}` (sha256 " in text
+    report = run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path / "none",
+                                         "max_frames=4"))
+    assert "no SegNet (no cnn mode run)" in report.read_text()
+
+
 def test_max_frames_zero_names_the_key(flat_dataset, folder_recording, tmp_path):
     with pytest.raises(ValueError, match=r"max_frames=0: .*max_frames=null"):
         run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=0"))
