@@ -35,7 +35,7 @@ CHILD = """
 import json, sys, time
 from pathlib import Path
 import datagen.generate as gen
-import datagen.rendering.split as render_split
+import datagen.rendering.frame as render_frame
 from core.config import compose_config
 try:
     import core.outputs
@@ -45,7 +45,7 @@ except ImportError:
 args = json.loads(sys.argv[1])
 cfg = compose_config("datagen", args["overrides"])
 if args["gate"]:
-    real, gate = render_split.write_frame, args["gate"]
+    real, gate = render_frame.write_frame, args["gate"]
     def paused(*a, **k):
         if not args["before"]:
             real(*a, **k)
@@ -54,7 +54,7 @@ if args["gate"]:
             time.sleep(0.05)
         if args["before"]:
             real(*a, **k)
-    render_split.write_frame = paused
+    render_frame.write_frame = paused
 gen.run(cfg, progress=False)
 """
 
