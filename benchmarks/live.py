@@ -58,7 +58,7 @@ TARGET_START_S = 20.0
 
 def node_overrides(args, start: list[float], out_root: Path) -> list[str]:
     return [f"dataset={args.dataset}", f"onnx_model={args.onnx_model}", f"mode={args.mode}",
-            f"start={start}", f"out_root={out_root}", f"hydra.run.dir={out_root / 'hydra'}",
+            f"hint.pose={start}", f"out_root={out_root}", f"hydra.run.dir={out_root / 'hydra'}",
             *args.overrides]
 
 

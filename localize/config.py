@@ -568,22 +568,26 @@ class ReportConfig:
 
 @dataclass
 class HintConfig:
-    """``hint``: where the global starts begin (``localize.filter.start_hint.StartHint``); every key
-    null: anywhere in the free space.
+    """``hint``: where a start begins (``localize.filter.start_hint.start_of_settings``): a pose
+    to track from, or where a global search looks; every key null: anywhere in the free space.
 
     Attributes:
-        region: [xmin, ymin, xmax, ymax] or a polygon [[x, y], ...], metres (the world's
-            frame), overlapping the free space.
+        pose: [x, y, z, yaw_deg] in the model's frame, at most ``START_MAX_OUTSIDE_M`` (1 m)
+            outside the free space: alone, tracking starts there (as ROS's ``/initialpose``
+            with a narrow covariance)...
+        pose_std: ...with [sx, sy, sz (m), syaw (deg)] wider than the tracking start's noise
+            (``filter.init_std``), a search around it (e.g. [0.5, 0.5, 0.1, 15]).
+        region: [xmin, ymin, xmax, ymax] or a polygon [[x, y], ...], metres (the model's
+            frame), overlapping the free space: a search inside it.
         space: a space (room) the world names (world.json ``spaces``), instead of ``region``.
-        pose: [x, y, z, yaw_deg] the start lies around (as ROS's ``/initialpose``)...
-        pose_std: ...with this spread [sx, sy, sz (m), syaw (deg)].
-        heading_deg: [from, to] degrees: headings counter-clockwise from ``from`` to ``to``.
+        heading_deg: [from, to] degrees: a search over the headings counter-clockwise from
+            ``from`` to ``to``.
     """
 
+    pose: list[float] | None = None
+    pose_std: list[float] | None = None
     region: list[Any] | None = None
     space: str | None = None
-    pose: list[float] | None = None
-    pose_std: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.1, 15.0])
     heading_deg: list[float] | None = None
 
 
@@ -643,6 +647,8 @@ class LocalizeConfig(AppConfig):
         flight_names: flights of that set to run; None: every flight of the set.
         modes: edge modes: none (Canny + Hough), cnn (the SegNet), oracle (true labels).
         inits: tracking (start around the first true pose) and/or global (from ``hint``).
+            A recording starts from ``hint`` where one is set, else from its first true pose,
+            else globally.
         seeds: one filter run per seed.
         recording: a recording (a folder or a ROS 1/2 bag, docs/recording.md) to localize
             instead of the dataset's flights; outputs go to
@@ -650,9 +656,6 @@ class LocalizeConfig(AppConfig):
         recording_topics: the bag topics.
         recording_body_from_cam: (4, 4) camera mount; None: the recording's, else the
             dataset's.
-        start: recording: [x, y, z, yaw_deg] world pose to track from (at most
-            ``start_hint.START_MAX_OUTSIDE_M`` outside the free space); None: the first
-            ground-truth pose, else a global start.
         max_frames: only the first N >= 1 frames of each flight or recording (quick runs,
             tests); null: every frame; 0 is refused, naming the key.
         overwrite: re-run trajectories that already exist.
@@ -670,7 +673,6 @@ class LocalizeConfig(AppConfig):
     recording: str | None = None
     recording_topics: BagTopicsConfig = field(default_factory=BagTopicsConfig)
     recording_body_from_cam: list[Any] | None = None
-    start: list[float] | None = None
     max_frames: int | None = None
     overwrite: bool = False
     progress: bool = True

@@ -26,7 +26,7 @@ from core.poses import wrap_angle, xyzyaw_from_pose
 ROS_XYZYAW = (0, 1, 2, 5)
 #: Redraws of the Gaussian's poses that fall outside the region or the heading range.
 REDRAWS = 20
-#: m a start pose given in the settings (``start``, ``hint.pose``) may lie outside the free
+#: m a start pose given in the settings (``hint.pose``) may lie outside the free
 #: space (its cells and its band of heights): a start measured by hand beside a wall, or a
 #: drone on the floor below the band, lies within it (and is warned about); farther is an
 #: error (a start in another frame or unit).
@@ -285,26 +285,6 @@ def check_start_position(xyz: Sequence[float], free: OccupancyMap, where: str) -
                          f"model's frame")
 
 
-def start_from_setting(start: Sequence[float] | None, free: OccupancyMap,
-                       key: str = "start") -> np.ndarray | None:
-    """(4,) x, y, z (m), yaw (rad) of a ``start: [x, y, z, yaw_deg]`` setting (in the model's
-    frame); None for none.
-
-    Raises:
-        ValueError: not four finite numbers, or a position more than ``START_MAX_OUTSIDE_M``
-            outside the free space (``check_start_position``), naming ``key``.
-    """
-    if start is None:
-        return None
-    s = np.asarray(list(start), dtype=np.float64)
-    where = f"{key}={s.tolist()}"
-    if s.shape != (4,) or not np.isfinite(s).all():
-        raise ValueError(f"{where}: give [x, y, z, yaw_deg] in the model's frame, or null for a "
-                         "global start")
-    check_start_position(s[:3], free, where)
-    return np.array([*s[:3], np.radians(s[3])])
-
-
 def named_space(world_info: Mapping, name: str) -> np.ndarray:
     """(K, 2) polygon of a space (room) the world names (world.json ``spaces``:
     ``{name: [[x, y], ...]}``); ValueError listing the names there are."""
@@ -317,9 +297,26 @@ def named_space(world_info: Mapping, name: str) -> np.ndarray:
                      "give hint.region=[xmin,ymin,xmax,ymax] or a polygon instead")
 
 
-def hint_from_settings(hint, world_info: Mapping, free: OccupancyMap) -> StartHint | None:
+def start_of_settings(hint, world_info: Mapping, free: OccupancyMap,
+                      init_std: Sequence[float]) -> np.ndarray | StartHint | None:
+    """What the ``hint`` settings (``localize.config.HintConfig``) start, for
+    ``Localizer.reset``: (4,) x, y, z (m), yaw (rad) to track from where ``hint.pose`` is
+    given alone with no ``pose_std`` or one no wider than the tracking start's noise
+    (``init_std``: x, y, z m, yaw deg); a ``StartHint`` to search inside where anything else
+    is set; None where nothing is. Raises as ``hint_from_settings``."""
+    h = hint_from_settings(hint, world_info, free, init_std)
+    if h is None or h.region is not None or h.heading is not None or h.pose is None:
+        return h
+    std = np.array([init_std[0], init_std[1], np.deg2rad(init_std[3])], dtype=np.float64)
+    var = np.diag(h.covariance)[[0, 1, 3]]
+    return h.pose if bool((var <= std ** 2 + 1e-12).all()) else h
+
+
+def hint_from_settings(hint, world_info: Mapping, free: OccupancyMap,
+                       init_std: Sequence[float]) -> StartHint | None:
     """The ``StartHint`` of the ``hint`` settings (``localize.config.HintConfig``), None
-    when none is set; ``world_info`` (world.json) resolves ``hint.space``.
+    when none is set; ``world_info`` (world.json) resolves ``hint.space``; a ``hint.pose``
+    without ``pose_std`` has the tracking start's noise ``init_std`` (x, y, z m, yaw deg).
 
     Raises:
         ValueError: a setting malformed, a region (``hint.region``, ``hint.space``) that does
@@ -339,11 +336,13 @@ def hint_from_settings(hint, world_info: Mapping, free: OccupancyMap) -> StartHi
         region = named_space(world_info, hint.space)
         check_region(region, free, f"hint.space={hint.space!r} (world.json spaces)")
     if hint.pose is not None:
-        p = np.asarray(hint.pose, dtype=np.float64)
-        s = np.asarray(hint.pose_std, dtype=np.float64)
-        if p.shape != (4,) or s.shape != (4,) or (s < 0).any():
-            raise ValueError(f"hint.pose is [x, y, z, yaw_deg] and hint.pose_std [sx, sy, sz, "
-                             f"syaw_deg] >= 0, got {list(hint.pose)}, {list(hint.pose_std)}")
+        p = np.asarray(list(hint.pose), dtype=np.float64)
+        s = np.asarray(list(init_std if hint.pose_std is None else hint.pose_std),
+                       dtype=np.float64)
+        if p.shape != (4,) or s.shape != (4,) or (s < 0).any() or not np.isfinite(p).all():
+            raise ValueError(f"hint.pose is [x, y, z, yaw_deg] in the model's frame and "
+                             f"hint.pose_std [sx, sy, sz, syaw_deg] >= 0 or null, got "
+                             f"{list(hint.pose)}, {hint.pose_std}")
         check_start_position(p[:3], free, f"hint.pose={list(hint.pose)}")
         pose = np.array([p[0], p[1], p[2], np.deg2rad(p[3])])
         cov = np.diag(np.array([s[0], s[1], s[2], np.deg2rad(s[3])]) ** 2)

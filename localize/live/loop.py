@@ -34,7 +34,7 @@ from core.dataset import Dataset
 from core.frames import FrameSource
 from core.poses import odometry_increment
 from localize.context import Context, report_folder
-from localize.filter.start_hint import StartHint, start_from_setting
+from localize.filter.start_hint import StartHint, start_of_settings
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.live.mavlink import MavlinkSender, quality_of
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
@@ -174,7 +174,9 @@ class LiveLocalizer:
         self._model = self.ctx.model_for(self.cfg.mode)
         self._rng = np.random.default_rng(int(self.cfg.seed))  # the filter's alone
         self._display_rng = np.random.default_rng([int(self.cfg.seed), 1])
-        self._start = start_from_setting(self.cfg.start, self.ctx.world.free)
+        s = self.ctx.settings
+        self._start = start_of_settings(s.hint, self.ctx.world.info, self.ctx.world.free,
+                                        s.filter.init_std)
         self._worker: threading.Thread | None = None
         self._stop = threading.Event()
         self.mavlink = (MavlinkSender(str(self.cfg.mavlink), float(self.cfg.mavlink_rate_hz),
@@ -203,7 +205,9 @@ class LiveLocalizer:
             self.localizer, self.rectifier, self.source_camera = loc, rect, source
         log.info("camera %dx%d from %s, frames delivered at %dx%d; %s", source.width,
                  source.height, where, camera.width, camera.height,
-                 "global start" if self._start is None else f"tracking from {self._start}")
+                 "global start" if self._start is None else
+                 f"search inside {self._start}" if isinstance(self._start, StartHint) else
+                 f"tracking from {self._start}")
 
     def odometry(self, stamp: float, pose: np.ndarray, where: str) -> None:
         """An odometry sample (world_from_body in the odometry's frame); one the buffer
@@ -434,6 +438,7 @@ def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
     """
     loc = Localizer(ctx.world, ctx.camera, ctx.front_end(cfg.mode), ctx.settings,
                     np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
-    loc.reset(start_from_setting(cfg.start, ctx.world.free))
+    s = ctx.settings
+    loc.reset(start_of_settings(s.hint, ctx.world.info, ctx.world.free, s.filter.init_std))
     return np.stack([loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp).state
                      for f in source.steps(limit)])

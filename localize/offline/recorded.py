@@ -20,12 +20,13 @@ Output folder ``<out_root>/<name>/recordings/<recording name>/``::
     overlay.png                 model edges at the estimates (green) and the truth (magenta) on
                                 eight frames of the first mode
 
-A recording has no true labels, so mode ``oracle`` is skipped. The start: ``start=[x, y, z,
-yaw_deg]`` tracks from that world pose; else the first ground-truth pose when the recording
-has one; else a global (uniform) start. Each mode is one run of ``seeds[0]``; a mode whose
-trajectory and run record exist is not run again (``overwrite=true`` re-runs it), and the
-report covers every mode run in the folder. A frame that
-cannot be read is dropped (counted in ``dropped_frames``), the odometry increment then spans
+A recording has no true labels, so mode ``oracle`` is skipped. The start: what ``hint``
+gives (``hint.pose=[x, y, z, yaw_deg]`` tracks from that world pose; with ``hint.pose_std``,
+``hint.region`` or ``hint.space`` a search there); else the first ground-truth pose when the
+recording has one; else a global start over the free space. Each mode is one run of
+``seeds[0]``; a mode whose trajectory and run record exist is not run again
+(``overwrite=true`` re-runs it), and the report covers every mode run in the folder. A frame
+that cannot be read is dropped (counted in ``dropped_frames``), the odometry increment then spans
 from the last frame read.
 """
 
@@ -40,11 +41,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from core.atomic import atomic_write_json, atomic_write_text, disk_full_guard
 from core.dataset import Dataset
-from core.occupancy import OccupancyMap
 from core.outputs import FolderPolicy, releases_claims
 from core.poses import xyzyaw_from_pose
 from localize.context import Context, report_folder
-from localize.filter.start_hint import start_from_setting
+from localize.filter.start_hint import StartHint, start_of_settings
 from localize.offline.report import model_of, results_sections, summarize
 from localize.offline.runner import (
     REPORT_DISK_FULL_FIX,
@@ -68,17 +68,18 @@ OVERLAY_FRAMES = 8
 #: read and where the runs start (``seeds``: its first is the one run).
 RECORDING_POLICY = FolderPolicy(
     record="config.json",
-    keys=(*RESULT_KEYS, "recording", "recording_topics", "recording_body_from_cam", "start",
-          "seeds"),
+    keys=(*RESULT_KEYS, "recording", "recording_topics", "recording_body_from_cam", "seeds"),
     grow=("onnx_sha256",), speed_only=SPEED_ONLY, results=("runs",))
 
 
-def start_state(cfg: DictConfig, rec: Recording, free: OccupancyMap) -> np.ndarray | None:
-    """(4,) x, y, z (m), yaw (rad) to track from: ``cfg.start`` (checked against the free
-    space ``free``: ``start_hint.start_from_setting``), else the first true pose; None for a
-    global start."""
-    if cfg.start is not None:
-        return start_from_setting(cfg.start, free)
+def start_state(ctx: Context, rec: Recording) -> np.ndarray | StartHint | None:
+    """Where a recording's run starts: what ``hint`` starts (``start_hint.start_of_settings``:
+    (4,) x, y, z (m), yaw (rad) to track from, or a ``StartHint`` to search inside), else the
+    first true pose; None for a global start over the free space."""
+    s = ctx.settings
+    start = start_of_settings(s.hint, ctx.world.info, ctx.world.free, s.filter.init_std)
+    if start is not None:
+        return start
     if rec.groundtruth is not None:
         return xyzyaw_from_pose(rec.groundtruth[0])[0]
     return None
@@ -199,14 +200,15 @@ def run_recording(cfg: DictConfig) -> Path:
     with disk_full_guard(report_folder(cfg), "the report", REPORT_DISK_FULL_FIX):
         ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
         check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY)
-        start = start_state(cfg, rec, ctx.world.free)
-        how = ("global (uniform)" if start is None else
+        start = start_state(ctx, rec)
+        init = "tracking" if isinstance(start, np.ndarray) else "global"
+        how = ("global (the whole free space)" if start is None else
+               "a search inside the hint" if init == "global" else
                f"tracking from x {start[0]:.2f}, y {start[1]:.2f}, z {start[2]:.2f} m, "
                f"yaw {np.degrees(start[3]):.1f} deg")
-        init = "global" if start is None else "tracking"
         for mode in modes:
-            # a flight's run of the same name and seed draws the same numbers
+            # a flight's run of the same mode, init and seed draws the same numbers
             run = RunSpec(rec.name, mode, init, int(cfg.seeds[0]), recording=True)
             if cfg.overwrite or not run.done(ctx.out_dir):
-                run_pass(ctx, rec, mode, [run], start=start)
+                run_pass(ctx, rec, mode, [run], start=start if init == "tracking" else None)
         return write_recording_report(ctx, rec, how)

@@ -41,7 +41,7 @@ from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES
 from localize.context import Context, SourceWrappers, report_folder, settings_of
-from localize.filter.start_hint import hint_from_settings, start_from_setting
+from localize.filter.start_hint import start_of_settings
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.localizer import (
     EdgeModel,
@@ -180,9 +180,8 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     if recording is not None:
         out_dir = out_dir / "recordings" / recording.name
     settings = settings_of(cfg)
-    # fail before any run on a hint or a start off the map
-    hint_from_settings(settings.hint, world.info, world.free)
-    start_from_setting(settings.start, world.free)
+    # fail before any run on a hint off the map
+    start_of_settings(settings.hint, world.info, world.free, settings.filter.init_std)
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
@@ -280,7 +279,7 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
         num_particles: override of the filter's particle count (both inits).
         start: (4,) x, y, z (m), yaw (rad) the tracking runs start from; None: the source's
             first true pose. The global runs start inside the config's ``hint``
-            (``start_hint.hint_from_settings``; none set: the whole free space).
+            (``start_hint.start_of_settings``; none set: the whole free space).
 
     With ``viz=rerun`` the pass's first run (its frames, labels, estimate, particles) is
     logged to ``<out_dir>/viz/<source>_<mode>.rrd`` (``localize.viewers.viz``).
@@ -298,10 +297,11 @@ def run_pass(ctx: Context, source: FrameSource, mode: str, runs: list[RunSpec],
     if start is None and any(r.init == "tracking" for r in runs):
         if source.groundtruth is None:
             raise ValueError(f"{source.name}: a tracking run needs a start pose and the source "
-                             "has no ground truth; give start=[x, y, z, yaw_deg]")
+                             "has no ground truth; give hint.pose=[x, y, z, yaw_deg]")
         start = xyzyaw_from_pose(source.groundtruth[0])[0]
     warn_outside_free_space(source, ctx.world.free, T, start, settings.filter.free_space_slack)
-    hint = hint_from_settings(ctx.settings.hint, ctx.world.info, ctx.world.free)
+    hint = start_of_settings(ctx.settings.hint, ctx.world.info, ctx.world.free,
+                             settings.filter.init_std)
     localizers = []
     for r in runs:
         loc = Localizer(ctx.world, ctx.camera, front, settings, r.rng(),

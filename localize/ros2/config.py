@@ -146,15 +146,14 @@ class RealTimeConfig:
 
 @dataclass
 class Ros2Config(AppConfig):
-    """The live node's config (``conf/ros2.yaml``): the ``AppConfig`` and the node's.
+    """The live node's config (``conf/ros2.yaml``): the ``AppConfig`` and the node's. The
+    node starts from ``hint`` (a pose to track from, or where a search looks; none: a global
+    start over the free space); ``/initialpose`` or the service restart it at any time.
 
     Attributes:
         node_name: the ROS node name.
         mode: the edge mode (``cnn`` or ``none``: a live camera has no true labels).
         seed: the filter's random seed.
-        start: [x, y, z, yaw_deg] map pose to track from at start-up (at most
-            ``start_hint.START_MAX_OUTSIDE_M`` outside the free space); None: a global start
-            over the free space (``/initialpose`` or the service restart it at any time).
         body_from_cam: (4, 4) camera mount on the body; None: the dataset's.
         topics, frames, qos, realtime: the node's interface and limits.
         mavlink: the autopilot link (``localize.live.mavlink``), e.g.
@@ -167,7 +166,6 @@ class Ros2Config(AppConfig):
     node_name: str = "edgeloc"
     mode: str = "cnn"
     seed: int = 0
-    start: list[float] | None = None
     body_from_cam: list[Any] | None = None
     topics: NodeTopicsConfig = field(default_factory=NodeTopicsConfig)
     frames: FrameIdsConfig = field(default_factory=FrameIdsConfig)

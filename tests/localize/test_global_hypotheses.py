@@ -17,13 +17,15 @@ from localize.filter.start_hint import (
     hint_from_settings,
     named_space,
     polygon_contains,
-    start_from_setting,
+    start_of_settings,
 )
 from localize.offline.metrics import false_convergence
 
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7], [-2.7, 5.7, -0.7, 6.7]])
 FREE = OccupancyMap.from_boxes(BOXES, np.array([0.5, 2.2]), 0.05, margin=0.3)
 
+#: The tracking start's noise of the filter's defaults (x, y, z m, yaw deg).
+INIT_STD = FilterConfig().init_std
 #: The pose kernel of the filter's defaults: (k, radius_m, yaw_deg).
 KERNEL = (FilterConfig().hypotheses, FilterConfig().hypothesis_radius_m,
           FilterConfig().hypothesis_yaw_deg)
@@ -189,17 +191,18 @@ class TestStartHint:
         assert hint.heading_span == pytest.approx(np.deg2rad(20))
 
     def test_settings_and_named_spaces(self):
-        assert hint_from_settings(HintConfig(), {}, FREE) is None
+        assert hint_from_settings(HintConfig(), {}, FREE, INIT_STD) is None
         info = {"spaces": {"Lobby": [[-0.7, 0.3], [0.7, 0.3], [0.7, 2.0], [-0.7, 2.0]]}}
-        hint = hint_from_settings(HintConfig(space="lobby", heading_deg=[0, 90]), info, FREE)
+        hint = hint_from_settings(HintConfig(space="lobby", heading_deg=[0, 90]), info, FREE,
+                                  INIT_STD)
         assert hint.region.shape == (4, 2) and hint.heading_span == pytest.approx(np.pi / 2)
         with pytest.raises(ValueError, match="its spaces: Lobby"):
             named_space(info, "kitchen")
         with pytest.raises(ValueError, match="no 'spaces'"):
             named_space({}, "kitchen")
         with pytest.raises(ValueError, match=r"xmax > xmin"):
-            hint_from_settings(HintConfig(region=[1, 0, 0, 1]), {}, FREE)
-        pose = hint_from_settings(HintConfig(pose=[0, 3, 1.2, 90]), {}, FREE)
+            hint_from_settings(HintConfig(region=[1, 0, 0, 1]), {}, FREE, INIT_STD)
+        pose = hint_from_settings(HintConfig(pose=[0, 3, 1.2, 90]), {}, FREE, INIT_STD)
         assert pose.pose[3] == pytest.approx(np.pi / 2)
 
     @pytest.mark.parametrize("region", [[100.0, 100.0, 110.0, 110.0],
@@ -211,47 +214,60 @@ class TestStartHint:
         with pytest.raises(ValueError, match=r"^hint\.region=\[.*\]: the region does not "
                                              r"overlap the map's free space \(x -2\.7\d to 0\.7\d "
                                              r"m, y 0\.\d+ to 9\.7\d m, heights 0\.50 to 2\.20 m"):
-            hint_from_settings(HintConfig(region=region), {}, FREE)
+            hint_from_settings(HintConfig(region=region), {}, FREE, INIT_STD)
 
     @pytest.mark.parametrize("region", [[0.5, 9.0, 3.0, 12.0],  # a corner of it in the corridor
                                         [0.01, 5.01, 0.02, 5.02],  # inside one cell
                                         [[0.69, 1.0], [0.9, 0.9], [0.9, 1.1]]])  # a tip in it
     def test_region_overlapping_the_free_space_is_taken(self, region):
-        hint = hint_from_settings(HintConfig(region=region), {}, FREE)
+        hint = hint_from_settings(HintConfig(region=region), {}, FREE, INIT_STD)
         p = hint.draw(np.random.default_rng(0), FREE, 200)
         assert polygon_contains(hint.region, p[:, :2]).all()
 
     def test_named_space_and_pose_off_the_free_space_are_refused(self):
         info = {"spaces": {"Annex": [[50.0, 50.0], [60.0, 50.0], [60.0, 60.0]]}}
         with pytest.raises(ValueError, match=r"^hint\.space='annex' .*does not overlap"):
-            hint_from_settings(HintConfig(space="annex"), info, FREE)
+            hint_from_settings(HintConfig(space="annex"), info, FREE, INIT_STD)
         with pytest.raises(ValueError, match=r"^hint\.pose=\[140\.0, 0\.0, 1\.2, 0\.0\]: the "
                                              r"position lies 139\.\d+ m outside"):
-            hint_from_settings(HintConfig(pose=[140.0, 0.0, 1.2, 0.0]), {}, FREE)
+            hint_from_settings(HintConfig(pose=[140.0, 0.0, 1.2, 0.0]), {}, FREE, INIT_STD)
 
 
 class TestStartSetting:
-    def test_start_far_off_the_free_space_is_refused(self):
-        with pytest.raises(ValueError, match=r"^start=\[140\.0, 5\.0, 1\.2, 90\.0\]: the position "
-                                             r"lies 139\.\d+ m outside the map's free space \(x "
-                                             r"-2\.7\d to 0\.7\d m, y 0\.\d+ to 9\.7\d m"):
-            start_from_setting([140.0, 5.0, 1.2, 90.0], FREE)
-        with pytest.raises(ValueError, match=r"^start=\[0\.0, 5\.0, 4\.0, 0\.0\]: .* 1\.80 m "
-                                             r"outside"):
-            start_from_setting([0.0, 5.0, 4.0, 0.0], FREE)  # above the band
+    """``hint.pose`` alone: tracking from it; with a wider ``pose_std``: a search around it."""
 
-    def test_start_near_the_free_space_is_taken(self):
+    def test_pose_far_off_the_free_space_is_refused(self):
+        with pytest.raises(ValueError, match=r"^hint\.pose=\[140\.0, 5\.0, 1\.2, 90\.0\]: the "
+                                             r"position lies 139\.\d+ m outside the map's free "
+                                             r"space \(x -2\.7\d to 0\.7\d m, "
+                                             r"y 0\.\d+ to 9\.7\d m"):
+            start_of_settings(HintConfig(pose=[140.0, 5.0, 1.2, 90.0]), {}, FREE, INIT_STD)
+        with pytest.raises(ValueError, match=r"^hint\.pose=\[0\.0, 5\.0, 4\.0, 0\.0\]: .* 1\.80 m "
+                                             r"outside"):  # above the band
+            start_of_settings(HintConfig(pose=[0.0, 5.0, 4.0, 0.0]), {}, FREE, INIT_STD)
+
+    def test_pose_alone_tracks_from_it(self):
         """Within START_MAX_OUTSIDE_M (a start measured by hand beside a wall, a drone on the
-        floor): taken, in radians."""
+        floor): taken, in radians, as a tracking start."""
         assert START_MAX_OUTSIDE_M == 1.0
-        np.testing.assert_allclose(start_from_setting([1.5, 5.0, 1.2, 90.0], FREE),
-                                   [1.5, 5.0, 1.2, np.pi / 2])
-        assert start_from_setting([0.0, 5.0, 0.0, 0.0], FREE) is not None  # 0.5 m below
-        assert start_from_setting(None, FREE) is None
+        np.testing.assert_allclose(
+            start_of_settings(HintConfig(pose=[1.5, 5.0, 1.2, 90.0]), {}, FREE, INIT_STD),
+            [1.5, 5.0, 1.2, np.pi / 2])
+        below = start_of_settings(HintConfig(pose=[0.0, 5.0, 0.0, 0.0]), {}, FREE, INIT_STD)
+        assert isinstance(below, np.ndarray)  # 0.5 m below the band
+        assert start_of_settings(HintConfig(), {}, FREE, INIT_STD) is None
 
-    def test_start_not_four_numbers(self):
-        with pytest.raises(ValueError, match=r"^start=\[1\.0, 2\.0\]: give \[x, y, z, yaw_deg\]"):
-            start_from_setting([1.0, 2.0], FREE)
+    def test_pose_with_a_wide_spread_is_a_search(self):
+        hint = start_of_settings(HintConfig(pose=[0.0, 5.0, 1.2, 90.0],
+                                            pose_std=[0.5, 0.5, 0.1, 15.0]), {}, FREE, INIT_STD)
+        assert isinstance(hint, StartHint) and hint.covariance[0, 0] == pytest.approx(0.25)
+        narrow = start_of_settings(HintConfig(pose=[0.0, 5.0, 1.2, 90.0], pose_std=INIT_STD),
+                                   {}, FREE, INIT_STD)
+        assert isinstance(narrow, np.ndarray)
+
+    def test_pose_not_four_numbers(self):
+        with pytest.raises(ValueError, match=r"^hint\.pose is \[x, y, z, yaw_deg\]"):
+            start_of_settings(HintConfig(pose=[1.0, 2.0]), {}, FREE, INIT_STD)
 
 
 def test_false_convergence():

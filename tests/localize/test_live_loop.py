@@ -29,7 +29,7 @@ def setup(flat_dataset, flat_segnet, tmp_path_factory):
         cfg = compose(config_name="ros2", overrides=[
             *overrides, f"dataset={flat_dataset}", "mode=cnn", f"onnx_model={flat_segnet}",
             f"out_root={tmp_path_factory.mktemp('out')}"])
-    assert cfg.start is None
+    assert cfg.hint.pose is None
     return cfg, load_context(cfg), open_playback(flat_dataset / "flights" / FLIGHT)
 
 
@@ -83,8 +83,8 @@ def test_a_global_start_publishes_every_frame_of_its_search(setup):
 def tracking(cfg, pb):
     """``cfg`` tracking from the flight's first true pose."""
     x, y, z, yaw = xyzyaw_from_pose(pb.groundtruth[0])[0]
-    return OmegaConf.merge(cfg, {"start": [float(x), float(y), float(z),
-                                           float(np.degrees(yaw))]})
+    return OmegaConf.merge(cfg, {"hint": {"pose": [float(x), float(y), float(z),
+                                                   float(np.degrees(yaw))]}})
 
 
 def test_a_relocalization_that_is_not_a_pose_is_refused(setup):

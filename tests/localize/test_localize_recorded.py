@@ -175,8 +175,9 @@ def test_cut_short_jpeg_is_dropped(flat_dataset, tmp_path):
 
 
 @pytest.mark.parametrize("setting, match", [
-    ("start=[140,0,1.2,0]", r"^start=\[140\.0, 0\.0, 1\.2, 0\.0\]: the position lies \d+\.\d+ m "
-                            r"outside the map's free space \(x .* m, y .* m, heights"),
+    ("hint.pose=[140,0,1.2,0]", r"^hint\.pose=\[140\.0, 0\.0, 1\.2, 0\.0\]: the position lies "
+                                r"\d+\.\d+ m outside the map's free space \(x .* m, y .* m, "
+                                r"heights"),
     ("hint.region=[100,100,110,110]", r"^hint\.region=\[100, 100, 110, 110\]: the region does "
                                       r"not overlap the map's free space \(x .* m, y .* m"),
 ])

@@ -60,7 +60,7 @@ def setup(tiny_dataset, tmp_path_factory):
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose(config_name="ros2", overrides=[
             *overrides, f"dataset={tiny_dataset}", "mode=none",
-            f"out_root={tmp_path_factory.mktemp('out')}", f"start={start}",
+            f"out_root={tmp_path_factory.mktemp('out')}", f"hint.pose={start}",
             "realtime.max_age_s=2.0"])
     return cfg, load_context(cfg), pb
 
@@ -450,7 +450,7 @@ def test_python_m_localize_ros2(ros, setup, tmp_path):
     cfg, ctx, pb = setup
     root = Path(__file__).resolve().parents[2]
     args = [f"dataset={cfg.dataset}", "mode=none", f"out_root={cfg.out_root}",
-            f"start={list(cfg.start)}", f"hydra.run.dir={tmp_path}",
+            f"hint.pose={list(cfg.hint.pose)}", f"hydra.run.dir={tmp_path}",
             *[o for o in QUICK if not o.startswith(("seeds", "progress"))]]
     proc = subprocess.Popen([sys.executable, "-m", "localize.ros2", *args], cwd=root,
                             env=os.environ.copy(), stdout=subprocess.PIPE,
