@@ -26,6 +26,7 @@ sys.path.insert(0, {root!r})
 from core.config import compose_config
 import datagen.dataset_writer as writer
 import datagen.job as datagen_job
+import datagen.rendering.frame as render_frame
 import datagen.rendering.split as render_split
 from core.imaging.variant import choose_variant
 variant = choose_variant({variant!r})
@@ -36,11 +37,11 @@ cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "s
 job = datagen_job.prepare(cfg)
 writer.write_metadata(job, variant)
 times = []
-real = render_split.write_frame
+real = render_frame.write_frame
 def timed(*a, **k):
     real(*a, **k)
     times.append(time.perf_counter())
-render_split.write_frame = timed
+render_frame.write_frame = timed
 render_split.render_split(job, "train", progress=False)
 dt = times[-1] - times[0]
 print(json.dumps({{"variant": variant, "images": n, "seconds": dt, "images_per_second": n / dt}}))
