@@ -144,9 +144,11 @@ class TestFlight:
             assert np.all((s[:, 0] >= main[0]) & (s[:, 0] <= main[2]))
             assert np.all((s[:, 1] >= main[1]) & (s[:, 1] <= main[3]))
             assert np.all((s[:, 2] >= Z[0]) & (s[:, 2] <= Z[1]))
-            # forward along +Y over most of the corridor, never backwards
-            assert s[-1, 1] - s[0, 1] > 0.6 * (main[3] - main[1])
-            assert np.all(np.diff(s[:, 1]) >= -1e-9)
+            # forward along the route (+Y, or -Y reversed) over most of the corridor, never
+            # backwards
+            way = -1.0 if cfg.trajectory.reverse else 1.0
+            assert way * (s[-1, 1] - s[0, 1]) > 0.6 * (main[3] - main[1])
+            assert np.all(way * np.diff(s[:, 1]) >= -1e-9)
             speed = np.linalg.norm(np.diff(s[:, :3], axis=0), axis=1) * fps
             assert speed.max() < 1.2
             # smooth: bounded accelerations and yaw rate
@@ -155,7 +157,7 @@ class TestFlight:
             yaw_rate = np.abs(np.angle(np.exp(1j * np.diff(s[:, 3])))) * fps
             assert yaw_rate.max() < np.deg2rad(60)
             # looking along the corridor, with real swings
-            off = np.abs(np.angle(np.exp(1j * (s[:, 3] - np.pi / 2))))
+            off = np.abs(np.angle(np.exp(1j * (s[:, 3] - way * np.pi / 2))))
             assert off.max() <= np.deg2rad(cfg.trajectory.yaw_amplitude_deg[1]) + 1e-9
             assert off.max() >= np.deg2rad(cfg.trajectory.yaw_amplitude_deg[0]) - 1e-9
             tilt = np.abs(rpy(T)[:, :2])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.pair_evidence import evidence, pair_likelihoods
+from localize.config import VisibilityConfig
 from localize.filter.likelihood import LikelihoodConfig
 from localize.filter.projection import cam_from_world, sample_segments
 from localize.filter.visibility import build_visibility
@@ -19,7 +20,8 @@ def test_pairs_prefer_the_truth(small_world, camera, renderer):
     s = sample_segments(small_world.segments, 0.05)
     sc = small_world.segment_classes
     s, _ = s.select(sc[:, 0] != sc[:, 1])
-    vis = build_visibility(small_world, s.points, cell_xy=0.2, cell_z=0.3)
+    vis = build_visibility(small_world, s.points,
+                           settings=VisibilityConfig(cell_xy=0.2, cell_z=0.3))
     pairs = pair_code(sc[s.segment, 0], sc[s.segment, 1])
     liks = pair_likelihoods(s, vis, pairs, camera, LikelihoodConfig(k=20.0, sigma=0.1))
     assert set(liks) == {"all", *(str(int(c)) for c in np.unique(pairs))}
