@@ -222,9 +222,14 @@ def _set_pose(pose, T: np.ndarray) -> None:
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else argv
     paths = [a for a in args if "=" not in a]
+    usage = ("usage: python -m localize.ros2.play RECORDING_OR_FLIGHT [rate=1.0] "
+             "[max_frames=N] [loop=true] [topics.image=/camera/image_raw] ... "
+             "(every key: localize/ros2/play.py, class PlayConfig; docs/ros2.md)")
+    if any(a in ("-h", "--help") for a in args):
+        print(usage)
+        return
     if len(paths) != 1:
-        raise SystemExit("usage: python -m localize.ros2.play RECORDING_OR_FLIGHT [rate=1.0] "
-                         "[max_frames=N] [loop=true] [topics.image=/camera/image_raw] ...")
+        raise SystemExit(usage)
     settings = typed(PlayConfig, OmegaConf.from_dotlist([a for a in args if "=" in a]),
                      "ros2_play")
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")

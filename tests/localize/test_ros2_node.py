@@ -481,3 +481,13 @@ def test_python_m_localize_ros2(ros, setup, tmp_path):
         node.destroy_node()
     assert proc.returncode == 0, out
     assert "ready" in out
+
+
+def test_the_player_prints_its_usage(capsys):
+    """``--help`` prints the usage (not "recording not found: --help"); no recording: usage."""
+    from localize.ros2.play import main
+
+    main(["--help"])
+    assert "usage: python -m localize.ros2.play" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="usage"):
+        main([])
