@@ -121,10 +121,17 @@ class StartHint:
         z m, yaw deg; an all-zero covariance, as many publishers send, included), else a
         search inside its Gaussian (``from_initial_pose``; RViz's 2D Pose Estimate: 0.5 m,
         15 deg)."""
-        hint = cls.from_initial_pose(world_from_body, covariance)
+        return cls.from_initial_pose(world_from_body, covariance).start(init_std)
+
+    def start(self, init_std: Sequence[float]) -> np.ndarray | StartHint:
+        """What this hint starts: tracking from its pose ((4,) x, y, z, yaw) where it is a pose
+        alone whose spread in x, y and yaw is no wider than the tracking start's noise
+        (``init_std``: x, y, z m, yaw deg), else a search inside itself."""
+        if self.pose is None or self.region is not None or self.heading is not None:
+            return self
         std = np.array([init_std[0], init_std[1], np.deg2rad(init_std[3])], dtype=np.float64)
-        var = np.diag(hint.covariance)[[0, 1, 3]]
-        return hint.pose if bool((var <= std ** 2 + 1e-12).all()) else hint
+        var = np.diag(self.covariance)[[0, 1, 3]]
+        return self.pose if bool((var <= std ** 2 + 1e-12).all()) else self
 
     @property
     def heading_span(self) -> float:
@@ -305,11 +312,7 @@ def start_of_settings(hint, world_info: Mapping, free: OccupancyMap,
     (``init_std``: x, y, z m, yaw deg); a ``StartHint`` to search inside where anything else
     is set; None where nothing is. Raises as ``hint_from_settings``."""
     h = hint_from_settings(hint, world_info, free, init_std)
-    if h is None or h.region is not None or h.heading is not None or h.pose is None:
-        return h
-    std = np.array([init_std[0], init_std[1], np.deg2rad(init_std[3])], dtype=np.float64)
-    var = np.diag(h.covariance)[[0, 1, 3]]
-    return h.pose if bool((var <= std ** 2 + 1e-12).all()) else h
+    return None if h is None else h.start(init_std)
 
 
 def hint_from_settings(hint, world_info: Mapping, free: OccupancyMap,

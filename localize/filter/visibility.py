@@ -300,17 +300,16 @@ def load_or_build(world: World, points: np.ndarray, free: OccupancyMap | None,
     """The visibility lists from ``cache_dir/visibility_<key>.npz``, built and saved if
     missing (``free`` None: ``world.free``; ``settings`` as ``build_visibility``'s)."""
     free = world.free if free is None else free
-    vis_settings = settings
-    settings = {"cell_xy": settings.cell_xy, "cell_z": settings.cell_z, "pad": settings.pad,
-                "eps": settings.eps, "max_range": settings.max_range, "layout": "sparse"}
+    key = {"cell_xy": settings.cell_xy, "cell_z": settings.cell_z, "pad": settings.pad,
+           "eps": settings.eps, "max_range": settings.max_range, "layout": "sparse"}
     path = None
     if cache_dir is not None:
-        path = Path(cache_dir) / f"visibility_{cache_key(world, points, free, settings)}.npz"
+        path = Path(cache_dir) / f"visibility_{cache_key(world, points, free, key)}.npz"
         if path.is_file():
             with np.load(path) as f:
                 return SparseVisibility(*(f[k] for k in _ARRAYS), int(f["num_samples"]),
                                         float(f["max_range"]))
-    vis = build_visibility(world, points, free, vis_settings)
+    vis = build_visibility(world, points, free, settings)
     if path is not None:
         atomic_write(path, lambda p: np.savez(
             p, **{k: getattr(vis, k) for k in _ARRAYS}, num_samples=vis.num_samples,
