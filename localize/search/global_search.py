@@ -45,7 +45,7 @@ Interface (what the Localizer wires):
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
   log-weights.
 
-Settings: ``localize.config.GlobalSearchConfig`` (``filter.global_search``).
+Settings: ``localize.search.config.GlobalSearchConfig`` (``filter.global_search``).
 """
 
 from __future__ import annotations
@@ -56,9 +56,9 @@ from scipy.special import logsumexp
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
-from localize.config import GlobalSearchConfig
 from localize.filter.particle_filter import apply_increment, systematic_resample
 from localize.filter.pose_stats import mean_pose, spread
+from localize.search.config import GlobalSearchConfig
 from localize.search.ray_table import RayTable, floor_boundary
 
 _TABLES: dict = {}

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
-from localize.config import FilterConfig, GlobalSearchConfig, LocalizerConfig
+from localize.config import FilterConfig, LocalizerConfig
 from localize.filter.start_hint import StartHint
 from localize.localizer import EdgeModel, Localizer
+from localize.search.config import GlobalSearchConfig
 from localize.search.global_search import GlobalSearch, ray_table_for
 from localize.search.ray_table import RayTable, floor_boundary
 
