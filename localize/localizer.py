@@ -72,6 +72,19 @@ MIN_EDGE_FRACTION = 0.001
 MAX_CHANCE = 0.5
 
 
+def start_pose(start, where: str) -> np.ndarray:
+    """(4,) x, y, z (m), yaw (rad) of a start pose: (4,) as given, or a (4, 4) world_from_body's
+    position and heading (roll and pitch ignored). ValueError naming ``where`` for another
+    shape or a value that is not finite."""
+    s = np.asarray(start, dtype=np.float64)
+    if s.shape == (4, 4) and np.isfinite(s).all():
+        s = xyzyaw_from_pose(s)[0]
+    if s.shape != (4,) or not np.isfinite(s).all():
+        raise ValueError(f"{where}: expected (4,) x, y, z, yaw or a (4, 4) world_from_body, "
+                         f"finite, got {s.shape}")
+    return s
+
+
 #: classes that make a segment worth scoring: one of its sides must be one of them (an edge
 #: between clutter, people or void only is not part of the structural model).
 STRUCTURAL = (C.FLOOR, C.WALL, C.CEILING, C.DOOR, C.WINDOW)
@@ -273,13 +286,7 @@ class Localizer:
             if not self._start_search(start):
                 self.filter.init_global(start)
         else:
-            s = np.asarray(start, dtype=np.float64)
-            if s.shape == (4, 4):
-                s = xyzyaw_from_pose(s)[0]
-            if s.shape != (4,) or not np.isfinite(s).all():
-                raise ValueError(f"reset(start): expected (4,) x, y, z, yaw or a (4, 4) "
-                                 f"world_from_body, finite, got {s.shape}")
-            self.filter.init_tracking(s)
+            self.filter.init_tracking(start_pose(start, "reset(start)"))
         self._last_time = self._lost_at = None
 
     def step(self, image: np.ndarray | EdgeFrame | None, odometry_increment: np.ndarray | None,

@@ -38,7 +38,7 @@ from localize.filter.start_hint import StartHint, start_of_settings
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.live.mavlink import MavlinkSender, quality_of
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
-from localize.localizer import EdgeModel, Estimate, Localizer
+from localize.localizer import EdgeModel, Estimate, Localizer, start_pose
 from localize.recordings.recording import Rectifier, SourceCamera, check_rigid, delivered_camera
 from localize.ros2.config import Ros2Config
 from localize.ros2.convert import (
@@ -253,11 +253,12 @@ class LiveLocalizer:
         inside a ``StartHint``, or, None, globally; applied before the next frame. ValueError
         for a pose that is not a finite (4,) or (4, 4) (nothing changes then)."""
         if start is not None and not isinstance(start, StartHint):
-            start = np.asarray(start, np.float64)
-            if start.shape not in ((4,), (4, 4)) or not np.isfinite(start).all():
-                raise ValueError(f"re-localization from {start.tolist()} refused: give a finite "
-                                 "(4,) x, y, z, yaw or (4, 4) map pose; the current state is "
-                                 "kept")
+            try:
+                start = start_pose(start, "re-localization")
+            except ValueError:
+                raise ValueError(f"re-localization from {np.asarray(start).tolist()} refused: "
+                                 "give a finite (4,) x, y, z, yaw or (4, 4) map pose; the "
+                                 "current state is kept") from None
         with self._lock:
             self._reset = (True, start)
 
