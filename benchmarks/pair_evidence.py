@@ -34,12 +34,12 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.atomic import read_png  # noqa: E402
+from core.classes import pair_name  # noqa: E402
 from localize.context import Context  # noqa: E402
 from localize.filter.likelihood import EdgeLikelihood  # noqa: E402
 from localize.filter.pose_stats import estimate as estimate_pose  # noqa: E402
 from localize.filter.projection import ModelSamples, tilt_from_pose  # noqa: E402
 from localize.filter.visibility import SparseVisibility  # noqa: E402
-from localize.frontend.edge_image import pair_name  # noqa: E402
 from localize.frontend.front_end import EdgeFrame  # noqa: E402
 from localize.offline.runner import load_runs, prepare  # noqa: E402
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 #: (id, name, RGB colour) for every class, in id order.
@@ -53,3 +55,28 @@ def as_json() -> list[dict]:
         {"id": i, "name": n, "color": list(c), "structural": i in STRUCTURAL}
         for i, n, c in CLASSES
     ]
+
+
+def pair_code(a, b) -> np.ndarray:
+    """Code of the unordered class pair {a, b}: ``16 * min + max`` as uint8 (class ids < 16;
+    never 0 for two different classes).
+
+    Args:
+        a, b: class ids, scalars or arrays of one shape.
+    """
+    a = np.asarray(a, dtype=np.int64)
+    b = np.asarray(b, dtype=np.int64)
+    if (np.maximum(a, b) >= 16).any():
+        raise ValueError("class pair codes need class ids below 16")
+    return (16 * np.minimum(a, b) + np.maximum(a, b)).astype(np.uint8)
+
+
+def pair_classes(code):
+    """The two class ids (lower, higher) of a ``pair_code``; scalars or arrays of one shape."""
+    return code // 16, code % 16
+
+
+def pair_name(code: int, names: Mapping[int, str]) -> str:
+    """``"wall | door"`` for a ``pair_code``, from class names by id (an unnamed id as itself)."""
+    a, b = pair_classes(int(code))
+    return f"{names.get(a, a)} | {names.get(b, b)}"

@@ -38,6 +38,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from core import classes as C
+from core.classes import pair_code
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
@@ -54,7 +55,7 @@ from localize.filter.projection import (
 from localize.filter.start_hint import StartHint
 from localize.filter.visibility import SparseVisibility, load_or_build
 from localize.filter.visibility_budget import fit_grid_cached
-from localize.frontend.edge_image import EdgeImage, pair_code
+from localize.frontend.edge_image import EdgeImage
 from localize.frontend.front_end import EdgeFrame, FrontEnd
 from localize.search.global_search import GlobalSearch, ray_table_for
 

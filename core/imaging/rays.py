@@ -45,6 +45,8 @@ class RayCaster:
         """(n,) bool: the segment from origins[i] to targets[i] (both (n, 3) float64, metres)
         hits the mesh before ``eps`` metres short of the target."""
         o, d = origins, targets - origins
+        if len(o) == 0:
+            return np.zeros(0, dtype=bool)
         dist = np.linalg.norm(d, axis=1)
         d = d / np.maximum(dist, 1e-12)[:, None]
         maxt = np.maximum(dist - eps, 0.0)

@@ -13,7 +13,8 @@ import cv2
 import numpy as np
 
 from core import classes as C
-from localize.frontend.edge_image import EdgeImage, check_rgb, edge_normal_angle, pair_code
+from core.classes import pair_code
+from localize.frontend.edge_image import EdgeImage, check_rgb, edge_normal_angle
 
 
 def dilate(mask: np.ndarray, radius: int) -> np.ndarray:

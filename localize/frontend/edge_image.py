@@ -1,13 +1,12 @@
 """Edge images: edge pixels, where edges are known, and the class pair of each boundary.
 
 ``EdgeImage`` is what every edge mode makes (``localize.frontend.extractor``); beside it the
-class-pair code of a boundary (``pair_code``), the structure-tensor normal of an edge map
-(``edge_normal_angle``) and the RGB frame check (``check_rgb``).
+structure-tensor normal of an edge map (``edge_normal_angle``) and the RGB frame check
+(``check_rgb``). The class-pair code of a boundary is ``core.classes.pair_code``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import cv2
@@ -37,31 +36,6 @@ class EdgeImage:
                              "the same (H, W)")
         if self.pairs is not None and self.pairs.shape != self.edges.shape:
             raise ValueError(f"pairs {self.pairs.shape} must match edges {self.edges.shape}")
-
-
-def pair_code(a, b) -> np.ndarray:
-    """Code of the unordered class pair {a, b}: ``16 * min + max`` as uint8 (class ids < 16;
-    never 0 for two different classes).
-
-    Args:
-        a, b: class ids, scalars or arrays of one shape.
-    """
-    a = np.asarray(a, dtype=np.int64)
-    b = np.asarray(b, dtype=np.int64)
-    if (np.maximum(a, b) >= 16).any():
-        raise ValueError("class pair codes need class ids below 16")
-    return (16 * np.minimum(a, b) + np.maximum(a, b)).astype(np.uint8)
-
-
-def pair_classes(code):
-    """The two class ids (lower, higher) of a ``pair_code``; scalars or arrays of one shape."""
-    return code // 16, code % 16
-
-
-def pair_name(code: int, names: Mapping[int, str]) -> str:
-    """``"wall | door"`` for a ``pair_code``, from class names by id (an unnamed id as itself)."""
-    a, b = pair_classes(int(code))
-    return f"{names.get(a, a)} | {names.get(b, b)}"
 
 
 def check_rgb(rgb: np.ndarray) -> None:

@@ -13,7 +13,7 @@ from benchmarks.boundary_distance import (
     signed_offsets,
 )
 from core import classes as C
-from localize.frontend.edge_image import pair_code
+from core.classes import pair_code
 from localize.frontend.extractor import edge_settings
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.segmenter import LabelPredictor

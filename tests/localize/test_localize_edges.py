@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.classes import pair_classes, pair_code, pair_name
 from localize.config import HoughConfig
 from localize.frontend.boundaries import label_edges
 from localize.frontend.canny import canny_edges
-from localize.frontend.edge_image import EdgeImage, pair_classes, pair_code, pair_name
+from localize.frontend.edge_image import EdgeImage
 from localize.frontend.extractor import EdgeExtractor, edge_settings
 from localize.frontend.segmenter import (
     check_classes,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.classes import pair_code
 from core.config import typed
 from localize.config import VisibilityConfig
 from localize.filter.likelihood import (
@@ -23,7 +24,7 @@ from localize.filter.likelihood import (
 from localize.filter.projection import cam_from_world, sample_segments
 from localize.filter.visibility import build_visibility
 from localize.frontend.boundaries import label_edges
-from localize.frontend.edge_image import EdgeImage, pair_code
+from localize.frontend.edge_image import EdgeImage
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
 OFFSETS = np.array([[0.1, 0, 0, 0], [-0.1, 0, 0, 0], [0, 0.2, 0, 0], [0, -0.2, 0, 0],

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.pair_evidence import evidence, pair_likelihoods
+from core.classes import pair_code
 from localize.config import VisibilityConfig
 from localize.filter.likelihood import LikelihoodConfig
 from localize.filter.projection import cam_from_world, sample_segments
 from localize.filter.visibility import build_visibility
 from localize.frontend.boundaries import label_edges
-from localize.frontend.edge_image import pair_code
 from localize.frontend.front_end import EdgeFrame
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])

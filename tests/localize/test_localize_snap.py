@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.classes import pair_code
 from localize.frontend.boundaries import label_edges, snap_to_image_edges
-from localize.frontend.edge_image import pair_code
 from localize.frontend.extractor import EdgeExtractor
 from tests.localize.test_localize_edges import EDGES_CFG, cnn
 
