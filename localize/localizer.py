@@ -6,8 +6,9 @@ thinned one of the global phase) and a front end (``frontend.FrontEnd``: image -
 edge image). ``reset(start)`` starts it around a known pose or globally: with None or a
 ``start_hint.StartHint`` (a region, a pose with covariance, a heading range), by a global
 search over the free space (``global_search``, handing over to the filter once one pose
-dominates; the filter's uniform set, or the hint's, for mode ``none`` or
-``filter.global_method: particles``);
+dominates; the filter's uniform set, or the hint's, for mode ``none``,
+``filter.global_method: particles``, or a building the search cannot run on, with a warning:
+``global_search.start_search``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
 ``Estimate``. No file is read or written.
@@ -57,7 +58,7 @@ from localize.filter.visibility import SparseVisibility, load_or_build
 from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage
 from localize.frontend.front_end import EdgeFrame, FrontEnd
-from localize.search.global_search import GlobalSearch, ray_table_for
+from localize.search.global_search import GlobalSearch, start_search
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
@@ -128,9 +129,14 @@ class EdgeModel:
         me = settings.model_edges
         keep = scored_segments(world, me.min_length)
         if not keep.any():
-            raise ValueError(f"no model edge segment has a structural class on a side and "
-                             f">= model_edges.min_length ({me.min_length} m); check the "
-                             "world's segment classes")
+            src = world.info.get("source")
+            where = f" (from {src})" if src else ""
+            raise ValueError(f"world {world.info.get('name', '?')!r}{where}: no edge segment "
+                             "of world/edges.npz has a floor, wall, ceiling, door or window "
+                             f"on a side and is >= model_edges.min_length ({me.min_length} m), "
+                             "so there is no model edge to localize against; re-import the "
+                             "building with its surfaces classed (world.name_rules, "
+                             "docs/importers.md) or lower model_edges.min_length")
         samples, _ = sample_segments(world.segments, me.spacing).select(keep)
         vis = None
         if occlusion:
@@ -344,16 +350,15 @@ class Localizer:
     def _start_search(self, hint: StartHint | None = None) -> bool:
         """Start a global search (``filter.global_method: table``, a label mode, no likelihood
         override), inside ``hint`` (its ``log_prior``) if given; False when the uniform
-        particle set serves instead."""
+        particle set serves instead (also where the search cannot run on this building:
+        ``start_search`` warns once and returns None)."""
         fp = self.filter_params
         if (fp.global_method != "table" or self.front_end.mode == "none"
                 or self.likelihood_override is not None):
             return False
-        params = fp.global_search
-        self.search = GlobalSearch(ray_table_for(self.world, params), self.camera,
-                                   self.world.free, params, self.filter.rng)
-        self.search.reset(None if hint is None else hint.log_prior)
-        return True
+        self.search = start_search(self.world, self.camera, fp.global_search, self.filter.rng,
+                                   None if hint is None else hint.log_prior)
+        return self.search is not None
 
     def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float) -> Estimate:

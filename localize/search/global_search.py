@@ -29,8 +29,13 @@ the tracking filter's particles from that cluster.
 
 Interface (what the Localizer wires):
 
-- ``search = GlobalSearch(table, camera, world.free, params, rng)``; ``table = ray_table_for(world,
-  params)`` (built once per world and kept).
+- ``search = start_search(world, camera, params, rng, prior)``: the search, reset; None where
+  it cannot run (``ray_table.SearchUnavailable``: the model has no floor-to-wall, door or window
+  segment, or no pose of the grid lies in the free space or the prior), with one warning per
+  world and reason: the caller starts the uniform particle set instead (as
+  ``filter.global_method: particles``). It makes
+  ``GlobalSearch(ray_table_for(world, params), camera, world.free, params, rng)`` (the table
+  built once per world and kept).
 - ``search.reset(weights=None)``: the dense start; ``weights`` is an optional callable
   ``(N, 4) states -> (N,) log prior`` (a region, a pose with covariance, a heading range:
   ``-inf`` removes a hypothesis).
@@ -50,6 +55,8 @@ Settings: ``localize.search.config.GlobalSearchConfig`` (``filter.global_search`
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from scipy.special import logsumexp
 
@@ -59,9 +66,12 @@ from core.poses import wrap_angle
 from localize.filter.particle_filter import apply_increment, systematic_resample
 from localize.filter.pose_stats import mean_pose, spread
 from localize.search.config import GlobalSearchConfig
-from localize.search.ray_table import RayTable, floor_boundary
+from localize.search.ray_table import RayTable, SearchUnavailable, floor_boundary
 
+log = logging.getLogger(__name__)
 _TABLES: dict = {}
+#: [world, reasons]: the fallbacks already warned about (one world at a time, as ``_TABLES``).
+_WARNED: list = [None, set()]
 #: Hypotheses scored at once (bounds the (n, J) temporaries to a few MB).
 CHUNK = 32768
 
@@ -77,6 +87,27 @@ def ray_table_for(world: World, params: GlobalSearchConfig) -> RayTable:
     _TABLES.clear()  # one world at a time: a run localizes one dataset
     _TABLES[key] = (world, table)
     return table
+
+
+def start_search(world: World, camera: Camera, params: GlobalSearchConfig,
+                 rng: np.random.Generator, prior=None) -> GlobalSearch | None:
+    """A global search over ``world``, reset with ``prior`` (``GlobalSearch.reset``); None
+    where it cannot run (``SearchUnavailable``), after one warning per world and reason (the
+    localizers of one run share it): the caller then starts the uniform particle set, as with
+    ``filter.global_method: particles``. The one place a search is made."""
+    try:
+        search = GlobalSearch(ray_table_for(world, params), camera, world.free, params, rng)
+        search.reset(prior)
+    except SearchUnavailable as err:
+        if _WARNED[0] is not world:
+            _WARNED[:] = [world, set()]
+        if str(err) not in _WARNED[1]:
+            _WARNED[1].add(str(err))
+            log.warning("%s; the global start falls back to the uniform particle spread "
+                        "(filter.global_method=particles; set it to start so without this "
+                        "warning)", err)
+        return None
+    return search
 
 
 def bin_keys(states: np.ndarray, size: float = 0.5, yaw_deg: float = 20.0) -> np.ndarray:
@@ -122,17 +153,24 @@ class GlobalSearch:
 
     def reset(self, weights=None) -> None:
         """The dense start: every free cell of the table x ``headings`` headings, jittered
-        within its cell and heading bin; ``weights``: optional ``(N, 4) -> (N,)`` log prior."""
+        within its cell and heading bin; ``weights``: optional ``(N, 4) -> (N,)`` log prior.
+        ``SearchUnavailable`` when no pose is left (no cell centre in the free space, or none
+        the prior allows)."""
         self._version += 1
         self.states = self._grid(self.params.headings)
+        if not len(self.states):
+            raise SearchUnavailable(f"no cell centre of the global search's grid "
+                                    f"(filter.global_search.cell = {self.table.cell} m) lies in "
+                                    "the free space")
         self.logw = np.zeros(len(self.states))
         self._prior = weights
         if weights is not None:
             self.logw = np.asarray(weights(self.states), dtype=np.float64)
             keep = np.isfinite(self.logw)
             if not keep.any():
-                raise ValueError("global search: the hint's prior leaves no pose of the free "
-                                 "space; check the region / pose / heading range")
+                raise SearchUnavailable("global search: the hint's prior leaves no pose of "
+                                        "its grid (filter.global_search.cell = "
+                                        f"{self.table.cell} m) in the free space")
             self.states, self.logw = self.states[keep], self.logw[keep]
         self.logw -= logsumexp(self.logw)
         self._held, self._dominant, self._frames = 0, None, 0

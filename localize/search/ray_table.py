@@ -32,18 +32,25 @@ from core.occupancy import OccupancyMap
 STANDING = (C.WALL, C.DOOR, C.WINDOW)
 
 
+class SearchUnavailable(ValueError):
+    """The global search cannot run on this building (or inside this start hint): its model
+    holds nothing the search measures, or its grid no pose. The ``Localizer`` then starts
+    with the uniform particle set (``global_search.start_search``)."""
+
+
 def floor_boundary_segments(world: World) -> tuple[np.ndarray, np.ndarray]:
     """(M, 2, 2) xy (m) of the world's edge segments between the floor and a standing class
-    (``STANDING``) and (M,) uint8 that class; raises naming the world when there are none."""
+    (``STANDING``) and (M,) uint8 that class; ``SearchUnavailable`` naming the world when
+    there are none (walls on a slab of their own, sharing no vertex with the floor)."""
     seg = np.asarray(world.segments, dtype=np.float64).reshape(-1, 2, 3)
     sc = np.asarray(world.segment_classes).reshape(-1, 2)
     floor = sc == C.FLOOR
     keep = (floor[:, 0] & np.isin(sc[:, 1], STANDING)) | (floor[:, 1] & np.isin(sc[:, 0],
                                                                                  STANDING))
     if not keep.any():
-        raise ValueError(f"world {world.info.get('name', '?')!r} has no edge segment between "
-                         "the floor and a wall, door or window: the global search has nothing "
-                         "to match; use filter.global_method=particles")
+        raise SearchUnavailable(f"world {world.info.get('name', '?')!r} has no edge segment "
+                                "between the floor and a wall, door or window "
+                                "(world/edges.npz): the global search has nothing to match")
     other = np.where(floor[:, 0], sc[:, 1], sc[:, 0])
     return seg[keep][:, :, :2], other[keep].astype(np.uint8)
 

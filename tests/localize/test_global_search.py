@@ -3,16 +3,20 @@ corridor, with labels rendered from the structural model."""
 
 from __future__ import annotations
 
+import dataclasses
+import logging
+
 import numpy as np
 import pytest
 
+from core import classes as C
 from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
 from localize.config import FilterConfig, LocalizerConfig
 from localize.filter.start_hint import StartHint
 from localize.localizer import EdgeModel, Localizer
 from localize.search.config import GlobalSearchConfig
 from localize.search.global_search import GlobalSearch, ray_table_for
-from localize.search.ray_table import RayTable, floor_boundary
+from localize.search.ray_table import STANDING, RayTable, SearchUnavailable, floor_boundary
 
 #: A path through the small corridor (free x in [-1.9, 0.7], y in [0.3, 3.7]), low enough to
 #: see the floor meet the side walls (a 70 deg camera): along it,
@@ -155,9 +159,80 @@ def test_localizer_hint_weighs_the_search(small_world, camera):
 def test_floor_boundary_only_above_the_horizon_is_none(camera):
     """Floor under a wall only in the image's top rows (rays going up: labels no real floor
     shows, a poorly trained SegNet's): no boundary bin, not an IndexError."""
-    from core import classes as C
-
     lab = np.full((camera.height, camera.width), C.CEILING, np.uint8)
     lab[0], lab[1] = C.WALL, C.FLOOR
     fb = floor_boundary(lab, camera, None, 180)
     assert len(fb.offsets) == 0
+
+
+def without_floor_boundary(world):
+    """``world`` with its edge segments between the floor and a wall, door or window dropped:
+    walls standing on a slab of their own, sharing no vertex with the floor."""
+    sc = np.asarray(world.segment_classes)
+    standing = np.isin(sc, STANDING)
+    pair = ((sc[:, 0] == C.FLOOR) & standing[:, 1]) | ((sc[:, 1] == C.FLOOR) & standing[:, 0])
+    assert pair.any() and not pair.all()
+    keep = ~pair
+    return dataclasses.replace(world, segments=world.segments[keep], segment_classes=sc[keep],
+                               crease_deg=world.crease_deg[keep],
+                               info={**world.info, "name": "slab"})
+
+
+def test_no_floor_boundary_falls_back_to_the_uniform_spread(small_world, camera, rendered,
+                                                            caplog):
+    """A model without floor-to-wall segments: the default global start (``table``) warns
+    once, naming the reason and the setting, and starts the uniform particle set over the free
+    space (as ``global_method: particles``) instead of raising; later starts on the world (a
+    re-localization, another localizer) warn no more, and the filter steps."""
+    world = without_floor_boundary(small_world)
+    with pytest.raises(SearchUnavailable, match="no edge segment between the floor"):
+        ray_table_for(world, PARAMS)
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_particles=2000,
+                                                   global_search=PARAMS))
+    assert settings.filter.global_method == "table"
+    model = EdgeModel.build(world, settings, occlusion=False).for_mode(world, "oracle")
+    locs = [Localizer(world, camera, "oracle", settings, np.random.default_rng(i), model=model)
+            for i in range(2)]
+    with caplog.at_level(logging.WARNING):
+        for loc in locs + locs:
+            loc.reset(None)
+    warned = [r.getMessage() for r in caplog.records if "falls back" in r.getMessage()]
+    assert len(warned) == 1, warned
+    assert "'slab' has no edge segment between the floor" in warned[0]
+    assert "filter.global_method=particles" in warned[0]
+    loc = locs[0]
+    assert loc.search is None
+    P = loc.filter.particles
+    free = world.free
+    assert P.shape == (settings.filter.global_count(free.area), 4)
+    assert free.contains(P[:, :2]).all()
+    assert ((P[:, 2] >= free.band[0]) & (P[:, 2] <= free.band[1])).all()
+    # spread over the whole free space and every heading, not around one pose
+    x0, y0, x1, y1 = free.free_bounds
+    assert np.ptp(P[:, 0]) > 0.8 * (x1 - x0) and np.ptp(P[:, 1]) > 0.8 * (y1 - y0)
+    assert np.histogram(P[:, 3], 8, (-np.pi, np.pi))[0].min() > 0.08 * len(P)
+    poses, labels = rendered
+    e = loc.step(None, None, poses[0], 0.0, labels=labels[0])
+    assert e.status == "ambiguous" and np.isfinite(e.state).all()
+
+
+def test_a_hint_the_grid_misses_falls_back_to_the_hint_spread(small_world, camera, caplog):
+    """A hint region inside the free space that no pose of the search's grid (cell centres
+    jittered within their cell) falls in: the particles drawn inside the hint, with a warning,
+    instead of raising."""
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_particles=500,
+                                                   global_search=PARAMS))
+    model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
+                                                                             "oracle")
+    loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
+                    model=model)
+    table = ray_table_for(small_world, PARAMS)
+    corner = table.origin + np.floor((np.array([-0.6, 2.0]) - table.origin) / table.cell) \
+        * table.cell  # a cell corner: the grid's centres are half a cell away in x and y
+    region = [*(corner - 0.001), *(corner + 0.001)]
+    with caplog.at_level(logging.WARNING):
+        loc.reset(StartHint(region=region))
+    assert loc.search is None
+    assert any("leaves no pose" in r.getMessage() for r in caplog.records)
+    P = loc.filter.particles
+    assert len(P) and (np.abs(P[:, :2] - corner) <= 0.001 + 1e-9).all()

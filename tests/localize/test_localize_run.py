@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from core.dataset import load_world
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, read_tum
 from localize.filter.likelihood import LikelihoodConfig
@@ -243,6 +244,42 @@ class TestBadInput:
         cfg = localize_cfg([*QUICK, f"dataset={ds}", f"out_root={tmp_path}", "modes=[oracle]"])
         with pytest.raises(FileNotFoundError, match="edges.npz"):
             run(cfg)
+
+    def test_model_without_structural_edges(self, tiny_dataset, tmp_path):
+        """No edge segment with a structural class on a side: refused before any run, naming
+        the world, its edges file and the fix."""
+        from core import classes as C
+
+        ds = tmp_path / "ds"
+        shutil.copytree(tiny_dataset, ds)
+        w = load_world(ds / "world")
+        np.savez(ds / "world" / "edges.npz", segments=w.segments,
+                 classes=np.full_like(w.segment_classes, C.CLUTTER), crease_deg=w.crease_deg)
+        cfg = localize_cfg([*QUICK, f"dataset={ds}", f"out_root={tmp_path}", "modes=[oracle]"])
+        with pytest.raises(ValueError, match=r"world '.*': no edge segment of world/edges.npz "
+                           r"has a floor.*world.name_rules.*model_edges.min_length"):
+            run(cfg)
+
+
+def test_a_building_without_floor_boundary_runs(flat_dataset, tmp_path, caplog):
+    """Walls on a slab of their own (no floor-to-wall edge segment): the default global start
+    (the table search) falls back to the uniform particle set with one warning for the whole
+    run (both flights' localizers), and the run writes its report."""
+    from tests.localize.test_global_search import without_floor_boundary
+
+    ds = tmp_path / "slab"
+    shutil.copytree(flat_dataset, ds)
+    w = without_floor_boundary(load_world(ds / "world"))
+    np.savez(ds / "world" / "edges.npz", segments=w.segments, classes=w.segment_classes,
+             crease_deg=w.crease_deg)
+    cfg = localize_cfg([*QUICK, f"dataset={ds}", f"out_root={tmp_path}", "name=slab",
+                        "modes=[oracle]", "inits=[global]", "max_frames=4"])
+    assert cfg.filter.global_method == "table"
+    with caplog.at_level(logging.WARNING):
+        path = run(cfg)
+    assert path.is_file()
+    warned = [r.getMessage() for r in caplog.records if "falls back" in r.getMessage()]
+    assert len(warned) == 1 and "filter.global_method=particles" in warned[0], warned
 
 
 class TestFlightSets:
