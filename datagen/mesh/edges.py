@@ -16,6 +16,7 @@ import numpy as np
 
 from core import classes as C
 from datagen.mesh.building import face_areas_normals
+from datagen.mesh.contacts import ContactConfig, contact_lines, split_pieces
 from datagen.mesh.edge_polylines import merge_near_collinear, simplify_segments
 from datagen.mesh.planar_regions import (
     RegionConfig,
@@ -43,6 +44,8 @@ class EdgeExtractionConfig:
     Attributes:
         regions: how faces are grown into planar regions, whose fitted normals the crease
             test compares (``planar_regions.RegionConfig``).
+        contacts: how lines where a surface meets another it shares no vertex with are
+            found (``contacts.ContactConfig``).
         simplify_m: metres, the tolerance of straightening chained pieces
             (``edge_polylines.simplify_segments``; 0: exactly collinear points only).
         min_length: metres; shorter segments (after merging) are dropped.
@@ -54,6 +57,7 @@ class EdgeExtractionConfig:
     """
 
     regions: RegionConfig = field(default_factory=RegionConfig)
+    contacts: ContactConfig = field(default_factory=ContactConfig)
     simplify_m: float = 0.02
     min_length: float = 0.05
     straighten_class_changes: bool = False
@@ -73,7 +77,9 @@ def extract_edges(
     region's class (the area-majority of its classed faces). Boundary edges (one face) are
     classed by the surface they meet (``probe_boundary``): a wall standing on a floor as a
     separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
-    degrees. A closed mesh without coincident faces has neither, so nothing is cast. The
+    degrees. Lines where a surface meets another it shares no vertex with (a wall sunk into
+    a slab, a door frame on a wall) are found by cutting the large flat regions' planes
+    (``contacts.contact_lines``). The
     creases and boundary edges are straightened (``straighten``, ``settings.simplify_m``),
     the class boundaries kept as they run (``settings.straighten_class_changes``);
     collinear touching pieces are merged (``merge_collinear``) and those under
@@ -142,6 +148,14 @@ def extract_edges(
     seg, ang = np.concatenate(seg), np.concatenate(ang)
     cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
     part = np.concatenate(part)
+    c_seg, c_cls, c_ang, c_plane = contact_lines(
+        vertices, faces, face_class, normals, region, rnormal, seg,
+        (probe or BoundaryProbe()).variant, settings.contacts)
+    kept = (c_ang > crease_deg) | (c_cls[:, 0] != c_cls[:, 1])
+    c_seg, c_ang = c_seg[kept], c_ang[kept]
+    c_cls = np.sort(c_cls[kept], axis=1)
+    c_part = np.stack([-2 - c_plane[kept], np.full(kept.sum(), -2)], 1)
+    c_seg, c_cls, c_ang = straighten(c_seg, c_cls, c_ang, c_part, crease_deg, settings.simplify_m)
     # class boundaries between two classes stay where the faces' classes change (what a
     # label image shows, triangle side by triangle side); the rest are straightened
     exact = (cls[:, 0] != cls[:, 1]) & (cls[:, 0] != C.VOID)
@@ -153,6 +167,8 @@ def extract_edges(
         ang = np.concatenate([ang[exact], ang_s])
     else:
         seg, cls, ang = straighten(seg, cls, ang, part, crease_deg, settings.simplify_m)
+    seg, cls, ang = (np.concatenate([seg, c_seg]), np.concatenate([cls, c_cls]),
+                     np.concatenate([ang, c_ang]))
     seg, cls, ang = merge_collinear(seg, cls, ang)
     long = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= settings.min_length
     return seg[long], cls[long], ang[long]
@@ -312,12 +328,7 @@ def probe_boundary(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarr
     probe = probe or BoundaryProbe()
     p, q = vertices[edges[:, 0]], vertices[edges[:, 1]]
     length = np.linalg.norm(q - p, axis=1)
-    n = np.maximum(np.ceil(length / probe.step).astype(np.int64), 1)
-    which = np.repeat(np.arange(len(edges)), n)
-    j = np.arange(len(which)) - np.repeat(np.cumsum(n) - n, n)
-    a, b = (j / n[which])[:, None], ((j + 1) / n[which])[:, None]
-    pieces = np.stack([(1 - a) * p[which] + a * q[which], (1 - b) * p[which] + b * q[which]],
-                      axis=1)
+    pieces, which = split_pieces(p, q, probe.step)
     # in-plane direction across the edge, away from the owning face's third vertex
     third = vertices[faces[owner].sum(axis=1) - edges.sum(axis=1)]
     d = (q - p) / np.maximum(length, 1e-12)[:, None]
