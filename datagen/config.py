@@ -418,7 +418,8 @@ class OdometryConfig:
 class RouteConfig:
     """A route planned through the free space (datagen/flights/routes.py ``plan_route``): the
     cheapest path between two far-apart cells on the free space's ridge (the middle of
-    corridors and rooms), simplified and its corners rounded."""
+    corridors and rooms), simplified and its corners rounded; where none has min_length /
+    min_turns, one fitted to the free space (fewer turns, or laps of a loop; a warning)."""
 
     extra_margin: float = 0.3  # m the route keeps from obstacles beyond the map's margin
     # (room for the flight's sway; narrower passages such as doors are left out)
@@ -430,10 +431,11 @@ class RouteConfig:
     turn_radius: float = 1.0  # m; a corner is rounded from this far before to this far after
     # it (less where the free space is tighter)
     spacing: float = 0.05  # m between the route's points
-    min_length: float = 0.0  # m; a shorter route is drawn again (up to `tries` routes)
+    min_length: float = 0.0  # m; a shorter route (or one under 2 m) is drawn again (up to
+    # `tries` routes)
     min_turns: int = 0  # turns of >= turn_deg a route must have (else drawn again)
     turn_deg: float = 60.0
-    tries: int = 8  # routes drawn before giving up on min_length / min_turns
+    tries: int = 8  # routes drawn before fitting one to the free space
 
 
 @dataclass
@@ -451,7 +453,8 @@ class FlightConfig:
     # one planned through the free space (route_settings); or waypoints [[x, y], ...] (m)
     route_settings: RouteConfig = field(default_factory=lambda: RouteConfig(min_turns=2))
     # planning of an `auto` route; its min_length is raised to what the flight needs (speed
-    # x duration); where none has them, a route without them is flown (a warning)
+    # x duration); where none has them, one fitted to the free space is flown (a warning:
+    # fewer turns, or laps of a loop around a room or down and up a short corridor)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
 

@@ -1,7 +1,8 @@
 """Routes through the free space of an occupancy map, and motion along them.
 
 A route is an (K, 2) polyline in metres (world x, y), its points ``spacing`` apart, every
-point in free space. ``plan_route`` finds a long one between two far-apart cells;
+point in free space. ``plan_route`` finds a long one between two far-apart cells (where the
+space has none as long as asked, laps of a loop around it: ``loops``);
 ``route_from_waypoints`` checks and smooths a user's. ``route_at`` turns an arc length into
 a position and the direction of travel, the frame a flight's sway (along the left normal)
 and yaw swings (about the tangent) are added in; ``route_to_trajectory`` flies a route at a
@@ -10,7 +11,9 @@ speed. ``find_turns`` reports the route's turns.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 from scipy import ndimage, sparse
@@ -19,9 +22,15 @@ from scipy.sparse import csgraph
 from core.config import as_config
 from core.occupancy import OccupancyMap
 from datagen.config import RouteConfig
+from datagen.flights.loops import extent_text, perimeter_loop
+
+log = logging.getLogger(__name__)
 
 _BEZIER_POINTS = 16  # samples of a rounded corner before resampling
 _HALVINGS = 6  # times a corner's radius is halved before it is left sharp
+LOOP_INSETS = (1.0, 0.5, 0.25)  # m a fitted loop may keep inside the route's free space
+# (the first whose lap is long enough; less where narrower)
+MIN_ROUTE_M = 2.0  # m, the shortest route (a loop's lap) a flight is fitted to
 
 
 # ---------------------------------------------------------------------- planning
@@ -60,7 +69,7 @@ def route_graph(occ: OccupancyMap, wall_cost: float) -> tuple[sparse.csr_matrix,
 
 
 def plan_route(occ: OccupancyMap, rng: np.random.Generator,
-               settings: RouteConfig | Mapping | None = None) -> np.ndarray:
+               settings: RouteConfig | Mapping | None = None, fit: bool = True) -> np.ndarray:
     """A long route through the largest connected free region, ``extra_margin`` farther from
     obstacles than the map's margin.
 
@@ -69,16 +78,26 @@ def plan_route(occ: OccupancyMap, rng: np.random.Generator,
     costliest to reach is one end, A; the other, B, is drawn among the ridge cells at >=
     ``far_fraction`` of the costliest route from A. The cheapest A -> B path
     (``route_graph``) is simplified and its corners rounded (``smooth_route``). A route
-    shorter than ``min_length`` or with fewer than ``min_turns`` turns is drawn again, up to
-    ``tries`` times.
+    shorter than ``min_length`` (at least ``MIN_ROUTE_M``) or with fewer than ``min_turns``
+    turns is drawn again, up to ``tries`` times.
+
+    Where none of the draws holds, ``fit`` fits the route to the free space (``_fitted``,
+    with a warning naming what was relaxed): the drawn route of ``min_length`` with the most
+    turns, else laps of a loop around the region (``loops.perimeter_loop``) as long as
+    ``min_length``.
 
     Args:
         occ: the free space.
         rng: random generator (the start cell and B).
         settings: ``RouteConfig`` (or a mapping of the keys that differ; None: defaults).
+        fit: fit the route to the free space where no draw holds; False: raise.
 
     Returns:
         (K, 2) m route points, ``settings.spacing`` apart.
+
+    Raises:
+        ValueError: bad settings; no free space; without ``fit``, no draw holding; with it,
+            a free space without room for a route of ``MIN_ROUTE_M``.
     """
     c = as_config(RouteConfig, settings, "route")
     if not 0 < c.far_fraction <= 1:
@@ -88,29 +107,127 @@ def plan_route(occ: OccupancyMap, rng: np.random.Generator,
                          f"{c.wall_cost}, {c.tries}")
     if c.extra_margin < 0:
         raise ValueError(f"route.extra_margin must be >= 0, got {c.extra_margin}")
-    occ = occ.eroded(c.extra_margin)
+    given, occ = occ, occ.eroded(c.extra_margin)
     if not occ.free.any():
         raise ValueError(f"route: no free space is {occ.margin} m from obstacles (the map's "
-                         f"margin plus route.extra_margin {c.extra_margin}); lower "
-                         "route.extra_margin")
+                         f"margin plus route.extra_margin {c.extra_margin}; the free space is "
+                         f"{extent_text(given.free, given.cell)}); lower route.extra_margin")
     graph, cells = route_graph(occ, c.wall_cost)
     _, label = csgraph.connected_components(graph, directed=False)
     region = label == np.bincount(label).argmax()
-    if region.sum() < 2:
+    if region.sum() < 2 and not fit:
         raise ValueError("route: the free space is a single cell; lower the margin or the "
                          "cell size")
     clear = occ.clearance.astype(np.float64) * occ.free
     ridge = (clear >= ndimage.maximum_filter(clear, size=3) - 1e-6).flat[cells] & region
-    best = (-1, -1.0)
-    for _ in range(c.tries):
+    need = max(c.min_length, MIN_ROUTE_M)
+    best, drawn = (-1, -1.0), []
+    for _ in range(c.tries if region.sum() >= 2 else 0):
         route = _far_route(occ, graph, cells, np.flatnonzero(region), ridge, rng, c)
-        found = (count_turns(route, c.turn_deg), route_length(route))
-        if found[1] >= c.min_length and found[0] >= c.min_turns:
+        length = route_length(route)  # 0 where both ends fell in one cell (a tiny space)
+        found = (count_turns(route, c.turn_deg) if length > 0 else 0, length)
+        if found[1] >= need and found[0] >= c.min_turns:
             return route
         best = max(best, found)
-    raise ValueError(f"route: no route of >= {c.min_length} m with >= {c.min_turns} turns of "
-                     f">= {c.turn_deg} deg in {c.tries} tries (best: {best[1]:.1f} m, "
-                     f"{best[0]} turns); lower route.min_length / min_turns or give waypoints")
+        drawn.append((found, route))
+    asked = (f"no route of >= {need:.1f} m with >= {c.min_turns} turns of >= "
+             f"{c.turn_deg} deg in {c.tries} tries (best: {best[1]:.1f} m, {best[0]} turns)")
+    if not fit:
+        raise ValueError(f"route: {asked}; lower route.min_length / min_turns or give "
+                         "waypoints")
+    region_cells = np.zeros(occ.shape, bool)
+    region_cells.flat[cells[region]] = True
+    return _fitted(occ, given, region_cells, drawn, asked, replace(c, min_length=need), rng)
+
+
+def _fitted(occ: OccupancyMap, given: OccupancyMap, region: np.ndarray,
+            drawn: list[tuple[tuple[int, float], np.ndarray]], asked: str, c: RouteConfig,
+            rng: np.random.Generator) -> np.ndarray:
+    """``plan_route``'s route where no draw held: the draw of ``min_length`` with the most
+    turns, else laps of a loop (``_loop_laps``), else the longest draw; a warning names what
+    was relaxed.
+
+    Args:
+        occ: the map ``given`` eroded by ``c.extra_margin``.
+        given: the map ``plan_route`` was given (for the error).
+        region: (H, W) bool, the largest connected region of ``occ``.
+        drawn: ((turns, length m), (K, 2) m route) of each draw.
+        asked: what no draw held, for messages.
+        rng: random generator (where a loop starts, and which way round).
+
+    Raises:
+        ValueError: no loop or draw of ``MIN_ROUTE_M``, naming the free space's size.
+    """
+    long = [d for d in drawn if d[0][1] >= c.min_length]
+    if long:
+        (turns, length), route = max(long, key=lambda d: d[0])
+        log.warning("route: %s; flying a %.1f m route with %d turns (min_turns relaxed)",
+                    asked, length, turns)
+        return route
+    route, one = _loop_laps(occ, region, c, rng)
+    if route is not None:
+        log.warning("route: %s; flying %d lap(s) of a %.1f m loop around the free space "
+                    "instead of a route between far-apart places (%.1f m, %d turns)", asked,
+                    round(route_length(route) / one), one, route_length(route),
+                    count_turns(route, c.turn_deg))
+        return route
+    (_, length), route = max(drawn, key=lambda d: d[0][1], default=((0, 0.0), None))
+    if length >= MIN_ROUTE_M:
+        log.warning("route: %s; flying the longest, %.1f m (min_length relaxed: the flight "
+                    "is flown slower)", asked, length)
+        return route
+    raise ValueError(f"route: the free space is too small for a flight: "
+                     f"{extent_text(given.free, given.cell)} ({given.margin} m from obstacles), "
+                     f"its largest region {extent_text(region, occ.cell)} once "
+                     f"route.extra_margin {c.extra_margin} m farther: room for a route of "
+                     f"{max(length, one):.1f} m, under {MIN_ROUTE_M} m; lower "
+                     "route.extra_margin or the world's camera_margin, or fly a larger space")
+
+
+def _loop_laps(occ: OccupancyMap, region: np.ndarray, c: RouteConfig,
+               rng: np.random.Generator) -> tuple[np.ndarray | None, float]:
+    """Laps of a loop around a region (H, W) bool (``loops.perimeter_loop``), as many as
+    ``c.min_length`` takes.
+
+    The loop keeps the first of ``LOOP_INSETS`` whose lap reaches ``c.min_length`` (else the
+    longest lap: a lower inset gets through narrower gaps), is simplified (within half its
+    inset at most, so a corridor's loop keeps two lanes) and rounded as ``smooth_route``
+    does. It starts at the middle of a side drawn by its length, either way round.
+
+    Returns:
+        (K, 2) m route (None where one lap is under ``MIN_ROUTE_M``) and one lap's length (m;
+        0 without a loop).
+    """
+    lap, one = None, 0.0
+    for inset in LOOP_INSETS:
+        loop, kept = perimeter_loop(occ, region, inset)
+        if loop is None:
+            continue
+        simple = _simplify(occ, loop, min(c.simplify_m, max(kept, occ.cell) / 2))
+        length = route_length(_round_corners(occ, simple, c.turn_radius, c.spacing))
+        if length > one or length >= c.min_length:
+            lap, one = simple, length
+        if length >= c.min_length:
+            break
+    if lap is None or one < MIN_ROUTE_M:
+        return None, one
+    lap = _from_a_side(lap[::-1] if rng.random() < 0.5 else lap, rng)
+    laps = max(int(np.ceil(c.min_length / one)), 1)
+    while True:  # at most twice: resampled chords make laps a hair short
+        route = _round_corners(occ, np.concatenate([lap] + [lap[1:]] * (laps - 1)),
+                               c.turn_radius, c.spacing)
+        if route_length(route) >= c.min_length:
+            return route, one
+        laps += 1
+
+
+def _from_a_side(loop: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A closed polygon (V + 1, 2) m (last = first) started at the middle of a side drawn by
+    its length: (V + 2, 2) m, so laps join on a straight piece."""
+    side = np.linalg.norm(np.diff(loop, axis=0), axis=1)
+    i = int(rng.choice(len(side), p=side / side.sum()))
+    mid = (loop[i] + loop[i + 1]) / 2
+    return np.concatenate([mid[None], loop[i + 1:], loop[1 : i + 1], mid[None]])
 
 
 def _far_route(occ: OccupancyMap, graph: sparse.csr_matrix, cells: np.ndarray,

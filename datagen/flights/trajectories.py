@@ -250,9 +250,11 @@ def flight_route(preset: FlightConfig | Mapping, free: OccupancyMap,
     ``auto``: the world's own route if it has one (the corridor's centre line along +Y), else
     one planned through ``free`` (``routes.plan_route`` with the preset's
     ``route_settings``, at least the length the fastest flight needs; where there is none,
-    the slowest one's; where there is none either, any route, each with a warning) and cut
-    to the fastest flight's length where the part every flight flies turns most. A list of waypoints
-    [[x, y], ...] m: ``routes.route_from_waypoints``.
+    the slowest one's; where there is none either, one fitted to the free space: the
+    fastest flight's length with fewer turns, or laps of a loop around a room or down and up
+    a short corridor; each with a warning) and cut to the fastest flight's length where the
+    part every flight flies turns most. A list of waypoints [[x, y], ...] m:
+    ``routes.route_from_waypoints``.
 
     Args:
         preset: a flight preset (``FlightConfig`` or a mapping of the keys that differ).
@@ -263,6 +265,10 @@ def flight_route(preset: FlightConfig | Mapping, free: OccupancyMap,
 
     Returns:
         (K, 2) m route.
+
+    Raises:
+        ValueError: bad waypoints or route settings, or a free space too small for any
+            flight (naming ``where``.route and the setting to change).
     """
     preset = as_config(FlightConfig, preset, where)
     route = preset.route
@@ -270,18 +276,20 @@ def flight_route(preset: FlightConfig | Mapping, free: OccupancyMap,
         if own_route is not None:
             return np.asarray(own_route, dtype=np.float64)
         base = preset.route_settings
-        fallbacks = [replace(base, min_length=max(base.min_length, _route_needed(preset))),
-                     replace(base, min_length=_route_needed(preset, fastest=False)),
-                     replace(base, min_length=0.0, min_turns=0)]
-        for i, settings in enumerate(fallbacks):
+        fastest = replace(base, min_length=max(base.min_length, _route_needed(preset)))
+        fallbacks = [(fastest, False),
+                     (replace(base, min_length=_route_needed(preset, fastest=False)), False),
+                     (fastest, True)]
+        for i, (settings, fit) in enumerate(fallbacks):
             try:
-                planned = plan_route(free, rng, settings)
+                planned = plan_route(free, rng, settings, fit=fit)
                 break
             except ValueError as err:
-                if i == len(fallbacks) - 1:
+                if fit:
                     raise ValueError(f"{where}.route: {err}") from None
                 log.warning("%s.route: %s; trying %s", where, err,
-                            "the slowest flight's length" if i == 0 else "any route")
+                            "the slowest flight's length" if i == 0
+                            else "a route fitted to the free space")
         return _stretch_with_turns(planned, preset)
     if isinstance(route, str):
         raise ValueError(f"{where}.route must be 'auto' or waypoints [[x, y], ...] (m), got "

@@ -50,7 +50,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--cut", type=float, default=None, help="plan cut height in metres "
                    "(default: 1.5 m above the floor)")
     p.add_argument("--route-length", type=float, default=40.0, help="metres the planned route "
-                   "should reach (drawn again up to 8 times; default 40)")
+                   "should reach (drawn again up to 8 times, else laps of a loop around the "
+                   "free space; default 40)")
     p.add_argument("--seed", type=int, default=0, help="seed of the route's ends")
     return p.parse_args(argv)
 
@@ -59,10 +60,12 @@ def free_space_and_route(b: Building, min_length: float, seed: int
                          ) -> tuple[OccupancyMap, np.ndarray | None, dict]:
     """The free space above the building's floor as ``world=file`` builds it
     (``FileWorldConfig``: ``z_range``, ``camera_margin``, ``free_cell``), and a route through
-    it with at least two turns of 60 deg and ``min_length`` metres if one is found.
+    it with at least two turns of 60 deg and ``min_length`` metres, else one fitted to the free
+    space (``plan_route``: fewer turns, or laps of a loop; a warning).
 
     Returns:
-        the map, the route ((K, 2) m, or None) and the figures printed and stored in info.
+        the map, the route ((K, 2) m, or None where the free space is too small for any) and
+        the figures printed and stored in info.
     """
     occ = camera_free_space(b, FileWorldConfig(path=b.info["source"]))
     figures = {"free_area_m2": round(occ.area, 1)}

@@ -40,10 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    try:
-        route = plan_route(free, np.random.default_rng(spec.seed), {"min_turns": 1})
-    except ValueError:  # no route with a turn: a plain one
-        route = plan_route(free, np.random.default_rng(spec.seed))
+    route = plan_route(free, np.random.default_rng(spec.seed), {"min_turns": 1})  # else fitted
     out = Path(args.out)
     stem = f"procedural_{spec.seed}"
     plan = write_plan(b, out / f"{stem}_plan.png", free=free, paths=[route])

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import functools
+import logging
+
 import numpy as np
 import pytest
+import yaml
 
+from core.config import CONF, as_config
 from core.occupancy import OccupancyMap
+from datagen.config import FlightConfig
 from datagen.flights.routes import (
     count_turns,
     find_turns,
@@ -15,7 +21,8 @@ from datagen.flights.routes import (
     route_length,
     route_to_trajectory,
 )
-from tests.buildings import BAND, MARGIN, corridor_with_room, occupancy
+from datagen.flights.trajectories import flight_route, flight_trajectory
+from tests.buildings import BAND, MARGIN, THICK, assemble, corridor_with_room, occupancy
 
 
 def _check_route(occ: OccupancyMap, route: np.ndarray, spacing: float = 0.05) -> None:
@@ -74,12 +81,90 @@ class TestPlanRoute:
         others = [plan_route(ring_map, np.random.default_rng(s)) for s in (6, 7)]
         assert any(len(o) != len(a) or not np.allclose(o, a) for o in others)
 
-    def test_impossible_demand_is_a_clear_error(self):
+    def test_impossible_demand_is_a_clear_error_when_not_fitted(self):
         ell_map = occupancy("ell")
         with pytest.raises(ValueError, match=r"no route of >= 100.0 m .* in 2 tries \(best: "):
-            plan_route(ell_map, np.random.default_rng(0), {"min_length": 100.0, "tries": 2})
+            plan_route(ell_map, np.random.default_rng(0), {"min_length": 100.0, "tries": 2},
+                       fit=False)
         with pytest.raises(ValueError, match="far_fraction"):
             plan_route(ell_map, np.random.default_rng(0), {"far_fraction": 0.0})
+
+
+def walled_room(size_x: float, size_y: float, blocks: tuple = ()) -> OccupancyMap:
+    """The free space (BAND, MARGIN, 5 cm cells) of a closed room [0, size_x] x [0, size_y] m
+    with solid blocks ((B, 4) m [x0, y0, x1, y1]) in it."""
+    X, Y, t = size_x, size_y, THICK
+    walls = [(-t, -t, X + t, 0), (-t, Y, X + t, Y + t), (-t, 0, 0, Y), (X, 0, X + t, Y)]
+    mesh = assemble([(-t, -t, X + t, Y + t)], walls + list(blocks))
+    return OccupancyMap.from_mesh(*mesh, BAND, MARGIN, 0.05)
+
+
+@functools.cache
+def cafe() -> OccupancyMap:
+    """A 10 x 24 m open room (a cafe) with tables, a counter against a wall and a pillar."""
+    tables = [(3, 5, 4, 6), (6, 5, 7, 6), (3, 12, 4, 13), (6, 12, 7.5, 13)]
+    return walled_room(10.0, 24.0, (*tables, (0, 18, 2, 20.5), (8.8, 8, 10, 10)))
+
+
+def floor_preset() -> FlightConfig:
+    """conf/flights/floor.yaml's ``paper``: 1150 frames at 10 fps, 0.35-0.45 m/s."""
+    preset = yaml.safe_load((CONF / "flights" / "floor.yaml").read_text())["paper"]
+    return as_config(FlightConfig, preset, "flights.paper")
+
+
+class TestFittedRoutes:
+    """Where no route holds min_length / min_turns, one fitted to the free space."""
+
+    def test_open_room_flies_laps_of_a_loop(self, caplog):
+        occ = cafe()
+        routes = []
+        for seed in range(2):
+            with caplog.at_level(logging.WARNING, "datagen.flights.routes"):
+                route = plan_route(occ, np.random.default_rng(seed),
+                                   {"min_length": 100.0, "min_turns": 2})
+            assert "lap(s) of a" in caplog.text and "loop around the free space" in caplog.text
+            _check_route(occ, route)
+            assert route_length(route) >= 100.0
+            assert count_turns(route) >= 2 * 4  # twice round the room at least
+            assert occ.distance(route).min() >= MARGIN + 0.3 - 0.05  # route.extra_margin
+            routes.append(route)
+        assert not np.allclose(routes[0][0], routes[1][0])  # each seed starts elsewhere
+        with pytest.raises(ValueError, match="no route of >= 100.0 m"):
+            plan_route(occ, np.random.default_rng(0), {"min_length": 100.0}, fit=False)
+
+    def test_open_room_gets_a_floor_flight(self):
+        occ, preset = cafe(), floor_preset()
+        duration = (preset.num_frames - 1) / preset.fps
+        route = flight_route(preset, occ, None, np.random.default_rng(0), "flights.paper")
+        _check_route(occ, route)
+        assert route_length(route) >= preset.trajectory.speed[1] * duration  # ~52 m
+        assert occ.distance(route).min() >= MARGIN + 0.3 - 0.05
+        assert count_turns(route) >= preset.route_settings.min_turns
+        poses = flight_trajectory(np.random.default_rng(1), preset.num_frames, preset.fps,
+                                  route, occ, np.array(BAND), preset.trajectory)
+        xy = poses[:, :2, 3]
+        assert occ.contains(xy).all()
+        flown = np.linalg.norm(np.diff(xy, axis=0), axis=1).sum()
+        assert flown >= 0.9 * preset.trajectory.speed[0] * duration  # not flown slower
+
+    def test_long_enough_route_with_fewer_turns(self, caplog):
+        ell_map = occupancy("ell")
+        with caplog.at_level(logging.WARNING, "datagen.flights.routes"):
+            route = plan_route(ell_map, np.random.default_rng(0),
+                               {"min_length": 10.0, "min_turns": 2})
+        assert "min_turns relaxed" in caplog.text
+        assert route_length(route) >= 10.0 and count_turns(route) == 1  # the L's one turn
+
+    def test_tiny_room_is_a_clear_error(self):
+        occ = walled_room(1.8, 1.8)  # 1.2 x 1.2 m free
+        with pytest.raises(ValueError, match=r"free space is too small for a flight: "
+                           r"1\.\d x 1\.\d m.*lower route\.extra_margin"):
+            plan_route(occ, np.random.default_rng(0))
+        preset = floor_preset()
+        with pytest.raises(ValueError, match=r"flights\.paper\.route: .* too small"):
+            flight_route(preset, occ, None, np.random.default_rng(0), "flights.paper")
+        assert route_length(plan_route(walled_room(3.0, 3.0), np.random.default_rng(0),
+                                       {"min_length": 46.0})) >= 46.0  # loops a 3 m room
 
 
 class TestWaypoints:
