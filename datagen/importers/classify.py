@@ -4,8 +4,10 @@ Order: the format's class (IFC type, set by the reader); then the name rules on 
 specific part of the face's name that any rule matches (the material before the node,
 visual, link and model: ``name_evidence``); geometry overrules a name where a large horizontal
 surface is plainly floor or ceiling (``overruled``); the faces still without a class by
-geometry: a horizontal up-facing face within ``floor_tolerance`` of the storey floor is floor,
-a horizontal down-facing one ceiling, the rest wall.
+geometry: the model's own furniture (pieces standing on the floor that do not reach the
+storey's top: ``own_furniture``, ``datagen.mesh.furniture``) is clutter; of the rest, a
+horizontal up-facing face within ``floor_tolerance`` of the storey floor is floor, a
+horizontal down-facing one ceiling, the rest wall.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from scipy.sparse.csgraph import connected_components
 from core import classes as C
 from datagen.importers.config import NameRule
 from datagen.mesh.building import UNSET, Building, face_areas_normals, weighted_quantile
+from datagen.mesh.furniture import furniture_faces
 
 HORIZONTAL = 0.9  # |normal z| from which a face is horizontal (within ~25 deg)
 LARGE_M2 = 1.0  # m^2, a connected horizontal surface from which geometry overrules a name
@@ -161,11 +164,24 @@ def overruled(b: Building, z: np.ndarray, area: np.ndarray, normal: np.ndarray,
     return out
 
 
+def own_furniture(b: Building, normal: np.ndarray, unset: np.ndarray, floor_z: float,
+                  tolerance: float) -> np.ndarray:
+    """(F,) bool: the faces of ``unset`` (F,) bool that are the model's own furniture
+    (``datagen.mesh.furniture``: standing on the floor, not reaching the storey's top);
+    none where the storey is lower than ``MIN_STOREY`` (no top to measure against)."""
+    top = storey_top(b.vertices, b.faces, normal,
+                     ~np.isin(b.face_class, (C.DOOR, C.WINDOW, C.CLUTTER)))
+    if top is None or top - floor_z < MIN_STOREY or not unset.any():
+        return np.zeros(len(b.faces), bool)
+    return furniture_faces(b.vertices, b.faces, normal, unset, floor_z, top, tolerance)
+
+
 def classify(b: Building, rules: list[NameRule], tolerance: float, source: str) -> float:
     """Fill the UNSET classes of ``b`` in place (names, geometry over names, then geometry
-    for the rest) and check that the result has a floor below walls. Sets
-    ``b.info["classed_by"]``: faces classed by the format, by a name, by geometry over a
-    name, by geometry alone. Returns the floor height (m)."""
+    for the rest: furniture, floor, ceiling, wall) and check that the result has a floor
+    below walls. Sets ``b.info["classed_by"]``: faces classed by the format, by a name, by
+    geometry over a name, by geometry alone as floor, ceiling or wall, and as furniture
+    (clutter). Returns the floor height (m)."""
     area, normal = face_areas_normals(b.vertices, b.faces)
     z = b.vertices[b.faces][:, :, 2].mean(axis=1)
     unset = b.face_class == UNSET
@@ -185,10 +201,14 @@ def classify(b: Building, rules: list[NameRule], tolerance: float, source: str) 
     if (over == C.FLOOR).any():
         floor_z = floor_height(z, area, normal, b.face_class)
     unset = b.face_class == UNSET
+    furniture = own_furniture(b, normal, unset, floor_z, tolerance)
     b.face_class[unset] = geometry_classes(z[unset], normal[unset], floor_z, tolerance)
-    n_over = int((over != UNSET).sum())
+    b.face_class[furniture] = C.CLUTTER
+    n_over, n_furniture = int((over != UNSET).sum()), int(furniture.sum())
     b.info["classed_by"] = {"format": by_format, "name": int(named.sum()) - n_over,
-                            "geometry_over_name": n_over, "geometry": int(unset.sum())}
+                            "geometry_over_name": n_over,
+                            "geometry": int(unset.sum()) - n_furniture,
+                            "furniture": n_furniture}
     walls = b.face_class == C.WALL
     if not walls.any():
         raise ValueError(f"{source}: no wall faces found; add a name rule `pattern -> wall` "

@@ -47,9 +47,10 @@ class ImportConfig:
 
     Classes come first from the format (IFC type), then from ``name_rules`` (the most
     specific part of a name first), geometry overruling a name where a large horizontal
-    surface is plainly floor or ceiling, then from geometry: a horizontal face within
-    ``floor_tolerance`` of the storey's floor is floor, a down-facing one ceiling, the rest
-    wall (datagen/importers/classify.py).
+    surface is plainly floor or ceiling, then from geometry: a piece standing on the floor
+    and not reaching the storey's top is furniture, clutter (datagen/mesh/furniture.py); a
+    horizontal face within ``floor_tolerance`` of the storey's floor is floor, a down-facing
+    one ceiling, the rest wall (datagen/importers/classify.py).
     """
 
     path: str = ""  # the model file (.world/.sdf, .glb/.gltf/.obj/.ply/.dae/.stl, .ifc)

@@ -165,8 +165,8 @@ def test_the_corridor_edges_are_unchanged():
 @pytest.mark.slow
 def test_the_icl_scan_gives_few_straight_edges_with_vertical_corners():
     """The ICL office scan (../shared/worlds, imported with the defaults): a few hundred
-    straight segments instead of the ~10,000 of single-face creases, vertical wall corners
-    among them."""
+    straight segments instead of the ~10,000 of single-face creases, vertical corners among
+    them (most of them the desks', classed clutter as the scan's own furniture)."""
     if not SCAN.is_file():
         pytest.skip(f"{SCAN} is absent (../shared/worlds not here)")
     from datagen.importers import load_building
@@ -177,4 +177,4 @@ def test_the_icl_scan_gives_few_straight_edges_with_vertical_corners():
     length = _lengths(seg)
     assert length.min() >= 0.05
     vertical = (np.abs(seg[:, 1, 2] - seg[:, 0, 2]) > 0.9 * length) & (length > 0.5)
-    assert ((cls[vertical] == [C.WALL, C.WALL]).all(axis=1)).sum() >= 4
+    assert np.isin(cls[vertical], [C.WALL, C.CLUTTER]).all(axis=1).sum() >= 4

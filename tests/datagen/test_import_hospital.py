@@ -53,6 +53,8 @@ def test_hospital_import(hospital):
     assert abs(b.info["wall_top_z"] - 3.0) < 0.1
     # names decide everywhere (the material first); geometry overrules none of them
     assert b.info["classed_by"]["geometry_over_name"] == 0
+    # its own furniture is named; the elevator cars (2.5 m) and portals stay walls
+    assert b.info["classed_by"]["furniture"] == 0
     shares = b.info["class_shares"]
     for name, share in {"floor": 0.216, "wall": 0.483, "ceiling": 0.216, "door": 0.011,
                         "window": 0.002, "clutter": 0.072}.items():

@@ -12,6 +12,7 @@ from core import classes as C
 from datagen.config import FileWorldConfig
 from datagen.importers import load_building
 from datagen.importers.summary import import_summary
+from datagen.mesh.building import face_areas_normals
 from datagen.worlds.site import camera_free_space
 
 WORLDS = Path(__file__).resolve().parents[2] / ".." / "shared" / "worlds"
@@ -50,6 +51,7 @@ def test_bookstore_imports_with_the_defaults(bookstore):
     assert min(shares["door"], shares["window"]) > 0.01
     assert 3.2 < summary["wall_height_m"] < 3.7 and abs(b.info["floor_z"]) < 0.05
     assert 80 < free.area < 200
+    assert b.info["classed_by"]["furniture"] == 0  # names class all its pieces
     keys = {f["key"] for f in summary["flags"]}
     assert keys <= {"world.model_path", None}, summary["flags"]
 
@@ -66,3 +68,17 @@ def test_scan_imports_with_the_defaults(scan):
     floor = b.face_class == C.FLOOR
     np.testing.assert_allclose(b.vertices[b.faces[floor]][:, :, 2].mean(), b.info["floor_z"],
                                atol=0.1)
+
+
+def test_scan_desks_are_clutter(scan):
+    """The scan's desks, fused with its floor and walls, are its own furniture (clutter): the
+    desk tops (up-facing, 0.6-1.0 m above the floor), not the walls above 1.9 m."""
+    b = scan[0]
+    area, normal = face_areas_normals(b.vertices, b.faces)
+    h = b.vertices[b.faces][:, :, 2].mean(axis=1) - b.info["floor_z"]
+    clutter = b.face_class == C.CLUTTER
+    tops = (normal[:, 2] > 0.9) & (h > 0.6) & (h < 1.0)
+    assert area[tops].sum() > 2.5 and area[tops & clutter].sum() > 0.95 * area[tops].sum()
+    high = (np.abs(normal[:, 2]) < 0.3) & (h > 1.9)
+    assert area[high].sum() > 4 and (b.face_class[high] == C.WALL).all()
+    assert b.info["class_shares"]["clutter"] > 0.1 and b.info["class_shares"]["wall"] > 0.3
