@@ -83,7 +83,7 @@ def main() -> int:
     best = np.inf
     for _ in range(args.repeat):
         t0 = time.perf_counter()
-        seg, cls, crease = extract_edges(b.vertices, b.faces, b.face_class, spec.crease_deg,
+        seg, cls, crease, _ = extract_edges(b.vertices, b.faces, b.face_class, spec.crease_deg,
                                          BoundaryProbe(step=args.step))
         best = min(best, time.perf_counter() - t0)
     print(f"{args.path.name}: {len(b.faces)} faces -> {len(seg)} segments, "

@@ -6,7 +6,8 @@
   stats.json                   images_per_second, counts, render settings
   world/model.ply              structural mesh, face colour = class colour
   world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
-  world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8
+  world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8,
+                               outline (M,2,3) f8 (core.outline)
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
   world_truth/                 with realism.map only: the rendered world (world/ is then the
@@ -72,7 +73,9 @@ class World:
 
     vertices (V,3) metres, faces (F,3), face_class (F,) class ids; segments (M,2,3) metres,
     segment_classes (M,2), crease_deg (M,); free: where a camera centre may be (an occupancy
-    map of the flyable heights, ``free.band``); info: world.json.
+    map of the flyable heights, ``free.band``); info: world.json; outline (M,2,3): for an
+    outline segment its two faces' normals, NaN for the others (``core.outline``; None: no
+    outlines).
     """
 
     vertices: np.ndarray
@@ -83,6 +86,7 @@ class World:
     crease_deg: np.ndarray
     free: OccupancyMap
     info: dict
+    outline: np.ndarray | None = None
 
     @property
     def z_range(self) -> np.ndarray:
@@ -338,6 +342,7 @@ def load_world(world_dir: str | Path) -> World:
         vertices=m["vertices"], faces=m["faces"], face_class=m["face_class"],
         segments=e["segments"], segment_classes=e["classes"], crease_deg=e["crease_deg"],
         free=OccupancyMap.load(d / "free.npz"), info=info,
+        outline=e["outline"] if "outline" in e else None,
     )
 
 

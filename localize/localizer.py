@@ -147,8 +147,10 @@ class EdgeModel:
                 g = fit_grid_cached(cache_dir, world, samples.points, free, cell_xy, cell_z,
                                     v.pad, v.eps, max_range, v.max_gb, v.variant)
                 cell_xy, cell_z, max_range = g.cell_xy, g.cell_z, g.max_range
+            outline = None if world.outline is None else world.outline[samples.segment]
             vis = load_or_build(world, samples.points, free, cache_dir,
-                                replace(v, cell_xy=cell_xy, cell_z=cell_z, max_range=max_range))
+                                replace(v, cell_xy=cell_xy, cell_z=cell_z, max_range=max_range),
+                                outline)
         sc = np.asarray(world.segment_classes)[samples.segment]
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 
@@ -159,6 +161,17 @@ class EdgeModel:
         keep = (sc[:, 0] != sc[:, 1]) & (sc.min(axis=1) > 0)
         if not keep.any():
             return self
+        return self._subset(keep)
+
+    def without_outlines(self, world: World) -> EdgeModel:
+        """The samples of every segment but the outlines (``core.outline``: a crease is
+        there already as itself, seen from everywhere); this model when there are none."""
+        if world.outline is None or np.isnan(world.outline).all():
+            return self
+        return self._subset(np.isnan(world.outline).all(axis=(1, 2)))
+
+    def _subset(self, keep: np.ndarray) -> EdgeModel:
+        """The samples of the segments ``keep`` (M,) bool."""
         sub, cols = self.samples.select(keep)
         vis = None if self.visibility is None else self.visibility.select(cols)
         return EdgeModel(sub, vis, self.pairs[cols])
@@ -176,8 +189,8 @@ class EdgeModel:
     def for_mode(self, world: World, mode: str) -> EdgeModel:
         """The part of this model an edge mode scores: the class-change segments
         (``class_change``) for the label modes, whose edges are class boundaries only; every
-        segment for mode ``none``."""
-        return self if mode == "none" else self.class_change(world)
+        segment but the outlines (``without_outlines``) for mode ``none``."""
+        return self.without_outlines(world) if mode == "none" else self.class_change(world)
 
 
 @dataclass(frozen=True)

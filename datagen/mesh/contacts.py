@@ -7,10 +7,10 @@ the two surfaces' classes, but mesh adjacency finds no edge. Each large flat sur
 (``trimesh.intersections.mesh_plane``); a cut piece is a contact line where a probe beside
 it, on either side, reaches the surface within the cut's offset (so the piece stands on the
 surface, not beside or beyond it), probed at both ends of pieces ``step`` long, a piece
-standing on it at one end only bisected to where it stops. Pieces are put back onto the
-plane and take the classes of the surface and of the face cut. Pieces along an edge the
-mesh already has (within ``dup_m``) are dropped before any probe: a mesh whose surfaces
-share their vertices casts no ray.
+standing on it (or on one class of it) at one end only bisected to where that stops.
+Pieces are put back onto the plane and take the classes of the surface and of the face cut.
+Pieces along an edge the mesh already has with the same classes (within ``dup_m``; the
+surface's class taken as its plane's area majority) are dropped before any probe.
 """
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ def cut_planes(vertices: np.ndarray, faces: np.ndarray, region: np.ndarray,
 
 def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
                   normals: np.ndarray, region: np.ndarray, rnormal: np.ndarray,
-                  existing: np.ndarray, variant: str = "auto",
+                  existing: tuple[np.ndarray, np.ndarray], variant: str = "auto",
                   settings: ContactConfig | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Contact lines of a mesh not already among its edges.
@@ -112,7 +112,7 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
         vertices: (V, 3) metres; faces: (F, 3); face_class: (F,); normals: (F, 3) unit.
         region: (F,) planar region per face; rnormal: (R, 3) their fitted normals
             (``planar_regions``).
-        existing: (M, 2, 3) the edges found otherwise, metres.
+        existing: (segments (M, 2, 3) metres, classes (M, 2)) the edges found otherwise.
         variant: Mitsuba variant of the probes' ray caster.
         settings: None: the defaults.
 
@@ -163,7 +163,12 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
     # back onto the plane (where the line is drawn), then those along an edge the mesh has
     # already are that edge (its classes were found there)
     drop = (side * s.offset)[:, None] * n
-    new = ~duplicates(pieces - drop[:, None], existing, s.dup_m)
+    area, _ = face_areas_normals(vertices, faces)
+    on_plane = face_plane >= 0
+    table = np.zeros((len(p_normal), 256))
+    np.add.at(table, (face_plane[on_plane], face_class[on_plane]), area[on_plane])
+    pair = np.stack([np.argmax(table, axis=1)[plane], face_class[cut]], 1)
+    new = ~duplicates(pieces - drop[:, None], pair, *existing, s.dup_m)
     pieces, cut, plane, side, n, d, drop = (a[new] for a in (pieces, cut, plane, side, n, d,
                                                               drop))
     if len(pieces) == 0:
@@ -189,34 +194,112 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
     rows = np.arange(len(pieces))
     ha = surface(pieces[:, 0] + 1e-3 * d, rows)
     hb = surface(pieces[:, 1] - 1e-3 * d, rows)
-    # a piece standing on the surface at one end only: bisected to where it stops (to 1 mm)
-    part = np.flatnonzero((ha >= 0) != (hb >= 0))
-    a_on = ha[part] >= 0
-    good = np.where(a_on[:, None], pieces[part, 0], pieces[part, 1])
-    bad = np.where(a_on[:, None], pieces[part, 1], pieces[part, 0])
-    for _ in range(6):
-        mid = (good + bad) / 2
-        on = surface(mid, part) >= 0
-        good[on], bad[~on] = mid[on], mid[~on]
-    ends = pieces.copy()
-    ends[part[a_on], 1] = good[a_on]
-    ends[part[~a_on], 0] = good[~a_on]
-    keep = (ha >= 0) | (hb >= 0)
-    hit = np.where(ha >= 0, ha, hb)[keep]
-    out = ends[keep] - drop[keep][:, None]
+    ca = np.where(ha >= 0, face_class[np.maximum(ha, 0)].astype(np.int64), -1)
+    cb = np.where(hb >= 0, face_class[np.maximum(hb, 0)].astype(np.int64), -1)
+    out, hit, keep = [], [], []
+    whole = (ca >= 0) & (ca == cb)
+    out.append(pieces[whole])
+    hit.append(ha[whole])
+    keep.append(np.flatnonzero(whole))
+    # a piece on the surface's class at one end only: bisected to where that stops (to 1 mm)
+    for end, c_end, c_far, h_end in ((0, ca, cb, ha), (1, cb, ca, hb)):
+        part = np.flatnonzero((c_end >= 0) & (c_end != c_far))
+        good, bad = pieces[part, end].copy(), pieces[part, 1 - end].copy()
+        for _ in range(6):
+            mid = (good + bad) / 2
+            h = surface(mid, part)
+            on = (h >= 0) & (face_class[np.maximum(h, 0)] == c_end[part])
+            good[on], bad[~on] = mid[on], mid[~on]
+        piece = pieces[part].copy()
+        piece[:, 1 - end] = good
+        out.append(piece)
+        hit.append(h_end[part])
+        keep.append(part)
+    out, hit, keep = np.concatenate(out), np.concatenate(hit), np.concatenate(keep)
+    out = out - drop[keep][:, None]
     cls = np.stack([face_class[hit], face_class[cut[keep]]], axis=1).astype(np.uint8)
     crease = np.round(np.degrees(np.arccos(np.clip(
         np.abs(np.einsum("ij,ij->i", n[keep], normals[cut[keep]])), 0.0, 1.0))), 1)
     return out, cls, crease, plane[keep]
 
 
-def duplicates(pieces: np.ndarray, segments: np.ndarray, tol: float) -> np.ndarray:
-    """(K,) bool: pieces (K, 2, 3) whose ends and middle all lie within ``tol`` metres of the
-    segments (M, 2, 3)."""
+def duplicates(pieces: np.ndarray, classes: np.ndarray, segments: np.ndarray,
+               seg_classes: np.ndarray, tol: float) -> np.ndarray:
+    """(K,) bool: pieces (K, 2, 3) whose ends and middle all lie within ``tol`` metres of
+    segments (M, 2, 3) of their class pair (``classes`` (K, 2), ``seg_classes`` (M, 2),
+    unordered)."""
     if len(pieces) == 0 or len(segments) == 0:
         return np.zeros(len(pieces), bool)
-    pts, _ = split_pieces(segments[:, 0], segments[:, 1], tol / 2)
-    tree = cKDTree(np.concatenate([pts[:, 0], segments[:, 1]]))
+    far = 1e4  # metres between the class pairs' copies of space
+
+    def code(c: np.ndarray) -> np.ndarray:
+        c = np.sort(np.asarray(c, np.int64).reshape(-1, 2), axis=1)
+        return (c[:, 0] * 256 + c[:, 1]).astype(np.float64) * far
+
+    pts, which = split_pieces(segments[:, 0], segments[:, 1], tol / 2)
+    pts = np.concatenate([pts[:, 0], segments[:, 1]])
+    which = np.concatenate([which, np.arange(len(segments))])
+    tree = cKDTree(np.c_[pts, code(seg_classes)[which]])
     q = np.concatenate([pieces[:, 0], pieces.mean(axis=1), pieces[:, 1]])
-    dist, _ = tree.query(q, distance_upper_bound=tol)
+    dist, _ = tree.query(np.c_[q, np.tile(code(classes), 3)], distance_upper_bound=tol)
     return np.isfinite(dist).reshape(3, -1).all(axis=0)
+
+
+def outline_classes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
+                    edges: np.ndarray, own: np.ndarray, n0: np.ndarray, n1: np.ndarray,
+                    reach: float = 0.5, eps: float = 0.005, variant: str = "auto"
+                    ) -> np.ndarray:
+    """The class a render shows beyond creases between two faces of one class, seen as an
+    outline from where face normal ``n0`` turns towards the camera and ``n1`` away.
+
+    A frame on a wall, a window's header, a skirting board: seen past its front crease, the
+    surface it stands on lies behind it. From 1/4, 1/2 and 3/4 of each edge, rays leave along
+    the directions perpendicular to the edge that such a camera looks along (16 directions
+    around the edge, those with ``n0 . r < 0 < n1 . r``) for ``reach`` metres; where more
+    than half of them meet one class other than the edge's own (and not void), and more than
+    half of the opposite directions, towards such a camera, are free for 3 cm (not so at an
+    inner corner, where the camera would stand inside the model), that class lies behind the
+    outline from such views. The normals need only be wound alike: the other
+    outline of the same crease is (``n1``, ``n0``).
+
+    Args:
+        vertices: (V, 3) metres; faces: (F, 3); face_class: (F,).
+        edges: (E, 2) vertex indices of the creases; own: (E,) their class; n0, n1: (E, 3)
+            their faces' unit normals, wound alike.
+
+    Returns:
+        (E,) uint8 the class behind, 0 (void) where the views disagree or see nothing near.
+    """
+    from core.imaging.rays import RayCaster
+
+    out = np.zeros(len(edges), np.uint8)
+    if len(edges) == 0:
+        return out
+    p, q = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    e = (q - p) / np.maximum(np.linalg.norm(q - p, axis=1, keepdims=True), 1e-12)
+    u = n0 - np.einsum("ij,ij->i", n0, e)[:, None] * e
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+    w = np.cross(e, u)
+    angles = np.arange(16) * (2 * np.pi / 16) + np.pi / 16
+    r = np.cos(angles)[None, :, None] * u[:, None] + np.sin(angles)[None, :, None] * w[:, None]
+    inside = ((np.einsum("ikj,ij->ik", r, n0) < -1e-3)
+              & (np.einsum("ikj,ij->ik", r, n1) > 1e-3))  # (E, 16)
+    ei, di = np.nonzero(inside)
+    caster = RayCaster(vertices, faces, variant)
+    n_cls = int(face_class.max()) + 1
+    votes = np.zeros((len(edges), n_cls), np.int64)
+    free = np.zeros(len(edges), np.int64)
+    for t in (0.25, 0.5, 0.75):
+        x = (1 - t) * p[ei] + t * q[ei]
+        d = r[ei, di]
+        toward, _ = caster.first_hit(x - eps * d, -d, 0.03)
+        np.add.at(free, ei[toward < 0], 1)
+        hit, _ = caster.first_hit(x + eps * d, d, reach)
+        c = face_class[np.maximum(hit, 0)].astype(np.int64)
+        ok = (hit >= 0) & (c != own[ei]) & (c != 0)
+        np.add.at(votes, (ei[ok], c[ok]), 1)
+    rays = 3 * inside.sum(axis=1)
+    best = np.argmax(votes, axis=1)
+    agree = (votes[np.arange(len(edges)), best] * 2 > rays) & (free * 2 > rays)
+    out[agree] = best[agree]
+    return out

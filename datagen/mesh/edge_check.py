@@ -6,7 +6,8 @@ without the distractors and people added at render time), and its class boundari
 (a pixel whose right or lower neighbour has another class, both structural: what the
 label modes' edge images hold). The model's segments between two
 different structural classes are sampled every ``spacing`` metres, projected, kept
-where in view and not hidden (a ray from the camera reaches them within ``eps``), and drawn.
+where in view, not hidden (a ray from the camera reaches them within ``eps``) and, for an
+outline, where one of its faces turns away (``core.outline``), and drawn.
 
 - **recall**: the share of boundary pixels with an edge pixel *of the same class pair* within
   ``tol_px`` (a boundary the model has no edge for is a miss: a wall standing on a slab it
@@ -29,6 +30,7 @@ from core import classes as C
 from core.classes import pair_code
 from core.imaging.camera import project
 from core.imaging.rays import RayCaster
+from core.outline import outline_seen
 
 
 @dataclass(frozen=True)
@@ -100,6 +102,8 @@ class EdgeChecker:
     Args:
         vertices: (V, 3) metres; faces: (F, 3); face_class: (F,) class ids.
         segments: (M, 2, 3) model edge segments, metres; classes: (M, 2) their two classes.
+        outline: (M, 2, 3) the outlines' face normals, NaN for other edges
+            (``core.outline``); None: no outlines.
         K: (3, 3) intrinsics; width, height: pixels.
         spacing: metres between edge samples (5 mm: at 0.5 m and 70 deg across 320 px, 2.3 px).
         eps: metres; an occluder nearer than this to an edge sample does not hide it.
@@ -108,8 +112,8 @@ class EdgeChecker:
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
                  segments: np.ndarray, classes: np.ndarray, K: np.ndarray, width: int,
-                 height: int, spacing: float = 0.005, eps: float = 0.02,
-                 variant: str = "auto"):
+                 height: int, outline: np.ndarray | None = None, spacing: float = 0.005,
+                 eps: float = 0.02, variant: str = "auto"):
         self.caster = RayCaster(vertices, faces, variant)
         self.face_class = np.asarray(face_class, np.uint8)
         self.K, self.width, self.height, self.eps = np.asarray(K, float), width, height, eps
@@ -117,13 +121,15 @@ class EdgeChecker:
         seg = np.asarray(segments, np.float64).reshape(-1, 2, 3)
         cls = np.asarray(classes).reshape(-1, 2)
         keep = _counted(cls[:, 0], cls[:, 1])
-        seg, cls = seg[keep], cls[keep]
+        nrm = np.full((len(seg), 2, 3), np.nan) if outline is None else np.asarray(outline)
+        seg, cls, nrm = seg[keep], cls[keep], nrm[keep]
         n = np.maximum(np.ceil(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / spacing), 1)
         n = n.astype(np.int64) + 1
         which = np.repeat(np.arange(len(seg)), n)
         t = (np.arange(len(which)) - np.repeat(np.cumsum(n) - n, n)) / (n[which] - 1)
         self.points = seg[which, 0] + t[:, None] * (seg[which, 1] - seg[which, 0])
         self.pairs = pair_code(cls[which, 0], cls[which, 1])
+        self.outline = nrm[which]
 
     def labels(self, world_from_cam: np.ndarray) -> np.ndarray:
         """(H, W) uint8 class of the first face at each pixel centre (IGNORE: nothing hit)."""
@@ -141,6 +147,8 @@ class EdgeChecker:
                   & (px[:, 1] < self.height))
         idx = np.flatnonzero(inside)
         origin = np.broadcast_to(world_from_cam[:3, 3], (len(idx), 3))
+        idx = idx[outline_seen(self.outline[idx], self.points[idx], origin)]
+        origin = origin[: len(idx)]
         seen = idx[~self.caster.hidden(origin, self.points[idx], self.eps)]
         out = np.zeros((self.height, self.width), np.int32)
         out[px[seen, 1], px[seen, 0]] = self.pairs[seen]

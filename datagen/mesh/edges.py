@@ -11,12 +11,18 @@ class pair and angle are merged into one segment.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from core import classes as C
 from datagen.mesh.building import face_areas_normals
-from datagen.mesh.contacts import ContactConfig, contact_lines, split_pieces
+from datagen.mesh.contacts import (
+    ContactConfig,
+    contact_lines,
+    outline_classes,
+    split_pieces,
+)
 from datagen.mesh.edge_polylines import merge_near_collinear, simplify_segments
 from datagen.mesh.planar_regions import (
     RegionConfig,
@@ -31,6 +37,26 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     tri = vertices[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+class EdgeSet(NamedTuple):
+    """A model's edges (``extract_edges``).
+
+    Attributes:
+        segments: (M, 2, 3) endpoints, metres.
+        classes: (M, 2) uint8, the classes on the two sides (ascending; 0 = void).
+        crease: (M,) degrees between the two surfaces (0 for a class change on a flat
+            surface, 90 at a boundary edge meeting nothing).
+        outline: (M, 2, 3) for an outline (a crease of one class seen against what lies
+            behind it) the normals of its two faces, wound alike: it is seen where exactly one
+            of them faces the camera (``core.outline.outline_seen``); NaN for an edge seen
+            from everywhere.
+    """
+
+    segments: np.ndarray
+    classes: np.ndarray
+    crease: np.ndarray
+    outline: np.ndarray
 
 
 #: degrees; a face with a neighbour this close in angle is exact (a CAD facet's triangle).
@@ -66,7 +92,7 @@ class EdgeExtractionConfig:
 def extract_edges(
     vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray, crease_deg: float = 20.0,
     probe: BoundaryProbe | None = None, settings: EdgeExtractionConfig | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> EdgeSet:
     """Model edges of a mesh.
 
     Faces lying on a face that faces them (``covered_faces``: the bottom of a wall block
@@ -79,7 +105,9 @@ def extract_edges(
     separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
     degrees. Lines where a surface meets another it shares no vertex with (a wall sunk into
     a slab, a door frame on a wall) are found by cutting the large flat regions' planes
-    (``contacts.contact_lines``). The
+    (``contacts.contact_lines``). A crease between two faces of one class in front of a
+    surface of another (a frame on a wall: ``contacts.outline_classes``) is also kept as an
+    outline between the two classes, with its faces' normals (``EdgeSet.outline``). The
     creases and boundary edges are straightened (``straighten``, ``settings.simplify_m``),
     the class boundaries kept as they run (``settings.straighten_class_changes``);
     collinear touching pieces are merged (``merge_collinear``) and those under
@@ -93,10 +121,7 @@ def extract_edges(
         settings: regions, straightening, minimum length (None: the defaults).
 
     Returns:
-        segments (M, 2, 3) endpoints in metres; classes (M, 2) uint8, the classes on the two
-        sides (ascending; 0 = void for a boundary edge meeting nothing); crease (M,) angle
-        between the normals in degrees (0 for a class change on a flat surface, 90 at a
-        boundary edge meeting nothing).
+        The ``EdgeSet``: segments, classes, crease and, for the outlines, face normals.
     """
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise ValueError(f"faces must be (F, 3), got {faces.shape}")
@@ -132,6 +157,22 @@ def extract_edges(
     c0 = face_class[f0]
     c1 = np.where(count >= 2, face_class[g1], 0)
     keep = (count > 2) | (two & ((angle > crease_deg) | (c0 != c1)))
+    # a crease inside one class is also an outline against what lies behind it (a frame on a
+    # wall), from where one of its faces turns away from the camera (each way round)
+    same = np.flatnonzero(keep & two & (c0 == c1) & (c0 != C.VOID))
+    na, nb = normals[f0[same]], agree[same] * normals[g1[same]]
+    sides = ((na, nb), (nb, na))
+    behind = [outline_classes(vertices, faces, face_class, uniq[same], c0[same], a, b,
+                              variant=(probe or BoundaryProbe()).variant) for a, b in sides]
+    o_idx = np.concatenate([same[k > 0] for k in behind])
+    o_seg, o_ang = vertices[uniq[o_idx]], np.round(angle[o_idx], 6)
+    o_cls = np.sort(np.stack([c0[o_idx], np.concatenate([k[k > 0] for k in behind])], 1),
+                    axis=1).astype(np.uint8)
+    o_nrm = np.concatenate([np.stack([a[k > 0], b[k > 0]], 1)
+                            for (a, b), k in zip(sides, behind, strict=True)])
+    o_part = np.sort(np.stack([region[f0[o_idx]], region[g1[o_idx]]], 1), axis=1)
+    # the two outlines of one crease chain apart
+    o_part = np.c_[o_part, np.repeat([0, 1], [int((k > 0).sum()) for k in behind])]
     seg = [vertices[uniq[keep]]]
     cls = [np.stack([c0, c1], axis=1)[keep]]
     ang = [np.round(angle[keep], 6)]
@@ -149,51 +190,61 @@ def extract_edges(
     cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
     part = np.concatenate(part)
     c_seg, c_cls, c_ang, c_plane = contact_lines(
-        vertices, faces, face_class, normals, region, rnormal, seg,
+        vertices, faces, face_class, normals, region, rnormal, (seg, cls),
         (probe or BoundaryProbe()).variant, settings.contacts)
     kept = (c_ang > crease_deg) | (c_cls[:, 0] != c_cls[:, 1])
     c_seg, c_ang = c_seg[kept], c_ang[kept]
     c_cls = np.sort(c_cls[kept], axis=1)
     c_part = np.stack([-2 - c_plane[kept], np.full(kept.sum(), -2)], 1)
-    c_seg, c_cls, c_ang = straighten(c_seg, c_cls, c_ang, c_part, crease_deg, settings.simplify_m)
+    c_seg, c_cls, c_ang = straighten(c_seg, c_cls, c_ang, c_part, crease_deg,
+                                     settings.simplify_m)[:3]
+    o_seg, o_cls, o_ang, member = straighten(o_seg, o_cls, o_ang, o_part, crease_deg,
+                                             settings.simplify_m)
+    o_nrm = o_nrm[member]
     # class boundaries between two classes stay where the faces' classes change (what a
     # label image shows, triangle side by triangle side); the rest are straightened
     exact = (cls[:, 0] != cls[:, 1]) & (cls[:, 0] != C.VOID)
     if not settings.straighten_class_changes:
         seg_s, cls_s, ang_s = straighten(seg[~exact], cls[~exact], ang[~exact], part[~exact],
-                                         crease_deg, settings.simplify_m)
+                                         crease_deg, settings.simplify_m)[:3]
         seg = np.concatenate([seg[exact], seg_s])
         cls = np.concatenate([cls[exact], cls_s])
         ang = np.concatenate([ang[exact], ang_s])
     else:
-        seg, cls, ang = straighten(seg, cls, ang, part, crease_deg, settings.simplify_m)
+        seg, cls, ang = straighten(seg, cls, ang, part, crease_deg, settings.simplify_m)[:3]
     seg, cls, ang = (np.concatenate([seg, c_seg]), np.concatenate([cls, c_cls]),
                      np.concatenate([ang, c_ang]))
     seg, cls, ang = merge_collinear(seg, cls, ang)
+    outline = np.full((len(seg) + len(o_seg), 2, 3), np.nan)
+    outline[len(seg):] = o_nrm
+    seg, cls, ang = (np.concatenate([seg, o_seg]), np.concatenate([cls, o_cls]),
+                     np.concatenate([ang, o_ang]))
     long = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= settings.min_length
-    return seg[long], cls[long], ang[long]
+    return EdgeSet(seg[long], cls[long], ang[long], outline[long])
 
 
 def straighten(seg: np.ndarray, cls: np.ndarray, ang: np.ndarray, part: np.ndarray,
-               crease_deg: float, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               crease_deg: float, tol: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Edge pieces (M, 2, 3) chained within their class pair, pair of regions ``part``
     (M, 2) and crease (to a degree), straightened with tolerance ``tol`` metres
     (``simplify_segments``), then joined along lines within ``tol`` with gaps up to
     2.5 ``tol`` (``merge_near_collinear``, within the class pair and crease or not).
 
     Returns:
-        (segments, classes, crease) of the straight segments; each takes the classes and
-        crease of the longest piece it replaces.
+        (segments, classes, crease, member) of the straight segments; each takes the classes
+        and crease of the longest piece it replaces, ``member`` (its index).
     """
     if len(seg) == 0:
-        return seg, cls, ang
+        return seg.reshape(0, 2, 3), cls, ang, np.zeros(0, np.int64)
     key = np.c_[cls.astype(np.int64), part, np.round(ang).astype(np.int64)]
     _, group = np.unique(key, axis=0, return_inverse=True)
     seg, member = simplify_segments(seg, group.ravel(), tol)
-    cls, ang = cls[member], ang[member]
-    _, line_group = np.unique(np.c_[cls, ang > crease_deg], axis=0, return_inverse=True)
-    seg, member = merge_near_collinear(seg, line_group.ravel(), tol, 2.5 * tol)
-    return seg, cls[member], ang[member]
+    _, line_group = np.unique(np.c_[cls[member], ang[member] > crease_deg], axis=0,
+                              return_inverse=True)
+    seg, member2 = merge_near_collinear(seg, line_group.ravel(), tol, 2.5 * tol)
+    member = member[member2]
+    return seg, cls[member], ang[member], member
 
 
 def _degrees(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -196,10 +196,15 @@ def with_builtins(world: World, builtins: list[Builtin], crease_deg: float) -> W
         F.append(f + n)
         K.append(np.full(len(f), C.WALL, dtype=world.face_class.dtype))
         n += len(v)
-        s, sc, cr = extract_edges(v, f, np.full(len(f), C.WALL, np.uint8), crease_deg)
+        s, sc, cr = extract_edges(v, f, np.full(len(f), C.WALL, np.uint8), crease_deg)[:3]
         S.append(s)
         SC.append(sc.astype(world.segment_classes.dtype))
         CR.append(cr)
     info = {**world.info, "builtins": [b.as_json() for b in builtins]}
-    return World(np.concatenate(V), np.concatenate(F), np.concatenate(K), np.concatenate(S),
-                 np.concatenate(SC), np.concatenate(CR), world.free, info)
+    S = np.concatenate(S)
+    outline = None
+    if world.outline is not None:
+        outline = np.full((len(S), 2, 3), np.nan)
+        outline[:len(world.outline)] = world.outline
+    return World(np.concatenate(V), np.concatenate(F), np.concatenate(K), S,
+                 np.concatenate(SC), np.concatenate(CR), world.free, info, outline)

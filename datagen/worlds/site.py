@@ -128,8 +128,8 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
                                        floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
     except ValueError as err:
         raise ValueError(f"{source}: {err}") from None
-    segments, seg_classes, crease = extract_edges(b.vertices, b.faces, b.face_class,
-                                                  spec.crease_deg)
+    segments, seg_classes, crease, outline = extract_edges(b.vertices, b.faces, b.face_class,
+                                                           spec.crease_deg)
     info = {
         "name": spec.name, "kind": spec.kind, **b.info,
         "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
@@ -141,7 +141,7 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
     }
     world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
                   segments=segments, segment_classes=seg_classes, crease_deg=crease,
-                  free=free, info=info)
+                  free=free, info=info, outline=outline)
     scene = building_scene(b, free, light_spacing=spec.light_spacing)
     log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
              source, len(b.faces), len(segments), free.area, scene.num_lights,

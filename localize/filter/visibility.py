@@ -30,6 +30,7 @@ from core.atomic import atomic_write
 from core.dataset import World
 from core.imaging.rays import RayCaster
 from core.occupancy import OccupancyMap
+from core.outline import outline_seen
 from localize.config import VisibilityConfig
 
 log = logging.getLogger(__name__)
@@ -241,7 +242,8 @@ def _batches(counts: np.ndarray, chunk: int) -> list[slice]:
 
 def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None = None,
                      settings: VisibilityConfig | None = None,
-                     chunk: int = 2_000_000) -> SparseVisibility:
+                     chunk: int = 2_000_000, outline: np.ndarray | None = None
+                     ) -> SparseVisibility:
     """Ray-cast the visibility of sample points from the stored cells' centres.
 
     Args:
@@ -253,6 +255,9 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
             ``max_range`` (only samples this near a cell centre are cast and listed) and the
             Mitsuba ``variant`` (``RayCaster``); None: ``VisibilityConfig()``.
         chunk: rays per batch (memory: about 100 bytes a ray).
+        outline: (P, 2, 3) the face normals of each point's edge where it is an outline (seen
+            only where one face turns away: ``core.outline.outline_seen``), NaN elsewhere;
+            None: no outlines.
     """
     v = VisibilityConfig() if settings is None else settings
     cell_xy, cell_z, pad, eps, max_range = v.cell_xy, v.cell_z, v.pad, v.eps, v.max_range
@@ -275,6 +280,8 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
                                                            output_type="ndarray")
         i, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
         seen = ~caster.hidden(centres[b][i], points[j], eps)
+        if outline is not None:
+            seen &= outline_seen(outline[j], points[j], centres[b][i])
         i, j = i[seen], j[seen]
         order = np.lexsort((j, i))
         ids.append(j[order].astype(np.uint32))
@@ -296,20 +303,25 @@ def cache_key(world: World, points: np.ndarray, free: OccupancyMap, settings: di
 
 
 def load_or_build(world: World, points: np.ndarray, free: OccupancyMap | None,
-                  cache_dir: str | Path | None, settings: VisibilityConfig) -> SparseVisibility:
+                  cache_dir: str | Path | None, settings: VisibilityConfig,
+                  outline: np.ndarray | None = None) -> SparseVisibility:
     """The visibility lists from ``cache_dir/visibility_<key>.npz``, built and saved if
-    missing (``free`` None: ``world.free``; ``settings`` as ``build_visibility``'s)."""
+    missing (``free`` None: ``world.free``; ``settings`` and ``outline`` as
+    ``build_visibility``'s)."""
     free = world.free if free is None else free
     key = {"cell_xy": settings.cell_xy, "cell_z": settings.cell_z, "pad": settings.pad,
            "eps": settings.eps, "max_range": settings.max_range, "layout": "sparse"}
     path = None
     if cache_dir is not None:
+        if outline is not None and not np.isnan(outline).all():
+            key["outline"] = hashlib.sha256(np.ascontiguousarray(outline).tobytes()
+                                            ).hexdigest()[:16]
         path = Path(cache_dir) / f"visibility_{cache_key(world, points, free, key)}.npz"
         if path.is_file():
             with np.load(path) as f:
                 return SparseVisibility(*(f[k] for k in _ARRAYS), int(f["num_samples"]),
                                         float(f["max_range"]))
-    vis = build_visibility(world, points, free, settings)
+    vis = build_visibility(world, points, free, settings, outline=outline)
     if path is not None:
         atomic_write(path, lambda p: np.savez(
             p, **{k: getattr(vis, k) for k in _ARRAYS}, num_samples=vis.num_samples,

@@ -10,7 +10,7 @@ from tests.buildings import assemble
 def test_pair_table_and_scored_counts_of_walls_on_a_slab():
     t = 0.2
     walls = [(-t, -t, 4 + t, 0), (-t, 4, 4 + t, 4 + t), (-t, 0, 0, 4), (4, 0, 4 + t, 4)]
-    seg, cls, _ = extract_edges(*assemble([(-1, -1, 5, 5)], walls))
+    seg, cls, _, _ = extract_edges(*assemble([(-1, -1, 5, 5)], walls))
     table = {name: (n, m) for name, n, m in pair_table(seg, cls)}
     assert table["floor|wall"][1] > 33
     res = scored(seg, cls, 0.05, 0.1)

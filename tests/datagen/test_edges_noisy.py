@@ -12,6 +12,8 @@ import pytest
 import trimesh
 
 from core import classes as C
+from core.imaging.rays import RayCaster
+from core.outline import outline_seen
 from datagen.mesh.edge_polylines import simplify_segments
 from datagen.mesh.edges import EdgeExtractionConfig, extract_edges
 from datagen.mesh.planar_regions import face_pairs, planar_regions
@@ -49,7 +51,7 @@ def test_a_noisy_plane_has_no_inner_edge():
     nothing) is its four sides, straight."""
     plane = trimesh.Trimesh([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], [[0, 1, 2], [0, 2, 3]])
     v, f = _noisy(plane, 0.002)
-    seg, cls, crease = extract_edges(v, f, np.full(len(f), C.FLOOR, np.uint8))
+    seg, cls, crease, _ = extract_edges(v, f, np.full(len(f), C.FLOOR, np.uint8))
     mid = seg.mean(axis=1)[:, :2]
     inner = (np.abs(mid - 1.0) < 0.9).all(axis=1)
     assert not inner.any()
@@ -68,7 +70,7 @@ def test_a_noisy_box_has_its_twelve_edges():
     face_deg = np.degrees(np.arccos(np.clip(
         np.einsum("ij,ij->i", normals[f0[two]], normals[f1[two]]), -1, 1)))
     assert (face_deg > 5).sum() > 100  # the noise alone tilts many faces against each other
-    seg, cls, crease = extract_edges(v, f, np.full(len(f), C.WALL, np.uint8))
+    seg, cls, crease, _ = extract_edges(v, f, np.full(len(f), C.WALL, np.uint8))
     assert len(seg) == 12
     assert crease == pytest.approx(np.full(12, 90.0), abs=3)
     expect = np.sort(np.repeat([1.5, 2.0, 3.0], 4))
@@ -85,7 +87,7 @@ def test_a_scanned_room_keeps_its_vertical_corners():
     room.update_faces(~top)
     v, f = _noisy(room, 0.002, seed=1)
     classes = _by_region(v, f)
-    seg, cls, crease = extract_edges(v, f, classes)
+    seg, cls, crease, _ = extract_edges(v, f, classes)
     d = seg[:, 1] - seg[:, 0]
     vertical = np.abs(d[:, 2]) > 0.9 * _lengths(seg)
     assert vertical.sum() == 4
@@ -101,7 +103,7 @@ def test_a_scanned_room_keeps_its_vertical_corners():
     assert np.abs(seg[floor][:, :, 2] + 1.25).max() < 0.02
     assert _lengths(seg[floor]).min() >= 0.05
     # straightened too, it is the room's four foot lines
-    seg, cls, _ = extract_edges(v, f, classes,
+    seg, cls, _, _ = extract_edges(v, f, classes,
                                 settings=EdgeExtractionConfig(straighten_class_changes=True))
     floor = (cls == [C.FLOOR, C.WALL]).all(axis=1)
     assert floor.sum() == 4 and _lengths(seg[floor]).sum() == pytest.approx(14.0, abs=0.1)
@@ -156,10 +158,21 @@ def _digest(seg: np.ndarray, cls: np.ndarray, crease: np.ndarray) -> str:
 
 
 def test_the_corridor_edges_are_unchanged():
+    """Its 132 edges as they were, and 29 outlines besides, all at inner corners (of door and
+    window recesses): seen (turned so, and not hidden) from none of its free space."""
     w = build_world().world
-    assert len(w.segments) == 132
-    assert _lengths(w.segments).sum() == pytest.approx(169.0)
-    assert _digest(w.segments, w.segment_classes, w.crease_deg) == CORRIDOR_DIGEST
+    plain = np.isnan(w.outline).all(axis=(1, 2))
+    assert plain.sum() == 132 and len(plain) == 161
+    seg, cls, crease = w.segments[plain], w.segment_classes[plain], w.crease_deg[plain]
+    assert _lengths(seg).sum() == pytest.approx(169.0)
+    assert _digest(seg, cls, crease) == CORRIDOR_DIGEST
+    cells = w.free.centres(np.nonzero(w.free.free))
+    eyes = np.c_[cells, np.full(len(cells), 1.4)]
+    caster = RayCaster(w.vertices, w.faces)
+    for s, n in zip(w.segments[~plain], w.outline[~plain], strict=True):
+        mid = np.repeat(s.mean(axis=0)[None], len(eyes), axis=0)
+        turned = outline_seen(np.repeat(n[None], len(eyes), axis=0), mid, eyes)
+        assert caster.hidden(eyes[turned], mid[turned], 0.02).all()
 
 
 @pytest.mark.slow
@@ -172,7 +185,7 @@ def test_the_icl_scan_gives_few_straight_edges_with_vertical_corners():
     from datagen.importers import load_building
 
     b = load_building(SCAN)
-    seg, cls, crease = extract_edges(b.vertices, b.faces, b.face_class)
+    seg, cls, crease, _ = extract_edges(b.vertices, b.faces, b.face_class)
     assert 300 < len(seg) < 3000
     length = _lengths(seg)
     assert length.min() >= 0.05

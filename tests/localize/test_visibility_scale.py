@@ -35,7 +35,7 @@ def straight(length: float, width: float = 2.0) -> World:
     v, f, cls = assemble([(-t, -t, length + t, width + t)],
                          [(-t, -t, length + t, 0), (-t, width, length + t, width + t),
                           (-t, 0, 0, width), (length, 0, length + t, width)])
-    seg, seg_cls, crease = extract_edges(v, f, cls, 20.0)
+    seg, seg_cls, crease, _ = extract_edges(v, f, cls, 20.0)
     free = OccupancyMap.from_mesh(v, f, cls, BAND, MARGIN, 0.1)
     return World(v, f, cls, seg, seg_cls, crease, free, {})
 
