@@ -13,7 +13,9 @@ Per building, with no per-building setting: ``python -m datagen`` renders its te
 no training images and no validation flights (this table is test data: no setting is chosen
 on it); then the SegNet (``--onnx``, default the shipped generalist) is scored on every
 delivered flight frame (pixel accuracy, mean IoU, boundary F at 2 px: what the likelihood
-needs), and ``python -m localize`` tracks each flight from its true start in the given modes
+needs), the model edges are checked against the model's label maps at the flights' poses
+(``datagen.mesh.edge_check``: recall and precision at 2 px, "edges R / P"), and
+``python -m localize`` tracks each flight from its true start in the given modes
 and seeds. The scan's first test flight is also exported as a folder recording
 (``localize.recordings.export``: JPEG frames, odometry) and localized as a user's recording.
 With ``--finetune N``, N training and N / 8 validation and test images of the building (a dataset of
@@ -144,6 +146,31 @@ def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
     return res
 
 
+def edge_scores(ds: Path, cache: Path, step: int = 20) -> dict:
+    """Rendered-edge recall and precision (``datagen.mesh.edge_check``) of the dataset's model
+    edges at every ``step``-th ground-truth pose of its test flights (kept in ``cache`` under
+    the edges' digest)."""
+    import hashlib
+
+    from core.dataset import Dataset
+    from datagen.mesh.edge_check import EdgeChecker, agreement
+
+    dataset = Dataset(ds)
+    w, cam = dataset.world, dataset.camera
+    key = hashlib.sha256(np.ascontiguousarray(w.segments).tobytes()).hexdigest()[:16]
+    done = json.loads(cache.read_text()) if cache.is_file() else {}
+    if key in done:
+        return done[key]
+    checker = EdgeChecker(w.vertices, w.faces, w.face_class, w.segments, w.segment_classes,
+                          cam.K, cam.width, cam.height, w.outline)
+    poses = np.concatenate([dataset.flight(n).groundtruth[::step] @ cam.body_from_cam
+                            for n in dataset.flight_names("test")])
+    res = agreement(checker, poses).as_dict()
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(cache, {**done, key: res})
+    return res
+
+
 def localize(ds: Path, report: Path, args: argparse.Namespace, rec: Path | None = None,
              onnx: Path | None = None, modes: list[str] | None = None) -> dict:
     """``python -m localize`` on the test flights, or on the recording ``rec``, with the SegNet
@@ -190,7 +217,7 @@ def tracking(metrics: dict) -> dict:
 
 def table(results: dict, modes: list[str]) -> str:
     """The markdown table of ``results`` (one row per building)."""
-    head = ["building", "floor / free m²", "flags", "SegNet acc / mIoU / bF"]
+    head = ["building", "floor / free m²", "flags", "edges R / P", "SegNet acc / mIoU / bF"]
     head += [f"{m} m (lost)" for m in modes]
     if any("finetuned" in r for r in results.values()):
         head += ["fine-tuned mIoU / bF", "cnn fine-tuned m (lost)"]
@@ -201,8 +228,10 @@ def table(results: dict, modes: list[str]) -> str:
         seg = r.get("segnet") or {}
         tr = r.get("tracking") or {}
         rec = r.get("recording") or {}
+        ed = r.get("edges") or {}
         cells = [b, f"{s.get('floor_footprint_m2', '-')} / {s.get('free_area_m2', '-')}",
                  str(len(s.get("flags", []))) if s else "-",
+                 f"{ed['recall']:.3f} / {ed['precision']:.3f}" if ed else "-",
                  (f"{seg['pixel_accuracy']:.3f} / {seg['mean_iou']:.3f} / "
                   f"{seg['boundary_f']:.3f}") if seg else "-"]
         cells += [f"{tr[m]['mean_m']:.3f} ({tr[m]['lost']}/{tr[m]['runs']})" if m in tr else "-"
@@ -229,7 +258,8 @@ def main() -> int:
         if ds is None:
             continue
         summary = ds / "world" / "import_summary.json"
-        r = {"import": json.loads(summary.read_text()) if summary.is_file() else None}
+        r = {"import": json.loads(summary.read_text()) if summary.is_file() else None,
+             "edges": edge_scores(ds, out / "edges" / f"{b}.json")}
         if "cnn" in args.modes:
             r["segnet"] = segnet_scores(ds, args.onnx, out / "segnet" / f"{b}.json")
         r["tracking"] = tracking(localize(ds, out / "reports" / b, args))

@@ -7,7 +7,7 @@
   world/model.ply              structural mesh, face colour = class colour
   world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
   world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8,
-                               outline (M,2,3) f8 (core.outline)
+                               outline (M,2,3) f8 (core.imaging.outline)
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
   world_truth/                 with realism.map only: the rendered world (world/ is then the
@@ -74,7 +74,7 @@ class World:
     vertices (V,3) metres, faces (F,3), face_class (F,) class ids; segments (M,2,3) metres,
     segment_classes (M,2), crease_deg (M,); free: where a camera centre may be (an occupancy
     map of the flyable heights, ``free.band``); info: world.json; outline (M,2,3): for an
-    outline segment its two faces' normals, NaN for the others (``core.outline``; None: no
+    outline segment its two faces' normals, NaN for the others (``core.imaging.outline``; None: no
     outlines).
     """
 

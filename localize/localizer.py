@@ -164,7 +164,7 @@ class EdgeModel:
         return self._subset(keep)
 
     def without_outlines(self, world: World) -> EdgeModel:
-        """The samples of every segment but the outlines (``core.outline``: a crease is
+        """The samples of every segment but the outlines (``core.imaging.outline``: a crease is
         there already as itself, seen from everywhere); this model when there are none."""
         if world.outline is None or np.isnan(world.outline).all():
             return self

@@ -24,7 +24,12 @@ from datagen.flights.routes import find_turns, plan_route, route_length
 from datagen.importers.config import ImportConfig
 from datagen.importers.load import EXTENSIONS, load_building
 from datagen.importers.orient import AXES
-from datagen.importers.summary import import_summary, summary_lines, vertical_edges
+from datagen.importers.summary import (
+    edge_figures,
+    import_summary,
+    summary_lines,
+    vertical_edges,
+)
 from datagen.mesh.building import Building
 from datagen.mesh.plan import write_plan
 from datagen.worlds.site import camera_free_space
@@ -122,8 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     write_png(out / f"{stem}_free.png", occ.plot([] if route is None else [route], scale=2))
     from datagen.mesh.edges import extract_edges
 
-    segments = extract_edges(b.vertices, b.faces, b.face_class, FileWorldConfig.crease_deg)[0]
-    report = import_summary(b, occ.area, vertical_edges(segments))
+    edges = extract_edges(b.vertices, b.faces, b.face_class, FileWorldConfig.crease_deg)
+    report = import_summary(b, occ.area, vertical_edges(edges.segments),
+                            edge_figures(b, edges, occ))
     atomic_write_json(out / f"{stem}_import.json", {**b.info, **figures})
     atomic_write_json(out / f"{stem}_summary.json", report)
     print(summary(b.info))

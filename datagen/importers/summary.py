@@ -24,6 +24,8 @@ UNSURE = 0.1  # an up axis found (auto) with less sureness is flagged
 CONTRADICT = 0.3  # a mesh looking like another up axis than the one applied, this sure, is
 # flagged
 VERTICAL_EDGE = 0.9  # |direction z| from which a model edge is vertical
+MIN_FLOOR_EDGES = 0.5  # floor-to-structure edges over the free space's outline: less is short
+CHECK_VIEWS = 30  # camera poses the rendered-edge check draws from the free space
 
 
 def vertical_edges(segments: np.ndarray) -> int:
@@ -102,8 +104,44 @@ def file_units(info: dict) -> float:
     return float(units)
 
 
+def edge_figures(b: Building, edges, free, rng: np.random.Generator | None = None) -> dict:
+    """What the model edges give a camera: floor-to-structure edge length against the free
+    space's outline, and the rendered-edge check (``datagen.mesh.edge_check``) from
+    ``CHECK_VIEWS`` poses in the free space at the default camera.
+
+    Args:
+        b: the building; edges: its ``datagen.mesh.edges.EdgeSet``; free: its camera free
+            space (``core.occupancy.OccupancyMap``); rng: the poses' generator (None: seed 0).
+
+    Returns:
+        ``floor_edges_m`` (floor | wall, door or window, outlines left out),
+        ``free_outline_m`` (the outer outline of the free space), ``rendered_edges``
+        (``EdgeAgreement.as_dict``).
+    """
+    import cv2
+
+    from datagen.config import CameraConfig
+    from datagen.job import make_camera
+    from datagen.mesh.edge_check import EdgeChecker, agreement, free_space_poses
+
+    seg, cls, outline = edges.segments, np.sort(edges.classes, axis=1), edges.outline
+    plain = np.isnan(outline).all(axis=(1, 2))
+    floor = plain & (cls[:, 0] == C.FLOOR) & np.isin(cls[:, 1], (C.WALL, C.DOOR, C.WINDOW))
+    floor_m = float(np.linalg.norm(seg[floor, 1] - seg[floor, 0], axis=1).sum())
+    contours, _ = cv2.findContours(free.free.astype(np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_SIMPLE)
+    outline_m = float(sum(cv2.arcLength(c, True) for c in contours) * free.cell)
+    cam = make_camera(CameraConfig())
+    checker = EdgeChecker(b.vertices, b.faces, b.face_class, seg, edges.classes, cam.K,
+                          cam.width, cam.height, outline)
+    poses = free_space_poses(free, cam.body_from_cam, CHECK_VIEWS,
+                             rng or np.random.default_rng(0))
+    return {"floor_edges_m": round(floor_m, 1), "free_outline_m": round(outline_m, 1),
+            "rendered_edges": agreement(checker, poses).as_dict()}
+
+
 def import_summary(b: Building, free_area_m2: float | None = None,
-                   vertical: int | None = None) -> dict:
+                   vertical: int | None = None, edges: dict | None = None) -> dict:
     """The summary of an import (``load_building``'s ``b.info`` and the mesh).
 
     Args:
@@ -111,6 +149,7 @@ def import_summary(b: Building, free_area_m2: float | None = None,
         free_area_m2: the camera free space's area (``datagen.worlds.site.camera_free_space``), or
             None if not built.
         vertical: the number of vertical model edges (``vertical_edges``), or None.
+        edges: ``edge_figures``, or None.
 
     Returns:
         figures (floor share, area and footprint, free area, wall height, up axis and how
@@ -136,6 +175,7 @@ def import_summary(b: Building, free_area_m2: float | None = None,
         "missing_meshes": len(info.get("missing_meshes", {})),
         "missing_models": int(sum(info.get("missing_models", {}).values())),
         "far_parts": len(info.get("far_parts", {})),
+        **(edges or {}),
     }
     out["flags"] = flags(out, file_units(info))
     return out
@@ -180,6 +220,11 @@ def flags(s: dict, units: float) -> list[dict]:
         flag(f"free space {free:.1f} m2 is far smaller than the floor's footprint "
              f"{floor:.1f} m2 (holes, furniture or low ceilings in the camera heights)",
              "world.z_range / world.camera_margin")
+    floor_m, outline_m = s.get("floor_edges_m"), s.get("free_outline_m")
+    if floor_m is not None and outline_m and floor_m < MIN_FLOOR_EDGES * outline_m:
+        flag(f"short floor-to-structure edges: {floor_m:.1f} m of floor | wall, door or window "
+             f"against a free-space outline of {outline_m:.1f} m (walls on a slab they do not "
+             "touch? the floor classed as something else?)", "world.name_rules")
     if s["vertical_edges"] == 0:
         flag("no vertical model edges (no wall corners, door or window jambs)",
              "world.up_axis")
@@ -213,6 +258,14 @@ def summary_lines(s: dict) -> list[str]:
                 f"; {s['vertical_edges']} vertical model edges"),
              "faces classed by " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                              for k, v in by.items())]
+    if "rendered_edges" in s:
+        r = s["rendered_edges"]
+        worst = ", ".join(f"{k} {v}" for k, v in list(r["missed"].items())[:3])
+        lines.append(f"model edges: {s['floor_edges_m']:.1f} m between the floor and "
+                     f"structure (free-space outline {s['free_outline_m']:.1f} m); against "
+                     f"renders of the model from {r['views']} poses: recall {r['recall']:.3f}, "
+                     f"precision {r['precision']:.3f} at {r['tol_px']:g} px"
+                     + (f" (boundary px missed most: {worst})" if worst else ""))
     lines += [f"check: {f['what']}" + (f" (set {f['key']})" if f["key"] else "")
               for f in s["flags"]]
     return lines

@@ -7,7 +7,7 @@ without the distractors and people added at render time), and its class boundari
 label modes' edge images hold). The model's segments between two
 different structural classes are sampled every ``spacing`` metres, projected, kept
 where in view, not hidden (a ray from the camera reaches them within ``eps``) and, for an
-outline, where one of its faces turns away (``core.outline``), and drawn.
+outline, where one of its faces turns away (``core.imaging.outline``), and drawn.
 
 - **recall**: the share of boundary pixels with an edge pixel *of the same class pair* within
   ``tol_px`` (a boundary the model has no edge for is a miss: a wall standing on a slab it
@@ -29,8 +29,8 @@ import numpy as np
 from core import classes as C
 from core.classes import pair_code
 from core.imaging.camera import project
+from core.imaging.outline import outline_seen
 from core.imaging.rays import RayCaster
-from core.outline import outline_seen
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ class EdgeChecker:
         vertices: (V, 3) metres; faces: (F, 3); face_class: (F,) class ids.
         segments: (M, 2, 3) model edge segments, metres; classes: (M, 2) their two classes.
         outline: (M, 2, 3) the outlines' face normals, NaN for other edges
-            (``core.outline``); None: no outlines.
+            (``core.imaging.outline``); None: no outlines.
         K: (3, 3) intrinsics; width, height: pixels.
         spacing: metres between edge samples (5 mm: at 0.5 m and 70 deg across 320 px, 2.3 px).
         eps: metres; an occluder nearer than this to an edge sample does not hide it.

@@ -49,7 +49,7 @@ class EdgeSet(NamedTuple):
             surface, 90 at a boundary edge meeting nothing).
         outline: (M, 2, 3) for an outline (a crease of one class seen against what lies
             behind it) the normals of its two faces, wound alike: it is seen where exactly one
-            of them faces the camera (``core.outline.outline_seen``); NaN for an edge seen
+            of them faces the camera (``core.imaging.outline.outline_seen``); NaN for an edge seen
             from everywhere.
     """
 

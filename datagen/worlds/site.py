@@ -22,8 +22,13 @@ from core.occupancy import OccupancyMap
 from datagen.config import FileWorldConfig, ProceduralWorldConfig, WorldConfig, world_config
 from datagen.importers import Building, load_building
 from datagen.importers.classify import class_shares
-from datagen.importers.summary import import_summary, summary_lines, vertical_edges
-from datagen.mesh.edges import extract_edges
+from datagen.importers.summary import (
+    edge_figures,
+    import_summary,
+    summary_lines,
+    vertical_edges,
+)
+from datagen.mesh.edges import EdgeSet, extract_edges
 from datagen.worlds.corridor import FREE_CELL, MAIN, OPENING, CorridorModel, build_world
 from datagen.worlds.scene import Scene, building_scene, corridor_scene
 
@@ -161,7 +166,9 @@ def file_site(spec: FileWorldConfig) -> Site:
     t0 = time.perf_counter()
     site = building_site(load_building(settings=spec), spec, spec.path, t0)
     w = site.world
-    report = import_summary(site.building, w.free.area, vertical_edges(w.segments))
+    edges = EdgeSet(w.segments, w.segment_classes, w.crease_deg, w.outline)
+    report = import_summary(site.building, w.free.area, vertical_edges(w.segments),
+                            edge_figures(site.building, edges, w.free))
     w.info["import_summary"] = report
     log.info("%s: import summary:\n  %s", spec.path, "\n  ".join(summary_lines(report)))
     for f in report["flags"]:

@@ -28,9 +28,9 @@ from scipy.spatial import cKDTree
 
 from core.atomic import atomic_write
 from core.dataset import World
+from core.imaging.outline import outline_seen
 from core.imaging.rays import RayCaster
 from core.occupancy import OccupancyMap
-from core.outline import outline_seen
 from localize.config import VisibilityConfig
 
 log = logging.getLogger(__name__)
@@ -256,7 +256,7 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
             Mitsuba ``variant`` (``RayCaster``); None: ``VisibilityConfig()``.
         chunk: rays per batch (memory: about 100 bytes a ray).
         outline: (P, 2, 3) the face normals of each point's edge where it is an outline (seen
-            only where one face turns away: ``core.outline.outline_seen``), NaN elsewhere;
+            only where one face turns away: ``core.imaging.outline.outline_seen``), NaN elsewhere;
             None: no outlines.
     """
     v = VisibilityConfig() if settings is None else settings

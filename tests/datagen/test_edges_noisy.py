@@ -12,8 +12,8 @@ import pytest
 import trimesh
 
 from core import classes as C
+from core.imaging.outline import outline_seen
 from core.imaging.rays import RayCaster
-from core.outline import outline_seen
 from datagen.mesh.edge_polylines import simplify_segments
 from datagen.mesh.edges import EdgeExtractionConfig, extract_edges
 from datagen.mesh.planar_regions import face_pairs, planar_regions
