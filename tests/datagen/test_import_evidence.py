@@ -204,3 +204,29 @@ def test_ambiguous_box_flagged(tmp_path):
     assert b.info["up_axis_found"]["sureness"] < 0.1
     assert "world.up_axis" in {f["key"] for f in import_summary(b)["flags"]}
     assert load_building(path, {"up_axis": "z"}).info["wall_top_z"] == pytest.approx(2.8)
+
+
+def test_short_floor_edges_flagged(tmp_path):
+    """The SketchUp office: its floor-to-wall edges run about the free space's outline, and
+    the rendered-edge check sees them; with the floor | wall segments taken out, the summary
+    flags short floor-to-structure edges and the check's recall falls."""
+    from datagen.config import FileWorldConfig
+    from datagen.importers.summary import edge_figures
+    from datagen.mesh.edges import EdgeSet, extract_edges
+    from datagen.worlds.site import camera_free_space
+
+    world = sketchup_world(tmp_path, office_pieces())
+    b = load_building(world)
+    free = camera_free_space(b, FileWorldConfig(path=str(world)))
+    edges = extract_edges(b.vertices, b.faces, b.face_class)
+    full = edge_figures(b, edges, free)
+    assert full["floor_edges_m"] >= full["free_outline_m"] > 0
+    assert full["rendered_edges"]["recall"] > 0.9
+    flag = "short floor-to-structure edges"
+    assert not any(flag in f["what"] for f in import_summary(b, free.area, 4, full)["flags"])
+    floor_wall = (np.sort(edges.classes, axis=1) == [C.FLOOR, C.WALL]).all(axis=1)
+    cut = EdgeSet(*(a[~floor_wall] for a in edges))
+    short = edge_figures(b, cut, free)
+    assert short["floor_edges_m"] < 0.5 * short["free_outline_m"]
+    assert short["rendered_edges"]["recall"] < full["rendered_edges"]["recall"] - 0.1
+    assert any(flag in f["what"] for f in import_summary(b, free.area, 4, short)["flags"])
