@@ -3,7 +3,7 @@
 A wall standing on (or sunk into) a floor slab it was modelled apart from, a door frame on a
 wall, a ceiling laid on (or through) the walls' tops: a render shows a line there, between
 the two surfaces' classes, but mesh adjacency finds no edge. Each large flat surface's plane
-(``ContactConfig.min_area``) is cut just off the surface, on both sides
+(``ContactConfig.min_area``) of a structural class is cut just off the surface, on both sides
 (``trimesh.intersections.mesh_plane``); a cut piece is a contact line where a probe beside
 it, on either side, reaches the surface within the cut's offset (so the piece stands on the
 surface, not beside or beyond it), probed at both ends of pieces ``step`` long, a piece
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from core import classes as C
 from datagen.mesh.building import face_areas_normals
 
 
@@ -62,10 +63,12 @@ def split_pieces(p: np.ndarray, q: np.ndarray, step: float) -> tuple[np.ndarray,
     return pieces, which
 
 
-def cut_planes(vertices: np.ndarray, faces: np.ndarray, region: np.ndarray,
-               rnormal: np.ndarray, settings: ContactConfig
+def cut_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
+               region: np.ndarray, rnormal: np.ndarray, settings: ContactConfig
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The planes of the large flat regions, regions on one plane (to 1 deg, 1 cm) merged.
+    """The planes of the large flat structural regions (most of their area floor, wall,
+    ceiling, door or window: what the label modes see), regions on one plane (to 1 deg,
+    1 cm) merged.
 
     Returns:
         normal (N, 3) unit, offset (N,) metres (plane: normal . x = offset), face_plane (F,)
@@ -80,7 +83,10 @@ def cut_planes(vertices: np.ndarray, faces: np.ndarray, region: np.ndarray,
     r_off = np.bincount(region, area * d_face, n_r) / np.maximum(r_area, 1e-12)
     rms = np.sqrt(np.bincount(region, area * (d_face - r_off[region]) ** 2, n_r)
                   / np.maximum(r_area, 1e-12))
-    big = (r_area >= settings.min_area) & (rms <= settings.flat_m)
+    table = np.zeros((n_r, 256))
+    np.add.at(table, (region, face_class), area)
+    structural = np.isin(np.argmax(table, axis=1), C.STRUCTURAL)
+    big = (r_area >= settings.min_area) & (rms <= settings.flat_m) & structural
     if not big.any():
         return np.zeros((0, 3)), np.zeros(0), np.full(len(faces), -1, np.int64)
     # one orientation per plane: the first clearly non-zero component positive
@@ -126,18 +132,29 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
 
     s = settings or ContactConfig()
     empty = (np.zeros((0, 2, 3)), np.zeros((0, 2), np.uint8), np.zeros(0), np.zeros(0, np.int64))
-    p_normal, p_offset, face_plane = cut_planes(vertices, faces, region, rnormal, s)
+    p_normal, p_offset, face_plane = cut_planes(vertices, faces, face_class, region, rnormal,
+                                                s)
     if len(p_normal) == 0:
         return empty
     mesh = trimesh.Trimesh(vertices, faces, process=False)
+    tri = vertices[faces]
+    f_lo, f_hi = tri.min(axis=1), tri.max(axis=1)
+    on = face_plane >= 0
+    p_lo = np.full((len(p_normal), 3), np.inf)
+    p_hi = np.full((len(p_normal), 3), -np.inf)
+    np.minimum.at(p_lo, face_plane[on], f_lo[on])
+    np.maximum.at(p_hi, face_plane[on], f_hi[on])
+    reach = s.offset + 0.01
     seg, cut, plane, side = [], [], [], []
     for k, (n, off) in enumerate(zip(p_normal, p_offset, strict=True)):
+        # faces whose boxes meet the surface's box: the others cannot stand on it
+        near = np.flatnonzero((f_lo <= p_hi[k] + reach).all(axis=1)
+                              & (f_hi >= p_lo[k] - reach).all(axis=1) & (face_plane != k))
         dots = vertices @ n - off
-        fd = dots[faces]
+        fd = dots[faces[near]]
         for sgn in (1.0, -1.0):
             level = sgn * s.offset
-            cand = np.flatnonzero((fd.min(axis=1) < level) & (fd.max(axis=1) > level)
-                                  & (face_plane != k))
+            cand = near[(fd.min(axis=1) < level) & (fd.max(axis=1) > level)]
             if len(cand) == 0:
                 continue
             lines, idx = trimesh.intersections.mesh_plane(
@@ -228,21 +245,24 @@ def duplicates(pieces: np.ndarray, classes: np.ndarray, segments: np.ndarray,
     """(K,) bool: pieces (K, 2, 3) whose ends and middle all lie within ``tol`` metres of
     segments (M, 2, 3) of their class pair (``classes`` (K, 2), ``seg_classes`` (M, 2),
     unordered)."""
+    out = np.zeros(len(pieces), bool)
     if len(pieces) == 0 or len(segments) == 0:
-        return np.zeros(len(pieces), bool)
-    far = 1e4  # metres between the class pairs' copies of space
+        return out
 
     def code(c: np.ndarray) -> np.ndarray:
         c = np.sort(np.asarray(c, np.int64).reshape(-1, 2), axis=1)
-        return (c[:, 0] * 256 + c[:, 1]).astype(np.float64) * far
+        return c[:, 0] * 256 + c[:, 1]
 
-    pts, which = split_pieces(segments[:, 0], segments[:, 1], tol / 2)
-    pts = np.concatenate([pts[:, 0], segments[:, 1]])
-    which = np.concatenate([which, np.arange(len(segments))])
-    tree = cKDTree(np.c_[pts, code(seg_classes)[which]])
-    q = np.concatenate([pieces[:, 0], pieces.mean(axis=1), pieces[:, 1]])
-    dist, _ = tree.query(np.c_[q, np.tile(code(classes), 3)], distance_upper_bound=tol)
-    return np.isfinite(dist).reshape(3, -1).all(axis=0)
+    mine, theirs = code(classes), code(seg_classes)
+    for c in np.intersect1d(mine, theirs):
+        seg = segments[theirs == c]
+        pts, _ = split_pieces(seg[:, 0], seg[:, 1], tol / 2)
+        tree = cKDTree(np.concatenate([pts[:, 0], seg[:, 1]]))
+        k = np.flatnonzero(mine == c)
+        q = np.concatenate([pieces[k, 0], pieces[k].mean(axis=1), pieces[k, 1]])
+        dist, _ = tree.query(q, distance_upper_bound=tol)
+        out[k] = np.isfinite(dist).reshape(3, -1).all(axis=0)
+    return out
 
 
 def outline_classes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
