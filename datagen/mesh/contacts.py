@@ -279,7 +279,10 @@ def outline_classes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndar
     than half of them meet one class other than the edge's own (and not void), and more than
     half of the opposite directions, towards such a camera, are free for 3 cm (not so at an
     inner corner, where the camera would stand inside the model), that class lies behind the
-    outline from such views. The normals need only be wound alike: the other
+    outline from such views. A direction votes only where the way towards the camera does not
+    meet the class it found within ``reach`` as well: a crease buried in another solid (the
+    foot of a wall sunk into a slab, the top of one passing into a ceiling) has that solid's
+    class all round, and no camera sees it. The normals need only be wound alike: the other
     outline of the same crease is (``n1``, ``n0``).
 
     Args:
@@ -312,11 +315,12 @@ def outline_classes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndar
     for t in (0.25, 0.5, 0.75):
         x = (1 - t) * p[ei] + t * q[ei]
         d = r[ei, di]
-        toward, _ = caster.first_hit(x - eps * d, -d, 0.03)
-        np.add.at(free, ei[toward < 0], 1)
+        toward, t_toward = caster.first_hit(x - eps * d, -d, reach)
+        np.add.at(free, ei[t_toward > 0.03], 1)
         hit, _ = caster.first_hit(x + eps * d, d, reach)
         c = face_class[np.maximum(hit, 0)].astype(np.int64)
-        ok = (hit >= 0) & (c != own[ei]) & (c != 0)
+        around = (toward >= 0) & (face_class[np.maximum(toward, 0)] == c)
+        ok = (hit >= 0) & (c != own[ei]) & (c != 0) & ~around
         np.add.at(votes, (ei[ok], c[ok]), 1)
     rays = 3 * inside.sum(axis=1)
     best = np.argmax(votes, axis=1)
