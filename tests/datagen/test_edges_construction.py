@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import classes as C
-from core.outline import outline_seen
+from core.imaging.outline import outline_seen
 from core.poses import pose_from_xyz_rpy
 from datagen.config import CameraConfig
 from datagen.job import make_camera
