@@ -8,11 +8,21 @@ import pytest
 
 from core import classes as C
 from core.config import compose_config
+from core.imaging.outline import outline_seen
 from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
 from datagen.job import make_camera
 from datagen.worlds.corridor import build_world
 from datagen.worlds.scene import corridor_scene
+
+
+def _seen_changes(w, world_from_cam: np.ndarray) -> np.ndarray:
+    """(M,) bool: the class-changing segments, outlines only where turned as one is seen from
+    the camera (``core.imaging.outline``; the corridor's lie at inner corners)."""
+    mid = w.segments.mean(axis=1)
+    eye = np.broadcast_to(world_from_cam[:3, 3], mid.shape)
+    seen = outline_seen(w.outline, mid, eye)
+    return (w.segment_classes[:, 0] != w.segment_classes[:, 1]) & seen
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +84,7 @@ class TestRender:
         """Visible segment endpoints (3D corners) project within 1 px of a label corner."""
         model, camera, T, _, label, depth = view
         w = model.world
-        change = w.segment_classes[:, 0] != w.segment_classes[:, 1]
+        change = _seen_changes(w, T)
         corners = np.unique(w.segments[change].reshape(-1, 3), axis=0)
         uv, iu, iv = _visible_projection(model, camera, T, depth, corners)
         assert len(uv) >= 6, "the test view should show several model corners"
@@ -85,7 +95,7 @@ class TestRender:
         """Points along visible class-changing model edges lie on label boundaries."""
         model, camera, T, _, label, depth = view
         w = model.world
-        seg = w.segments[w.segment_classes[:, 0] != w.segment_classes[:, 1]]
+        seg = w.segments[_seen_changes(w, T)]
         t = np.linspace(0, 1, 200)[None, :, None]
         pts = (seg[:, :1] * (1 - t) + seg[:, 1:] * t).reshape(-1, 3)
         uv, iu, iv = _visible_projection(model, camera, T, depth, pts)
