@@ -38,7 +38,8 @@ def model(small_world):
     keep = small_world.segment_classes[:, 0] != small_world.segment_classes[:, 1]
     s, _ = s.select(keep)
     return s, build_visibility(small_world, s.points,
-                               settings=VisibilityConfig(cell_xy=0.2, cell_z=0.3))
+                               settings=VisibilityConfig(cell_xy=0.2, cell_z=0.3),
+                               outline=small_world.outline[s.segment])
 
 
 @pytest.fixture(scope="module")

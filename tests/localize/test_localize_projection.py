@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from core.imaging.camera import project
+from core.imaging.outline import outline_seen
 from localize.config import VisibilityConfig
 from localize.filter.projection import (
     ModelSamples,
@@ -161,7 +162,11 @@ def _scene(small_world, camera, renderer, class_change_only: bool):
     R = tilt()
     T = cam_from_world(STATE, BODY_FROM_CAM, R)
     labels, depth = renderer.render(np.linalg.inv(T[0]))
-    hidden = occluded(small_world, camera_centres(STATE, BODY_FROM_CAM, R), s.points)[0]
+    eye = camera_centres(STATE, BODY_FROM_CAM, R)
+    hidden = occluded(small_world, eye, s.points)[0]
+    # an outline counts only where turned as one is seen (the visibility lists' test too)
+    hidden |= ~outline_seen(small_world.outline[s.segment], s.points,
+                            np.broadcast_to(eye[0], s.points.shape))
     pr = project_samples(camera.K, camera.width, camera.height, T, s.points)
     return s, labels, depth, hidden, pr
 

@@ -42,7 +42,8 @@ def test_budget_keeps_the_grid_that_fits_and_coarsens_the_one_that_does_not(long
     world, pts = long_corridor
     fine = fit_grid(world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0, max_gb=2.0)
     assert (fine.cell_xy, fine.cell_z, fine.max_range, fine.level) == (0.2, 0.25, 6.0, 0)
-    small = fine.est_bytes / 3 / 1e9  # the configured grid does not fit, the next one does
+    exact = estimate_grid(world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0)
+    small = exact.est_bytes / 3 / 1e9  # the configured grid does not fit, the next one does
     coarse = fit_grid(world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0, max_gb=small)
     assert coarse.level >= 1 and coarse.est_bytes <= small * 1e9
     assert coarse.cell_xy == pytest.approx(0.2 * CELL_STEP ** coarse.level)
@@ -56,7 +57,7 @@ def test_the_grid_choice_is_remembered_in_the_cache(long_corridor, tmp_path, mon
     settings choose again."""
     world, pts = long_corridor
     args = (world, pts, world.free, 0.2, 0.25, 0.3, 0.02, 6.0)
-    small = fit_grid(*args, max_gb=2.0).est_bytes / 3 / 1e9
+    small = estimate_grid(*args).est_bytes / 3 / 1e9  # the configured grid does not fit
     first = fit_grid_cached(tmp_path, *args, max_gb=small)
     assert first.level >= 1 and len(list(tmp_path.glob("grid_*.json"))) == 1
 
