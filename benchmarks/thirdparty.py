@@ -156,7 +156,7 @@ def edge_scores(ds: Path, cache: Path, step: int = 20) -> dict:
     from datagen.mesh.edge_check import EdgeChecker, agreement
 
     dataset = Dataset(ds)
-    w, cam = dataset.world, dataset.camera
+    w, cam = dataset.world(), dataset.camera
     key = hashlib.sha256(np.ascontiguousarray(w.segments).tobytes()).hexdigest()[:16]
     done = json.loads(cache.read_text()) if cache.is_file() else {}
     if key in done:
