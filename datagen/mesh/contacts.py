@@ -44,7 +44,7 @@ class ContactConfig:
     flat_m: float = 0.01
     offset: float = 0.01
     step: float = 0.05
-    dup_m: float = 0.015
+    dup_m: float = 0.008
 
 
 def split_pieces(p: np.ndarray, q: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
