@@ -181,9 +181,8 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
     # already are that edge (its classes were found there)
     drop = (side * s.offset)[:, None] * n
     area, _ = face_areas_normals(vertices, faces)
-    on_plane = face_plane >= 0
     table = np.zeros((len(p_normal), 256))
-    np.add.at(table, (face_plane[on_plane], face_class[on_plane]), area[on_plane])
+    np.add.at(table, (face_plane[on], face_class[on]), area[on])
     pair = np.stack([np.argmax(table, axis=1)[plane], face_class[cut]], 1)
     new = ~duplicates(pieces - drop[:, None], pair, *existing, s.dup_m)
     pieces, cut, plane, side, n, d, drop = (a[new] for a in (pieces, cut, plane, side, n, d,
