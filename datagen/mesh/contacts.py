@@ -145,11 +145,21 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
     np.minimum.at(p_lo, face_plane[on], f_lo[on])
     np.maximum.at(p_hi, face_plane[on], f_hi[on])
     reach = s.offset + 0.01
+    # the faces of each plane, and a mask of their vertices (set per plane)
+    by_plane = np.argsort(face_plane, kind="stable")
+    starts = np.searchsorted(face_plane[by_plane], np.arange(len(p_normal) + 1))
+    shared = np.zeros(len(vertices), bool)
     seg, cut, plane, side = [], [], [], []
     for k, (n, off) in enumerate(zip(p_normal, p_offset, strict=True)):
-        # faces whose boxes meet the surface's box: the others cannot stand on it
+        own = faces[by_plane[starts[k]:starts[k + 1]]]
+        shared[own] = True
+        # faces whose boxes meet the surface's box (the others cannot stand on it) and that
+        # share no vertex with it (where they do, mesh adjacency has the edge: a scan's wall
+        # and ceiling meet along the triangle sides its labels change along)
         near = np.flatnonzero((f_lo <= p_hi[k] + reach).all(axis=1)
                               & (f_hi >= p_lo[k] - reach).all(axis=1) & (face_plane != k))
+        near = near[~shared[faces[near]].any(axis=1)]
+        shared[own] = False
         dots = vertices @ n - off
         fd = dots[faces[near]]
         for sgn in (1.0, -1.0):
