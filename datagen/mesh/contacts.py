@@ -21,6 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from core import classes as C
+from core.classes import pair_code
 from datagen.mesh.building import face_areas_normals
 
 
@@ -65,14 +66,15 @@ def split_pieces(p: np.ndarray, q: np.ndarray, step: float) -> tuple[np.ndarray,
 
 def cut_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
                region: np.ndarray, rnormal: np.ndarray, settings: ContactConfig
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The planes of the large flat structural regions (most of their area floor, wall,
     ceiling, door or window: what the label modes see), regions on one plane (to 1 deg,
     1 cm) merged.
 
     Returns:
-        normal (N, 3) unit, offset (N,) metres (plane: normal . x = offset), face_plane (F,)
-        the plane each face's region lies on (-1: none).
+        normal (N, 3) unit, offset (N,) metres (plane: normal . x = offset), cls (N,) the
+        class of most of each plane's area, face_plane (F,) the plane each face's region lies
+        on (-1: none).
     """
     area, _ = face_areas_normals(vertices, faces)
     centre = vertices[faces].mean(axis=1)
@@ -88,7 +90,8 @@ def cut_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
     structural = np.isin(np.argmax(table, axis=1), C.STRUCTURAL)
     big = (r_area >= settings.min_area) & (rms <= settings.flat_m) & structural
     if not big.any():
-        return np.zeros((0, 3)), np.zeros(0), np.full(len(faces), -1, np.int64)
+        return (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64),
+                np.full(len(faces), -1, np.int64))
     # one orientation per plane: the first clearly non-zero component positive
     first = np.argmax(np.abs(n) > 1e-3, axis=1)
     sign = np.where(n[np.arange(n_r), first] < 0, -1.0, 1.0)
@@ -104,7 +107,9 @@ def cut_planes(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
     offset = np.bincount(plane, w * r_off[big], count) / np.maximum(np.bincount(plane, w, count),
                                                                    1e-12)
-    return normal, offset, r_plane[region]
+    p_table = np.zeros((count, table.shape[1]))
+    np.add.at(p_table, plane, table[big])
+    return normal, offset, np.argmax(p_table, axis=1), r_plane[region]
 
 
 def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
@@ -132,8 +137,8 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
 
     s = settings or ContactConfig()
     empty = (np.zeros((0, 2, 3)), np.zeros((0, 2), np.uint8), np.zeros(0), np.zeros(0, np.int64))
-    p_normal, p_offset, face_plane = cut_planes(vertices, faces, face_class, region, rnormal,
-                                                s)
+    p_normal, p_offset, p_class, face_plane = cut_planes(vertices, faces, face_class, region,
+                                                         rnormal, s)
     if len(p_normal) == 0:
         return empty
     mesh = trimesh.Trimesh(vertices, faces, process=False)
@@ -190,10 +195,7 @@ def contact_lines(vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarra
     # back onto the plane (where the line is drawn), then those along an edge the mesh has
     # already are that edge (its classes were found there)
     drop = (side * s.offset)[:, None] * n
-    area, _ = face_areas_normals(vertices, faces)
-    table = np.zeros((len(p_normal), 256))
-    np.add.at(table, (face_plane[on], face_class[on]), area[on])
-    pair = np.stack([np.argmax(table, axis=1)[plane], face_class[cut]], 1)
+    pair = np.stack([p_class[plane], face_class[cut]], 1)
     new = ~duplicates(pieces - drop[:, None], pair, *existing, s.dup_m)
     pieces, cut, plane, side, n, d, drop = (a[new] for a in (pieces, cut, plane, side, n, d,
                                                               drop))
@@ -257,12 +259,8 @@ def duplicates(pieces: np.ndarray, classes: np.ndarray, segments: np.ndarray,
     out = np.zeros(len(pieces), bool)
     if len(pieces) == 0 or len(segments) == 0:
         return out
-
-    def code(c: np.ndarray) -> np.ndarray:
-        c = np.sort(np.asarray(c, np.int64).reshape(-1, 2), axis=1)
-        return c[:, 0] * 256 + c[:, 1]
-
-    mine, theirs = code(classes), code(seg_classes)
+    mine = pair_code(classes[:, 0], classes[:, 1])
+    theirs = pair_code(seg_classes[:, 0], seg_classes[:, 1])
     for c in np.intersect1d(mine, theirs):
         seg = segments[theirs == c]
         pts, _ = split_pieces(seg[:, 0], seg[:, 1], tol / 2)

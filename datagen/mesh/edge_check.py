@@ -31,6 +31,7 @@ from core.classes import pair_code
 from core.imaging.camera import project
 from core.imaging.outline import outline_seen
 from core.imaging.rays import RayCaster
+from datagen.mesh.contacts import split_pieces
 
 
 @dataclass(frozen=True)
@@ -123,11 +124,9 @@ class EdgeChecker:
         keep = _counted(cls[:, 0], cls[:, 1])
         nrm = np.full((len(seg), 2, 3), np.nan) if outline is None else np.asarray(outline)
         seg, cls, nrm = seg[keep], cls[keep], nrm[keep]
-        n = np.maximum(np.ceil(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / spacing), 1)
-        n = n.astype(np.int64) + 1
-        which = np.repeat(np.arange(len(seg)), n)
-        t = (np.arange(len(which)) - np.repeat(np.cumsum(n) - n, n)) / (n[which] - 1)
-        self.points = seg[which, 0] + t[:, None] * (seg[which, 1] - seg[which, 0])
+        pieces, which = split_pieces(seg[:, 0], seg[:, 1], spacing)
+        self.points = np.concatenate([pieces[:, 0], seg[:, 1]])
+        which = np.concatenate([which, np.arange(len(seg))])
         self.pairs = pair_code(cls[which, 0], cls[which, 1])
         self.outline = nrm[which]
 
@@ -146,10 +145,11 @@ class EdgeChecker:
         inside = ((depth > 0.05) & (px[:, 0] >= 0) & (px[:, 0] < self.width) & (px[:, 1] >= 0)
                   & (px[:, 1] < self.height))
         idx = np.flatnonzero(inside)
-        origin = np.broadcast_to(world_from_cam[:3, 3], (len(idx), 3))
-        idx = idx[outline_seen(self.outline[idx], self.points[idx], origin)]
-        origin = origin[: len(idx)]
-        seen = idx[~self.caster.hidden(origin, self.points[idx], self.eps)]
+        eye = world_from_cam[:3, 3]
+        idx = idx[outline_seen(self.outline[idx], self.points[idx],
+                               np.broadcast_to(eye, (len(idx), 3)))]
+        seen = idx[~self.caster.hidden(np.broadcast_to(eye, (len(idx), 3)), self.points[idx],
+                                       self.eps)]
         out = np.zeros((self.height, self.width), np.int32)
         out[px[seen, 1], px[seen, 0]] = self.pairs[seen]
         return out
@@ -196,6 +196,5 @@ def free_space_poses(free, body_from_cam: np.ndarray, n: int, rng: np.random.Gen
     xy = free.sample(rng, n)
     z = rng.uniform(*free.band, n)
     yaw = rng.uniform(-np.pi, np.pi, n)
-    out = [pose_from_xyz_rpy(np.array([x, y, h]), np.array([0.0, 0.0, a]))[0] @ body_from_cam
-           for (x, y), h, a in zip(xy, z, yaw, strict=True)]
-    return np.asarray(out).reshape(-1, 4, 4)
+    rpy = np.c_[np.zeros((n, 2)), yaw]
+    return pose_from_xyz_rpy(np.c_[xy, z], rpy) @ body_from_cam
