@@ -50,15 +50,16 @@ from omegaconf import OmegaConf
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from core.atomic import read_png  # noqa: E402
-from core.classes import (  # noqa: E402
+from core.classes import (  # noqa: E402  # noqa: E402
     STRUCTURAL,  # noqa: E402
+    class_changes,
     pair_classes,
     pair_code,
     pair_name,
+    structural_mask,
 )
 from core.dataset import Dataset  # noqa: E402
 from localize.filter.likelihood import distance_to  # noqa: E402
-from localize.frontend.boundaries import class_changes, structural_mask  # noqa: E402
 from localize.frontend.edge_image import EdgeImage  # noqa: E402
 from localize.frontend.front_end import FrontEnd  # noqa: E402
 from localize.frontend.segmenter import LabelPredictor, load_segmenter  # noqa: E402

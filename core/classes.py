@@ -80,3 +80,34 @@ def pair_name(code: int, names: Mapping[int, str]) -> str:
     """``"wall | door"`` for a ``pair_code``, from class names by id (an unnamed id as itself)."""
     a, b = pair_classes(int(code))
     return f"{names.get(a, a)} | {names.get(b, b)}"
+
+
+def structural_mask(labels: np.ndarray, structural: tuple[int, ...] = STRUCTURAL
+                    ) -> np.ndarray:
+    """(H, W) bool: the pixels of ``labels`` (uint8 class ids) whose class is structural."""
+    lut = np.zeros(256, dtype=bool)
+    lut[list(structural)] = True
+    return lut[labels]
+
+
+def class_changes(labels: np.ndarray, struct: np.ndarray
+                  ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+    """The 4-neighbour pixel pairs p, q whose classes are two different structural classes.
+
+    Args:
+        labels: (H, W) class ids.
+        struct: (H, W) bool, the structural pixels (``structural_mask``).
+
+    Returns:
+        For axis 0 (q below p) and axis 1 (q right of p): ``(diff, a, b)``, each (H - 1, W)
+        or (H, W - 1): ``diff`` true at the p of each such pair, ``a`` and ``b`` the classes
+        of p and q.
+    """
+    out = []
+    for axis in (0, 1):
+        a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
+        b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
+        sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
+        sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
+        out.append(((a != b) & sa & sb, a, b))
+    return tuple(out)

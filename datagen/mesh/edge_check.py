@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from core import classes as C
-from core.classes import pair_code
+from core.classes import class_changes, pair_code, structural_mask
 from core.imaging.camera import project
 from core.imaging.outline import outline_seen
 from core.imaging.rays import RayCaster
@@ -67,24 +67,18 @@ class EdgeAgreement:
                 "tol_px": self.tol_px, "missed": self.missed}
 
 
-def _counted(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Pairs a check counts: two different structural classes (what the label modes' edge
-    images hold: ``localize.frontend.boundaries.label_edges``)."""
-    return (a != b) & np.isin(a, C.STRUCTURAL) & np.isin(b, C.STRUCTURAL)
-
-
 def label_boundaries(label: np.ndarray) -> np.ndarray:
     """(H, W) int32 pair code at the boundary pixels of a label map, 0 elsewhere.
 
-    A pixel is a boundary pixel when its right or lower neighbour has another class and the
-    pair is counted (``_counted``); the pair is that of the first such neighbour."""
+    A pixel is a boundary pixel when its right or lower neighbour holds another structural
+    class and it is structural itself (``core.classes.class_changes``: what the label modes'
+    edge images hold); the pair is that of the first such neighbour."""
     out = np.zeros(label.shape, np.int32)
-    for dy, dx in ((0, 1), (1, 0)):
-        a = label[: label.shape[0] - dy, : label.shape[1] - dx]
-        b = label[dy:, dx:]
-        ok = _counted(a, b)
-        view = out[: label.shape[0] - dy, : label.shape[1] - dx]
-        new = ok & (view == 0)
+    changes = class_changes(label, structural_mask(label))
+    for axis in (1, 0):  # the right neighbour first, then the lower one
+        diff, a, b = changes[axis]
+        view = out[: label.shape[0] - (axis == 0), : label.shape[1] - (axis == 1)]
+        new = diff & (view == 0)
         view[new] = pair_code(a[new], b[new])
     return out
 
@@ -121,7 +115,7 @@ class EdgeChecker:
         self.rays = ray_directions(self.K, width, height)
         seg = np.asarray(segments, np.float64).reshape(-1, 2, 3)
         cls = np.asarray(classes).reshape(-1, 2)
-        keep = _counted(cls[:, 0], cls[:, 1])
+        keep = (cls[:, 0] != cls[:, 1]) & np.isin(cls, C.STRUCTURAL).all(axis=1)
         nrm = np.full((len(seg), 2, 3), np.nan) if outline is None else np.asarray(outline)
         seg, cls, nrm = seg[keep], cls[keep], nrm[keep]
         pieces, which = split_pieces(seg[:, 0], seg[:, 1], spacing)

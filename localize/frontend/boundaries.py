@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from core import classes as C
-from core.classes import pair_code
+from core.classes import class_changes, pair_code, structural_mask
 from localize.frontend.edge_image import EdgeImage, check_rgb, edge_normal_angle
 
 
@@ -24,37 +24,6 @@ def dilate(mask: np.ndarray, radius: int) -> np.ndarray:
     k = 2 * int(radius) + 1
     return cv2.dilate(mask.astype(np.uint8),
                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
-
-
-def structural_mask(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL
-                    ) -> np.ndarray:
-    """(H, W) bool: the pixels of ``labels`` (uint8 class ids) whose class is structural."""
-    lut = np.zeros(256, dtype=bool)
-    lut[list(structural)] = True
-    return lut[labels]
-
-
-def class_changes(labels: np.ndarray, struct: np.ndarray
-                  ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
-    """The 4-neighbour pixel pairs p, q whose classes are two different structural classes.
-
-    Args:
-        labels: (H, W) class ids.
-        struct: (H, W) bool, the structural pixels (``structural_mask``).
-
-    Returns:
-        For axis 0 (q below p) and axis 1 (q right of p): ``(diff, a, b)``, each (H - 1, W)
-        or (H, W - 1): ``diff`` true at the p of each such pair, ``a`` and ``b`` the classes
-        of p and q.
-    """
-    out = []
-    for axis in (0, 1):
-        a = np.take(labels, range(labels.shape[axis] - 1), axis=axis)
-        b = np.take(labels, range(1, labels.shape[axis]), axis=axis)
-        sa = np.take(struct, range(labels.shape[axis] - 1), axis=axis)
-        sb = np.take(struct, range(1, labels.shape[axis]), axis=axis)
-        out.append(((a != b) & sa & sb, a, b))
-    return tuple(out)
 
 
 def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
