@@ -19,7 +19,7 @@ import dataclasses
 import functools
 import os
 import sys
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
@@ -102,6 +102,15 @@ def typed(cls: type[T], cfg: Mapping | None, where: str) -> T:
         if str(err).startswith(where):  # names the key already
             raise
         raise ValueError(f"{where}: {err}") from None
+
+
+def check_positive(settings: Any, keys: Sequence[str], where: str) -> None:
+    """Raise ValueError naming ``where.key`` for the first of ``keys`` whose value in
+    ``settings`` (attributes) is not above 0."""
+    for key in keys:
+        value = getattr(settings, key)
+        if value <= 0:
+            raise ValueError(f"{where}.{key} must be positive, got {value}")
 
 
 def as_config(cls: type[T], cfg: Any, where: str) -> T:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core import classes as C
-from core.config import as_config
+from core.config import as_config, check_positive
 from core.dataset import World
 from core.occupancy import OccupancyMap
 from datagen.config import WorldConfig
@@ -88,10 +88,8 @@ def _or(value: float | None, default: float) -> float:
 
 def corridor_boxes(spec: WorldConfig) -> list[Box]:
     """Free-space boxes of a corridor config (``WorldConfig``)."""
+    check_positive(spec, ("length", "width", "height"), "world")
     L, W, H = spec.length, spec.width, spec.height
-    for key, v in (("length", L), ("width", W), ("height", H)):
-        if v <= 0:
-            raise ValueError(f"world.{key} must be positive, got {v}")
     boxes = [Box((-W / 2, 0.0, 0.0), (W / 2, L, H), MAIN)]
     d, win_size = spec.door, spec.window
     for i, door in enumerate(spec.doors):

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from core.config import register_schema
+from core.config import check_positive, register_schema
 from localize.config import AppConfig
 from localize.live.mavlink import check_url
 
@@ -138,10 +138,9 @@ class RealTimeConfig:
     particles_period_s: float = 0.5
 
     def __post_init__(self) -> None:
-        for key in ("odometry_wait_s", "odometry_keep_s", "max_age_s", "ambiguous_std_m",
-                    "status_period_s", "particles_period_s"):
-            if getattr(self, key) <= 0:
-                raise ValueError(f"realtime.{key} must be positive, got {getattr(self, key)}")
+        check_positive(self, ("odometry_wait_s", "odometry_keep_s", "max_age_s",
+                              "ambiguous_std_m", "status_period_s", "particles_period_s"),
+                       "realtime")
 
 
 @dataclass

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from core.config import check_positive
+
 
 @dataclass
 class GlobalSearchConfig:
@@ -69,14 +71,10 @@ class GlobalSearchConfig:
     stride: int = 2
 
     def __post_init__(self) -> None:
-        counts = ("rays", "headings", "min_bins", "max_bins", "inject_headings", "per_bin",
-                  "min_hypotheses", "max_hypotheses", "handover_frames", "stride")
-        bad = [k for k in counts if getattr(self, k) < 1]
-        bad += [k for k in ("cell", "sigma_deg", "outlier", "evidence", "cluster_radius",
-                            "cluster_yaw_deg") if getattr(self, k) <= 0]
-        if bad:
-            raise ValueError(f"filter.global_search.{bad[0]} must be positive, got "
-                             f"{getattr(self, bad[0])}")
+        check_positive(self, ("rays", "headings", "min_bins", "max_bins", "inject_headings",
+                              "per_bin", "min_hypotheses", "max_hypotheses", "handover_frames",
+                              "stride", "cell", "sigma_deg", "outlier", "evidence",
+                              "cluster_radius", "cluster_yaw_deg"), "filter.global_search")
         if self.min_bins > self.max_bins or self.min_hypotheses > self.max_hypotheses:
             raise ValueError("filter.global_search: min_bins <= max_bins and min_hypotheses <= "
                              f"max_hypotheses, got {self.min_bins}, {self.max_bins}, "
