@@ -162,7 +162,7 @@ def edge_scores(ds: Path, cache: Path, step: int = 20) -> dict:
     if key in done:
         return done[key]
     checker = EdgeChecker(w.vertices, w.faces, w.face_class, w.segments, w.segment_classes,
-                          cam.K, cam.width, cam.height, w.outline)
+                          cam.K, cam.width, cam.height, w.normals)
     poses = np.concatenate([dataset.flight(n).groundtruth[::step] @ cam.body_from_cam
                             for n in dataset.flight_names("test")])
     res = agreement(checker, poses).as_dict()

@@ -7,7 +7,7 @@
   world/model.ply              structural mesh, face colour = class colour
   world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
   world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8,
-                               outline (M,2,3) f8 (core.imaging.outline)
+                               normals (M,2,3) f8 (core.imaging.outline)
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
   world_truth/                 with realism.map only: the rendered world (world/ is then the
@@ -73,9 +73,9 @@ class World:
 
     vertices (V,3) metres, faces (F,3), face_class (F,) class ids; segments (M,2,3) metres,
     segment_classes (M,2), crease_deg (M,); free: where a camera centre may be (an occupancy
-    map of the flyable heights, ``free.band``); info: world.json; outline (M,2,3): for an
-    outline segment its two faces' normals, NaN for the others (``core.imaging.outline``; None: no
-    outlines).
+    map of the flyable heights, ``free.band``); info: world.json; normals (M,2,3): for a
+    crease its two faces' normals, NaN for other segments (``core.imaging.outline``; None:
+    none).
     """
 
     vertices: np.ndarray
@@ -86,7 +86,7 @@ class World:
     crease_deg: np.ndarray
     free: OccupancyMap
     info: dict
-    outline: np.ndarray | None = None
+    normals: np.ndarray | None = None
 
     @property
     def z_range(self) -> np.ndarray:
@@ -337,12 +337,16 @@ def load_world(world_dir: str | Path) -> World:
             raise FileNotFoundError(f"world model file missing: {d / f}; re-run datagen")
     m = np.load(d / "model.npz")
     e = np.load(d / "edges.npz")
+    if "outline" in e:
+        raise ValueError(f"{d / 'edges.npz'}: made by an older datagen (its 'outline' rows "
+                         "are duplicates); rebuild it: python -m datagen.mesh.rebuild_edges "
+                         f"{d.parent}")
     info = read_json(d / "world.json")
     return World(
         vertices=m["vertices"], faces=m["faces"], face_class=m["face_class"],
         segments=e["segments"], segment_classes=e["classes"], crease_deg=e["crease_deg"],
         free=OccupancyMap.load(d / "free.npz"), info=info,
-        outline=e["outline"] if "outline" in e else None,
+        normals=e["normals"] if "normals" in e else None,
     )
 
 

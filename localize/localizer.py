@@ -41,6 +41,7 @@ from threadpoolctl import ThreadpoolController
 from core import classes as C
 from core.classes import pair_code
 from core.dataset import Camera, World
+from core.imaging.outline import structural_change
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import LocalizerConfig
@@ -147,28 +148,30 @@ class EdgeModel:
                 g = fit_grid_cached(cache_dir, world, samples.points, free, cell_xy, cell_z,
                                     v.pad, v.eps, max_range, v.max_gb, v.variant)
                 cell_xy, cell_z, max_range = g.cell_xy, g.cell_z, g.max_range
-            outline = None if world.outline is None else world.outline[samples.segment]
+            normals = None if world.normals is None else world.normals[samples.segment]
             vis = load_or_build(world, samples.points, free, cache_dir,
                                 replace(v, cell_xy=cell_xy, cell_z=cell_z, max_range=max_range),
-                                outline)
+                                np.asarray(world.segment_classes)[samples.segment], normals)
         sc = np.asarray(world.segment_classes)[samples.segment]
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 
     def class_change(self, world: World) -> EdgeModel:
-        """The samples of the segments between two different structural classes (what label
-        boundaries can match); this model when there are none."""
+        """The samples that can show two different structural classes (what label boundaries
+        can match): those of segments between two, and with visibility lists those of creases
+        with a structural face, an outline against what lies behind them
+        (``core.imaging.outline``); the lists keep only the entries where a cell sees a
+        boundary. This model when there are none."""
         sc = np.asarray(world.segment_classes)
         keep = (sc[:, 0] != sc[:, 1]) & (sc.min(axis=1) > 0)
+        if self.visibility is not None and world.normals is not None:
+            crease = ~np.isnan(world.normals[:, 0, 0])
+            keep |= crease & np.isin(sc, STRUCTURAL).any(axis=1)
         if not keep.any():
             return self
-        return self._subset(keep)
-
-    def without_outlines(self, world: World) -> EdgeModel:
-        """The samples of every segment but the outlines (``core.imaging.outline``: a crease is
-        there already as itself, seen from everywhere); this model when there are none."""
-        if world.outline is None or np.isnan(world.outline).all():
-            return self
-        return self._subset(np.isnan(world.outline).all(axis=(1, 2)))
+        sub = self._subset(keep)
+        if sub.visibility is not None:
+            sub.visibility = sub.visibility.entries(structural_change(sub.visibility.codes))
+        return sub
 
     def _subset(self, keep: np.ndarray) -> EdgeModel:
         """The samples of the segments ``keep`` (M,) bool."""
@@ -187,10 +190,9 @@ class EdgeModel:
         return self._thinned[step]
 
     def for_mode(self, world: World, mode: str) -> EdgeModel:
-        """The part of this model an edge mode scores: the class-change segments
-        (``class_change``) for the label modes, whose edges are class boundaries only; every
-        segment but the outlines (``without_outlines``) for mode ``none``."""
-        return self.without_outlines(world) if mode == "none" else self.class_change(world)
+        """The part of this model an edge mode scores: the class boundaries (``class_change``)
+        for the label modes, whose edges are class boundaries only; all of it for ``none``."""
+        return self if mode == "none" else self.class_change(world)
 
 
 @dataclass(frozen=True)

@@ -114,7 +114,7 @@ def edge_figures(b: Building, edges, free, rng: np.random.Generator | None = Non
             space (``core.occupancy.OccupancyMap``); rng: the poses' generator (None: seed 0).
 
     Returns:
-        ``floor_edges_m`` (floor | wall, door or window, outlines left out),
+        ``floor_edges_m`` (floor | wall, door or window),
         ``free_outline_m`` (the outer outline of the free space), ``rendered_edges``
         (``EdgeAgreement.as_dict``).
     """
@@ -124,16 +124,15 @@ def edge_figures(b: Building, edges, free, rng: np.random.Generator | None = Non
     from datagen.job import make_camera
     from datagen.mesh.edge_check import EdgeChecker, agreement, free_space_poses
 
-    seg, cls, outline = edges.segments, np.sort(edges.classes, axis=1), edges.outline
-    plain = np.isnan(outline).all(axis=(1, 2))
-    floor = plain & (cls[:, 0] == C.FLOOR) & np.isin(cls[:, 1], (C.WALL, C.DOOR, C.WINDOW))
+    seg, cls = edges.segments, np.sort(edges.classes, axis=1)
+    floor = (cls[:, 0] == C.FLOOR) & np.isin(cls[:, 1], (C.WALL, C.DOOR, C.WINDOW))
     floor_m = float(np.linalg.norm(seg[floor, 1] - seg[floor, 0], axis=1).sum())
     contours, _ = cv2.findContours(free.free.astype(np.uint8), cv2.RETR_EXTERNAL,
                                    cv2.CHAIN_APPROX_SIMPLE)
     outline_m = float(sum(cv2.arcLength(c, True) for c in contours) * free.cell)
     cam = make_camera(CameraConfig())
     checker = EdgeChecker(b.vertices, b.faces, b.face_class, seg, edges.classes, cam.K,
-                          cam.width, cam.height, outline)
+                          cam.width, cam.height, edges.normals)
     poses = free_space_poses(free, cam.body_from_cam, CHECK_VIEWS,
                              rng or np.random.default_rng(0))
     return {"floor_edges_m": round(floor_m, 1), "free_outline_m": round(outline_m, 1),

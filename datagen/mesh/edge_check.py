@@ -4,10 +4,11 @@ From each camera pose the model's label map is ray-cast (the class of the first 
 each pixel centre: what the label sensor of ``datagen.rendering.render`` shows of the model,
 without the distractors and people added at render time), and its class boundaries are found
 (a pixel whose right or lower neighbour has another class, both structural: what the
-label modes' edge images hold). The model's segments between two
-different structural classes are sampled every ``spacing`` metres, projected, kept
-where in view, not hidden (a ray from the camera reaches them within ``eps``) and, for an
-outline, where one of its faces turns away (``core.imaging.outline``), and drawn.
+label modes' edge images hold). The model's segments with a structural class on a side are
+sampled every ``spacing`` metres, projected, kept where in view and not hidden (a ray from
+the camera reaches them within ``eps``), and drawn with the class pair the camera sees along
+them (``core.imaging.outline``: a crease with one face turned away shows that face's class
+against what lies behind it).
 
 - **recall**: the share of boundary pixels with an edge pixel *of the same class pair* within
   ``tol_px`` (a boundary the model has no edge for is a miss: a wall standing on a slab it
@@ -29,7 +30,7 @@ import numpy as np
 from core import classes as C
 from core.classes import class_changes, pair_code, structural_mask
 from core.imaging.camera import project
-from core.imaging.outline import outline_seen
+from core.imaging.outline import seen_pairs, structural_change
 from core.imaging.rays import RayCaster
 from datagen.mesh.contacts import split_pieces
 
@@ -97,8 +98,8 @@ class EdgeChecker:
     Args:
         vertices: (V, 3) metres; faces: (F, 3); face_class: (F,) class ids.
         segments: (M, 2, 3) model edge segments, metres; classes: (M, 2) their two classes.
-        outline: (M, 2, 3) the outlines' face normals, NaN for other edges
-            (``core.imaging.outline``); None: no outlines.
+        normals: (M, 2, 3) the creases' face normals, NaN for other edges
+            (``datagen.mesh.edges.EdgeSet.normals``); None: none.
         K: (3, 3) intrinsics; width, height: pixels.
         spacing: metres between edge samples (5 mm: at 0.5 m and 70 deg across 320 px, 2.3 px).
         eps: metres; an occluder nearer than this to an edge sample does not hide it.
@@ -107,7 +108,7 @@ class EdgeChecker:
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, face_class: np.ndarray,
                  segments: np.ndarray, classes: np.ndarray, K: np.ndarray, width: int,
-                 height: int, outline: np.ndarray | None = None, spacing: float = 0.005,
+                 height: int, normals: np.ndarray | None = None, spacing: float = 0.005,
                  eps: float = 0.02, variant: str = "auto"):
         self.caster = RayCaster(vertices, faces, variant)
         self.face_class = np.asarray(face_class, np.uint8)
@@ -115,14 +116,13 @@ class EdgeChecker:
         self.rays = ray_directions(self.K, width, height)
         seg = np.asarray(segments, np.float64).reshape(-1, 2, 3)
         cls = np.asarray(classes).reshape(-1, 2)
-        keep = (cls[:, 0] != cls[:, 1]) & np.isin(cls, C.STRUCTURAL).all(axis=1)
-        nrm = np.full((len(seg), 2, 3), np.nan) if outline is None else np.asarray(outline)
+        nrm = np.full((len(seg), 2, 3), np.nan) if normals is None else np.asarray(normals)
+        keep = np.isin(cls, C.STRUCTURAL).any(axis=1)
         seg, cls, nrm = seg[keep], cls[keep], nrm[keep]
         pieces, which = split_pieces(seg[:, 0], seg[:, 1], spacing)
         self.points = np.concatenate([pieces[:, 0], seg[:, 1]])
         which = np.concatenate([which, np.arange(len(seg))])
-        self.pairs = pair_code(cls[which, 0], cls[which, 1])
-        self.outline = nrm[which]
+        self.classes, self.normals = cls[which], nrm[which]
 
     def labels(self, world_from_cam: np.ndarray) -> np.ndarray:
         """(H, W) uint8 class of the first face at each pixel centre (IGNORE: nothing hit)."""
@@ -140,12 +140,13 @@ class EdgeChecker:
                   & (px[:, 1] < self.height))
         idx = np.flatnonzero(inside)
         eye = world_from_cam[:3, 3]
-        idx = idx[outline_seen(self.outline[idx], self.points[idx],
-                               np.broadcast_to(eye, (len(idx), 3)))]
         seen = idx[~self.caster.hidden(np.broadcast_to(eye, (len(idx), 3)), self.points[idx],
                                        self.eps)]
+        pairs = seen_pairs(self.classes[seen], self.normals[seen], self.points[seen],
+                           np.broadcast_to(eye, (len(seen), 3)), self.caster, self.face_class)
+        keep = structural_change(pairs)
         out = np.zeros((self.height, self.width), np.int32)
-        out[px[seen, 1], px[seen, 0]] = self.pairs[seen]
+        out[px[seen[keep], 1], px[seen[keep], 0]] = pairs[keep]
         return out
 
 

@@ -20,7 +20,6 @@ from datagen.mesh.building import face_areas_normals
 from datagen.mesh.contacts import (
     ContactConfig,
     contact_lines,
-    outline_classes,
     split_pieces,
 )
 from datagen.mesh.edge_polylines import merge_near_collinear, simplify_segments
@@ -47,16 +46,16 @@ class EdgeSet(NamedTuple):
         classes: (M, 2) uint8, the classes on the two sides (ascending; 0 = void).
         crease: (M,) degrees between the two surfaces (0 for a class change on a flat
             surface, 90 at a boundary edge meeting nothing).
-        outline: (M, 2, 3) for an outline (a crease of one class seen against what lies
-            behind it) the normals of its two faces, wound alike: it is seen where exactly one
-            of them faces the camera (``core.imaging.outline.outline_seen``); NaN for an edge seen
-            from everywhere.
+        normals: (M, 2, 3) for a crease between two faces, their normals in the order of
+            ``classes``, each turned away from the other face: where exactly one of them faces
+            the camera the crease is an outline of that face's class against what lies behind
+            it (``core.imaging.outline``); NaN for an edge that is no such crease.
     """
 
     segments: np.ndarray
     classes: np.ndarray
     crease: np.ndarray
-    outline: np.ndarray
+    normals: np.ndarray
 
 
 #: degrees; a face with a neighbour this close in angle is exact (a CAD facet's triangle).
@@ -105,10 +104,10 @@ def extract_edges(
     separate mesh gives a floor|wall edge; an edge meeting nothing stays (void, X) at 90
     degrees. Lines where a surface meets another it shares no vertex with (a wall sunk into
     a slab, a door frame on a wall) are found by cutting the large flat regions' planes
-    (``contacts.contact_lines``). A crease between two faces of one class in front of a
-    surface of another (a frame on a wall: ``contacts.outline_classes``) is also kept as an
-    outline between the two classes, with its faces' normals (``EdgeSet.outline``). The
-    creases and boundary edges are straightened (``straighten``, ``settings.simplify_m``),
+    (``contacts.contact_lines``). A crease keeps its two faces' normals (``EdgeSet.normals``):
+    seen with one face turned away it is an outline against what lies behind it (a wall end
+    against the floor, a frame against the wall: ``core.imaging.outline``). The creases and
+    boundary edges are straightened (``straighten``, ``settings.simplify_m``),
     the class boundaries kept as they run (``settings.straighten_class_changes``);
     collinear touching pieces are merged (``merge_collinear``) and those under
     ``settings.min_length`` dropped.
@@ -121,7 +120,7 @@ def extract_edges(
         settings: regions, straightening, minimum length (None: the defaults).
 
     Returns:
-        The ``EdgeSet``: segments, classes, crease and, for the outlines, face normals.
+        The ``EdgeSet``: segments, classes, crease and, for the creases, face normals.
     """
     if faces.ndim != 2 or faces.shape[1] != 3:
         raise ValueError(f"faces must be (F, 3), got {faces.shape}")
@@ -157,24 +156,16 @@ def extract_edges(
     c0 = face_class[f0]
     c1 = np.where(count >= 2, face_class[g1], 0)
     keep = (count > 2) | (two & ((angle > crease_deg) | (c0 != c1)))
-    # a crease inside one class is also an outline against what lies behind it (a frame on a
-    # wall), from where one of its faces turns away from the camera (each way round)
-    same = np.flatnonzero(keep & two & (c0 == c1) & (c0 != C.VOID))
-    na, nb = normals[f0[same]], agree[same] * normals[g1[same]]
-    sides = ((na, nb), (nb, na))
-    behind = [outline_classes(vertices, faces, face_class, uniq[same], c0[same], a, b,
-                              variant=(probe or BoundaryProbe()).variant) for a, b in sides]
-    o_idx = np.concatenate([same[k > 0] for k in behind])
-    o_seg, o_ang = vertices[uniq[o_idx]], np.round(angle[o_idx], 6)
-    o_cls = np.sort(np.stack([c0[o_idx], np.concatenate([k[k > 0] for k in behind])], 1),
-                    axis=1).astype(np.uint8)
-    o_nrm = np.concatenate([np.stack([a[k > 0], b[k > 0]], 1)
-                            for (a, b), k in zip(sides, behind, strict=True)])
-    o_part = np.sort(np.stack([region[f0[o_idx]], region[g1[o_idx]]], 1), axis=1)
-    # the two outlines of one crease chain apart
-    o_part = np.c_[o_part, np.repeat([0, 1], [int((k > 0).sum()) for k in behind])]
+    # a crease's two face normals, each turned away from the other face (core.imaging.outline)
+    crease = keep & two & (angle > crease_deg)
+    nrm = np.full((len(uniq), 2, 3), np.nan)
+    na_c = np.where(inside[:, None], normals[f0], na)[crease]
+    nb_c = np.where(inside[:, None], normals[g1], nb)[crease]
+    nrm[crease] = crease_normals(vertices, faces, uniq[crease], f0[crease], g1[crease],
+                                 na_c, nb_c)
     seg = [vertices[uniq[keep]]]
     cls = [np.stack([c0, c1], axis=1)[keep]]
+    nrm = [nrm[keep]]
     ang = [np.round(angle[keep], 6)]
     part = [np.sort(np.stack([region[f0], region[g1]], 1)[keep], axis=1)]
     if (count == 1).any():
@@ -183,11 +174,15 @@ def extract_edges(
         kept = (b_ang > crease_deg) | (b_cls[:, 0] != b_cls[:, 1])
         seg.append(b_seg[kept])
         cls.append(b_cls[kept])
+        nrm.append(np.full((int(kept.sum()), 2, 3), np.nan))
         ang.append(b_ang[kept])
         owner = region[f0[count == 1]][b_edge[kept]]
         part.append(np.stack([owner, np.full(len(owner), -1)], 1))
-    seg, ang = np.concatenate(seg), np.concatenate(ang)
-    cls = np.sort(np.concatenate(cls), axis=1).astype(np.uint8)
+    seg, ang, cls, nrm = (np.concatenate(seg), np.concatenate(ang), np.concatenate(cls),
+                          np.concatenate(nrm))
+    swap = cls[:, 0] > cls[:, 1]  # classes ascending, the normals in their order
+    cls = np.sort(cls, axis=1).astype(np.uint8)
+    nrm[swap] = nrm[swap][:, ::-1]
     part = np.concatenate(part)
     c_seg, c_cls, c_ang, c_plane = contact_lines(
         vertices, faces, face_class, normals, region, rnormal, (seg, cls),
@@ -198,29 +193,40 @@ def extract_edges(
     c_part = np.stack([-2 - c_plane[kept], np.full(kept.sum(), -2)], 1)
     c_seg, c_cls, c_ang = straighten(c_seg, c_cls, c_ang, c_part, crease_deg,
                                      settings.simplify_m)[:3]
-    o_seg, o_cls, o_ang, member = straighten(o_seg, o_cls, o_ang, o_part, crease_deg,
-                                             settings.simplify_m)
-    o_nrm = o_nrm[member]
     # class boundaries between two classes stay where the faces' classes change (what a
     # label image shows, triangle side by triangle side); the rest are straightened
     exact = (cls[:, 0] != cls[:, 1]) & (cls[:, 0] != C.VOID)
-    if not settings.straighten_class_changes:
-        seg_s, cls_s, ang_s = straighten(seg[~exact], cls[~exact], ang[~exact], part[~exact],
-                                         crease_deg, settings.simplify_m)[:3]
-        seg = np.concatenate([seg[exact], seg_s])
-        cls = np.concatenate([cls[exact], cls_s])
-        ang = np.concatenate([ang[exact], ang_s])
-    else:
-        seg, cls, ang = straighten(seg, cls, ang, part, crease_deg, settings.simplify_m)[:3]
-    seg, cls, ang = (np.concatenate([seg, c_seg]), np.concatenate([cls, c_cls]),
-                     np.concatenate([ang, c_ang]))
-    seg, cls, ang = merge_collinear(seg, cls, ang)
-    outline = np.full((len(seg) + len(o_seg), 2, 3), np.nan)
-    outline[len(seg):] = o_nrm
-    seg, cls, ang = (np.concatenate([seg, o_seg]), np.concatenate([cls, o_cls]),
-                     np.concatenate([ang, o_ang]))
+    if settings.straighten_class_changes:
+        exact[:] = False
+    s_seg, s_cls, s_ang, member = straighten(seg[~exact], cls[~exact], ang[~exact],
+                                             part[~exact], crease_deg, settings.simplify_m)
+    seg = np.concatenate([seg[exact], s_seg, c_seg])
+    cls = np.concatenate([cls[exact], s_cls, c_cls])
+    ang = np.concatenate([ang[exact], s_ang, c_ang])
+    nrm = np.concatenate([nrm[exact], nrm[~exact][member], np.full((len(c_seg), 2, 3), np.nan)])
+    seg, cls, ang, nrm = merge_collinear(seg, cls, ang, nrm)
     long = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) >= settings.min_length
-    return EdgeSet(seg[long], cls[long], ang[long], outline[long])
+    return EdgeSet(seg[long], cls[long], ang[long], nrm[long])
+
+
+def crease_normals(vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray, fa: np.ndarray,
+                   fb: np.ndarray, na: np.ndarray, nb: np.ndarray) -> np.ndarray:
+    """(E, 2, 3) the normals ``na``, ``nb`` (E, 3) of faces ``fa``, ``fb`` (E,) meeting along
+    ``edges`` (E, 2) vertex indices, each turned away from the other face (a convex corner's
+    outward normals, whatever the mesh's winding: ``core.imaging.outline``)."""
+    p = vertices[edges[:, 0]]
+    e = vertices[edges[:, 1]] - p
+    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
+
+    def into(f: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """(E, 3) from the edge into face f across the edge, in the plane of normal n."""
+        t = np.cross(e, n)
+        return t * np.where(np.einsum("ij,ij->i", t, vertices[faces[f]].mean(axis=1) - p) < 0,
+                            -1.0, 1.0)[:, None]
+
+    na = na * np.where(np.einsum("ij,ij->i", na, into(fb, nb)) > 0, -1.0, 1.0)[:, None]
+    nb = nb * np.where(np.einsum("ij,ij->i", nb, into(fa, na)) > 0, -1.0, 1.0)[:, None]
+    return np.stack([na, nb], axis=1)
 
 
 def straighten(seg: np.ndarray, cls: np.ndarray, ang: np.ndarray, part: np.ndarray,
@@ -427,18 +433,34 @@ def _first_faces(vertices: np.ndarray, faces: np.ndarray, mid: np.ndarray, norma
 
 
 def merge_collinear(
-    segments: np.ndarray, classes: np.ndarray, crease: np.ndarray, tol: float = 1e-6
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Join collinear segments that touch end to end and share class pair and angle.
+    segments: np.ndarray, classes: np.ndarray, crease: np.ndarray,
+    normals: np.ndarray | None = None, tol: float = 1e-6
+) -> tuple[np.ndarray, ...]:
+    """Join collinear segments that touch end to end and share class pair, angle and (given)
+    face normals.
 
     Args:
-        segments: (M, 2, 3); classes: (M, 2); crease: (M,).
+        segments: (M, 2, 3); classes: (M, 2); crease: (M,); normals: (M, 2, 3) or None.
 
     Returns:
-        The merged (segments, classes, crease), same layout, in a deterministic order.
+        The merged (segments, classes, crease[, normals]), same layout, in a deterministic
+        order.
     """
+    if normals is not None:
+        *out, k = _merge_collinear(segments, classes, crease,
+                                   np.nan_to_num(normals, nan=9.0).reshape(-1, 6), tol)
+        return (*out, np.asarray(normals)[k])
+    return tuple(_merge_collinear(segments, classes, crease, np.zeros((len(segments), 0)),
+                                  tol)[:3])
+
+
+def _merge_collinear(segments: np.ndarray, classes: np.ndarray, crease: np.ndarray,
+                     extra: np.ndarray, tol: float) -> tuple[np.ndarray, ...]:
+    """``merge_collinear`` with ``extra`` (M, K) key columns; also the index of the segment
+    each merged one takes its attributes from."""
     if len(segments) == 0:
-        return segments.reshape(0, 2, 3), classes.reshape(0, 2), crease.reshape(0)
+        return (segments.reshape(0, 2, 3), classes.reshape(0, 2), crease.reshape(0),
+                np.zeros(0, np.int64))
     segments = np.asarray(segments, dtype=np.float64)
     d = segments[:, 1] - segments[:, 0]
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -453,7 +475,8 @@ def merge_collinear(
     t1 = np.einsum("ij,ij->i", segments[:, 1], d)
     lo, hi = np.minimum(t0, t1), np.maximum(t0, t1)
     key = np.concatenate([np.round(d / tol) * tol, np.round(foot / tol) * tol,
-                          classes.astype(float), crease[:, None]], axis=1).round(6)
+                          classes.astype(float), crease[:, None], np.round(extra, 3)],
+                         axis=1).round(6)
     _, group = np.unique(key, axis=0, return_inverse=True)
     group = group.ravel()
     order = np.lexsort((lo, group))
@@ -467,4 +490,4 @@ def merge_collinear(
     k = order[first]
     b = np.maximum.reduceat(hi, first)
     out = np.stack([foot[k] + lo[first, None] * d[k], foot[k] + b[:, None] * d[k]], axis=1)
-    return out, classes[k].astype(np.uint8), crease[k].astype(np.float64)
+    return out, classes[k].astype(np.uint8), crease[k].astype(np.float64), k

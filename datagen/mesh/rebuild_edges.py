@@ -58,10 +58,10 @@ def rebuild_world_edges(world_dir: Path, crease_deg: float,
             raise ValueError(f"{model}: key {key!r} missing; re-run datagen for this dataset")
     old = world_dir / "edges.npz"
     before = len(np.load(old)["segments"]) if old.is_file() else -1
-    seg, cls, crease, outline = extract_edges(m["vertices"], m["faces"], m["face_class"],
+    seg, cls, crease, normals = extract_edges(m["vertices"], m["faces"], m["face_class"],
                                                crease_deg, settings=settings)
     buf = io.BytesIO()
-    np.savez_compressed(buf, segments=seg, classes=cls, crease_deg=crease, outline=outline)
+    np.savez_compressed(buf, segments=seg, classes=cls, crease_deg=crease, normals=normals)
     atomic_write_bytes(old, buf.getvalue())
     info_file = world_dir / "world.json"
     if info_file.is_file():

@@ -202,9 +202,9 @@ def with_builtins(world: World, builtins: list[Builtin], crease_deg: float) -> W
         CR.append(cr)
     info = {**world.info, "builtins": [b.as_json() for b in builtins]}
     S = np.concatenate(S)
-    outline = None
-    if world.outline is not None:
-        outline = np.full((len(S), 2, 3), np.nan)
-        outline[:len(world.outline)] = world.outline
+    normals = None
+    if world.normals is not None:
+        normals = np.full((len(S), 2, 3), np.nan)
+        normals[:len(world.normals)] = world.normals
     return World(np.concatenate(V), np.concatenate(F), np.concatenate(K), S,
-                 np.concatenate(SC), np.concatenate(CR), world.free, info, outline)
+                 np.concatenate(SC), np.concatenate(CR), world.free, info, normals)

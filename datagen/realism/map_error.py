@@ -458,7 +458,7 @@ def make_map(truth: World, c: MapErrorConfig, crease_deg: float,
                                       truth.free.band[1])
     v, f, cls, extra = add_openings(v, f, cls, c.extra_openings, list(c.extra_kinds), rng,
                                     float(truth.info.get("floor_z", 0.0)), truth.free)
-    segments, seg_classes, crease, outline = extract_edges(v, f, cls, crease_deg)
+    segments, seg_classes, crease, normals = extract_edges(v, f, cls, crease_deg)
     tf = truth.free
     free = OccupancyMap.from_mesh(v, f, cls, tf.band, tf.margin, tf.cell)
     info = {k: val for k, val in truth.info.items() if k != "free_space"}
@@ -468,7 +468,7 @@ def make_map(truth: World, c: MapErrorConfig, crease_deg: float,
                        "area_m2": round(free.area, 3)},
         "num_faces": int(len(f)), "num_edges": int(len(segments)),
     })
-    world = World(v, f, cls, segments, seg_classes, crease, free, info, outline)
+    world = World(v, f, cls, segments, seg_classes, crease, free, info, normals)
     record = {"walls": walls, "ceilings": ceilings, "missing_openings": missing,
               "extra_openings": extra}
     return world, record

@@ -271,7 +271,7 @@ def build_world(spec: WorldConfig | Mapping | None = None) -> CorridorModel:
     boxes = corridor_boxes(spec)
     vertices, faces, face_box, normal = boundary_mesh(boxes)
     face_class = classify_faces(boxes, face_box, normal)
-    segments, seg_classes, crease, outline = extract_edges(vertices, faces, face_class,
+    segments, seg_classes, crease, normals = extract_edges(vertices, faces, face_class,
                                                            spec.crease_deg)
     fboxes, z_range = free_space(spec, boxes)
     free = OccupancyMap.from_boxes(fboxes, z_range, FREE_CELL, spec.camera_margin)
@@ -287,6 +287,6 @@ def build_world(spec: WorldConfig | Mapping | None = None) -> CorridorModel:
     }
     world = World(vertices=vertices, faces=faces, face_class=face_class, segments=segments,
                   segment_classes=seg_classes, crease_deg=crease, free=free, info=info,
-                  outline=outline)
+                  normals=normals)
     frame = recess_faces(boxes, face_box, normal)[1]
     return CorridorModel(world, boxes, face_box, frame, lights, spec.height, fboxes)

@@ -25,9 +25,9 @@ def save_world(d: str | Path, w: World) -> None:
     d = Path(d)
     atomic_write_bytes(d / "model.npz", _npz_bytes(
         vertices=w.vertices, faces=w.faces.astype(np.int64), face_class=w.face_class))
-    outline = {} if w.outline is None else {"outline": w.outline}
+    normals = {} if w.normals is None else {"normals": w.normals}
     atomic_write_bytes(d / "edges.npz", _npz_bytes(
-        segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg, **outline))
+        segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg, **normals))
     w.free.save(d / "free.npz")
     atomic_write_json(d / "world.json", w.info)
     if "import_summary" in w.info:

@@ -133,7 +133,7 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
                                        floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
     except ValueError as err:
         raise ValueError(f"{source}: {err}") from None
-    segments, seg_classes, crease, outline = extract_edges(b.vertices, b.faces, b.face_class,
+    segments, seg_classes, crease, normals = extract_edges(b.vertices, b.faces, b.face_class,
                                                            spec.crease_deg)
     info = {
         "name": spec.name, "kind": spec.kind, **b.info,
@@ -146,7 +146,7 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
     }
     world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
                   segments=segments, segment_classes=seg_classes, crease_deg=crease,
-                  free=free, info=info, outline=outline)
+                  free=free, info=info, normals=normals)
     scene = building_scene(b, free, light_spacing=spec.light_spacing)
     log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
              source, len(b.faces), len(segments), free.area, scene.num_lights,
@@ -166,7 +166,7 @@ def file_site(spec: FileWorldConfig) -> Site:
     t0 = time.perf_counter()
     site = building_site(load_building(settings=spec), spec, spec.path, t0)
     w = site.world
-    edges = EdgeSet(w.segments, w.segment_classes, w.crease_deg, w.outline)
+    edges = EdgeSet(w.segments, w.segment_classes, w.crease_deg, w.normals)
     report = import_summary(site.building, w.free.area, vertical_edges(w.segments),
                             edge_figures(site.building, edges, w.free))
     w.info["import_summary"] = report

@@ -65,6 +65,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from core import classes as C
 from core.dataset import Camera
 from localize.config import LikelihoodConfig
 from localize.filter.projection import (
@@ -280,9 +281,20 @@ def observe(edge: EdgeImage, params: LikelihoodConfig,
     # the maps are independent: on params.workers threads
     g0 = np.array(run_all(plain_bin, range(len(masks)), params.workers), np.float32)
     if paired:  # one distance transform per (pair, bin)
-        pms = [edge.pairs == c for c in np.asarray(pair_codes, np.uint8)]
+        pms = [_pair_mask(edge.pairs, c) for c in np.asarray(pair_codes, np.uint8)]
         run_all(pair_bin, range(n), params.workers)
     return Observation(g_flat, f_flat, g0, W, H, B, len(pair_codes) if paired else 0)
+
+
+def _pair_mask(pairs: np.ndarray, code: int) -> np.ndarray:
+    """(H, W) bool: the edge pixels of class pair ``code``; for a crease inside one class
+    (an outline of it against whatever lies behind: ``core.imaging.outline``), those with
+    that class on a side."""
+    a, b = C.pair_classes(int(code))
+    if a != b:
+        return pairs == code
+    lo, hi = C.pair_classes(pairs)
+    return (pairs > 0) & ((lo == a) | (hi == a))
 
 
 class EdgeLikelihood:

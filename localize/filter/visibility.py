@@ -8,7 +8,11 @@ the ascending ids of the samples seen (CSR: ``indptr``, ``ids``). A particle loo
 nearest to its camera centre; memory and build time grow with the free area x the samples in
 range of a cell, not with the building's whole edge set. A sample counts as visible when
 nothing is hit on the ray from the cell centre to within ``eps`` of the sample (the sample lies
-on the surface itself). Positions outside the stored cells use the nearest stored cell.
+on the surface itself). Each entry also holds the class pair seen along the sample from the
+cell (``codes``): a crease seen with one face turned away is an outline of that face's class
+against what lies behind it (``core.imaging.outline``), so the label modes keep only the
+entries where a class boundary is seen. Positions outside the stored cells use the nearest
+stored cell.
 
 Rays go through Mitsuba's ``ray_test`` (llvm variant, millions of rays per second); with the
 scalar fallback variant trimesh's ray intersector does it, slower. The lists are cached in an
@@ -28,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from core.atomic import atomic_write
 from core.dataset import World
-from core.imaging.outline import outline_seen
+from core.imaging.outline import seen_pairs
 from core.imaging.rays import RayCaster
 from core.occupancy import OccupancyMap
 from localize.config import VisibilityConfig
@@ -38,7 +42,7 @@ log = logging.getLogger(__name__)
 #: metres: side of the square tiles that order the stored cells (neighbours in space are
 #: neighbours in row order, so particles sorted by row form compact groups).
 TILE_M = 2.0
-_ARRAYS = ("origin", "cell", "shape", "row_of", "flat", "indptr", "ids")
+_ARRAYS = ("origin", "cell", "shape", "row_of", "flat", "indptr", "ids", "codes")
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,9 @@ class SparseVisibility:
         flat: (R,) int64 grid flat index of each stored row.
         indptr: (R + 1,) int64 CSR row pointers into ``ids``.
         ids: (nnz,) uint32 visible sample ids, ascending within a row.
+        codes: (nnz,) uint8 the class pair (``core.classes.pair_code``) seen along each listed
+            sample from the cell (``core.imaging.outline.seen_pairs``: a crease with one face
+            turned away shows that face's class against what lies behind it); 0: one class.
         num_samples: P, the samples the ids index.
         max_range: metres; samples farther from a cell centre are not listed.
     """
@@ -65,6 +72,7 @@ class SparseVisibility:
     flat: np.ndarray
     indptr: np.ndarray
     ids: np.ndarray
+    codes: np.ndarray
     num_samples: int
     max_range: float
 
@@ -127,11 +135,13 @@ class SparseVisibility:
         new = np.full(self.num_samples, -1, dtype=np.int64)
         new[cols] = np.arange(len(cols))
         ids, indptr = [np.zeros(0, np.uint32)], np.zeros(len(self.indptr), np.int64)
+        codes = [np.zeros(0, np.uint8)]
         done, lo = 0, 0  # ids kept so far; first row pointer not yet set
         for a in range(0, len(self.ids), chunk):
             mapped = new[self.ids[a:a + chunk]]
             keep = mapped >= 0
             ids.append(mapped[keep].astype(np.uint32))
+            codes.append(self.codes[a:a + chunk][keep])
             before = np.cumsum(keep)  # kept up to and including each position
             hi = np.searchsorted(self.indptr, a + len(keep), side="right")
             p = self.indptr[lo:hi] - a  # row pointers in this chunk
@@ -139,7 +149,16 @@ class SparseVisibility:
             done, lo = done + int(before[-1]), hi
         indptr[lo:] = done
         return SparseVisibility(self.origin, self.cell, self.shape, self.row_of, self.flat,
-                                indptr, np.concatenate(ids), len(cols), self.max_range)
+                                indptr, np.concatenate(ids), np.concatenate(codes), len(cols),
+                                self.max_range)
+
+    def entries(self, keep: np.ndarray) -> SparseVisibility:
+        """The lists with only the entries ``keep`` (nnz,) bool (e.g. the class boundaries:
+        ``core.imaging.outline.structural_change(codes)``)."""
+        before = np.r_[0, np.cumsum(keep)]
+        return SparseVisibility(self.origin, self.cell, self.shape, self.row_of, self.flat,
+                                before[self.indptr], self.ids[keep], self.codes[keep],
+                                self.num_samples, self.max_range)
 
 
 def free_bounds(free: OccupancyMap) -> tuple[np.ndarray, np.ndarray]:
@@ -242,8 +261,8 @@ def _batches(counts: np.ndarray, chunk: int) -> list[slice]:
 
 def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None = None,
                      settings: VisibilityConfig | None = None,
-                     chunk: int = 2_000_000, outline: np.ndarray | None = None
-                     ) -> SparseVisibility:
+                     chunk: int = 2_000_000, classes: np.ndarray | None = None,
+                     normals: np.ndarray | None = None) -> SparseVisibility:
     """Ray-cast the visibility of sample points from the stored cells' centres.
 
     Args:
@@ -255,9 +274,11 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
             ``max_range`` (only samples this near a cell centre are cast and listed) and the
             Mitsuba ``variant`` (``RayCaster``); None: ``VisibilityConfig()``.
         chunk: rays per batch (memory: about 100 bytes a ray).
-        outline: (P, 2, 3) the face normals of each point's edge where it is an outline (seen
-            only where one face turns away: ``core.imaging.outline.outline_seen``), NaN elsewhere;
-            None: no outlines.
+        classes: (P, 2) the classes of each point's edge, in the order of ``normals``; None:
+            every ``codes`` entry 0.
+        normals: (P, 2, 3) each point's crease normals (``datagen.mesh.edges.EdgeSet.normals``,
+            NaN for no crease): the class pair seen from a cell is that of an outline where
+            one face turns away (``core.imaging.outline.seen_pairs``); None: the edge's own.
     """
     v = VisibilityConfig() if settings is None else settings
     cell_xy, cell_z, pad, eps, max_range = v.cell_xy, v.cell_z, v.pad, v.eps, v.max_range
@@ -265,30 +286,32 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
     if max_range <= 0:
         raise ValueError(f"visibility.max_range must be positive, got {max_range}")
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if normals is None:
+        normals = np.full((len(points), 2, 3), np.nan)
     free = world.free if free is None else free
     origin, cell, shape = grid_layout(*free_bounds(free), cell_xy, cell_z, pad)
     flat, row_of = stored_cells(free, origin, cell, shape, pad)
-    vis = SparseVisibility(origin, cell, shape, row_of, flat, np.zeros(len(flat) + 1, np.int64),
-                           np.zeros(0, np.uint32), len(points), float(max_range))
-    centres = vis.centres()
+    centres = (origin + np.stack(np.unravel_index(flat, tuple(shape)), axis=1) * cell)
     tree = cKDTree(points)
     near = tree.query_ball_point(centres, max_range, return_length=True)
     caster = RayCaster(world.vertices, world.faces, variant) if near.any() else None
-    ids, counts = [], np.zeros(len(flat), dtype=np.int64)
+    ids, codes, counts = [], [], np.zeros(len(flat), dtype=np.int64)
     for b in _batches(near, chunk) if near.any() else []:
         pairs = cKDTree(centres[b]).sparse_distance_matrix(tree, max_range,
                                                            output_type="ndarray")
         i, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
         seen = ~caster.hidden(centres[b][i], points[j], eps)
-        if outline is not None:
-            seen &= outline_seen(outline[j], points[j], centres[b][i])
         i, j = i[seen], j[seen]
         order = np.lexsort((j, i))
-        ids.append(j[order].astype(np.uint32))
+        i, j = i[order], j[order]
+        ids.append(j.astype(np.uint32))
+        codes.append(np.zeros(len(j), np.uint8) if classes is None else seen_pairs(
+            classes[j], normals[j], points[j], centres[b][i], caster, world.face_class))
         counts[b] = np.bincount(i, minlength=b.stop - b.start)
     indptr = np.concatenate([[0], np.cumsum(counts)])
     ids = np.concatenate(ids) if ids else np.zeros(0, np.uint32)
-    return SparseVisibility(origin, cell, shape, row_of, flat, indptr, ids, len(points),
+    codes = np.concatenate(codes) if codes else np.zeros(0, np.uint8)
+    return SparseVisibility(origin, cell, shape, row_of, flat, indptr, ids, codes, len(points),
                             float(max_range))
 
 
@@ -304,24 +327,25 @@ def cache_key(world: World, points: np.ndarray, free: OccupancyMap, settings: di
 
 def load_or_build(world: World, points: np.ndarray, free: OccupancyMap | None,
                   cache_dir: str | Path | None, settings: VisibilityConfig,
-                  outline: np.ndarray | None = None) -> SparseVisibility:
+                  classes: np.ndarray | None = None, normals: np.ndarray | None = None
+                  ) -> SparseVisibility:
     """The visibility lists from ``cache_dir/visibility_<key>.npz``, built and saved if
-    missing (``free`` None: ``world.free``; ``settings`` and ``outline`` as
+    missing (``free`` None: ``world.free``; ``settings``, ``classes`` and ``normals`` as
     ``build_visibility``'s)."""
     free = world.free if free is None else free
     key = {"cell_xy": settings.cell_xy, "cell_z": settings.cell_z, "pad": settings.pad,
-           "eps": settings.eps, "max_range": settings.max_range, "layout": "sparse"}
+           "eps": settings.eps, "max_range": settings.max_range, "layout": "sparse-codes"}
     path = None
     if cache_dir is not None:
-        if outline is not None and not np.isnan(outline).all():
-            key["outline"] = hashlib.sha256(np.ascontiguousarray(outline).tobytes()
-                                            ).hexdigest()[:16]
+        for name, a in (("classes", classes), ("normals", normals)):
+            if a is not None:
+                key[name] = hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()[:16]
         path = Path(cache_dir) / f"visibility_{cache_key(world, points, free, key)}.npz"
         if path.is_file():
             with np.load(path) as f:
                 return SparseVisibility(*(f[k] for k in _ARRAYS), int(f["num_samples"]),
                                         float(f["max_range"]))
-    vis = build_visibility(world, points, free, settings, outline=outline)
+    vis = build_visibility(world, points, free, settings, classes=classes, normals=normals)
     if path is not None:
         atomic_write(path, lambda p: np.savez(
             p, **{k: getattr(vis, k) for k in _ARRAYS}, num_samples=vis.num_samples,

@@ -38,8 +38,9 @@ log = logging.getLogger(__name__)
 CELL_STEP, RANGE_STEP = 2.0, 2.0 / 3.0
 #: levels tried (level 0: the configured grid).
 MAX_LEVELS = 4
-#: bytes per listed sample id (uint32) and per stored row (flat int64 + indptr int64).
-ID_BYTES, ROW_BYTES = 4, 16
+#: bytes per listed sample (id uint32 + class pair uint8) and per stored row (flat int64 +
+#: indptr int64).
+ID_BYTES, ROW_BYTES = 5, 16
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,8 @@ import pytest
 import trimesh
 
 from core import classes as C
-from core.imaging.outline import outline_seen
+from core.classes import pair_code
+from core.imaging.outline import outline_side, seen_pairs
 from core.imaging.rays import RayCaster
 from datagen.mesh.edge_polylines import simplify_segments
 from datagen.mesh.edges import EdgeExtractionConfig, extract_edges
@@ -158,21 +159,29 @@ def _digest(seg: np.ndarray, cls: np.ndarray, crease: np.ndarray) -> str:
 
 
 def test_the_corridor_edges_are_unchanged():
-    """Its 132 edges as they were, and 29 outlines besides, all at inner corners (of door and
-    window recesses): seen (turned so, and not hidden) from none of its free space."""
+    """Its 132 edges as they were; its creases carry their faces' normals. Its outlines (a
+    crease seen with one face turned away) are edges of the door and window recesses: seen
+    from its free space they show a wall against the door or window inside the recess, or
+    one class (a frame against the door leaf), nothing else."""
     w = build_world().world
-    plain = np.isnan(w.outline).all(axis=(1, 2))
-    assert plain.sum() == 132 and len(plain) == 161
-    seg, cls, crease = w.segments[plain], w.segment_classes[plain], w.crease_deg[plain]
-    assert _lengths(seg).sum() == pytest.approx(169.0)
-    assert _digest(seg, cls, crease) == CORRIDOR_DIGEST
+    assert len(w.segments) == 132
+    assert _lengths(w.segments).sum() == pytest.approx(169.0)
+    assert _digest(w.segments, w.segment_classes, w.crease_deg) == CORRIDOR_DIGEST
+    crease = ~np.isnan(w.normals[:, 0, 0])
+    assert (crease == (w.crease_deg > 20)).all()
     cells = w.free.centres(np.nonzero(w.free.free))
     eyes = np.c_[cells, np.full(len(cells), 1.4)]
     caster = RayCaster(w.vertices, w.faces)
-    for s, n in zip(w.segments[~plain], w.outline[~plain], strict=True):
+    shown = set()
+    for s, n, c in zip(w.segments[crease], w.normals[crease], w.segment_classes[crease],
+                       strict=True):
         mid = np.repeat(s.mean(axis=0)[None], len(eyes), axis=0)
-        turned = outline_seen(np.repeat(n[None], len(eyes), axis=0), mid, eyes)
-        assert caster.hidden(eyes[turned], mid[turned], 0.02).all()
+        side = outline_side(np.repeat(n[None], len(eyes), axis=0), mid, eyes)
+        seen = (side >= 0) & ~caster.hidden(eyes, mid, 0.02)
+        k = int(seen.sum())
+        shown |= set(seen_pairs(np.repeat(c[None], k, axis=0), np.repeat(n[None], k, axis=0),
+                                mid[seen], eyes[seen], caster, w.face_class).tolist())
+    assert shown == {0, int(pair_code(C.WALL, C.DOOR)), int(pair_code(C.WALL, C.WINDOW))}
 
 
 @pytest.mark.slow

@@ -25,11 +25,11 @@ def test_rebuild_writes_the_current_edges(tmp_path, capsys):
     np.savez(tmp_path / "world" / "edges.npz", segments=w.segments[:3],
              classes=w.segment_classes[:3], crease_deg=w.crease_deg[:3])
     assert main([str(tmp_path)]) == 0
-    assert "3 -> 161 model edge segments" in capsys.readouterr().out
+    assert "3 -> 132 model edge segments" in capsys.readouterr().out
     got = load_world(tmp_path / "world")
     assert np.array_equal(got.segments, w.segments)
     assert np.array_equal(got.segment_classes, w.segment_classes)
-    assert got.info["num_edges"] == 161
+    assert got.info["num_edges"] == 132
     assert sorted(p.name for p in (tmp_path / "world").iterdir() if p.name.startswith("."))\
         == []  # no temporary file left
 
@@ -41,7 +41,7 @@ def test_the_dataset_crease_threshold_is_used(tmp_path):
     w = load_world(tmp_path / "world")
     assert (w.segment_classes[:, 0] != w.segment_classes[:, 1]).all()  # class changes only
     assert main([str(tmp_path), "--crease-deg", "20"]) == 0
-    assert len(load_world(tmp_path / "world").segments) == 161
+    assert len(load_world(tmp_path / "world").segments) == 132
 
 
 def test_a_folder_without_a_model_is_an_error(tmp_path, capsys):

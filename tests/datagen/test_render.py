@@ -8,7 +8,8 @@ import pytest
 
 from core import classes as C
 from core.config import compose_config
-from core.imaging.outline import outline_seen
+from core.imaging.outline import seen_pairs
+from core.imaging.rays import RayCaster
 from core.poses import pose_from_xyz_rpy
 from datagen.appearance.textures import sample_textures
 from datagen.job import make_camera
@@ -17,12 +18,12 @@ from datagen.worlds.scene import corridor_scene
 
 
 def _seen_changes(w, world_from_cam: np.ndarray) -> np.ndarray:
-    """(M,) bool: the class-changing segments, outlines only where turned as one is seen from
-    the camera (``core.imaging.outline``; the corridor's lie at inner corners)."""
+    """(M,) bool: the segments whose midpoint the camera sees as a class change
+    (``core.imaging.outline.seen_pairs``)."""
     mid = w.segments.mean(axis=1)
     eye = np.broadcast_to(world_from_cam[:3, 3], mid.shape)
-    seen = outline_seen(w.outline, mid, eye)
-    return (w.segment_classes[:, 0] != w.segment_classes[:, 1]) & seen
+    return seen_pairs(w.segment_classes, w.normals, mid, eye, RayCaster(w.vertices, w.faces),
+                      w.face_class) > 0
 
 
 @pytest.fixture(scope="module")

@@ -39,7 +39,8 @@ def model(small_world):
     s, _ = s.select(keep)
     return s, build_visibility(small_world, s.points,
                                settings=VisibilityConfig(cell_xy=0.2, cell_z=0.3),
-                               outline=small_world.outline[s.segment])
+                               classes=small_world.segment_classes[s.segment],
+                               normals=small_world.normals[s.segment])
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from core.imaging.camera import project
-from core.imaging.outline import outline_seen
+from core.imaging.outline import seen_pairs
+from core.imaging.rays import RayCaster
 from localize.config import VisibilityConfig
 from localize.filter.projection import (
     ModelSamples,
@@ -164,9 +165,12 @@ def _scene(small_world, camera, renderer, class_change_only: bool):
     labels, depth = renderer.render(np.linalg.inv(T[0]))
     eye = camera_centres(STATE, BODY_FROM_CAM, R)
     hidden = occluded(small_world, eye, s.points)[0]
-    # an outline counts only where turned as one is seen (the visibility lists' test too)
-    hidden |= ~outline_seen(small_world.outline[s.segment], s.points,
-                            np.broadcast_to(eye[0], s.points.shape))
+    # a crease seen with one face turned away may show one class only (the lists' test too)
+    w = small_world
+    if class_change_only:
+        hidden |= seen_pairs(w.segment_classes[s.segment], w.normals[s.segment], s.points,
+                             np.broadcast_to(eye[0], s.points.shape),
+                             RayCaster(w.vertices, w.faces), w.face_class) == 0
     pr = project_samples(camera.K, camera.width, camera.height, T, s.points)
     return s, labels, depth, hidden, pr
 
