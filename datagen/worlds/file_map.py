@@ -13,7 +13,7 @@ content of those files (localize/world_file.py).
 
 ``--settings`` is a JSON mapping of ``world=file``'s keys (``FileWorldConfig``: ``units``,
 ``up_axis``, ``model_path``, ``crease_deg``, ``camera_margin``, ...); errors name them
-``world_import.<key>`` (localize's name for them). A user error prints ``error: <message>``
+``world.<key>``, as localize's ``world.*`` keys are. A user error prints ``error: <message>``
 and exits with status 2 (``core.config.user_errors``).
 """
 
@@ -31,8 +31,8 @@ from core.config import user_errors
 
 log = logging.getLogger(__name__)
 
-#: The name localize gives the import's settings (their errors name ``world_import.<key>``).
-SETTINGS_KEY = "world_import"
+#: Where the settings are in a config (their errors name ``world.<key>``).
+SETTINGS_KEY = "world"
 #: What ``inputs.json`` is called in OUT.
 INPUTS = "inputs.json"
 
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> None:
         except json.JSONDecodeError as err:
             raise ValueError(f"--settings is not JSON: {err}") from None
         if not isinstance(settings, dict):
-            raise ValueError(f"--settings must be a JSON mapping of {SETTINGS_KEY} keys, got "
+            raise ValueError(f"--settings must be a JSON mapping of world=file keys, got "
                              f"{args.settings}")
         write_file_map(args.file, args.out, settings)
     print(args.out)
