@@ -211,6 +211,8 @@ def file_map(path: str | Path, settings: Mapping | None = None,
             log.info("world: %s: another run made the same map first; using it", file)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+        if not any(root.iterdir()):  # a failed first import leaves no empty key folder
+            root.rmdir()
     log.info("world: %s: map written to %s", file, final)
     return FileMap(file, final, f"{key[:32]}/{final.name}", False)
 
@@ -244,8 +246,7 @@ def run_importer(file: Path, settings: Mapping, out: Path) -> None:
                 log.log(level, "import: %s", line)
     errors = [ln[len("error: "):] for ln in lines if ln.startswith("error: ")]
     if proc.returncode == 2 and errors:
-        raise ValueError(f"world={file}: {errors[-1]} (the import keys: world.<key>, "
-                         "docs/importers.md)")
+        raise ValueError(f"world={file}: {errors[-1]} (docs/importers.md)")
     if proc.returncode != 0:
         tail = "\n".join(lines[-15:])
         raise RuntimeError(f"world={file}: the import (python -m {IMPORTER}) failed with exit "
