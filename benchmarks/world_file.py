@@ -8,8 +8,8 @@ Usage::
     python benchmarks/world_file.py --dataset DS --flight cluttered --frames 400 --modes none cnn
 
 A building rendered by ``python -m datagen world=file`` (``--dataset``: one made already, e.g.
-by benchmarks/thirdparty.py; default: the 10 m ring corridor of tests/buildings.py written as a
-glTF and rendered here, one 320 x 240 flight of ``--frames`` frames), then:
+by benchmarks/thirdparty.py; default: a 10 m ring corridor written as a glTF and rendered
+here, one 320 x 240 flight of ``--frames`` frames), then:
 
 1. the map of ``world=FILE``: ``localize.world_file.file_map`` of the dataset's building file
    with its ``world.*`` keys (those that differ from the defaults), into a fresh cache; its
@@ -65,15 +65,20 @@ def run(cmd: list[str]) -> float:
 
 
 def ring_dataset(out: Path, frames: int) -> Path:
-    """The ring corridor (tests/buildings.py) as a glTF, rendered by datagen: one flight."""
+    """A 10 m square ring corridor 2 m wide (walls 2.8 m, 0.2 m thick, on one slab; the
+    tests' ``tests.buildings.ring``) as a glTF, rendered by datagen: one flight."""
     import trimesh
-
-    from tests.buildings import ring
 
     glb = out / "ring.glb"
     if not glb.is_file():
-        v, f, _ = ring()
-        mesh = trimesh.Trimesh(v, f, process=False)
+        boxes = [(-0.2, -0.2, 10.2, 10.2, -0.2, 0.0), (-0.2, -0.2, 10.2, 0, 0, 2.8),
+                 (-0.2, 10, 10.2, 10.2, 0, 2.8), (-0.2, 0, 0, 10, 0, 2.8),
+                 (10, 0, 10.2, 10, 0, 2.8), (2, 2, 8, 8, 0, 2.8)]
+        mesh = trimesh.util.concatenate([trimesh.creation.box(
+            extents=(x1 - x0, y1 - y0, z1 - z0),
+            transform=trimesh.transformations.translation_matrix(
+                ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2)))
+            for x0, y0, x1, y1, z0, z1 in boxes])
         mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
         glb.parent.mkdir(parents=True, exist_ok=True)
         mesh.export(glb)
