@@ -192,8 +192,19 @@ def user_errors() -> Iterator[None]:
         raise SystemExit(2) from None
 
 
-def hydra_app(config_name: str, schema: type) -> Callable[[Callable[[DictConfig], Any]],
-                                                          Callable[[], None]]:
+def expand_aliases(argv: list[str], aliases: Mapping[str, str]) -> list[str]:
+    """Command-line arguments with each ``alias=value`` written ``key=value`` (``aliases``:
+    alias -> key), e.g. localize's ``world=FILE`` -> ``world.path=FILE``: ``world`` names a
+    config group of datagen's in the shared ``conf/``, which Hydra would take the word for."""
+    out = []
+    for arg in argv:
+        name, eq, value = arg.partition("=")
+        out.append(f"{aliases[name]}={value}" if eq and name in aliases else arg)
+    return out
+
+
+def hydra_app(config_name: str, schema: type, aliases: Mapping[str, str] | None = None
+              ) -> Callable[[Callable[[DictConfig], Any]], Callable[[], None]]:
     """Decorate a stage's main: ``@hydra_app("localize", LocalizeConfig)`` over
     ``def main(cfg: DictConfig)`` gives the ``python -m localize`` entry point.
 
@@ -203,7 +214,7 @@ def hydra_app(config_name: str, schema: type) -> Callable[[Callable[[DictConfig]
     (``user_errors``). For Hydra's composition errors to reach this function,
     ``HYDRA_FULL_ERROR=1`` is set until ``main`` starts (Hydra then raises them rather than
     print them), unless the user set it. ``main.__wrapped__(cfg)`` runs a composed config
-    (tests).
+    (tests). ``aliases`` (alias -> key) rewrite the command line first (``expand_aliases``).
     """
     def decorate(task: Callable[[DictConfig], Any]) -> Callable[[], None]:
         set_here = False  # HYDRA_FULL_ERROR set by main below, not by the user
@@ -231,6 +242,8 @@ def hydra_app(config_name: str, schema: type) -> Callable[[Callable[[DictConfig]
                 if not full_error():
                     os.environ[FULL_ERROR] = "1"
                     set_here = True
+                if aliases:
+                    sys.argv[1:] = expand_aliases(sys.argv[1:], aliases)
                 try:
                     hydra_main()
                 finally:

@@ -15,6 +15,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from core.config import register_schema
+from core.imaging.camera import FORWARD_MOUNT_XYZ
 from core.imaging.realism import RealismConfig
 from datagen.importers.config import ImportConfig
 
@@ -217,7 +218,7 @@ class MountConfig:
     """The camera on the copter (``camera.mount``): body_from_cam, body frame x forward,
     y left, z up."""
 
-    xyz: list[float] = field(default_factory=lambda: [0.10, 0.0, 0.0])  # m, camera centre
+    xyz: list[float] = field(default_factory=lambda: list(FORWARD_MOUNT_XYZ))  # m, camera centre
     pitch_deg: float = 0.0  # positive tilts the camera down
 
 

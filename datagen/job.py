@@ -24,7 +24,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import math
 import time
 import zlib
 from collections.abc import Mapping
@@ -37,10 +36,9 @@ import numpy as np
 from core.config import as_config, typed
 from core.dataset import SPLITS, Camera, World
 from core.imaging import camera_effects
-from core.imaging.camera import intrinsics
+from core.imaging.camera import forward_mount, intrinsics
 from core.imaging.realism import MapErrorConfig, realism_label
 from core.outputs import FolderPolicy
-from core.poses import pose_from_xyz_rpy
 from datagen.config import CameraConfig, DatagenConfig
 from datagen.distractors.presets import check_preset
 from datagen.flights import trajectories
@@ -95,17 +93,11 @@ def make_camera(cam_cfg: CameraConfig | Mapping) -> Camera:
     cam_cfg = as_config(CameraConfig, cam_cfg, "camera")
     W, H = cam_cfg.width, cam_cfg.height
     K = intrinsics(W, H, cam_cfg.hfov_deg)
-    # Columns: the camera's x (right), y (down), z (forward) axes in the body frame (FLU).
-    base = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-    pitch = math.radians(cam_cfg.mount.pitch_deg)
-    tilt = pose_from_xyz_rpy(np.zeros(3), np.array([0.0, pitch, 0.0]))[0, :3, :3]
     xyz = np.asarray(cam_cfg.mount.xyz, dtype=np.float64)
     if np.linalg.norm(xyz) > 0.5:
         raise ValueError(f"camera.mount.xyz {xyz.tolist()} puts the camera more than 0.5 m from "
                          "the body centre; give it in metres in the body frame")
-    body_from_cam = np.eye(4)
-    body_from_cam[:3, :3] = tilt @ base
-    body_from_cam[:3, 3] = xyz
+    body_from_cam = forward_mount(xyz, cam_cfg.mount.pitch_deg)
     return Camera(K, W, H, body_from_cam)
 
 

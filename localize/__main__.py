@@ -11,12 +11,12 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
 from core.config import hydra_app
-from localize.config import LocalizeConfig
+from localize.config import ALIASES, LocalizeConfig
 from localize.offline.runner import run
 from localize.resolve import resolve
 
 
-@hydra_app("localize", LocalizeConfig)
+@hydra_app("localize", LocalizeConfig, ALIASES)
 def main(cfg: DictConfig) -> None:
     hydra_cfg = HydraConfig.get()
     resolve(cfg, hydra_cfg.overrides.task, hydra_cfg.runtime.choices)

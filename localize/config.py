@@ -20,6 +20,8 @@ from localize.search.config import GlobalSearchConfig
 MODES = ("none", "cnn", "oracle")
 #: ``edges.cnn.refine`` choices.
 REFINES = ("none", "union")
+#: Command-line aliases of both localize apps (``core.config.expand_aliases``): ``world=FILE``.
+ALIASES = {"world": "world.path"}
 #: ``viz`` choices (``localize.viewers.viz``).
 VIZ_KINDS = ("none", "rerun")
 
@@ -509,6 +511,51 @@ class HintConfig:
 
 
 @dataclass
+class WorldFileConfig:
+    """``world``: a building model file to localize in instead of a dataset's model
+    (``localize.world_file``: imported with no dataset rendered, cached by content).
+    ``world=FILE`` on the command line is ``world.path=FILE``.
+
+    The import keys are datagen's ``world=file`` keys (``datagen.config.FileWorldConfig``,
+    docs/worlds.md and docs/importers.md); one left null takes the importer's default, so the
+    defaults are written there alone.
+
+    Attributes:
+        path: the file (a Gazebo .world / .sdf, a mesh .glb .gltf .obj .ply .dae .stl, an
+            .ifc); null: the dataset's model (``dataset``).
+        cache: the folder of the imported maps; null: ``$XDG_CACHE_HOME/edgeloc/worlds``, else
+            ``~/.cache/edgeloc/worlds`` (``localize.world_file``).
+        model_path, units, up_axis, storey, doors, ceiling, floor_tolerance, name_rules: how
+            the file is read and classed (``ImportConfig``).
+        crease_deg, camera_margin, z_range, free_cell, free_close, free_max_hole,
+            obstacle_span: the model edges and the free space (``FileWorldConfig``).
+    """
+
+    path: str | None = None
+    cache: str | None = None
+    model_path: list[str] | None = None
+    units: float | None = None
+    up_axis: str | None = None
+    storey: str | None = None
+    doors: str | None = None
+    ceiling: str | None = None
+    floor_tolerance: float | None = None
+    name_rules: list[Any] | None = None
+    crease_deg: float | None = None
+    camera_margin: float | None = None
+    z_range: list[float] | None = None
+    free_cell: float | None = None
+    free_close: float | None = None
+    free_max_hole: float | None = None
+    obstacle_span: float | None = None
+
+    def import_settings(self) -> dict[str, Any]:
+        """The import keys given (not null), for ``python -m datagen.worlds.file_map``."""
+        return {k: v for k, v in asdict(self).items()
+                if v is not None and k not in ("path", "cache")}
+
+
+@dataclass
 class AppConfig(LocalizerConfig):
     """What both localize apps read, ``python -m localize`` (``LocalizeConfig``) and the live
     node ``python -m localize.ros2`` (``localize.ros2.config.Ros2Config``): the
@@ -535,10 +582,16 @@ class AppConfig(LocalizerConfig):
         set_by: written by the app (``localize.resolve.resolve``), not read: for each setting
             whose value differs from its default, the layer that set it (``conf/...yaml``,
             ``model <file>``, ``onnx_model=auto``, ``command line``).
+        world: a building model file to localize in instead of the dataset's model
+            (``WorldFileConfig``; ``world=FILE`` is ``world.path=FILE``); the camera then comes
+            from the recording or the CameraInfo, the frames are delivered at the SegNet's
+            input size and ``onnx_model=auto`` is the shipped generalist. Not with
+            ``dataset=`` on the command line.
     """
 
     name: str = "demo"
     dataset: str = "outputs/datasets/demo"
+    world: WorldFileConfig = field(default_factory=WorldFileConfig)
     onnx_model: str = "auto"
     out_root: str = "outputs/reports"
     hint: HintConfig = field(default_factory=HintConfig)

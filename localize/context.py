@@ -11,9 +11,10 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from core import classes as C
 from core.config import typed
 from core.dataset import Camera, Dataset, World
-from localize.config import AppConfig, LocalizeConfig
+from localize.config import AppConfig, LocalizeConfig, WorldFileConfig
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import EdgeSource, edge_source
 from localize.localizer import EdgeModel
@@ -25,12 +26,13 @@ SourceWrappers = Mapping[str, Callable[[EdgeSource], EdgeSource]]
 
 @dataclass
 class Context:
-    """What every pass shares: the dataset, the camera of the frames (the dataset's, or a
-    recording's), the model edges, the settings (the whole config, typed: ``settings_of``),
-    the segmenter, the output folder."""
+    """What every pass shares: the dataset (None where the map is a building file,
+    ``world=FILE``: ``world_digest`` then names its content), the camera of the frames (the
+    dataset's, or a recording's), the model edges, the settings (the whole config, typed:
+    ``settings_of``), the segmenter, the output folder."""
 
     cfg: DictConfig
-    dataset: Dataset
+    dataset: Dataset | None
     camera: Camera
     world: World
     settings: AppConfig  # LocalizeConfig offline, Ros2Config live
@@ -38,6 +40,7 @@ class Context:
     out_dir: Path
     segmenter: object | None = None
     source_wrappers: SourceWrappers = field(default_factory=dict)
+    world_digest: str | None = None
     _models: dict = field(default_factory=dict, repr=False)
 
     def model_for(self, mode: str) -> EdgeModel:
@@ -63,6 +66,24 @@ def settings_of(cfg: DictConfig) -> LocalizeConfig:
     a config read back from a report's config.json is checked against it, naming any key it
     does not know)."""
     return typed(LocalizeConfig, cfg, "localize config")
+
+
+def open_map(cfg: DictConfig) -> tuple[Dataset | None, World, list[dict], str | None]:
+    """The map a run localizes in: ``world.path``'s (imported or from the cache,
+    ``localize.world_file``) or the dataset's ``world/``.
+
+    Returns:
+        The dataset (None for a building file), the world, the class list a SegNet must have
+        (the dataset's; for a file the project's, ``core.classes``) and the building file's
+        content digest (None for a dataset).
+    """
+    if cfg.world.path:
+        from localize.world_file import map_of
+
+        found = map_of(typed(WorldFileConfig, cfg.world, "world"))
+        return None, found.world(), C.as_json(), found.digest
+    dataset = Dataset(cfg.dataset)
+    return dataset, dataset.world(), dataset.classes, None
 
 
 def report_folder(cfg: DictConfig) -> Path:

@@ -264,6 +264,10 @@ class Localizer:
             raise TypeError(f"rng must be a np.random.Generator, got {type(rng).__name__}")
         self.front_end = (front_end if isinstance(front_end, FrontEnd)
                           else FrontEnd(front_end, settings.edges))
+        if not np.isfinite(np.asarray(camera.K, dtype=np.float64)).all():
+            raise ValueError(f"the camera's K is not finite ({np.asarray(camera.K).tolist()}): "
+                             "with world=FILE the intrinsics come with the frames (camera.yaml, "
+                             "a CameraInfo); make the Localizer with that camera")
         self.world, self.camera, self.settings = world, camera, settings
         mode = self.front_end.mode
         self.filter_params = settings.filter.for_mode(mode)

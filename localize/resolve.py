@@ -28,7 +28,8 @@ from omegaconf.errors import OmegaConfBaseException
 from core.model_folder import model_localize_settings
 from core.outputs import flatten
 from localize.config import AppConfig, LocalizeConfig
-from localize.frontend.segmenter import model_path
+from localize.frontend.segmenter import SHIPPED_MODEL, model_path
+from localize.world_file import check_world_keys
 
 log = logging.getLogger(__name__)
 
@@ -173,8 +174,10 @@ def resolve(cfg: DictConfig, overrides: Sequence[str],
             choices: Mapping[str, str | None] | None = None,
             schema: type[AppConfig] = LocalizeConfig,
             app_yaml: str = "conf/localize.yaml") -> dict[str, str]:
-    """Resolve a composed localize config in place: ``onnx_model=auto`` becomes its path, the
-    model's settings merge in under the command line, and ``cfg.set_by`` records the layer of
+    """Resolve a composed localize config in place: ``world=`` is checked against ``dataset=``
+    and ``recording=`` (``world_file.check_world_keys``), ``onnx_model=auto`` becomes its path
+    (with ``world=``: the shipped generalist), the model's settings merge in under the command
+    line, and ``cfg.set_by`` records the layer of
     each value that differs from its default (``layers``).
 
     Args:
@@ -188,9 +191,13 @@ def resolve(cfg: DictConfig, overrides: Sequence[str],
     Returns:
         ``cfg.set_by``.
     """
+    world = cfg.world.path
+    check_world_keys(cfg, override_keys(overrides),
+                     None if "recording" not in cfg else cfg.recording is not None)
     auto = cfg.onnx_model == "auto"
     if auto:
-        cfg.onnx_model = str(model_path("auto", cfg.dataset))
+        # a building file has no SegNet of its own: the shipped generalist
+        cfg.onnx_model = str(SHIPPED_MODEL if world else model_path("auto", cfg.dataset))
         log.info("onnx_model=auto: %s", cfg.onnx_model)
     taken, source = _apply_model_settings(cfg, overrides)
     set_by = layers(cfg, overrides, choices or {}, list(taken), source, auto, schema, app_yaml)

@@ -13,6 +13,12 @@ import numpy as np
 
 #: Maps points in the OpenCV camera frame to Mitsuba's camera frame (x and y flip).
 MITSUBA_FROM_OPENCV = np.diag([-1.0, -1.0, 1.0, 1.0])
+#: m, body frame: where the forward camera sits by default (datagen's ``camera.mount.xyz``; a
+#: recording localized in a building file that gives no mount): 10 cm ahead of the body centre.
+FORWARD_MOUNT_XYZ = (0.10, 0.0, 0.0)
+#: The forward camera's axes (x right, y down, z forward: OpenCV) as columns in the body frame
+#: (x forward, y left, z up).
+BODY_FROM_FORWARD_CAM = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 
 def intrinsics(width: int, height: int, hfov_deg: float) -> np.ndarray:
@@ -33,6 +39,25 @@ def intrinsics(width: int, height: int, hfov_deg: float) -> np.ndarray:
     return np.array(
         [[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]]
     )
+
+
+def forward_mount(xyz=FORWARD_MOUNT_XYZ, pitch_deg: float = 0.0) -> np.ndarray:
+    """body_from_cam of a camera looking along the body's x axis, tilted down by ``pitch_deg``.
+
+    Args:
+        xyz: (3,) m, the camera centre in the body frame (x forward, y left, z up).
+        pitch_deg: degrees; positive tilts the camera down.
+
+    Returns:
+        (4, 4) body_from_cam, the camera in OpenCV axes.
+    """
+    p = math.radians(pitch_deg)
+    tilt = np.array([[math.cos(p), 0.0, math.sin(p)], [0.0, 1.0, 0.0],
+                     [-math.sin(p), 0.0, math.cos(p)]])  # Ry(pitch): x forward turns down
+    out = np.eye(4)
+    out[:3, :3] = tilt @ BODY_FROM_FORWARD_CAM
+    out[:3, 3] = np.asarray(xyz, dtype=np.float64)
+    return out
 
 
 def mitsuba_to_world(world_from_cam: np.ndarray) -> np.ndarray:

@@ -1,10 +1,11 @@
 """The live localizer: camera frames and odometry as they come, one ``Localizer`` step per
 newest frame, free of any middleware (``localize.ros2.node`` feeds it from ROS topics).
 
-Start-up (``load_context``) opens the dataset, samples the model edges, loads or builds the
-visibility grid (cached under ``<out_root>/<name>/cache/``, shared with offline runs of that
-name) and loads the SegNet (mode cnn). The first CameraInfo gives the camera: frames are
-undistorted and rescaled to the dataset's camera as recordings are
+Start-up (``load_context``) opens the map (a dataset's, or a building file's: ``world=FILE``),
+samples the model edges, loads or builds the visibility grid (cached under
+``<out_root>/<name>/cache/``, shared with offline runs of that name) and loads the SegNet (mode
+cnn). The first CameraInfo gives the camera: frames are undistorted and rescaled to the
+dataset's camera (with ``world=FILE``: the SegNet's input size) as recordings are
 (``localize.recordings.recording.delivered_camera``) and the ``Localizer`` is made for it.
 
 Per frame (``LiveLocalizer.image`` on the receiving thread, ``step_once`` on the worker):
@@ -30,10 +31,9 @@ import numpy as np
 from omegaconf import DictConfig
 
 from core.config import typed
-from core.dataset import Dataset
 from core.frames import FrameSource
 from core.poses import odometry_increment
-from localize.context import Context, report_folder
+from localize.context import Context, open_map, report_folder
 from localize.filter.start_hint import StartHint, start_of_settings
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.live.mavlink import MavlinkSender, quality_of
@@ -49,6 +49,7 @@ from localize.ros2.convert import (
     world_from_body,
 )
 from localize.viewers.viz import open_viewer
+from localize.world_file import frames_target, segnet_size
 
 log = logging.getLogger(__name__)
 
@@ -57,19 +58,26 @@ SHOWN_PARTICLES = 200
 
 
 def load_context(cfg: DictConfig) -> Context:
-    """The dataset, world, typed settings, model edges (visibility cached under
-    ``<out_root>/<name>/cache``; those of ``cfg.mode`` made here, as they take seconds on a
-    large building) and, in mode cnn, the SegNet of ``cfg``."""
+    """The map (the dataset's, or ``world.path``'s: ``context.open_map``), typed settings, model
+    edges (visibility cached under ``<out_root>/<name>/cache``; those of ``cfg.mode`` made
+    here, as they take seconds on a large building) and, in mode cnn, the SegNet of ``cfg``.
+    The context's camera is what the frames are delivered as: the dataset's, or with
+    ``world.path`` the SegNet's input size with the mount ``body_from_cam`` (null: the forward
+    camera, with a warning), its K from the first CameraInfo (``world_file.frames_target``)."""
     settings = typed(Ros2Config, cfg, "ros2 config")
-    dataset = Dataset(cfg.dataset)
-    world = dataset.world()
+    dataset, world, classes, digest = open_map(cfg)
+    if dataset is None:
+        camera = frames_target(segnet_size(model_path(cfg.onnx_model, cfg.dataset)))
+    else:
+        camera = dataset.camera
     out_dir = report_folder(cfg)
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if cfg.mode == "cnn":
-        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
+        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), classes,
                                    int(cfg.threads))
-    ctx = Context(cfg, dataset, dataset.camera, world, settings, model, out_dir, segmenter)
+    ctx = Context(cfg, dataset, camera, world, settings, model, out_dir, segmenter,
+                  world_digest=digest)
     ctx.model_for(cfg.mode)
     return ctx
 
@@ -198,7 +206,7 @@ class LiveLocalizer:
                 return
             mount = self.settings.body_from_cam
             mount = None if mount is None else check_rigid(np.asarray(mount), "body_from_cam")
-            camera, rect = delivered_camera(source, self.ctx.dataset.camera, mount, where)
+            camera, rect = delivered_camera(source, self.ctx.camera, mount, where)
             loc = Localizer(self.ctx.world, camera, self._front, self.ctx.settings, self._rng,
                             model=self._model)
             loc.reset(self._start)

@@ -40,11 +40,12 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from core.atomic import atomic_write_json, atomic_write_text, disk_full_guard
-from core.dataset import Dataset
+from core.dataset import Camera, Dataset
 from core.outputs import FolderPolicy, releases_claims
 from core.poses import xyzyaw_from_pose
 from localize.context import Context, report_folder
 from localize.filter.start_hint import StartHint, start_of_settings
+from localize.frontend.segmenter import model_path
 from localize.offline.report import model_of, results_sections, summarize
 from localize.offline.runner import (
     REPORT_DISK_FULL_FIX,
@@ -60,6 +61,7 @@ from localize.offline.runner import (
 from localize.recordings.read import read_recording
 from localize.recordings.recording import Recording
 from localize.viewers.overlay import camera_poses, overlay_strip
+from localize.world_file import frames_target, segnet_size
 
 log = logging.getLogger(__name__)
 
@@ -121,7 +123,8 @@ def frames_run(metrics: dict, name: str) -> tuple[int, int]:
 
 
 def model_line(metrics: dict) -> str:
-    """The dataset and the SegNet (the cnn mode's) a recording's report was made with."""
+    """The map (the dataset's, or a building file's) and the SegNet (the cnn mode's) a
+    recording's report was made with."""
     model = metrics.get("model") or {}
     if model.get("onnx_model"):
         digest = model.get("onnx_sha256")
@@ -129,6 +132,10 @@ def model_line(metrics: dict) -> str:
                                                        else "")
     else:
         segnet = "no SegNet (no cnn mode run)"
+    if metrics.get("world"):
+        w = metrics["world"]
+        return (f"Building `{w['path']}` (imported, content {w['sha256']}; the camera from the "
+                f"recording); {segnet}.")
     return f"Dataset `{metrics['dataset']}` (the building model and the camera); {segnet}."
 
 
@@ -170,12 +177,24 @@ def write_recording_report(ctx: Context, rec: Recording, start: str) -> Path:
     atomic_write_json(out / "trajectory.json", companion(records[first]))
     metrics = {"recording": str(rec.source), **summarize(list(records.values()), ctx.cfg),
                "model": model_of(out, ctx.cfg, modes), "start": start}
+    if ctx.cfg.world.path:
+        del metrics["dataset"]  # not read: the map is the building file's
+        metrics["world"] = {"path": str(ctx.cfg.world.path), "sha256": ctx.world_digest}
     del metrics["paper"], metrics["targets"]  # the paper's corridor and the issue's flights
     write_overlay(out / "overlay.png", rec, ctx, records[first])
     atomic_write_json(out / "metrics.json", metrics)
     atomic_write_text(out / "report.md", markdown(rec, metrics, ctx.cfg, start))
     log.info("trajectory: %s", out / "trajectory.txt")
     return out / "report.md"
+
+
+def frames_target_of(cfg: DictConfig) -> Camera:
+    """The camera a recording's frames are delivered as: the dataset's; with ``world.path``,
+    the SegNet's input size and no mount of its own (``world_file.frames_target``: the
+    recording's mount, else the forward camera, with a warning)."""
+    if not cfg.world.path:
+        return Dataset(cfg.dataset).camera
+    return frames_target(segnet_size(model_path(str(cfg.onnx_model), str(cfg.dataset))))
 
 
 @releases_claims
@@ -193,13 +212,12 @@ def run_recording(cfg: DictConfig) -> Path:
     modes.sort(key=lambda m: m != "cnn")  # cnn first: it gives trajectory.txt
     settings = settings_of(cfg)
     mount = settings.recording_body_from_cam
-    rec = read_recording(cfg.recording, Dataset(cfg.dataset).camera,
-                         topics=settings.recording_topics,
+    rec = read_recording(cfg.recording, frames_target_of(cfg), topics=settings.recording_topics,
                          body_from_cam=None if mount is None else np.asarray(mount,
                                                                              dtype=np.float64))
     with disk_full_guard(report_folder(cfg), "the report", REPORT_DISK_FULL_FIX):
         ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
-        check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY)
+        check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY, ctx.world_digest)
         start = start_state(ctx, rec)
         init = "tracking" if isinstance(start, np.ndarray) else "global"
         how = ("global (the whole free space)" if start is None else

@@ -40,7 +40,7 @@ from core.occupancy import OccupancyMap
 from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES
-from localize.context import Context, SourceWrappers, report_folder, settings_of
+from localize.context import Context, SourceWrappers, open_map, report_folder, settings_of
 from localize.filter.start_hint import start_of_settings
 from localize.frontend.segmenter import load_segmenter, model_path
 from localize.localizer import (
@@ -160,7 +160,8 @@ def check_max_frames(cfg: DictConfig) -> None:
 
 def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
             recording: FrameSource | None = None, camera: Camera | None = None) -> Context:
-    """Open the dataset, sample the model edges, load or build the visibility grid, load the
+    """Open the map (the dataset's, or ``world.path``'s with a recording:
+    ``context.open_map``), sample the model edges, load or build the visibility grid, load the
     segmenter (cnn mode).
 
     Args:
@@ -172,10 +173,12 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     """
     check_run_lists(cfg)
     check_max_frames(cfg)
-    dataset = Dataset(cfg.dataset)
+    if cfg.world.path and (recording is None or camera is None):
+        raise ValueError(f"world={cfg.world.path}: a building file has no flights or camera; "
+                         "localize a recording in it (recording=PATH)")
+    dataset, world, classes, digest = open_map(cfg)
     if recording is None:
         select_flights(dataset, cfg.flight_names, cfg.flight_set)
-    world = dataset.world()
     out_dir = report_folder(cfg)
     if recording is not None:
         out_dir = out_dir / "recordings" / recording.name
@@ -185,10 +188,10 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
-        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), dataset.classes,
+        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), classes,
                                    int(cfg.threads))
     return Context(cfg, dataset, dataset.camera if camera is None else camera, world, settings,
-                   model, out_dir, segmenter, dict(source_wrappers or {}))
+                   model, out_dir, segmenter, dict(source_wrappers or {}), digest)
 
 
 class PassRecord:
@@ -414,9 +417,10 @@ def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
 # only choose which runs exist, so they may change between resumes. The segnet.onnx digest
 # may be set where no cnn run had one.
 RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_edges",
-               "visibility", "hint", "onnx_sha256")
-# settings under RESULT_KEYS that change only how fast the results come, not the results
-SPEED_ONLY = ("filter.likelihood.workers", "filter.likelihood.chunk")
+               "visibility", "hint", "onnx_sha256", "world", "world_sha256")
+# settings under RESULT_KEYS that change only how fast the results come, not the results (the
+# map cache's folder: its maps are found by content)
+SPEED_ONLY = ("filter.likelihood.workers", "filter.likelihood.chunk", "world.cache")
 #: What to do when the disk fills during a run (``core.atomic.DiskFullError``'s advice).
 REPORT_DISK_FULL_FIX = ("Free space (old outputs/reports/* folders, outputs/hydra/) or pass "
                         "out_root= on a disk with room, then run the same command again: the "
@@ -431,16 +435,23 @@ def result_settings(conf: dict) -> dict:
     return REPORT_POLICY.settings(conf)
 
 
-def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLICY) -> Claim:
+def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLICY,
+                 world_digest: str | None = None) -> Claim:
     """Claim ``out`` for this config and write ``out/config.json`` (the whole config and the
     segnet.onnx digest): the runs already in ``out`` must come from the same result settings
     and segnet.onnx bytes (``policy``: ``REPORT_POLICY``, a recording's
     ``recorded.RECORDING_POLICY``).
 
     With ``overwrite=true`` a folder of other settings is emptied (every run is re-done);
-    otherwise it raises naming the differing keys.
+    otherwise it raises naming the differing keys. A run in a building file (``world.path``)
+    also records its content (``world_digest``, ``Context.world_digest``) as ``world_sha256``;
+    a run in a dataset records no ``world`` (as before the key existed).
     """
     conf = OmegaConf.to_container(cfg, resolve=True)
+    if cfg.world.path:
+        conf["world_sha256"] = world_digest
+    else:
+        conf.pop("world", None)
     onnx_path = model_path(str(cfg.onnx_model), str(cfg.dataset))
     conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)

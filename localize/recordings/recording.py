@@ -35,6 +35,7 @@ import numpy as np
 
 from core.dataset import Camera
 from core.frames import Frame, delivered_frames
+from core.imaging.camera import FORWARD_MOUNT_XYZ, forward_mount
 from core.imaging.lens import Undistorter
 from core.poses import read_tum
 
@@ -301,8 +302,10 @@ def delivered_camera(source: SourceCamera, target: Camera | None,
 
     Args:
         source: the recorded camera.
-        target: the camera the frames are for (its size; its body_from_cam is the default), or
-            None to keep the recorded size.
+        target: the camera the frames are for (its size; its body_from_cam is the default: a
+            dataset's camera; None there, as ``world_file.frames_target`` makes it, stands for
+            the forward camera ``core.imaging.camera.forward_mount``, with a warning), or None
+            to keep the recorded size.
         body_from_cam: (4, 4) the recording's camera mount, or None for the target's.
         where: the recording, for messages.
     """
@@ -315,6 +318,12 @@ def delivered_camera(source: SourceCamera, target: Camera | None,
             raise ValueError(f"{where}: no body_from_cam: give the recording one (see "
                              f"docs/recording.md) or pass a target camera")
         body_from_cam = target.body_from_cam
+    if body_from_cam is None:
+        body_from_cam = forward_mount()
+        log.warning("%s: no camera mount (body_from_cam) given; assuming a level forward camera "
+                    "%.2f m ahead of the body centre. Give it: recording_body_from_cam=[[...]] "
+                    "(python -m localize), body_from_cam=[[...]] (the node) or body_from_cam "
+                    "in camera.yaml (docs/recording.md)", where, FORWARD_MOUNT_XYZ[0])
     w, h = (source.width, source.height) if target is None else (target.width, target.height)
     rect = Rectifier(source, int(w), int(h))
     return Camera(rect.K, int(w), int(h), check_rigid(body_from_cam, where)), rect

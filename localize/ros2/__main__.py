@@ -14,6 +14,7 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
 from core.config import hydra_app
+from localize.config import ALIASES
 from localize.live.loop import load_context
 from localize.resolve import resolve
 from localize.ros2.config import Ros2Config
@@ -48,7 +49,7 @@ def serve(cfg: DictConfig, args: list[str] | None = None) -> None:
             rclpy.shutdown()
 
 
-@hydra_app("ros2", Ros2Config)
+@hydra_app("ros2", Ros2Config, ALIASES)
 def main(cfg: DictConfig) -> None:
     hydra_cfg = HydraConfig.get()
     resolve(cfg, hydra_cfg.overrides.task, hydra_cfg.runtime.choices, Ros2Config,
