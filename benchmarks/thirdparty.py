@@ -149,7 +149,7 @@ def segnet_scores(ds: Path, onnx: Path, cache: Path) -> dict:
 def edge_scores(ds: Path, cache: Path, step: int = 20) -> dict:
     """Rendered-edge recall and precision (``datagen.mesh.edge_check``) of the dataset's model
     edges at every ``step``-th ground-truth pose of its test flights (kept in ``cache`` under
-    the edges' digest)."""
+    the digest of the edges, their classes and normals)."""
     import hashlib
 
     from core.dataset import Dataset
@@ -157,7 +157,11 @@ def edge_scores(ds: Path, cache: Path, step: int = 20) -> dict:
 
     dataset = Dataset(ds)
     w, cam = dataset.world(), dataset.camera
-    key = hashlib.sha256(np.ascontiguousarray(w.segments).tobytes()).hexdigest()[:16]
+    h = hashlib.sha256()
+    for a in (w.segments, w.segment_classes, w.normals):
+        if a is not None:
+            h.update(np.ascontiguousarray(a).tobytes())
+    key = h.hexdigest()[:16]
     done = json.loads(cache.read_text()) if cache.is_file() else {}
     if key in done:
         return done[key]

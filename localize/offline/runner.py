@@ -417,7 +417,7 @@ def run(cfg: DictConfig, source_wrappers: SourceWrappers | None = None) -> Path:
 # only choose which runs exist, so they may change between resumes. The segnet.onnx digest
 # may be set where no cnn run had one.
 RESULT_KEYS = ("dataset", "onnx_model", "max_frames", "filter", "edges", "model_edges",
-               "visibility", "hint", "onnx_sha256", "world", "world_sha256")
+               "visibility", "hint", "onnx_sha256", "world", "world_sha256", "edges_sha256")
 # settings under RESULT_KEYS that change only how fast the results come, not the results (the
 # map cache's folder: its maps are found by content)
 SPEED_ONLY = ("filter.likelihood.workers", "filter.likelihood.chunk", "world.cache")
@@ -445,13 +445,18 @@ def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLIC
     With ``overwrite=true`` a folder of other settings is emptied (every run is re-done);
     otherwise it raises naming the differing keys. A run in a building file (``world.path``)
     also records its content (``world_digest``, ``Context.world_digest``) as ``world_sha256``;
-    a run in a dataset records no ``world`` (as before the key existed).
+    a run in a dataset records no ``world`` but the digest of its model edges
+    (``world/edges.npz``, ``edges_sha256``), so edges rebuilt since
+    (``datagen.mesh.rebuild_edges``) are never resumed into runs made with the old ones.
     """
     conf = OmegaConf.to_container(cfg, resolve=True)
     if cfg.world.path:
         conf["world_sha256"] = world_digest
     else:
         conf.pop("world", None)
+        edges = Path(str(cfg.dataset)) / "world" / "edges.npz"
+        if edges.is_file():
+            conf["edges_sha256"] = hashlib.sha256(edges.read_bytes()).hexdigest()[:16]
     onnx_path = model_path(str(cfg.onnx_model), str(cfg.dataset))
     conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)

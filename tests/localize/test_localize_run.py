@@ -18,7 +18,7 @@ from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, read_tum
 from localize.filter.likelihood import LikelihoodConfig
 from localize.filter.particle_filter import FilterConfig
-from localize.offline.runner import RunSpec, run, warn_outside_free_space
+from localize.offline.runner import RunSpec, check_resume, run, warn_outside_free_space
 from tests.localize.conftest import QUICK, localize_cfg
 
 
@@ -158,6 +158,20 @@ class TestEndToEnd:
         with pytest.raises(RuntimeError, match=r"likelihood.k \(.* -> 7.0\).*overwrite=true"):
             run(other)
         assert (path.parent / "config.json").read_text() == stored
+
+    def test_resume_refuses_rebuilt_edges(self, report, tmp_path):
+        """Runs made against a dataset's edges are not resumed once its edges.npz changed
+        (``python -m datagen.mesh.rebuild_edges``)."""
+        cfg, _ = report
+        edges = tmp_path / "ds" / "world" / "edges.npz"
+        edges.parent.mkdir(parents=True)
+        edges.write_bytes(b"old edges")
+        other = OmegaConf.merge(cfg, {"dataset": str(tmp_path / "ds")})
+        check_resume(tmp_path / "out", other)
+        check_resume(tmp_path / "out", other)  # the same edges: it resumes
+        edges.write_bytes(b"rebuilt edges")
+        with pytest.raises(RuntimeError, match=r"edges_sha256.*overwrite=true"):
+            check_resume(tmp_path / "out", other)
 
     def test_resume_ignores_speed_only_settings(self, report):
         """Threads and block size change no result: a report resumes across them."""
