@@ -276,22 +276,32 @@ class LiveLocalizer:
     # --- the worker --------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start the worker thread."""
-        self._worker = threading.Thread(target=self._work, name="edgeloc-worker", daemon=True)
+        """Start the worker thread (again after ``pause``: with an empty slot)."""
+        if self._worker is not None:
+            return
+        self._stop = threading.Event()
+        self.slot = LatestSlot()
+        self._worker = threading.Thread(target=self._work, args=(self._stop,),
+                                        name="edgeloc-worker", daemon=True)
         self._worker.start()
 
-    def stop(self) -> None:
-        """Stop the worker; close the autopilot link and the viewer."""
+    def pause(self) -> None:
+        """Stop the worker thread after its frame in progress; the filter keeps its state."""
         self._stop.set()
         self.slot.close()
         if self._worker is not None:
             self._worker.join(timeout=10.0)
+            self._worker = None
+
+    def stop(self) -> None:
+        """Stop the worker; close the autopilot link and the viewer."""
+        self.pause()
         for sink in (self.mavlink, self.viewer):
             if sink is not None:
                 sink.close()
 
-    def _work(self) -> None:
-        while not self._stop.is_set():
+    def _work(self, stop: threading.Event) -> None:
+        while not stop.is_set():
             try:
                 self.step_once(0.2)
             except Exception:  # a bug must not stop a flying drone's localizer silently
@@ -470,10 +480,14 @@ def _same_camera(a: SourceCamera, b: SourceCamera | None) -> bool:
 
 
 def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
-                      limit: int | None = None) -> np.ndarray:
+                      limit: int | None = None, stamps: np.ndarray | None = None) -> np.ndarray:
     """The node's filter run offline over a frame source: the same settings, seed and start
     (``start``; None: a global start), every frame in order, as the live node would with
     nothing dropped; the reference of the tests and benchmarks/live.py.
+
+    Args:
+        stamps: (T,) the frames' capture times, seconds, instead of the source's (those a
+            player gave them: the motion noise follows the time between frames).
 
     Returns:
         (T, 4) x, y, z, yaw estimates of the first ``limit`` frames (all: None).
@@ -482,5 +496,8 @@ def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
                     np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
     s = ctx.settings
     loc.reset(start_of_settings(s.hint, ctx.world.info, ctx.world.free, s.filter.init_std))
+    frames = source.steps(limit)
+    if stamps is not None:
+        frames = (f._replace(timestamp=float(t)) for f, t in zip(frames, stamps, strict=False))
     return np.stack([loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp).state
-                     for f in source.steps(limit)])
+                     for f in frames])
