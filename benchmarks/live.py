@@ -35,6 +35,14 @@ median, <= 100 ms p95; at 30 Hz no backlog (latency bounded), drops counted (the
 dropped still move the filter: ``frames_predicted``), accuracy within 15 %; the node ready in
 <= 20 s. ``--repeat N`` plays each rate N times (an ``/initialpose`` at the first true pose
 before each) and prints the mean ratio.
+
+A live run's error is one draw (the filter's random numbers after an ``/initialpose`` are
+another seed's): give ``--repeat`` and ``--seeds`` several. ``--simulate`` instead runs, with
+no node and no timing, the filter over the flight at 30 Hz stamps (``--simulate-rate``) with
+one frame in ``--weigh-every`` weighed, as the node at 30 Hz does, over ``--seeds`` seeds:
+every frame weighed; the frames dropped moved by their odometry (``Localizer.predict``, the
+motion noise in time: the node now); the frames dropped skipped, their motion in the next
+increment with one frame's noise (the node before issue 82); errors at the weighed frames.
 """
 
 from __future__ import annotations
@@ -100,8 +108,15 @@ def main() -> None:
                          "the node's seed: one seed's error is one draw)")
     ap.add_argument("--out-root", type=Path, default=None,
                     help="the node's out_root (default: a fresh folder, a cold start)")
+    ap.add_argument("--simulate", action="store_true",
+                    help="no node: the drop pattern of --weigh-every, offline (docstring)")
+    ap.add_argument("--simulate-rate", type=float, default=3.0)
+    ap.add_argument("--weigh-every", type=int, default=2)
     ap.add_argument("overrides", nargs="*", help="node settings, key=value")
     args = ap.parse_args()
+    if args.simulate:
+        simulate(args)
+        return
 
     tmp = Path(tempfile.mkdtemp(prefix="live_bench_"))
     os.environ.update(loopback_env(tmp))  # before rclpy.init: loopback only
@@ -194,6 +209,68 @@ def main() -> None:
         target = f" (target <= {TARGET_RATIO_30HZ})" if round(fps * rate) >= 30 else ""
         print(f"{fps * rate:.0f} Hz: error live / offline at the same stamps over {len(r)} "
               f"run(s): mean {np.mean(r):.2f}, runs {', '.join(f'{v:.2f}' for v in r)}{target}")
+
+
+def simulate(args) -> None:
+    """The drop pattern of a node that weighs one frame in ``args.weigh_every``, offline
+    (module docstring), the three ways; prints the mean errors over ``args.seeds`` seeds."""
+    from core.dataset import Dataset
+    from core.poses import odometry_increment
+    from localize.filter.start_hint import start_of_settings
+    from localize.live.loop import load_context
+    from localize.localizer import Localizer
+
+    flight = Dataset(args.dataset).flight(args.flight)
+    n = min(args.frames, len(flight.timestamps))
+    truth = xyzyaw_from_pose(flight.groundtruth[:n])
+    s = truth[0]
+    start = [float(s[0]), float(s[1]), float(s[2]), float(np.degrees(s[3]))]
+    tmp = Path(tempfile.mkdtemp(prefix="live_sim_"))
+    cfg = compose_node_config(node_overrides(args, start, args.out_root or tmp / "out"))
+    ctx = load_context(cfg)
+    front = ctx.front_end(cfg.mode)
+    st = ctx.settings
+    start_state = start_of_settings(st.hint, ctx.world.info, ctx.world.free, st.filter.init_std)
+    t = flight.timestamps[:n]
+    stamps = t[0] + (t - t[0]) / args.simulate_rate
+    period = st.filter.motion_period_s
+    weighed = [i for i in range(n) if i % args.weigh_every == 0]
+    ways = ("every frame weighed", "dropped frames predicted (now)",
+            "dropped frames skipped (before)")
+    locs = {(w, seed): Localizer(ctx.world, ctx.camera, front, st,
+                                 np.random.default_rng(seed), model=ctx.model_for(cfg.mode))
+            for w in ways for seed in range(args.seeds)}
+    for loc in locs.values():
+        loc.reset(start_state)
+    odo = [f.attitude for f in flight.steps(n, images=False)]
+    last = {key: None for key in locs}  # the odometry index each filter moved to
+    errors = {key: [] for key in locs}
+    print(f"simulating {n} frames of {args.flight} at {1 / np.median(np.diff(stamps)):.0f} Hz "
+          f"stamps, one frame in {args.weigh_every} weighed, {args.seeds} seeds ...",
+          flush=True)
+    for i, f in enumerate(flight.steps(n)):
+        frame = front.frame(f.image, None)  # made once, weighed by every filter
+        for (way, seed), loc in locs.items():
+            key, k = (way, seed), last[(way, seed)]
+            inc = None if k is None else odometry_increment(odo[k], odo[i])
+            if way == ways[0] or i in weighed:
+                # before issue 82: one increment since the last weighed frame, stamped as
+                # one frame later (one frame's noise)
+                when = (len(errors[key]) * period if way == ways[2] else stamps[i])
+                est = loc.step(frame, inc, odo[i], when)
+                last[key] = i
+                if i in weighed:
+                    errors[key].append(np.linalg.norm(est.state[:3] - truth[i, :3]))
+            elif way == ways[1]:
+                if inc is not None:
+                    loc.predict(inc, stamps[i])
+                last[key] = i
+    base = np.mean([np.mean(errors[(ways[0], seed)]) for seed in range(args.seeds)])
+    for way in ways:
+        per_seed = [np.mean(errors[(way, seed)]) for seed in range(args.seeds)]
+        print(f"  {way}: mean position error {np.mean(per_seed):.4f} m (ratio "
+              f"{np.mean(per_seed) / base:.2f}; seeds {min(per_seed):.4f} .. "
+              f"{max(per_seed):.4f})")
 
 
 SPLIT = ("wait_ms", "prepare_ms", "step_ms", "publish_ms")
