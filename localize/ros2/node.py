@@ -175,10 +175,10 @@ class LocalizerNode(LifecycleNode):
         ret = super().on_activate(state)
         if ret != TransitionCallbackReturn.SUCCESS:
             return ret
+        self.live.start()  # before the subscriptions: its slot takes their first frame
         self._subscribe()
         self._status_timer = self.create_timer(self.live.settings.realtime.status_period_s,
-                                        self._on_timer)
-        self.live.start()
+                                               self._on_timer)
         self.grid_pub.publish(self._grid)
         self.edges_pub.publish(self._edges)
         log.info("node %s active", self.get_name())
