@@ -112,11 +112,15 @@ class FilterConfig:
         dominant_frames: ...for this many frames in a row (``ambiguous`` until then; a start
             at a known pose is dominant at once).
         init_std: (4,) tracking start noise: x, y, z (metres), yaw (degrees).
-        motion_std: (3,) motion noise per frame: horizontal (metres), vertical (metres), yaw
-            (degrees).
+        motion_std: (3,) motion noise per ``motion_period_s``: horizontal (metres), vertical
+            (metres), yaw (degrees); a move over ``dt`` seconds draws it times
+            sqrt(dt / motion_period_s), so the noise follows the time elapsed, not the number of
+            moves (``particle_filter.noise_scale``).
         mode_motion_std: ``motion_std`` per edge mode where it differs, ``{mode: (3,)}``; null:
             ``motion_std`` for every mode.
         motion_rel: (2,) extra noise per unit of odometry translation and of yaw change.
+        motion_period_s: the time ``motion_std`` (and ``tilt_std``'s random walk) is given for,
+            seconds: a frame of the 10 fps flights.
         resample_ess: resample when ESS < this fraction of the particle count.
         free_space_slack: metres beyond the free space (cells and band) before the free-space prior
             applies.
@@ -137,9 +141,9 @@ class FilterConfig:
         lost_frames: that many such frames in a row declare the track lost: the filter
             re-localizes over the free space (0: never).
         tilt_std: (2,) each particle's correction of the IMU's roll and pitch, degrees: its
-            start noise and its random walk per frame (an AHRS is off by a bias and a slow
-            drift, ``particle_filter.move_tilt``); 0, 0: the IMU's roll and pitch as given
-            (an exact attitude source: a simulation's truth, motion capture).
+            start noise and its random walk per ``motion_period_s`` (an AHRS is off by a bias
+            and a slow drift, ``particle_filter.move_tilt``); 0, 0: the IMU's roll and pitch as
+            given (an exact attitude source: a simulation's truth, motion capture).
         likelihood: the edge likelihood of tracking.
     """
 
@@ -167,6 +171,7 @@ class FilterConfig:
     mode_motion_std: dict[str, list[float]] | None = field(default_factory=lambda: {
         "cnn": [0.01, 0.005, 0.2], "oracle": [0.01, 0.005, 0.2]})
     motion_rel: list[float] = field(default_factory=lambda: [0.1, 0.1])
+    motion_period_s: float = 0.1
     resample_ess: float = 0.5
     free_space_slack: float = 0.25
     outside_log_penalty_per_m: float = 20.0
@@ -192,6 +197,9 @@ class FilterConfig:
         if self.global_method not in ("table", "particles"):
             raise ValueError(f"filter.global_method must be table or particles, got "
                              f"{self.global_method!r}")
+        if self.motion_period_s <= 0:
+            raise ValueError(f"filter.motion_period_s must be positive (seconds), got "
+                             f"{self.motion_period_s}")
         if not 0.0 < self.resample_ess <= 1.0:
             raise ValueError(f"filter.resample_ess must be in (0, 1], got {self.resample_ess}")
         for key in ("mode_likelihood", "mode_motion_std"):

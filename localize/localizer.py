@@ -11,7 +11,9 @@ dominates; the filter's uniform set, or the hint's, for mode ``none``,
 ``global_search.start_search``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
-``Estimate``. No file is read or written.
+``Estimate``; ``predict(odometry_increment, timestamp)`` moves them only (a frame that is not
+weighed). The motion noise follows the time between frames (``filter.motion_period_s``). No
+file is read or written.
 
 Several filters on the same frames (the runner's inits x seeds of one flight and mode) share
 the costly per-frame work: they share one ``FrontEnd`` and one ``EdgeModel``; the caller makes
@@ -47,7 +49,7 @@ from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import LocalizerConfig
 from localize.filter.hypotheses import Hypothesis, top_hypotheses
 from localize.filter.likelihood import EdgeLikelihood
-from localize.filter.particle_filter import LogLikelihood, ParticleFilter
+from localize.filter.particle_filter import LogLikelihood, ParticleFilter, noise_scale
 from localize.filter.projection import (
     ModelSamples,
     corrected_tilts,
@@ -340,19 +342,17 @@ class Localizer:
             raise RuntimeError("Localizer.step before reset(): call reset(start) for tracking "
                                "or reset(None) for a global start")
         timestamp = float(timestamp)
-        if self._last_time is not None and timestamp < self._last_time:
-            raise ValueError(f"timestamp {timestamp} is before the previous frame's "
-                             f"{self._last_time}; frames must come in time order")
         delta = _check_increment(odometry_increment)
+        time_scale = self._time_scale(timestamp)
         tilt = None if attitude is None else _tilt(attitude)
         frame = self._frame(image, labels)
         if self.search is not None:
-            return self._search_step(frame, delta, tilt, timestamp)
+            return self._search_step(frame, delta, tilt, timestamp, time_scale)
         loglik, obs_ms = self._log_likelihood(frame, tilt)
         t0 = time.perf_counter()
         with _BLAS.limit(limits=1, user_api="blas"):  # tiny GEMMs: threads only hurt
             if delta is not None:
-                self.filter.predict(delta)
+                self.filter.predict(delta, time_scale)
             info = self.filter.update(loglik) if loglik is not None else self.filter.coast()
         filter_ms = (time.perf_counter() - t0) * 1e3
         if info.status == "lost" and not self._start_search():  # the one re-localization
@@ -365,6 +365,44 @@ class Localizer:
                         info.position_std, info.yaw_std, info.ess, info.num_particles,
                         info.best_score, info.injected, info.status, info.confidence,
                         info.tilt, timing, info.hypotheses)
+
+    def predict(self, odometry_increment: np.ndarray, timestamp: float) -> None:
+        """Move by the odometry of a frame that is not weighed (the live node's frames it has
+        no time to process): the particles, or the global search's poses, move by the
+        increment with the noise of the time since the previous frame
+        (``particle_filter.noise_scale``); no image is read and nothing is estimated. Moving
+        at every frame and weighing some of them spreads the particles as stepping at every
+        frame does.
+
+        Args:
+            odometry_increment: (4,) forward, left, up (metres), yaw change (radians) since the
+                previous frame (``core.poses.odometry_increment``).
+            timestamp: seconds, this frame's; not before the previous frame's.
+        """
+        if len(self.filter.particles) == 0 and self.search is None:
+            raise RuntimeError("Localizer.predict before reset(): call reset(start) first")
+        timestamp = float(timestamp)
+        delta = _check_increment(odometry_increment)
+        if delta is None:
+            raise ValueError("Localizer.predict needs an odometry increment (4,), got None")
+        time_scale = self._time_scale(timestamp)
+        with _BLAS.limit(limits=1, user_api="blas"):
+            if self.search is not None:
+                self.search.predict(delta, time_scale)
+            else:
+                self.filter.predict(delta, time_scale)
+        self._last_time = timestamp
+
+    def _time_scale(self, timestamp: float) -> float:
+        """The motion noise's factor for a move from the previous frame to ``timestamp``
+        (``particle_filter.noise_scale``; 1 with no previous frame); ValueError for a
+        timestamp before the previous frame's."""
+        last = self._last_time
+        if last is not None and timestamp < last:
+            raise ValueError(f"timestamp {timestamp} is before the previous frame's {last}; "
+                             "frames must come in time order")
+        return noise_scale(None if last is None else timestamp - last,
+                           self.filter_params.motion_period_s)
 
     def _start_search(self, hint: StartHint | None = None) -> bool:
         """Start a global search (``filter.global_method: table``, a label mode, no likelihood
@@ -380,7 +418,7 @@ class Localizer:
         return self.search is not None
 
     def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
-                     timestamp: float) -> Estimate:
+                     timestamp: float, time_scale: float) -> Estimate:
         """A frame of the global search; on its convergence the tracking filter takes over
         from the dominant cluster's hypotheses (status ``ambiguous`` until then, the estimate
         the heaviest cluster's pose)."""
@@ -388,7 +426,7 @@ class Localizer:
         search = self.search
         with _BLAS.limit(limits=1, user_api="blas"):
             if delta is not None:
-                search.predict(delta)
+                search.predict(delta, time_scale)
             if frame.labels is not None:
                 search.update(frame.labels, tilt)
             state, pos_std, yaw_std = search.estimate()

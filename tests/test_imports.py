@@ -60,9 +60,10 @@ def violations() -> list[str]:
 #: The ROS 2 client library and the message packages: only the live node's rclpy side imports
 #: them (the core, the stages and the node's pure parts run without the ``ros`` extra).
 ROS_PACKAGES = {"rclpy", "sensor_msgs", "geometry_msgs", "nav_msgs", "std_srvs",
-                "diagnostic_msgs", "std_msgs", "builtin_interfaces"}
+                "diagnostic_msgs", "std_msgs", "builtin_interfaces", "visualization_msgs",
+                "lifecycle_msgs", "rcl_interfaces"}
 ROS_FILES = {"localize/ros2/node.py", "localize/ros2/listen.py", "localize/ros2/__main__.py",
-             "localize/ros2/play.py"}
+             "localize/ros2/play.py", "localize/ros2/world_display.py"}
 
 
 def ros_imports() -> list[str]:

@@ -31,7 +31,11 @@ it holds less than ``dominant_mass`` (the weighted mean of two modes lies betwee
 
 Motion: the odometry increment between two frames is expressed in the gravity-aligned heading
 frame of the earlier pose (forward, left, up, yaw change), the frame a VIO's increments are
-integrated in; each particle applies it in its own heading frame.
+integrated in; each particle applies it in its own heading frame. The noise of a move follows
+the time it spans (``noise_scale``: ``motion_std`` per ``motion_period_s``, its variance
+growing with the time elapsed) and the increment (``motion_rel``), not the number of moves: a
+frame not weighed (the live node's frames it has no time for) still moves the particles
+(``predict``), and moving twice over 0.05 s spreads them as once over 0.1 s.
 
 Settings: ``localize.config.FilterConfig`` (``filter``).
 """
@@ -119,7 +123,7 @@ def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
         rng: random generator.
         particles: (N, 4).
         delta: (4,) increment from ``odometry_increment``.
-        std: (3,) noise per frame: horizontal (m), vertical (m), yaw (degrees).
+        std: (3,) noise of this move: horizontal (m), vertical (m), yaw (degrees).
         rel: (2,) extra noise per unit of translation and of yaw change.
 
     Returns:
@@ -132,6 +136,24 @@ def move(rng: np.random.Generator, particles: np.ndarray, delta: np.ndarray,
     s_yaw = np.deg2rad(std[2]) + rel[1] * abs(delta[3])
     noise = rng.normal(0.0, 1.0, (N, 4)) * np.array([s_xy, s_xy, s_z, s_yaw])
     return apply_increment(particles, np.asarray(delta, dtype=np.float64) + noise)
+
+
+def noise_scale(dt: float | None, period: float) -> float:
+    """The factor of a move's time-driven noise over ``dt`` seconds: sqrt(dt / ``period``), the
+    std of a random walk given per ``period`` (variances add over time, so moves of 0.05 s twice
+    spread as one of 0.1 s). ``dt / period`` is rounded to 1e-6 (stamps at a steady rate then
+    give exactly 1); ``dt`` None (no previous time): 1.
+
+    Args:
+        dt: seconds since the previous move, >= 0, or None.
+        period: seconds ``motion_std`` is given for (``filter.motion_period_s``).
+    """
+    if dt is None:
+        return 1.0
+    if not np.isfinite(dt) or dt < 0:
+        raise ValueError(f"the time since the previous move must be finite and >= 0 seconds, "
+                         f"got {dt}")
+    return float(np.sqrt(round(float(dt) / float(period), 6)))
 
 
 def move_tilt(rng: np.random.Generator, tilt: np.ndarray, step_std: float) -> np.ndarray:
@@ -327,16 +349,18 @@ class ParticleFilter:
         """True while the large global set is kept (before thinning)."""
         return self._thin_at > 0 and self.frame < self._thin_at
 
-    def predict(self, delta: np.ndarray) -> None:
-        """Move the particles by an odometry increment (4,)."""
+    def predict(self, delta: np.ndarray, time_scale: float = 1.0) -> None:
+        """Move the particles by an odometry increment (4,); ``time_scale`` multiplies the
+        time-driven noise (``motion_std``, the tilt's walk): ``noise_scale`` of the time the
+        move spans (1: one ``motion_period_s``)."""
         p = self.params
-        scale = p.global_motion_scale if self.in_global_phase else 1.0
+        scale = time_scale * (p.global_motion_scale if self.in_global_phase else 1.0)
         std = tuple(scale * np.asarray(p.motion_std, dtype=np.float64))
         self.particles = move(self.rng, self.particles, delta, std, p.motion_rel)
         if self._reckoned is not None:
             self._reckoned = apply_increment(self._reckoned[None], delta)[0]
         if not self.in_global_phase:
-            self.tilt = move_tilt(self.rng, self.tilt, np.deg2rad(p.tilt_std[1]))
+            self.tilt = move_tilt(self.rng, self.tilt, time_scale * np.deg2rad(p.tilt_std[1]))
 
     def update(self, log_likelihood: LogLikelihood) -> StepInfo:
         """Weight by the measurement, resample if needed, inject on collapse.

@@ -15,8 +15,12 @@ counted as superseded); the worker takes the newest one, drops it when it is old
 ``realtime.odometry_wait_s``, decodes and rectifies it, steps the filter with the odometry
 interpolated at its capture time (``sync.OdometryBuffer``) and hands an ``Output`` stamped with
 that capture time to ``publish``; the capture-to-publish latency is measured when ``publish``
-returns. Re-localizations (``request_reset``: an initial pose or a global start; a track
-declared lost) increment the autopilot link's reset counter.
+returns. A frame dropped after the first CameraInfo (superseded, stale, undecodable, or whose
+odometry came late) still moves the filter: before its next step the worker moves the
+particles by the odometry at each such frame's capture time (``Localizer.predict``, counted
+``predicted``), so every frame's motion is predicted with the noise of its own time span and
+only the frames processed weigh. Re-localizations (``request_reset``: an initial pose or a
+global start; a track declared lost) increment the autopilot link's reset counter.
 """
 
 from __future__ import annotations
@@ -120,6 +124,8 @@ class Counts:
     no_odometry: int = 0  # the odometry did not cover the capture time
     rejected: int = 0  # no CameraInfo yet, a stamp not after the previous, undecodable
     resets: int = 0  # re-localizations (initial pose, global start, track lost)
+    #: dropped frames whose odometry moved the particles without weighing them
+    predicted: int = 0
     #: messages dropped by their callback: an odometry or initial pose that is not a finite
     #: pose, an odometry stamp not after the previous one, a CameraInfo that cannot be used
     messages_rejected: int = 0
@@ -176,13 +182,16 @@ class LiveLocalizer:
         self._reset: tuple[bool, np.ndarray | None] | None = None
         self._last_stamp = -np.inf
         self._last_odometry: np.ndarray | None = None
+        #: capture times of the frames dropped since the last step (moved through before it)
+        self._passed: list[float] = []
+        self._moved_to = -np.inf  # the last capture time the filter moved to
         self._last_status = ""
         self._front = self.ctx.front_end(self.cfg.mode)
         # made here, not in ``camera_info``: the receiving thread must not stop for seconds
         self._model = self.ctx.model_for(self.cfg.mode)
         self._rng = np.random.default_rng(int(self.cfg.seed))  # the filter's alone
         self._display_rng = np.random.default_rng([int(self.cfg.seed), 1])
-        s = self.ctx.settings
+        s = self.settings  # the start is this config's (the context may be shared)
         self._start = start_of_settings(s.hint, self.ctx.world.info, self.ctx.world.free,
                                         s.filter.init_std)
         self._worker: threading.Thread | None = None
@@ -253,8 +262,10 @@ class LiveLocalizer:
                             "frame's %.6f s", where, stamp, self._last_stamp)
             return
         self._last_stamp = stamp
-        if self.slot.put(_Pending(stamp, decode, where)):
+        replaced = self.slot.put(_Pending(stamp, decode, where))
+        if replaced is not None:
             self.counts.superseded += 1
+            self._pass(replaced.stamp)
 
     def request_reset(self, start: np.ndarray | StartHint | None) -> None:
         """Re-localize: track from ``start`` ((4,) x, y, z, yaw, or a (4, 4) map pose), search
@@ -273,22 +284,32 @@ class LiveLocalizer:
     # --- the worker --------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start the worker thread."""
-        self._worker = threading.Thread(target=self._work, name="edgeloc-worker", daemon=True)
+        """Start the worker thread (again after ``pause``: with an empty slot)."""
+        if self._worker is not None:
+            return
+        self._stop = threading.Event()
+        self.slot = LatestSlot()
+        self._worker = threading.Thread(target=self._work, args=(self._stop,),
+                                        name="edgeloc-worker", daemon=True)
         self._worker.start()
 
-    def stop(self) -> None:
-        """Stop the worker; close the autopilot link and the viewer."""
+    def pause(self) -> None:
+        """Stop the worker thread after its frame in progress; the filter keeps its state."""
         self._stop.set()
         self.slot.close()
         if self._worker is not None:
             self._worker.join(timeout=10.0)
+            self._worker = None
+
+    def stop(self) -> None:
+        """Stop the worker; close the autopilot link and the viewer."""
+        self.pause()
         for sink in (self.mavlink, self.viewer):
             if sink is not None:
                 sink.close()
 
-    def _work(self) -> None:
-        while not self._stop.is_set():
+    def _work(self, stop: threading.Event) -> None:
+        while not stop.is_set():
             try:
                 self.step_once(0.2)
             except Exception:  # a bug must not stop a flying drone's localizer silently
@@ -306,6 +327,7 @@ class LiveLocalizer:
         rt = self.settings.realtime
         if age > rt.max_age_s:
             self.counts.stale += 1
+            self._pass(item.stamp)
             if self.warn("stale"):
                 log.warning("%s: frame dropped: %.3f s old when taken (realtime.max_age_s = "
                             "%.3f s; is the stamp the capture time, on this machine's clock?)",
@@ -314,6 +336,7 @@ class LiveLocalizer:
         attitude, why = self.odometry_buffer.wait_for(item.stamp, rt.odometry_wait_s)
         if attitude is None:
             self.counts.no_odometry += 1
+            self._pass(item.stamp)
             if self.warn("odometry"):
                 log.warning("%s: frame dropped: %s (topic %s)", item.where, why,
                             self.settings.topics.odometry)
@@ -322,9 +345,11 @@ class LiveLocalizer:
             image = self.rectifier(self._checked_size(item.decode(), item.where))
         except ValueError as err:
             self.counts.rejected += 1
+            self._pass(item.stamp)
             if self.warn(f"decode {str(err)[-40:]}"):
                 log.warning("frame dropped: %s", err)
             return None
+        self._move_through(item.stamp)
         stepped_at = self.clock()
         out = self._step(item.stamp, image, attitude)
         published_at = self.clock()
@@ -355,9 +380,34 @@ class LiveLocalizer:
                              "camera at this resolution")
         return image
 
+    def _pass(self, stamp: float) -> None:
+        """A frame dropped at capture time ``stamp``: its odometry moves the filter before
+        the next step (``_move_through``)."""
+        with self._lock:
+            self._passed.append(stamp)
+
+    def _move_through(self, stamp: float) -> None:
+        """Move the filter by the odometry at each dropped frame's capture time before
+        ``stamp`` (``Localizer.predict``; a frame the kept odometry does not cover is skipped,
+        its motion joins the next increment)."""
+        with self._lock:
+            passed, self._passed = sorted(self._passed), []
+        for t in passed:
+            if not self._moved_to < t < stamp:
+                continue
+            pose = self.odometry_buffer.at(t)
+            if pose is None:
+                continue
+            if self._last_odometry is not None:
+                self.localizer.predict(odometry_increment(self._last_odometry, pose), t)
+                self.counts.predicted += 1
+            self._last_odometry, self._moved_to = pose, t
+
     def _apply_reset(self) -> None:
         with self._lock:
             reset, self._reset = self._reset, None
+            if reset is not None:
+                self._passed = []  # frames before the re-localization do not move its start
         if reset is None or self.localizer is None:
             if reset is not None:
                 self._start = reset[1]
@@ -378,7 +428,7 @@ class LiveLocalizer:
         loc = self.localizer
         inc = (None if self._last_odometry is None
                else odometry_increment(self._last_odometry, attitude))
-        self._last_odometry = attitude
+        self._last_odometry, self._moved_to = attitude, stamp
         frame = self._front.frame(image, None)
         search = loc.search  # a global search steps this frame, not the particle filter
         est = loc.step(frame, inc, attitude, stamp)
@@ -408,7 +458,8 @@ class LiveLocalizer:
         values = {"frames_received": c.received, "frames_processed": c.processed,
                   "frames_dropped": c.dropped, "dropped_superseded": c.superseded,
                   "dropped_stale": c.stale, "dropped_no_odometry": c.no_odometry,
-                  "frames_rejected": c.rejected, "messages_rejected": c.messages_rejected,
+                  "frames_rejected": c.rejected, "frames_predicted": c.predicted,
+                  "messages_rejected": c.messages_rejected,
                   "reset_counter": c.resets,
                   "latency_ms": 1e3 * self.last_latency,
                   "latency_median_ms": 1e3 * self.latency.percentile(50),
@@ -437,10 +488,14 @@ def _same_camera(a: SourceCamera, b: SourceCamera | None) -> bool:
 
 
 def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
-                      limit: int | None = None) -> np.ndarray:
+                      limit: int | None = None, stamps: np.ndarray | None = None) -> np.ndarray:
     """The node's filter run offline over a frame source: the same settings, seed and start
     (``start``; None: a global start), every frame in order, as the live node would with
     nothing dropped; the reference of the tests and benchmarks/live.py.
+
+    Args:
+        stamps: (T,) the frames' capture times, seconds, instead of the source's (those a
+            player gave them: the motion noise follows the time between frames).
 
     Returns:
         (T, 4) x, y, z, yaw estimates of the first ``limit`` frames (all: None).
@@ -449,5 +504,8 @@ def offline_estimates(ctx: Context, cfg: DictConfig, source: FrameSource,
                     np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
     s = ctx.settings
     loc.reset(start_of_settings(s.hint, ctx.world.info, ctx.world.free, s.filter.init_std))
+    frames = source.steps(limit)
+    if stamps is not None:
+        frames = (f._replace(timestamp=float(t)) for f, t in zip(frames, stamps, strict=False))
     return np.stack([loc.step(f.image, f.odometry_increment, f.attitude, f.timestamp).state
-                     for f in source.steps(limit)])
+                     for f in frames])

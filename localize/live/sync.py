@@ -127,11 +127,10 @@ class LatestSlot:
         self._cond = threading.Condition()
         self._closed = False
 
-    def put(self, item: Any) -> bool:
-        """Put ``item``; True when it replaced one not taken (that one is dropped)."""
+    def put(self, item: Any) -> Any:
+        """Put ``item``; the item it replaced, not taken (dropped), or None."""
         with self._cond:
-            replaced = self._item is not None
-            self._item = item
+            replaced, self._item = self._item, item
             self._cond.notify()
             return replaced
 

@@ -42,12 +42,18 @@ class NodeTopicsConfig:
         odometry_type: ``odometry`` or ``pose``.
         initial_pose: geometry_msgs/PoseWithCovarianceStamped in the map frame: (re)start
             tracking there (nav2 AMCL's and RViz's ``/initialpose``).
-        global_localization: std_srvs/Empty service: re-localize over the whole free space.
+        global_localization: std_srvs/Empty service: re-localize over the whole free space
+            (ROS 1 AMCL's name; the same as ``reinitialize_global_localization``).
+        reinitialize_global_localization: std_srvs/Empty service, nav2 AMCL's name of the same
+            re-localization.
         pose: geometry_msgs/PoseWithCovarianceStamped out, map frame, covariance from the
             particles.
         odometry_out: nav_msgs/Odometry out, map frame to ``frames.base``.
         particles: geometry_msgs/PoseArray of the particles, map frame.
         status: diagnostic_msgs/DiagnosticArray: status, confidence, latency, frame counts.
+        free_space: nav_msgs/OccupancyGrid of the world's free space, latched (transient
+            local; ``localize.ros2.world_display``).
+        model_edges: visualization_msgs/MarkerArray of the model's edges by class, latched.
         groundtruth: geometry_msgs/PoseStamped of the true pose the player publishes when its
             source has one (empty: none); the node does not read it.
     """
@@ -59,10 +65,13 @@ class NodeTopicsConfig:
     odometry_type: str = "odometry"
     initial_pose: str = "/initialpose"
     global_localization: str = "/global_localization"
+    reinitialize_global_localization: str = "/reinitialize_global_localization"
     pose: str = "/edgeloc/pose"
     odometry_out: str = "/edgeloc/odometry"
     particles: str = "/particle_cloud"
     status: str = "/diagnostics"
+    free_space: str = "/edgeloc/free_space"
+    model_edges: str = "/edgeloc/model_edges"
     groundtruth: str = "/groundtruth"
 
     def __post_init__(self) -> None:
@@ -150,7 +159,9 @@ class Ros2Config(AppConfig):
     start over the free space); ``/initialpose`` or the service restart it at any time.
 
     Attributes:
-        node_name: the ROS node name.
+        node_name: the ROS node name (not a ROS parameter: ``-r __node:=NAME`` renames it).
+        autostart: the node configures and activates itself on start (a lifecycle node,
+            ``localize.ros2.node``); false: it waits for a lifecycle manager's transitions.
         mode: the edge mode (``cnn`` or ``none``: a live camera has no true labels).
         seed: the filter's random seed.
         body_from_cam: (4, 4) camera mount on the body; None: the dataset's.
@@ -163,6 +174,7 @@ class Ros2Config(AppConfig):
     """
 
     node_name: str = "edgeloc"
+    autostart: bool = True
     mode: str = "cnn"
     seed: int = 0
     body_from_cam: list[Any] | None = None

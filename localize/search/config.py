@@ -26,7 +26,7 @@ class GlobalSearchConfig:
         frame_floor: most log-weight a frame takes from a hypothesis against the best one.
         min_bins: fewer observed azimuth bins: the frame is not weighed.
         max_bins: most azimuth bins scored (evenly spaced among the observed ones).
-        motion_std: (3,) per frame: horizontal m, vertical m, yaw degrees.
+        motion_std: (3,) per ``filter.motion_period_s``: horizontal m, vertical m, yaw degrees.
         motion_rel: (2,) more noise per m of translation and per rad of yaw change.
         jitter: (2,) m and degrees of the jitter of a copy.
         prune_band: hypotheses more than this below the best in log-weight are dropped.

@@ -212,14 +212,16 @@ class GlobalSearch:
         self.logw = np.concatenate([kept_lw, lw])
         self.logw -= logsumexp(self.logw)
 
-    def predict(self, delta: np.ndarray) -> None:
-        """Move every hypothesis by an odometry increment (4,) with noise."""
+    def predict(self, delta: np.ndarray, time_scale: float = 1.0) -> None:
+        """Move every hypothesis by an odometry increment (4,) with noise; ``time_scale``
+        multiplies ``motion_std`` (``particle_filter.noise_scale`` of the time the move spans;
+        1: one frame)."""
         p = self.params
         self._version += 1
         step = float(np.hypot(delta[0], delta[1]))
-        s_xy = p.motion_std[0] + p.motion_rel[0] * step
-        s_yaw = np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
-        std = np.array([s_xy, s_xy, p.motion_std[1], s_yaw])
+        s_xy = time_scale * p.motion_std[0] + p.motion_rel[0] * step
+        s_yaw = time_scale * np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
+        std = np.array([s_xy, s_xy, time_scale * p.motion_std[1], s_yaw])
         noise = self.rng.normal(0.0, 1.0, self.states.shape) * std
         self.states = apply_increment(self.states, np.asarray(delta, np.float64) + noise)
 

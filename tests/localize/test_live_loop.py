@@ -10,9 +10,10 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from core.config import CONF
+from core.config import CONF, typed
 from core.poses import xyzyaw_from_pose
 from localize.live.loop import LiveLocalizer, load_context
+from localize.ros2.config import Ros2Config
 from localize.ros2.play import open_playback
 from tests.localize.conftest import QUICK
 
@@ -104,6 +105,52 @@ def test_a_relocalization_that_is_not_a_pose_is_refused(setup):
         assert feed.live.counts.processed == 2 and feed.live.counts.resets == 0
     finally:
         feed.live.stop()
+
+
+def test_frames_not_processed_still_move_the_filter(setup):
+    """Every other frame superseded (the worker busy, as at 30 Hz): each superseded frame's
+    odometry moves the particles (``Localizer.predict`` at its capture time, counted
+    ``predicted``) before the next frame's step; the estimates are those of a ``Localizer``
+    that predicts at the odd frames and steps at the even ones, to float rounding."""
+    from core.poses import odometry_increment
+    from localize.filter.start_hint import start_of_settings
+    from localize.localizer import Localizer
+
+    cfg, ctx, pb = setup
+    cfg = tracking(cfg, pb)
+    feed = Feed(cfg, ctx, pb)
+    n = 12
+    frames = [image for _, image in zip(range(n), pb.frames(), strict=False)]
+    try:
+        live = feed.live
+        for i in range(n):
+            feed.now = T0 + 0.1 * i
+            live.odometry(feed.now, pb.odometry[i], "test odometry")
+            live.image(feed.now, lambda i=i: frames[i], f"test frame {i}")
+            if i % 2:
+                assert live.step_once(1.0) is not None
+        c = live.counts
+        assert c.processed == n // 2 and c.superseded == n // 2, c
+        # each superseded frame moved the filter, but the first: the odometry starts there
+        # (and the first step moves from it)
+        assert c.predicted == n // 2 - 1, c
+        assert live.status()[1]["frames_predicted"] == str(n // 2 - 1)
+    finally:
+        feed.live.stop()
+    s = typed(Ros2Config, cfg, "ros2 config")
+    loc = Localizer(ctx.world, ctx.camera, ctx.front_end(cfg.mode), ctx.settings,
+                    np.random.default_rng(int(cfg.seed)), model=ctx.model_for(cfg.mode))
+    loc.reset(start_of_settings(s.hint, ctx.world.info, ctx.world.free, s.filter.init_std))
+    want = []
+    for i in range(1, n, 2):
+        t, odo = T0 + 0.1 * i, pb.odometry
+        if i > 1:
+            loc.predict(odometry_increment(odo[i - 2], odo[i - 1]), t - 0.1)
+        want.append(loc.step(frames[i], odometry_increment(odo[i - 1], odo[i]), odo[i], t).state)
+    got = np.array([o.estimate.state for o in feed.outputs])
+    truth = xyzyaw_from_pose(pb.groundtruth[1:n:2])
+    assert np.linalg.norm(got[:, :2] - truth[:, :2], axis=1).max() < 0.3
+    np.testing.assert_allclose(got, np.array(want), atol=1e-5)
 
 
 def test_refused_odometry_is_counted(setup):

@@ -23,6 +23,7 @@ from localize.filter.particle_filter import (
     init_global,
     init_tracking,
     move,
+    noise_scale,
     systematic_resample,
 )
 from localize.filter.pose_stats import estimate
@@ -79,6 +80,34 @@ class TestMotion:
         assert b[:, 1].std() == pytest.approx(0.01 + 0.05, rel=0.1)
         assert a[:, 1].std() == pytest.approx(0.01, rel=0.1)
         assert b[:, 0].mean() == pytest.approx(0.5, abs=0.01)
+
+    def test_noise_follows_the_time_elapsed(self):
+        """Two moves over 0.05 s spread the particles as one over 0.1 s (the frame period
+        ``motion_std`` is given for), and one over 0.2 s as two over 0.1 s: the noise follows
+        the time, not the number of moves."""
+        params = FilterConfig(motion_std=[0.02, 0.01, 1.0], motion_rel=[0.0, 0.0],
+                              tilt_std=[0.0, 0.0], motion_period_s=0.1)
+
+        def spread(dts):
+            pf = ParticleFilter(params, FREE, np.random.default_rng(5))
+            pf.init_particles(np.zeros((20000, 4)))
+            for dt in dts:
+                pf.predict(np.zeros(4), noise_scale(dt, params.motion_period_s))
+            return pf.particles.std(0)
+
+        one = spread([0.1])
+        np.testing.assert_allclose(one, [0.02, 0.02, 0.01, np.deg2rad(1.0)], rtol=0.03)
+        np.testing.assert_allclose(spread([0.05, 0.05]), one, rtol=0.03)
+        np.testing.assert_allclose(spread([0.2]), spread([0.1, 0.1]), rtol=0.03)
+        np.testing.assert_allclose(spread([0.2]), np.sqrt(2) * one, rtol=0.03)
+
+    def test_noise_scale(self):
+        assert noise_scale(None, 0.1) == 1.0
+        assert noise_scale(0.30000000000000004 - 0.2, 0.1) == 1.0  # stamps' float rounding
+        assert noise_scale(0.4, 0.1) == pytest.approx(2.0)
+        assert noise_scale(0.0, 0.1) == 0.0
+        with pytest.raises(ValueError, match="finite and >= 0 seconds, got -0.1"):
+            noise_scale(-0.1, 0.1)
 
     def test_free_space_prior(self):
         p = np.array([[0, 5, 1, 0], [0.9, 5, 1, 0], [1.5, 5, 1, 0], [0, 5, 3.0, 0],

@@ -111,6 +111,38 @@ class TestStep:
                                   labels=labels).state for t in range(3)])
         np.testing.assert_array_equal(runs[0], runs[1])
 
+    def test_a_frame_not_weighed_still_moves(self, small_world, camera, model, labels):
+        """``predict`` moves the particles with the noise of the time since the previous frame
+        and weighs nothing: two moves over 0.1 s spread the set as one over 0.2 s, sqrt(2)
+        times one over 0.1 s."""
+        def spread(times):
+            loc = make(small_world, camera, model, seed=4)
+            loc.reset(TRUE)
+            loc.step(None, None, None, 0.0, labels=labels)
+            loc.filter.init_particles(np.repeat(TRUE[None], 20000, axis=0))
+            for t in times:
+                loc.predict(np.zeros(4), t)
+            w = loc.filter.logw
+            assert (w == w[0]).all(), "predict weighed the particles"
+            return loc.filter.particles[:, :2].std(0)
+
+        short, split, whole = spread([0.1]), spread([0.1, 0.2]), spread([0.2])
+        np.testing.assert_allclose(short, SETTINGS.filter.motion_std[0], rtol=0.03)
+        np.testing.assert_allclose(split, whole, rtol=0.03)
+        np.testing.assert_allclose(whole, np.sqrt(2) * short, rtol=0.03)
+
+    def test_predict_keeps_the_time_order(self, small_world, camera, model, labels):
+        loc = make(small_world, camera, model)
+        loc.reset(TRUE)
+        loc.step(None, None, None, 1.0, labels=labels)
+        with pytest.raises(ValueError, match="before the previous frame's 1.0"):
+            loc.predict(np.zeros(4), 0.5)
+        with pytest.raises(ValueError, match="needs an odometry increment"):
+            loc.predict(None, 1.5)
+        loc.predict(np.array([0.1, 0.0, 0.0, 0.0]), 1.1)
+        est = loc.step(None, np.zeros(4), None, 1.2, labels=labels)
+        assert est.timestamp == pytest.approx(1.2)
+
     def test_shared_frame_is_made_once_and_changes_nothing(self, small_world, camera, model,
                                                           labels):
         front = FrontEnd("oracle", EDGES_CFG)

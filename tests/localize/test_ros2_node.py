@@ -144,7 +144,8 @@ def test_the_flight_through_the_node_tracks_as_offline(ros, setup):
     assert rows == sorted(rows) and len(rows) == counts.processed
     live = got.positions()
     assert all(m.header.frame_id == "map" for m in got.poses)
-    offline = offline_estimates(ctx, cfg, Dataset(cfg.dataset).flight(FLIGHT))[rows, :3]
+    offline = offline_estimates(ctx, cfg, Dataset(cfg.dataset).flight(FLIGHT),
+                                stamps=sent)[rows, :3]  # the played stamps: 5 Hz
     gap = np.linalg.norm(live - offline, axis=1)
     # every frame processed: the same frames, pixels and odometry (to quaternion rounding)
     assert gap.mean() < (1e-4 if counts.dropped == 0 else 0.05), gap
@@ -438,7 +439,8 @@ class TestInputsAndResets:
 
 @pytest.mark.slow
 def test_python_m_localize_ros2(ros, setup, tmp_path):
-    """``python -m localize.ros2`` starts from the command line, reports its status on the
+    """``python -m localize.ros2`` starts from the command line (Hydra's overrides, then a ROS
+    params file after ``--ros-args`` giving the start pose), reports its status on the
     loopback DDS of this test, tracks the frames played to it and stops cleanly on Ctrl-C."""
     import signal
     import subprocess
@@ -449,9 +451,13 @@ def test_python_m_localize_ros2(ros, setup, tmp_path):
 
     cfg, ctx, pb = setup
     root = Path(__file__).resolve().parents[2]
+    params = tmp_path / "params.yaml"
+    params.write_text("edgeloc:\n  ros__parameters:\n    hint:\n"
+                      f"      pose: {[float(v) for v in cfg.hint.pose]}\n")
     args = [f"dataset={cfg.dataset}", "mode=none", f"out_root={cfg.out_root}",
-            f"hint.pose={list(cfg.hint.pose)}", f"hydra.run.dir={tmp_path}",
-            *[o for o in QUICK if not o.startswith(("seeds", "progress"))]]
+            f"hydra.run.dir={tmp_path}",
+            *[o for o in QUICK if not o.startswith(("seeds", "progress"))],
+            "--ros-args", "--params-file", str(params)]
     proc = subprocess.Popen([sys.executable, "-m", "localize.ros2", *args], cwd=root,
                             env=os.environ.copy(), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
@@ -470,6 +476,8 @@ def test_python_m_localize_ros2(ros, setup, tmp_path):
         assert player.wait_for_subscriber()
         player.play(pb)
         assert wait_until(lambda: len(got.poses) >= 3, 20.0)
+        truth = xyzyaw_from_pose(pb.groundtruth[:5])[:, :3]
+        assert np.linalg.norm(got.positions()[0] - truth[0]) < 0.3  # the params file's start
     finally:
         proc.send_signal(signal.SIGINT)
         try:
@@ -480,7 +488,7 @@ def test_python_m_localize_ros2(ros, setup, tmp_path):
         executor.shutdown(timeout_sec=2.0)
         node.destroy_node()
     assert proc.returncode == 0, out
-    assert "ready" in out
+    assert "hint.pose=" in out and "node edgeloc active" in out, out
 
 
 def test_the_player_prints_its_usage(capsys):

@@ -76,8 +76,8 @@ class TestOdometryBuffer:
 
 def test_latest_slot_keeps_the_newest():
     slot = LatestSlot()
-    assert slot.put(1) is False
-    assert slot.put(2) is True  # 1 was not taken: dropped
+    assert slot.put(1) is None
+    assert slot.put(2) == 1  # 1 was not taken: dropped
     assert slot.take(0.01) == 2 and slot.take(0.01) is None
     t0 = time.monotonic()
     threading.Timer(0.05, slot.put, (3,)).start()
