@@ -43,7 +43,6 @@ from threadpoolctl import ThreadpoolController
 from core import classes as C
 from core.classes import pair_code
 from core.dataset import Camera, World
-from core.imaging.outline import structural_change
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import LocalizerConfig
@@ -158,11 +157,12 @@ class EdgeModel:
         return cls(samples, vis, pair_code(sc[:, 0], sc[:, 1]))
 
     def class_change(self, world: World) -> EdgeModel:
-        """The samples that can show two different structural classes (what label boundaries
-        can match): those of segments between two, and with visibility lists those of creases
-        with a structural face, an outline against what lies behind them
-        (``core.imaging.outline``); the lists keep only the entries where a cell sees a
-        boundary. This model when there are none."""
+        """The samples that can show two different classes (what label boundaries can match;
+        a boundary with clutter falls on unknown pixels): those of segments between two, and
+        with visibility lists those of creases with a structural face, an outline against
+        what lies behind them (``core.imaging.outline``); the lists keep only the entries
+        where a cell sees two classes, neither of them void. This model when there are
+        none."""
         sc = np.asarray(world.segment_classes)
         keep = (sc[:, 0] != sc[:, 1]) & (sc.min(axis=1) > 0)
         if self.visibility is not None and world.normals is not None:
@@ -171,8 +171,9 @@ class EdgeModel:
         if not keep.any():
             return self
         sub = self._subset(keep)
-        if sub.visibility is not None:
-            sub.visibility = sub.visibility.entries(structural_change(sub.visibility.codes))
+        if sub.visibility is not None:  # the entries seen as two classes, none of them void
+            lo, _ = C.pair_classes(sub.visibility.codes)
+            sub.visibility = sub.visibility.entries((sub.visibility.codes > 0) & (lo > 0))
         return sub
 
     def _subset(self, keep: np.ndarray) -> EdgeModel:
