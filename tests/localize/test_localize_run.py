@@ -168,6 +168,9 @@ class TestEndToEnd:
         edges.write_bytes(b"old edges")
         other = OmegaConf.merge(cfg, {"dataset": str(tmp_path / "ds")})
         check_resume(tmp_path / "out", other)
+        run_file = tmp_path / "out" / "runs" / "paper" / "none_seed0.json"
+        run_file.parent.mkdir(parents=True)
+        run_file.write_text("{}")  # a finished run
         check_resume(tmp_path / "out", other)  # the same edges: it resumes
         edges.write_bytes(b"rebuilt edges")
         with pytest.raises(RuntimeError, match=r"edges_sha256.*overwrite=true"):
