@@ -433,7 +433,9 @@ class TestInputsAndResets:
             rx.close()
         assert len(out) == node.live.counts.processed == 3
         assert all(m.child_frame_id == MAV_FRAME_BODY_FRD for m in out)
-        assert [m.time_usec for m in out] == [round(t * 1e6) for t in sent]
+        # the capture stamps, to the microsecond (a float second's nanoseconds round either way)
+        np.testing.assert_allclose([m.time_usec for m in out], [t * 1e6 for t in sent],
+                                   rtol=0, atol=1.0)
         assert [m.reset_counter for m in out] == [0, 0, 1]
 
 
