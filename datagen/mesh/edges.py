@@ -446,21 +446,11 @@ def merge_collinear(
         The merged (segments, classes, crease[, normals]), same layout, in a deterministic
         order.
     """
-    if normals is not None:
-        *out, k = _merge_collinear(segments, classes, crease,
-                                   np.nan_to_num(normals, nan=9.0).reshape(-1, 6), tol)
-        return (*out, np.asarray(normals)[k])
-    return tuple(_merge_collinear(segments, classes, crease, np.zeros((len(segments), 0)),
-                                  tol)[:3])
-
-
-def _merge_collinear(segments: np.ndarray, classes: np.ndarray, crease: np.ndarray,
-                     extra: np.ndarray, tol: float) -> tuple[np.ndarray, ...]:
-    """``merge_collinear`` with ``extra`` (M, K) key columns; also the index of the segment
-    each merged one takes its attributes from."""
+    extra = (np.zeros((len(segments), 0)) if normals is None
+             else np.nan_to_num(normals, nan=9.0).reshape(-1, 6))  # NaN: no crease
     if len(segments) == 0:
-        return (segments.reshape(0, 2, 3), classes.reshape(0, 2), crease.reshape(0),
-                np.zeros(0, np.int64))
+        empty = (segments.reshape(0, 2, 3), classes.reshape(0, 2), crease.reshape(0))
+        return empty if normals is None else (*empty, np.asarray(normals).reshape(0, 2, 3))
     segments = np.asarray(segments, dtype=np.float64)
     d = segments[:, 1] - segments[:, 0]
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -490,4 +480,5 @@ def _merge_collinear(segments: np.ndarray, classes: np.ndarray, crease: np.ndarr
     k = order[first]
     b = np.maximum.reduceat(hi, first)
     out = np.stack([foot[k] + lo[first, None] * d[k], foot[k] + b[:, None] * d[k]], axis=1)
-    return out, classes[k].astype(np.uint8), crease[k].astype(np.float64), k
+    merged = (out, classes[k].astype(np.uint8), crease[k].astype(np.float64))
+    return merged if normals is None else (*merged, np.asarray(normals)[k])

@@ -87,8 +87,7 @@ class SparseVisibility:
 
     def centres(self) -> np.ndarray:
         """(R, 3) centres of the stored rows, metres."""
-        ijk = np.stack(np.unravel_index(self.flat, tuple(self.shape)), axis=1)
-        return self.origin + ijk * self.cell
+        return cell_centres(self.origin, self.cell, self.shape, self.flat)
 
     def rows(self, positions: np.ndarray) -> np.ndarray:
         """(N,) int64 row of the cell nearest to each position (N, 3), metres."""
@@ -153,12 +152,19 @@ class SparseVisibility:
                                 self.max_range)
 
     def entries(self, keep: np.ndarray) -> SparseVisibility:
-        """The lists with only the entries ``keep`` (nnz,) bool (e.g. the class boundaries:
-        ``core.imaging.outline.structural_change(codes)``)."""
+        """The lists with only the entries ``keep`` (nnz,) bool (e.g. those whose ``codes``
+        are two classes: ``EdgeModel.class_change``)."""
         before = np.r_[0, np.cumsum(keep)]
         return SparseVisibility(self.origin, self.cell, self.shape, self.row_of, self.flat,
                                 before[self.indptr], self.ids[keep], self.codes[keep],
                                 self.num_samples, self.max_range)
+
+
+def cell_centres(origin: np.ndarray, cell: np.ndarray, shape: np.ndarray, flat: np.ndarray
+                 ) -> np.ndarray:
+    """(R, 3) centres, metres, of the grid cells ``flat`` (R,) (``grid_layout``'s grid)."""
+    ijk = np.stack(np.unravel_index(flat, tuple(shape)), axis=1)
+    return origin + ijk * cell
 
 
 def free_bounds(free: OccupancyMap) -> tuple[np.ndarray, np.ndarray]:
@@ -286,12 +292,12 @@ def build_visibility(world: World, points: np.ndarray, free: OccupancyMap | None
     if max_range <= 0:
         raise ValueError(f"visibility.max_range must be positive, got {max_range}")
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if normals is None:
+    if classes is not None and normals is None:
         normals = np.full((len(points), 2, 3), np.nan)
     free = world.free if free is None else free
     origin, cell, shape = grid_layout(*free_bounds(free), cell_xy, cell_z, pad)
     flat, row_of = stored_cells(free, origin, cell, shape, pad)
-    centres = (origin + np.stack(np.unravel_index(flat, tuple(shape)), axis=1) * cell)
+    centres = cell_centres(origin, cell, shape, flat)
     tree = cKDTree(points)
     near = tree.query_ball_point(centres, max_range, return_length=True)
     caster = RayCaster(world.vertices, world.faces, variant) if near.any() else None
