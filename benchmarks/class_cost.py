@@ -49,7 +49,8 @@ CLASSES = tuple(n for n in C.NAMES if n != "void")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0], epilog="key=value "
+                                 "arguments, anywhere, are python -m localize overrides")
     ap.add_argument("--buildings", nargs="+", default=list(BUILDINGS), choices=BUILDINGS)
     ap.add_argument("--classes", nargs="+", default=list(CLASSES), choices=CLASSES)
     ap.add_argument("--onnx", type=Path, default=GENERALIST, help="the SegNet of cnn mode")
@@ -57,8 +58,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--root", type=Path, default=ROOT / "outputs" / "benchmarks" / "thirdparty",
                     help="benchmarks/thirdparty.py's output folder (its datasets and reports)")
     ap.add_argument("--name", default="class_cost")
-    ap.add_argument("overrides", nargs="*", help="python -m localize overrides (key=value)")
-    return ap.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    overrides = [a for a in argv if "=" in a and not a.startswith("-")]
+    args = ap.parse_args([a for a in argv if a not in overrides])
+    args.overrides = overrides  # python -m localize overrides (key=value), anywhere
+    return args
 
 
 def mean_errors(metrics: dict) -> dict[str, float]:
