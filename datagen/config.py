@@ -136,6 +136,36 @@ class FileWorldConfig(ImportConfig):
 
 
 @dataclass
+class DetailsConfig:
+    """The building's details on a procedural floor (``world.details``,
+    datagen/worlds/details.py): door leaves and frames, recessed windows with frames and sills,
+    window walls, thin glass partitions, more columns. Each is a share in [0, 1]; all 0 (the
+    default) adds nothing and draws nothing, so a floor is the one its seed always gave (the
+    details draw from a stream of their own). ``datagen_experiment=generalist_floors`` turns
+    them on; the sizes are in datagen/worlds/details.py and docs/worlds.md."""
+
+    door_leaves: float = 0.0  # share of doorways hung with a leaf (class door), or two
+    door_open: float = 0.6  # share of the leaves standing open at door_angle (into the room;
+    # the room behind is seen), the rest closed in the opening
+    door_angle: list[float] = field(default_factory=lambda: [20.0, 90.0])  # deg from closed
+    double_doors: float = 0.0  # share of hung doorways widened to 1.4-1.9 m with two leaves
+    glazed_doors: float = 0.0  # share of leaves with a glass pane (the pane is class door)
+    architraves: float = 0.0  # share of doorways with an architrave (class door) on both faces
+    window_recess: float = 0.0  # share of windows set back into the outer wall: reveals,
+    # head and sill class window, the outdoor view fitted to the opening; the rest flat
+    window_frames: float = 0.0  # share of recessed windows with a frame, mullions and
+    # transoms (class window)
+    sills: float = 0.0  # share of recessed windows (sill >= 0.3 m) with a sill board
+    window_walls: float = 0.0  # share of the spaces on an outer wall glazed floor to ceiling
+    # across it (recessed, framed as window_frames says)
+    glass_sheets: float = 0.0  # share of glass walls (world.glass) made a thin see-through
+    # sheet with mullions (class window) instead of a wall showing an outdoor view
+    round_columns: float = 0.0  # share of column sets that are round (8-16 sides)
+    room_columns: float = 0.0  # share of rooms >= 3.6 m each way with a free-standing column
+    pilasters: float = 0.0  # share of corridor sides with pillars engaged in the wall
+
+
+@dataclass
 class ProceduralWorldConfig:
     """An office floor drawn from a seed (``world=procedural``, datagen/worlds/procedural.py):
     corridors on a coarse grid (L and T junctions, loops), a lobby, rooms behind door
@@ -177,6 +207,8 @@ class ProceduralWorldConfig:
     columns: float = 0.5  # probability the lobby, and each corridor >= 2.8 m wide, has columns
     recesses: float = 0.3  # probability of a recess on each side of each corridor
     glass: float = 0.2  # probability a room's corridor wall is glass (class window)
+    details: DetailsConfig = field(default_factory=DetailsConfig)  # door leaves, window
+    # frames, glass sheets, more columns (all off: DetailsConfig)
     crease_deg: float = 20.0  # faces meeting at a larger angle make a model edge
     camera_margin: float = 0.3  # m kept between a camera and any surface
     z_range: list[float] = field(default_factory=lambda: [0.5, 1.9])  # m above the floor,
@@ -261,6 +293,8 @@ class FeatureProbs:
     ceiling_vent: float = 0.6  # a ventilation grille tile
     ceiling_stain: float = 0.3  # a water stain on a ceiling tile
     frame_matches_door: float = 0.3  # the door frame has the door's texture
+    window_frame_colour: float = 0.0  # window frames (a procedural floor's details) get a
+    # colour of their own (white, dark, metal, wood), else the door frame's; 0: never (no draw)
     accent_wall: float = 0.0  # the wall's paint (or wallpaper / block / panel colour) is a
     # saturated accent colour; 0: never (no draw)
     glossy_floor: float = 0.0  # the floor is glossy: a rough plastic lobe over its texture
@@ -332,7 +366,7 @@ class AppearanceConfig:
     ceiling_styles: dict[str, float] = field(default_factory=lambda: {
         "tiles": 1.0, "plaster": 0.0})  # probabilities (normalized); only tiles: no draw
     door_styles: dict[str, float] = field(default_factory=lambda: {
-        "wood": 0.5, "painted": 0.5})
+        "wood": 0.5, "painted": 0.5, "metal": 0.0})  # probabilities (normalized)
     posters: list[int] = field(default_factory=lambda: [1, 4])  # posters / signs / notice
     # boards per 4 m of wall, [min, max]
     prob: FeatureProbs = field(default_factory=FeatureProbs)

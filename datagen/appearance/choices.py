@@ -17,13 +17,14 @@ TEXTURE_SPECS: dict[str, tuple[float, float]] = {
     "wall": (4.0, 2.8),  # repeats every 4 m along the wall; v = 0 at the floor, full height
     "door": (0.9, 2.1),  # one door panel, 1:1 (u across, v up)
     "frame": (0.5, 0.5),  # door frame / jamb
+    "window_frame": (0.5, 0.5),  # window frame, mullion, reveal, sill (a procedural floor's)
     "window": (1.2, 1.0),  # one window, 1:1 (outside view with mullions)
 }
 
 FLOOR_STYLES: tuple[str, ...] = ("tiles", "wood", "carpet", "vinyl", "concrete", "terrazzo")
 WALL_STYLES: tuple[str, ...] = ("paint", "wallpaper", "block", "brick", "panels", "tiles")
 CEILING_STYLES: tuple[str, ...] = ("tiles", "plaster")
-DOOR_STYLES: tuple[str, ...] = ("wood", "painted")
+DOOR_STYLES: tuple[str, ...] = ("wood", "painted", "metal")
 SIGN_WORDS: tuple[str, ...] = (
     "EXIT", "FIRE EXIT", "WC", "LAB", "OFFICE", "STAIRS", "MEETING", "NO SMOKING",
     "PRIVATE", "KITCHEN", "SERVER", "LIFT", "INFO", "PUSH", "STAFF ONLY",

@@ -43,6 +43,10 @@ def _door(rng: np.random.Generator, n: int, cfg: AppearanceConfig,
         base = _wood_colour(rng)
         grain = _noise(rng, h, w, (40.0, 0.8)) + 0.5 * _noise(rng, h, w, (12.0, 0.5))
         img = _solid(base, 1 + 0.1 * grain, (h, w))
+    elif style == "metal":  # brushed steel or aluminium, or a dark powder coat
+        base = (np.full(3, rng.uniform(0.45, 0.8), np.float32) if rng.random() < 0.7
+                else _neutral(rng, (0.08, 0.3), 0.15))
+        img = _solid(base, 1 + 0.04 * _noise(rng, h, w, (60.0, 0.5)), (h, w))
     else:
         base = (_hsv(rng, (0, 1), (0.3, 0.8), (0.25, 0.8)) if rng.random() < 0.5
                 else _neutral(rng, (0.3, 0.95), 0.1))
@@ -108,6 +112,16 @@ def _frame(rng: np.random.Generator, n: int, door_base: np.ndarray | None) -> np
     else:
         colour = (_neutral(rng, (0.6, 0.98), 0.08) if rng.random() < 0.4 else _wood_colour(rng)
                   if rng.random() < 0.5 else _metal_colour(rng))
+    return _solid(colour, 1 + 0.03 * _noise(rng, n, n, (2.0, 30.0)), (n, n))
+
+
+def _window_frame(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Window frame, mullion, reveal and sill: white or off-white, anthracite, metal or wood,
+    one colour with a little noise."""
+    kind = rng.choice(4, p=[0.4, 0.25, 0.2, 0.15])
+    colour = (_neutral(rng, (0.8, 0.97), 0.06) if kind == 0 else
+              _neutral(rng, (0.06, 0.25), 0.1) if kind == 1 else
+              _metal_colour(rng) if kind == 2 else _wood_colour(rng))
     return _solid(colour, 1 + 0.03 * _noise(rng, n, n, (2.0, 30.0)), (n, n))
 
 

@@ -33,7 +33,7 @@ from datagen.appearance.floors import (
     _ceiling,
     _floor,
 )
-from datagen.appearance.openings import _door, _frame, _window
+from datagen.appearance.openings import _door, _frame, _window, _window_frame
 from datagen.appearance.walls import _wall
 from datagen.config import AppearanceConfig
 
@@ -57,6 +57,8 @@ def sample_textures(rng: np.random.Generator, resolution: int | None = None,
         name -> (R, R, 3) float32 linear RGB in [0, 1], row 0 at the top of the surface,
         for every name in TEXTURE_SPECS; in a daylight scene (``lights.daylight``) the
         window's radiance is scaled by ``lights.daylight_gain`` (values up to that gain).
+        ``window_frame`` is the door frame's unless ``prob.window_frame_colour`` draws one
+        (last, so the other textures are drawn as without it).
     """
     cfg = as_config(AppearanceConfig, cfg, "appearance")
     n = int(cfg.resolution if resolution is None else resolution)
@@ -91,4 +93,8 @@ def sample_textures(rng: np.random.Generator, resolution: int | None = None,
         if lo < 0:
             raise ValueError(f"appearance.lights.daylight_gain = [{lo}, {hi}] must be >= 0")
         out["window"] = out["window"] * np.float32(rng.uniform(lo, hi))
+    if _maybe(rng, cfg.prob.window_frame_colour, "prob.window_frame_colour"):
+        out["window_frame"] = _to_linear(cv2.merge(list(_window_frame(rng, n))))
+    else:
+        out["window_frame"] = out["frame"]
     return out

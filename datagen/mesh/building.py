@@ -24,7 +24,10 @@ class Part:
     [0, 1], NaN where the file gives none; face_class (m,) uint8 or one int, UNSET where the
     format gives no class; texture: the file's image, (H, W, 3) float32 linear RGB, row 0 at
     the top (one array object per image file: parts share it), or None; uv: (m, 3, 2)
-    texture coordinates of each face's corners (v = 0 at the image's bottom) with a texture.
+    texture coordinates of each face's corners (v = 0 at the image's bottom) with a texture,
+    or with a look; look: the procedural texture the renderer draws the faces in ("": their
+    class's; a procedural world's details: ``datagen.worlds.scene.building_surfaces``), its
+    uv in texture repeats where given (NaN: box-projected).
     """
 
     vertices: np.ndarray
@@ -34,6 +37,7 @@ class Part:
     face_class: np.ndarray | int = UNSET
     texture: np.ndarray | None = None
     uv: np.ndarray | None = None
+    look: str = ""
 
     def moved(self, matrix: np.ndarray, name: str | None = None,
               colour: np.ndarray | None = None) -> Part:
@@ -44,7 +48,8 @@ class Part:
         if uv is not None and np.linalg.det(matrix[:3, :3]) < 0:
             uv = uv[:, ::-1]
         return Part(v, f, self.name if name is None else name,
-                    self.colour if colour is None else colour, self.face_class, self.texture, uv)
+                    self.colour if colour is None else colour, self.face_class, self.texture, uv,
+                    self.look)
 
 
 @dataclass
@@ -57,7 +62,10 @@ class Building:
     info: format, counts, missing models (name -> count), class area shares, units, timing,
     lights; textures: the file's images ((H, W, 3) float32 linear RGB, row 0 at the top);
     face_texture (F,) int32 index into ``textures``, -1 where none; face_uv (F, 3, 2) float32
-    texture coordinates of the corners (v = 0 at the image's bottom), NaN where no texture.
+    texture coordinates of the corners (v = 0 at the image's bottom), NaN where no texture;
+    looks: the procedural textures named by parts (``Part.look``); face_look (F,) int16 index
+    into ``looks``, -1 where none (the class's texture); face_uv then holds the look's
+    coordinates, NaN where box-projected.
     """
 
     vertices: np.ndarray
@@ -70,12 +78,16 @@ class Building:
     textures: list[np.ndarray] = field(default_factory=list)
     face_texture: np.ndarray | None = None
     face_uv: np.ndarray | None = None
+    looks: list[str] = field(default_factory=list)
+    face_look: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.face_texture is None:
             self.face_texture = np.full(len(self.faces), -1, np.int32)
         if self.face_uv is None:
             self.face_uv = np.full((len(self.faces), 3, 2), np.nan, np.float32)
+        if self.face_look is None:
+            self.face_look = np.full(len(self.faces), -1, np.int16)
 
     def add_faces(self, vertices: np.ndarray, faces: np.ndarray, face_class: int,
                   name: str) -> int:
@@ -92,6 +104,7 @@ class Building:
         self.face_colour = np.concatenate([self.face_colour, np.full((n, 3), np.nan)])
         self.face_texture = np.concatenate([self.face_texture, np.full(n, -1, np.int32)])
         self.face_uv = np.concatenate([self.face_uv, np.full((n, 3, 2), np.nan, np.float32)])
+        self.face_look = np.concatenate([self.face_look, np.full(n, -1, np.int16)])
         return n
 
 
@@ -129,6 +142,9 @@ def assemble(parts: list[Part], merge_tol: float = 1e-6) -> Building:
     colour = np.concatenate([np.broadcast_to(np.asarray(p.colour, np.float64), (n, 3))
                              for p, n in zip(parts, counts, strict=True)])
     textures, face_texture, face_uv = _textures(parts)
+    looks = sorted({p.look for p in parts if p.look})
+    face_look = np.concatenate([np.full(n, looks.index(p.look) if p.look else -1, np.int16)
+                                for p, n in zip(parts, counts, strict=True)])
     key = np.round(vertices / merge_tol).astype(np.int64)
     uniq, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     vertices = vertices[first]
@@ -140,12 +156,13 @@ def assemble(parts: list[Part], merge_tol: float = 1e-6) -> Building:
     return Building(vertices=vertices, faces=faces[keep], face_class=face_class[keep].copy(),
                     face_name=face_name[keep], names=[str(n) for n in names],
                     face_colour=colour[keep].copy(), info={}, textures=textures,
-                    face_texture=face_texture[keep], face_uv=face_uv[keep])
+                    face_texture=face_texture[keep], face_uv=face_uv[keep], looks=looks,
+                    face_look=face_look[keep])
 
 
 def _textures(parts: list[Part]) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """The distinct images of the parts (by array identity), (F,) int32 image index per face
-    (-1 none) and (F, 3, 2) float32 corner UVs (NaN where none)."""
+    (-1 none) and (F, 3, 2) float32 corner UVs (NaN where none: no image and no look)."""
     images: list[np.ndarray] = []
     index: dict[int, int] = {}
     face_texture, face_uv = [], []
@@ -153,7 +170,8 @@ def _textures(parts: list[Part]) -> tuple[list[np.ndarray], np.ndarray, np.ndarr
         n = len(p.faces)
         if p.texture is None or p.uv is None:
             face_texture.append(np.full(n, -1, np.int32))
-            face_uv.append(np.full((n, 3, 2), np.nan, np.float32))
+            face_uv.append(np.full((n, 3, 2), np.nan, np.float32) if p.uv is None or not p.look
+                           else np.asarray(p.uv, np.float32).reshape(n, 3, 2))
             continue
         if id(p.texture) not in index:
             index[id(p.texture)] = len(images)

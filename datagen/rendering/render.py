@@ -29,7 +29,7 @@ from core.imaging.colour import linear_to_srgb8
 from core.imaging.variant import shape_index
 from datagen.config import RenderConfig
 from datagen.rendering.denoise import denoise, segment_ids
-from datagen.worlds.scene import QUAD, Scene
+from datagen.worlds.scene import GLASS, QUAD, Scene
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor
 
@@ -184,7 +184,9 @@ class Renderer:
     def _surface_shapes(self, scene: Scene, textures: Mapping[str, np.ndarray]
                         ) -> dict[str, object]:
         """The scene's surfaces: procedurally textured (the window's view is an emitter), in
-        the file's images or in their own vertex colours."""
+        the file's images or in their own vertex colours; ``GLASS`` ones a thin dielectric
+        (a path through one sheet still gets its direct light at ``max_depth`` 3, through two
+        it is black; the denoiser blurs what is seen through it as one segment: frosted)."""
         mi, out = self.mi, {}
         for s in scene.surfaces:
             F = np.arange(len(s.vertices)).reshape(-1, 3)
@@ -199,6 +201,9 @@ class Renderer:
                                         "radiance": _bitmap(mi, textures["window"])})
                 out[s.name] = _mesh(mi, s.name, s.vertices, F, s.uv, bsdf, emitter)
                 self._texture_keys.append((f"{s.name}.emitter.radiance.data", s.texture))
+            elif s.texture == GLASS:  # see-through: a thin sheet of glass, no texture
+                bsdf = mi.load_dict({"type": "thindielectric"})
+                out[s.name] = _mesh(mi, s.name, s.vertices, F, None, bsdf)
             elif s.texture in scene.images:  # the file's own image, fixed
                 bsdf = mi.load_dict({"type": "diffuse",
                                      "reflectance": _bitmap(mi, scene.images[s.texture])})

@@ -6,11 +6,15 @@ of the grid's nodes, so L and T junctions, plus extra grid edges that close loop
 (a wider, higher hall) at one node, rooms along the corridors behind door openings in the
 corridor wall, recesses in the corridor walls, columns in the lobby and wide corridors, glass
 walls (class window) between some rooms and their corridor, and windows along the outer
-walls. ``build_floor`` paints the rectangles onto the grid of all their edges' coordinates
-and emits the surfaces between free and solid cells (floor, ceiling, walls, the reveals and
-head of each door opening in class door, the lintel above it in class wall), each piece of
-wall split at every height in use, so the mesh is conforming (no T-junctions). The result
-goes through the same path to a ``datagen.worlds.site.Site`` as an imported building.
+walls. ``world.details`` (datagen/worlds/details.py) add door leaves, architraves, recessed
+and framed windows, window walls, glass sheets and more columns, from a stream of their own.
+``build_floor`` paints the rectangles onto the grid of all their edges' coordinates and emits
+the surfaces between free and solid cells (datagen/worlds/floor_mesh.py: floor, ceiling,
+walls, the reveals and head of each door opening in class door, the lintel above it in class
+wall), each piece of wall split at every height in use, so the mesh is conforming (no
+T-junctions); the details' leaves, frames and round columns are meshes of their own
+(datagen/worlds/fittings.py). The result goes through the same path to a
+``datagen.worlds.site.Site`` as an imported building.
 """
 
 from __future__ import annotations
@@ -22,10 +26,11 @@ import numpy as np
 from core import classes as C
 from datagen.config import ProceduralWorldConfig
 from datagen.importers.classify import class_shares
-from datagen.mesh.building import Building, Part, assemble
+from datagen.mesh.building import Building, assemble
+from datagen.worlds.details import any_details, check_details, draw_details
+from datagen.worlds.fittings import fitting_parts
+from datagen.worlds.floor_mesh import COLUMN, DOORWAY, GLASS, SPACE, surfaces
 
-#: Rectangle kinds of a plan: painted in this order (later ones win).
-SPACE, GLASS, DOORWAY, COLUMN = "space", "glass", "doorway", "column"
 _RANGES = ("grid_spacing", "corridor_width", "height", "lobby_size", "room_depth",
            "door_spacing", "door_width", "door_height", "window_spacing", "window_width",
            "window_sill", "window_height", "recess_width", "recess_depth", "column_size")
@@ -36,17 +41,21 @@ _PROBS = ("loops", "columns", "recesses", "glass")
 class Plan:
     """A drawn floor plan (metres; rectangles [x0, y0, x1, y1]).
 
-    rects (N, 4), kinds (N,) str (SPACE, GLASS, DOORWAY, COLUMN), tops (N,) m ceiling height
-    of free rectangles (0 for solid ones), roles (N,) str: corridor, junction, lobby, room,
-    recess, door, glass, column. corridor_widths (E,) m; nodes (M, 2) m grid nodes; edges
-    (E, 2) node indices of the corridors; loops: corridors beyond the spanning tree; height,
+    rects (N, 4), kinds (N,) str (``floor_mesh.KINDS``: SPACE, GLASS, DOORWAY, COLUMN; the
+    details add SHEET, RECESS, SILL), tops (N,) m ceiling height of free rectangles (0 for
+    solid ones), bots (N,) m the free height's bottom (0 but a window's sill), roles (N,)
+    str: corridor, junction, lobby, room, recess, door, glass, column (and the details');
+    corridor_widths (E,) m; nodes (M, 2) m grid nodes; edges (E, 2) node indices of the
+    corridors; loops: corridors beyond the spanning tree; height,
     lobby_height m; windows: axis -> (W, 2) m intervals along the outer walls of that axis
-    (x: the walls at y = const); window_z (2,) m sill and head; size (2,) m; outer m.
+    (x: the walls at y = const); window_z (2,) m sill and head; size (2,) m; outer m;
+    details: what ``datagen.worlds.details.draw_details`` added (its ``Details``), or None.
     """
 
     rects: np.ndarray
     kinds: np.ndarray
     tops: np.ndarray
+    bots: np.ndarray
     roles: np.ndarray
     corridor_widths: np.ndarray
     nodes: np.ndarray
@@ -59,6 +68,7 @@ class Plan:
     size: np.ndarray
     outer: float
     info: dict = field(default_factory=dict)
+    details: object = None
 
 
 def check_settings(s: ProceduralWorldConfig, where: str = "world") -> None:
@@ -86,6 +96,11 @@ def check_settings(s: ProceduralWorldConfig, where: str = "world") -> None:
         raise ValueError(f"{where}.window_sill + {where}.window_height: the windows' heads "
                          f"({s.window_sill[1] + s.window_height[1]} m) must stay below "
                          f"{where}.height's min {s.height[0]} m")
+    check_details(s.details, f"{where}.details")
+    if (s.details.window_recess > 0 or s.details.window_walls > 0) and s.outer_wall < 0.1:
+        raise ValueError(f"{where}.outer_wall: {s.outer_wall} m is too thin for recessed "
+                         f"windows ({where}.details.window_recess, window_walls); make it "
+                         ">= 0.1 m or set both to 0")
     need = 2 * (s.outer_wall + s.room_depth[0] + s.wall_thickness) + s.corridor_width[1]
     if size.min() < need:
         raise ValueError(f"{where}.size: {size.tolist()} is too small for a corridor with "
@@ -277,123 +292,27 @@ def draw_plan(s: ProceduralWorldConfig, rng: np.random.Generator) -> Plan:
             "door_height": round(door_h, 3), "size": size.round(3).tolist(),
             "window_spacing": round(ws, 3), "window_width": round(ww, 3)}
     return Plan(np.asarray(out.rects), np.asarray(out.kinds), np.asarray(out.tops),
-                np.asarray(out.roles), widths, nodes[used], edges, int(extra.sum()), h,
-                h_lobby, windows, np.array([sill, head]), size, outer, info)
-
-
-def _quads(corners: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (4Q, 3) and faces (2Q, 3) of quads (Q, 4, 3) (corners in order around),
-    wound so each faces its (Q, 3) normal."""
-    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    flip = (n * normal).sum(axis=1) < 0
-    corners = np.where(flip[:, None, None], corners[:, ::-1], corners)
-    base = 4 * np.arange(len(corners))[:, None]
-    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]])
-    return corners.reshape(-1, 3), faces
-
-
-def _paint(plan: Plan) -> tuple[np.ndarray, ...]:
-    """The plan painted onto the grid of its coordinates: xs (nx+1,), ys (ny+1,) m, and per
-    cell (nx, ny): free, top (m), doorway, glass."""
-    r = plan.rects
-    xs = np.unique(np.concatenate([[0.0, plan.size[0]], r[:, [0, 2]].ravel(),
-                                   plan.windows["x"].ravel()]).round(6))
-    ys = np.unique(np.concatenate([[0.0, plan.size[1]], r[:, [1, 3]].ravel(),
-                                   plan.windows["y"].ravel()]).round(6))
-    cx, cy = (xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2
-    inside = ((cx[None, :, None] > r[:, 0, None, None]) & (cx[None, :, None] < r[:, 2, None, None])
-              & (cy[None, None, :] > r[:, 1, None, None])
-              & (cy[None, None, :] < r[:, 3, None, None]))  # (N, nx, ny)
-    shape = (len(cx), len(cy))
-    free, top = np.zeros(shape, bool), np.zeros(shape)
-    door, glass = np.zeros(shape, bool), np.zeros(shape, bool)
-    for kind in (SPACE, GLASS, DOORWAY, COLUMN):
-        for i in np.flatnonzero(plan.kinds == kind):
-            m = inside[i]
-            if kind == SPACE:
-                free[m], top[m] = True, np.maximum(top[m], plan.tops[i])
-            elif kind == GLASS:
-                glass[m & ~free] = True
-            elif kind == DOORWAY:
-                free[m], top[m], door[m], glass[m] = True, plan.tops[i], True, False
-            else:
-                free[m], top[m], door[m], glass[m] = False, 0.0, False, False
-    return xs, ys, free, top, door, glass
+                np.zeros(len(out.rects)), np.asarray(out.roles), widths, nodes[used], edges,
+                int(extra.sum()), h, h_lobby, windows, np.array([sill, head]), size, outer, info)
 
 
 def build_floor(s: ProceduralWorldConfig) -> tuple[Building, Plan]:
-    """The floor of ``s`` (``seed``): its classed mesh (floor at z = 0, metres) and plan.
+    """The floor of ``s`` (``seed``): its classed mesh (floor at z = 0, metres) and plan,
+    with ``s.details`` (datagen/worlds/details.py: leaves, frames, ...) where any is on.
 
     Returns:
         the Building (``info`` as ``load_building``'s: counts, class shares, floor_z,
-        wall_top_z, bounds, and ``plan``: the plan's figures) and the Plan.
+        wall_top_z, bounds, and ``plan``: the plan's figures, with ``details`` counted) and
+        the Plan (the details' rectangles in it).
     """
     plan = draw_plan(s, np.random.default_rng(s.seed))
-    xs, ys, free, top, door, glass = _paint(plan)
-    top = top.round(6)  # the heights in use, exactly as the levels below
-    quads, normals, classes = [], [], []
-    # floor and ceilings of the free cells
-    i, j = np.nonzero(free)
-    x0, x1, y0, y1 = xs[i], xs[i + 1], ys[j], ys[j + 1]
-    for z, up, cls in ((np.zeros(len(i)), 1.0, np.full(len(i), C.FLOOR)),
-                       (top[i, j], -1.0, np.where(door[i, j], C.DOOR, C.CEILING))):
-        quads.append(np.stack([np.column_stack([x0, y0, z]), np.column_stack([x1, y0, z]),
-                               np.column_stack([x1, y1, z]), np.column_stack([x0, y1, z])],
-                              axis=1))
-        normals.append(np.tile([0.0, 0.0, up], (len(i), 1)))
-        classes.append(cls)
-    # walls between neighbouring cells, split at every height in use
-    sill, head = plan.window_z.round(6)
-    levels = np.unique(np.concatenate([[0.0, sill, head], top[free]]).round(6))
-    for axis in (0, 1):
-        fr, tp, dr, gl = (np.pad(g if axis == 0 else g.T, [(1, 1), (0, 0)])
-                          for g in (free, top, door, glass))  # (lines + 1, cross cells)
-        line = xs if axis == 0 else ys
-        cross = ys if axis == 0 else xs
-        sl, sr = slice(None, -1), slice(1, None)
-        for a_sl, b_sl, sign in ((sl, sr, 1.0), (sr, sl, -1.0)):  # a: the cell faced
-            fa, ta, da = fr[a_sl], tp[a_sl], dr[a_sl]  # sign: from a towards b along axis
-            fb, tb, gb = fr[b_sl], tp[b_sl], gl[b_sl]
-            lo = np.where(fb, tb, 0.0)
-            k, m = np.nonzero(fa & (ta > lo + 1e-9))  # k: the line between a and b
-            c, s0, s1 = line[k], cross[m], cross[m + 1]
-            base = np.where(fb[k, m], C.WALL, np.where(da[k, m], C.DOOR,
-                                                       np.where(gb[k, m], C.WINDOW, C.WALL)))
-            beyond = c + sign * 1e-3  # just past the face, in cell b
-            outer_b = ~fb[k, m] & ((beyond < plan.outer)
-                                   | (beyond > plan.size[axis] - plan.outer))
-            mid = (s0 + s1) / 2
-            wins = plan.windows["y" if axis == 0 else "x"]
-            in_win = ((mid[:, None] > wins[None, :, 0]) & (mid[:, None] < wins[None, :, 1])
-                      ).any(axis=1)
-            windowed = outer_b & in_win & ~da[k, m] & (base == C.WALL)
-            z_lo, z_hi = lo[k, m], ta[k, m]
-            for q in range(len(levels) - 1):
-                za, zb = levels[q], levels[q + 1]
-                use = (z_lo <= za + 1e-9) & (z_hi >= zb - 1e-9)
-                if not use.any():
-                    continue
-                cls = np.where(windowed[use] & (za >= sill - 1e-9) & (zb <= head + 1e-9),
-                               C.WINDOW, base[use])
-                cc, a0, a1 = c[use], s0[use], s1[use]
-                zz0, zz1 = np.full(len(cc), za), np.full(len(cc), zb)
-                if axis == 0:
-                    pts = [np.column_stack([cc, a0, zz0]), np.column_stack([cc, a1, zz0]),
-                           np.column_stack([cc, a1, zz1]), np.column_stack([cc, a0, zz1])]
-                else:
-                    pts = [np.column_stack([a0, cc, zz0]), np.column_stack([a1, cc, zz0]),
-                           np.column_stack([a1, cc, zz1]), np.column_stack([a0, cc, zz1])]
-                n = np.zeros((len(cc), 3))
-                n[:, axis] = -sign  # towards cell a
-                quads.append(np.stack(pts, axis=1))
-                normals.append(n)
-                classes.append(cls)
-    corners, normal, cls = (np.concatenate(quads), np.concatenate(normals),
-                            np.concatenate(classes).astype(np.uint8))
-    parts = []
-    for c in np.unique(cls):
-        v, f = _quads(corners[cls == c], normal[cls == c])
-        parts.append(Part(v, f, f"procedural/{C.NAMES[c]}", face_class=int(c)))
+    details = None
+    if any_details(s.details):
+        plan, details = draw_details(plan, s)
+        plan.details = details
+    parts = surfaces(plan, details)
+    if details is not None:
+        parts += fitting_parts(details)
     b = assemble(parts)
     counts = np.bincount(b.face_class, minlength=C.NUM_CLASSES)
     lo, hi = b.vertices.min(axis=0), b.vertices.max(axis=0)

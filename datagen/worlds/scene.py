@@ -24,11 +24,16 @@ TEXTURE_EXTENT = {"floor": (2.0, 2.0), "ceiling": (2.0, 2.0), "wall": (4.0, 2.8)
                   "frame": (0.5, 0.5), "door": None, "window": None}
 #: The same for imported buildings, whose doors and windows are not boxes: one door or window
 #: image repeats every (u, v) metres from the floor up.
-BUILDING_TEXTURE_EXTENT = {**TEXTURE_EXTENT, "door": (1.0, 2.1), "window": (1.2, 1.2)}
+BUILDING_TEXTURE_EXTENT = {**TEXTURE_EXTENT, "door": (1.0, 2.1), "window": (1.2, 1.2),
+                           "window_frame": (0.5, 0.5)}
 #: Procedural texture of each class of an imported building; other classes (clutter, person)
 #: keep the file's colours, void faces are dropped.
 CLASS_TEXTURE = {C.FLOOR: "floor", C.CEILING: "ceiling", C.WALL: "wall", C.DOOR: "door",
                  C.WINDOW: "window"}
+#: Looks of a procedural floor's faces with no texture: a see-through glass sheet (the
+#: renderer's thin dielectric), and a face in the model that is not drawn (the far side of a
+#: thin glass sheet: a ray meets one sheet only, the path tracer's depth).
+GLASS, HIDDEN = "glass", "hidden"
 #: Reflectance (linear RGB) of faces drawn in the file's colours where the file gives none.
 DEFAULT_COLOUR = (0.4, 0.4, 0.4)
 QUAD = np.array([[0, 1, 2], [0, 2, 3]])  # the two triangles of a light panel's corners
@@ -207,7 +212,10 @@ def building_surfaces(building: Building, file_look: bool = False,
     """An imported building's surfaces, by class (void faces dropped) and look.
 
     Floor, wall, ceiling, door and window faces get the procedural textures
-    (``CLASS_TEXTURE``, redrawn per image) through ``box_uv``; the other classes (clutter,
+    (``CLASS_TEXTURE``, redrawn per image) through ``box_uv``, or the texture their part's
+    look names (``Building.face_look``: a procedural floor's frames, fitted door leaves and
+    window views, ``GLASS`` see-through sheets; ``HIDDEN`` faces are in the model, not
+    drawn), with the look's own UVs where given; the other classes (clutter,
     person) the file's look: its image textures (surfaces ``<class>_image<k>``, texture key
     ``image<k>``), else its face colours (``<class>_colour``; ``DEFAULT_COLOUR`` where it
     gives none). With ``file_look`` the structural faces take the file's look too where it
@@ -228,6 +236,8 @@ def building_surfaces(building: Building, file_look: bool = False,
     image = np.asarray(building.face_texture)
     colour = np.asarray(building.face_colour, np.float64)
     has_colour = ~np.isnan(colour).any(axis=1)
+    look = np.asarray(building.face_look)
+    face_uv = np.asarray(building.face_uv, np.float64)
     out, images = [], {}
     for cls in np.unique(fc[(fc != C.VOID) & (fc < C.NUM_CLASSES)]):
         name, cls = C.NAMES[cls], int(cls)
@@ -245,11 +255,17 @@ def building_surfaces(building: Building, file_look: bool = False,
             out.append(Surface(f"{name}_colour", cls, "", tri[m].reshape(-1, 3),
                                np.zeros((3 * m.sum(), 2)),
                                np.clip(np.repeat(rgb, 3, axis=0), 0.0, 1.0)))
-        m = faces & ~(own & ((image >= 0) | has_colour | (not structural)))  # procedural
-        if m.any():
-            tex = CLASS_TEXTURE[cls]
-            uv = box_uv(tri[m], ext[tex], v0)
-            out.append(Surface(name, cls, tex, tri[m].reshape(-1, 3), uv.reshape(-1, 2)))
+        procedural = faces & ~(own & ((image >= 0) | has_colour | (not structural)))
+        for k in np.unique(look[procedural]):
+            m = procedural & (look == k)
+            tex = CLASS_TEXTURE[cls] if k < 0 else building.looks[k]
+            if tex == HIDDEN:
+                continue
+            uv = box_uv(tri[m], ext.get(tex, (1.0, 1.0)), v0)
+            given = np.isfinite(face_uv[m]).all(axis=(1, 2))
+            uv[given] = face_uv[m][given]
+            out.append(Surface(name if k < 0 else f"{name}_{tex}", cls, tex,
+                               tri[m].reshape(-1, 3), uv.reshape(-1, 2)))
     return out, images
 
 

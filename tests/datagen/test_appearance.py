@@ -321,6 +321,32 @@ class TestVaried:
             for name in set(a) - {"window"}:
                 np.testing.assert_array_equal(a[name], b[name])
 
+    def test_window_frame_colour(self, cfg):
+        """Window frames take the door frame's texture, or with prob.window_frame_colour one of
+        their own, drawn last: every other texture stays as drawn without it."""
+        own = OmegaConf.merge(cfg, {"prob": {"window_frame_colour": 1.0}})
+        for seed in range(4):
+            a, b = draw(own, seed), draw(cfg, seed)
+            np.testing.assert_array_equal(b["window_frame"], b["frame"])
+            assert np.abs(a["window_frame"] - a["frame"]).mean() > 1e-3, seed
+            for name in set(a) - {"window_frame"}:
+                np.testing.assert_array_equal(a[name], b[name])
+
+    def test_metal_doors(self, cfg):
+        """A metal door is grey (steel, aluminium or a dark coat), unlike the painted ones."""
+        from datagen.appearance.choices import DOOR_STYLES
+
+        metal = only(cfg, "door_styles", DOOR_STYLES, "metal")
+        painted = only(cfg, "door_styles", DOOR_STYLES, "painted")
+
+        def saturation(img):
+            u8 = (colour.linear_to_srgb(img) * 255).astype(np.uint8)
+            return float(np.median(cv2.cvtColor(u8, cv2.COLOR_RGB2HSV)[..., 1]))
+
+        s_metal = [saturation(draw(metal, s, 64)["door"]) for s in range(8)]
+        s_painted = [saturation(draw(painted, s, 64)["door"]) for s in range(8)]
+        assert max(s_metal) < 45 and np.mean(s_metal) < np.mean(s_painted)
+
     def test_dim_scenes(self, cfg):
         dim = OmegaConf.merge(cfg, {"lights": {"dim": 1.0, "dim_factor": [0.1, 0.1]}})
         for seed in range(5):
