@@ -3,9 +3,13 @@
 Renders N training images (path-traced RGB + denoiser + label pass + PNG writes, i.e. what
 `python -m datagen` does per frame) into a temporary dataset, once per Mitsuba variant, each
 in a fresh process (a process can only hold one variant). The first image of each run (scene
-load and kernel compilation) is excluded.
+load and kernel compilation) is excluded. Config overrides (before the options) render another
+config, e.g. a floor of the generalist's:
 
-    .venv/bin/python benchmarks/datagen_throughput.py [--images 40] [--variants ...]
+    .venv/bin/python benchmarks/datagen_throughput.py [overrides ...] [--images 40] \
+        [--variants ...]
+    .venv/bin/python benchmarks/datagen_throughput.py datagen_experiment=generalist_floors \
+        world.seed=0 --variants llvm_ad_rgb
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ variant = choose_variant({variant!r})
 n = {images}
 cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "splits.test=0",
                                  "render_flights=[]", "training.chunk=%d" % (n + 1),
-                                 "out_dir={out}", "render.variant=" + {variant!r}] + sys.argv[1:])
+                                 "out_dir={out}", "render.variant=" + {variant!r}] + {overrides!r})
 job = datagen_job.prepare(cfg)
 writer.write_metadata(job, variant)
 times = []
@@ -52,11 +56,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--images", type=int, default=40)
     ap.add_argument("--variants", nargs="+", default=["llvm_ad_rgb", "scalar_rgb"])
+    ap.add_argument("overrides", nargs="*", help="datagen config overrides (before the options)")
     a = ap.parse_args()
-    print(f"datagen throughput: 320x240, default render config, {a.images} images per variant")
+    print(f"datagen throughput: 320x240, default render config, {a.images} images per variant"
+          + (f", {' '.join(a.overrides)}" if a.overrides else ""))
     for variant in a.variants:
         with tempfile.TemporaryDirectory() as tmp:
-            code = CHILD.format(root=str(ROOT), variant=variant, images=a.images, out=tmp)
+            code = CHILD.format(root=str(ROOT), variant=variant, images=a.images, out=tmp,
+                                overrides=a.overrides)
             t = time.perf_counter()
             res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
             if res.returncode != 0:

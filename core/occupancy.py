@@ -356,6 +356,23 @@ class OccupancyMap:
 # ---------------------------------------------------------------------- helpers
 
 
+def lowest_above(vertices: np.ndarray, faces: np.ndarray, occ: OccupancyMap,
+                 level: float) -> np.ndarray:
+    """(H, W) m: over each cell of ``occ``'s grid, the height of the lowest near-horizontal
+    surface (normal within 60 degrees of vertical) above ``level``, the faces clipped there;
+    inf where there is none. Above a map's band: its ceilings and the heads of its doors."""
+    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    flat = np.abs(n[:, 2]) >= 0.5 * np.linalg.norm(n, axis=1)
+    tri = _clip_z(tri[flat], np.flatnonzero(flat), level, above=True, strict=True)[0]
+    lowest = np.full(int(np.prod(occ.shape)), np.inf)
+    for pts, _ in _samples(tri, occ.cell / 2):
+        rc, inside = occ.cell_of(pts[:, :2])
+        np.minimum.at(lowest, np.ravel_multi_index((rc[0, inside], rc[1, inside]), occ.shape),
+                      pts[inside, 2])
+    return lowest.reshape(occ.shape)
+
+
 def _positive(value: float, key: str) -> float:
     value = float(value)
     if not value > 0:

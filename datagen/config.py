@@ -394,9 +394,16 @@ class DistractorPreset:
     clutter: CountRange = field(default_factory=CountRange)  # furniture-like objects
     people: CountRange = field(default_factory=CountRange)  # person figures
     kinds: list[str] = field(default_factory=lambda: [
-        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly; also
-    # trolley, bin, bench, sofa, whiteboard (conf/distractors/varied.yaml lists all ten)
+        "box", "cabinet", "chair", "table", "plant"])  # clutter kinds, drawn uniformly (a kind
+    # listed twice, twice as often); also trolley, bin, bench, sofa, whiteboard
+    # (conf/distractors/varied.yaml) and the furnished-room kinds shelf, shelf_rows, desk,
+    # counter, bed (conf/distractors/furnished.yaml)
     against_walls: float = 0.7  # probability an object stands against a wall
+    aligned: float = 0.0  # probability an object not against a wall turns square to the
+    # nearest wall (rows of desks and shelving); 0: a uniform yaw (no draw)
+    near_camera_m: float = 0.0  # m; training images: objects stand where the camera sees
+    # the floor (walls block) within this distance and its field of view widened 30 deg a
+    # side (furnishing what it sees); 0: anywhere on the floor
     wall_margin: float = 0.05  # m kept between an object's footprint and a wall
     camera_keepout_m: float = 0.6  # m kept clear around the camera (and along a flight path)
     person_radius: float = 0.3  # m, footprint used for placement and walking
@@ -523,7 +530,14 @@ class TrainingConfig:
 
     distractors: dict[str, float] = field(default_factory=lambda: {
         "none": 0.2, "paper": 0.4, "cluttered": 0.4})  # preset mix of training images
-    max_roll_pitch_deg: float = 5.0
+    max_roll_pitch_deg: float = 5.0  # roll and pitch of spread-out poses, uniform in +/- this
+    handheld: float = 0.0  # share of spread-out poses tilted as a handheld camera is: pitch
+    # uniform in +/- handheld_pitch_deg, roll in +/- handheld_roll_deg; 0: none (no draw)
+    handheld_pitch_deg: float = 20.0
+    handheld_roll_deg: float = 15.0
+    z_range: list[float] | None = None  # m above the floor, [min, max] heights of the
+    # spread-out poses; above world.z_range only where the ceiling and door heads leave
+    # world.camera_margin; None: world.z_range (docs/datagen.md)
     yaw_along_corridor: float = 0.75  # share of images looking along the free space's local
     # axis (the corridor's: +/-Y), as flights do, within +/- yaw_spread_deg; the rest have a
     # uniform yaw

@@ -163,6 +163,12 @@ def _check_counts(cfg: DatagenConfig) -> None:
     if not 0.0 <= cfg.training.flight_views <= 1.0:
         raise ValueError(f"training.flight_views={cfg.training.flight_views} must be a share "
                          "in [0, 1]")
+    if not 0.0 <= cfg.training.handheld <= 1.0:
+        raise ValueError(f"training.handheld={cfg.training.handheld} must be a share in [0, 1]")
+    z = cfg.training.z_range
+    if z is not None and (len(z) != 2 or not z[0] < z[1]):
+        raise ValueError(f"training.z_range={list(z)} must be [min, max] m above the floor "
+                         "with min < max (null: world.z_range)")
 
 
 def _check_presets(cfg: DatagenConfig) -> None:
@@ -196,11 +202,16 @@ def _check_presets(cfg: DatagenConfig) -> None:
 
 def check_inside(site: Site, camera: Camera, poses: np.ndarray, where: str) -> None:
     """Every camera centre must lie within the camera margin of the free space (its cells and
-    its band of heights): nearer to no surface than the margin allows."""
+    its band of heights, or up to ``site.camera_top`` above the band): nearer to no surface
+    than the margin allows."""
     free = site.world.free
     centres = (poses @ camera.body_from_cam)[:, :3, 3]
+    top = np.full(len(centres), free.band[1])
+    high = centres[:, 2] > free.band[1]
+    if high.any():
+        top[high] = site.camera_top(centres[high, :2])
     off = np.maximum(free.outside_distance(centres[:, :2]),
-                     np.maximum(free.band[0] - centres[:, 2], centres[:, 2] - free.band[1]))
+                     np.maximum(free.band[0] - centres[:, 2], centres[:, 2] - top))
     bad = np.flatnonzero(off >= free.margin)
     if len(bad):
         i = int(bad[0])
@@ -216,10 +227,22 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
     A share ``training.flight_views`` of them (decided per frame by its own generator) are
     posed as the flights fly (``trajectories.sample_flight_views``, along each preset's route,
     resolved once per split), the rest spread over the free space
-    (``trajectories.sample_training_poses``).
+    (``trajectories.sample_training_poses``; heights ``training.z_range`` where the ceiling
+    leaves room, ``Site.camera_top``).
     """
     tr, seed, free = cfg.training, cfg.seed, site.world.free
     z_range = np.asarray(free.band)
+    spread, top = z_range, None
+    if tr.z_range is not None:
+        spread = float(site.building.info.get("floor_z", 0.0)) + np.asarray(tr.z_range, float)
+        if spread[0] < z_range[0] - 1e-9:
+            raise ValueError(f"training.z_range {list(tr.z_range)} starts below world.z_range "
+                             f"(the free space is known from {z_range[0]:.2f} m up); raise its "
+                             "min")
+        reach = float(np.linalg.norm(cfg.camera.mount.xyz))  # the camera, off the body
+
+        def top(xy: np.ndarray) -> np.ndarray:
+            return site.camera_top(xy) - reach
     stream = SPLIT_STREAM[split]
     poses = np.zeros((getattr(cfg.splits, split), 4, 4))
     views = {i for i in range(len(poses)) if tr.flight_views > 0
@@ -235,9 +258,10 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
                 rng_for(seed, stream, i, 4), 1, free, z_range, presets, routes)[0]
         else:
             poses[i] = trajectories.sample_training_poses(
-                rng_for(seed, stream, i, 0), 1, free, z_range,
+                rng_for(seed, stream, i, 0), 1, free, spread,
                 tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg,
-                tr.min_view_m)[0]
+                tr.min_view_m, handheld=tr.handheld,
+                handheld_deg=(tr.handheld_pitch_deg, tr.handheld_roll_deg), top=top)[0]
     return poses
 
 

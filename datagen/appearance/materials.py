@@ -1,5 +1,5 @@
-"""Materials: the floor's gloss and the distractors' colours and reflectances, drawn from
-``appearance`` settings, in linear RGB."""
+"""Materials: the floor's gloss and the distractors' colours (their parts' too) and
+reflectances, drawn from ``appearance`` settings, in linear RGB."""
 
 from __future__ import annotations
 
@@ -16,7 +16,16 @@ from datagen.appearance.choices import (
     _maybe,
     _range,
 )
+from datagen.appearance.drawing import _hsv, _metal_colour, _neutral, _wood_colour
 from datagen.config import AppearanceConfig
+
+#: Tones of a distractor's parts (a mesh's ``metadata["tones"]``,
+#: datagen.distractors.primitives ``_painted``): how ``part_colours`` draws each part's colour.
+#: body: the object's own colour (``object_colours``); frame: wood or laminate (white, grey,
+#: black); metal: steel, dark metal or brass; dark: near black (screens, keyboards, casters);
+#: light: white or pale (mattresses, paper); item: a colour of its own per part (books, boxes).
+TONES: tuple[str, ...] = ("body", "frame", "metal", "dark", "light", "item")
+BODY, FRAME, METAL, DARK, LIGHT, ITEM = range(len(TONES))
 
 
 def sample_floor_gloss(rng: np.random.Generator, cfg: AppearanceConfig | Mapping | None = None
@@ -55,6 +64,43 @@ def object_colours(rng: np.random.Generator, n: int) -> np.ndarray:
     val = rng.uniform(0.15, 0.9, n)
     rgb = np.array([colorsys.hsv_to_rgb(*c) for c in zip(hue, sat, val, strict=True)])
     return np.clip(srgb_to_linear(rgb.reshape(n, 3)), 0.02, 0.8).astype(np.float32)
+
+
+def part_colours(rng: np.random.Generator, tones: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """Colours of one object's parts, drawn per image.
+
+    Args:
+        tones: (P,) each part's tone (``TONES``).
+        body: (3,) linear RGB, the object's own colour (tone body).
+
+    Returns:
+        (P, 3) float32 linear RGB reflectances in [0.02, 0.8]: one frame, metal, dark and
+        light colour shared by the parts of that tone, and a colour per item part.
+    """
+    tones = np.asarray(tones, dtype=np.int64).reshape(-1)
+    if tones.size and not 0 <= tones.min() <= tones.max() < len(TONES):
+        raise ValueError(f"part tones must be indices of {list(TONES)}, got {tones.tolist()}")
+    look = rng.random()
+    frame = (_wood_colour(rng) if look < 0.5 else _neutral(rng, (0.75, 0.92), 0.08)
+             if look < 0.75 else _neutral(rng, (0.06, 0.5), 0.1))
+    by_tone = np.stack([np.zeros(3, np.float32), frame, _metal_colour(rng),  # sRGB, per tone
+                        _neutral(rng, (0.04, 0.18), 0.1),
+                        _hsv(rng, (0, 1), (0, 0.15), (0.78, 0.95)), np.zeros(3, np.float32)])
+    out = np.clip(srgb_to_linear(by_tone), 0.02, 0.8).astype(np.float32)[tones]
+    out[tones == BODY] = np.asarray(body, np.float32).reshape(3)
+    items = tones == ITEM
+    if items.any():
+        out[items] = object_colours(rng, int(items.sum()))
+    return out
+
+
+def part_palettes(rng: np.random.Generator, colours: np.ndarray,
+                  tones: list[np.ndarray | None]) -> list[np.ndarray]:
+    """The colours of n distractors: (3,) ``colours[i]`` each, or for an object whose parts
+    have tones (``tones[i]`` (P,), not None) its (P, 3) ``part_colours`` around that colour
+    (drawn in order; none are drawn when no object has tones)."""
+    return [c if t is None else part_colours(rng, t, c)
+            for c, t in zip(np.asarray(colours, np.float32), tones, strict=True)]
 
 
 def sample_materials(rng: np.random.Generator, cfg: AppearanceConfig | Mapping | None = None

@@ -1,21 +1,31 @@
-"""The distractors' meshes, drawn per kind: furniture-like clutter (``CLUTTER_KINDS``) and
-people, in an object frame with z up, the origin at the centre of the footprint on the floor
-(z = 0) and, for people, facing +x; and a mesh's footprint radius."""
+"""The distractors' meshes, drawn per kind: furniture-like clutter (``CLUTTER_KINDS``; the
+furnished-room kinds in ``furniture``) and people, in an object frame with z up, the origin at
+the centre of the footprint on the floor (z = 0) and, for people, facing +x; and a mesh's
+footprint (a circle about the origin, or its maker's chain of circles)."""
 
 from __future__ import annotations
 
 import numpy as np
 import trimesh
 
+from datagen.distractors.furniture import (
+    SHELF_HEIGHT,
+    _bed,
+    _chair,
+    _counter,
+    _desk,
+    _shelf,
+    _shelf_rows,
+)
 from datagen.distractors.primitives import _box, _capsule, _ellipsoid, _frustum, _join, _rod
 
+#: The furnished-room kinds (``furniture``): painted parts, footprints of many circles.
+FURNISHED_KINDS: tuple[str, ...] = ("shelf", "shelf_rows", "desk", "counter", "bed")
 CLUTTER_KINDS: tuple[str, ...] = ("box", "cabinet", "chair", "table", "plant", "trolley", "bin",
-                                   "bench", "sofa", "whiteboard")
-MAX_HEIGHT = 1.8  # m, tallest clutter object
-
-
-
-
+                                   "bench", "sofa", "whiteboard", *FURNISHED_KINDS)
+MAX_HEIGHT = SHELF_HEIGHT[1]  # m, the tallest clutter object (shelving)
+SMALL_HEIGHT = 1.8  # m, the tallest cabinet, plant or whiteboard
+MAX_FACES = 16000  # the most faces of one object (parallel runs of shelving full of books)
 
 
 def _cardboard(rng: np.random.Generator) -> trimesh.Trimesh:
@@ -33,7 +43,7 @@ def _cardboard(rng: np.random.Generator) -> trimesh.Trimesh:
 
 def _cabinet(rng: np.random.Generator) -> trimesh.Trimesh:
     w, d = rng.uniform(0.45, 1.0), rng.uniform(0.35, 0.6)
-    h = rng.uniform(0.7, MAX_HEIGHT)
+    h = rng.uniform(0.7, SMALL_HEIGHT)
     parts = [_box((d, w, h), (0, 0, h / 2))]
     if rng.random() < 0.5:  # filing cabinet: drawers with handles on the front (+x)
         drawers = int(np.clip(round(h / 0.33), 2, 5))
@@ -44,34 +54,6 @@ def _cabinet(rng: np.random.Generator) -> trimesh.Trimesh:
         for s in (-1, 1):
             parts.append(_box((0.03, 0.025, 0.15), (d / 2 + 0.015, s * 0.06, 0.55 * h)))
         parts.append(_box((d * 1.02, w * 1.02, 0.04), (0, 0, h + 0.02)))
-    return _join(parts)
-
-
-def _chair(rng: np.random.Generator) -> trimesh.Trimesh:
-    s, seat_z = rng.uniform(0.4, 0.5), rng.uniform(0.42, 0.48)
-    t = rng.uniform(0.03, 0.06)
-    back_h = rng.uniform(0.35, 0.5)
-    parts = [_box((s, s, t), (0, 0, seat_z - t / 2)),
-             _box((0.04, s, back_h), (-s / 2 + 0.02, 0, seat_z + back_h / 2 + 0.02))]
-    if rng.random() < 0.5:  # four legs
-        r = rng.uniform(0.012, 0.022)
-        for x in (-1, 1):
-            for y in (-1, 1):
-                p = np.array([x * (s / 2 - 0.03), y * (s / 2 - 0.03)])
-                parts.append(_rod([*p, 0.0], [*p, seat_z - t], r, 8))
-    else:  # office chair: column on a five-star base with casters
-        parts.append(_rod([0, 0, 0.08], [0, 0, seat_z - t], 0.025, 10))
-        for k in range(5):
-            a = 2 * np.pi * k / 5
-            arm = 0.3
-            parts.append(_box((arm, 0.04, 0.03), (np.cos(a) * arm / 2, np.sin(a) * arm / 2,
-                                                  0.07), a))
-            parts.append(_ellipsoid((np.cos(a) * arm, np.sin(a) * arm, 0.03), (0.03,) * 3, 0))
-        if rng.random() < 0.6:  # armrests
-            for y in (-1, 1):
-                parts.append(_box((0.3, 0.05, 0.03), (0, y * (s / 2 + 0.02), seat_z + 0.2)))
-                parts.append(_rod([0, y * (s / 2 + 0.02), seat_z], [0, y * (s / 2 + 0.02),
-                                                                    seat_z + 0.2], 0.015, 8))
     return _join(parts)
 
 
@@ -110,8 +92,8 @@ def _plant(rng: np.random.Generator) -> trimesh.Trimesh:
         parts.append(_ellipsoid(c, (rad, rad, rad * rng.uniform(0.7, 1.2)), 1))
     mesh = _join(parts)
     lo, hi = mesh.bounds
-    if hi[2] > MAX_HEIGHT:
-        mesh.apply_scale([1.0, 1.0, MAX_HEIGHT / hi[2]])
+    if hi[2] > SMALL_HEIGHT:
+        mesh.apply_scale([1.0, 1.0, SMALL_HEIGHT / hi[2]])
     return mesh
 
 
@@ -215,7 +197,7 @@ def _sofa(rng: np.random.Generator) -> trimesh.Trimesh:
 def _whiteboard(rng: np.random.Generator) -> trimesh.Trimesh:
     """A mobile whiteboard or flip chart: a thin board on two legs with splayed feet."""
     w, bh = rng.uniform(0.7, 1.2), rng.uniform(0.6, 0.9)
-    top = rng.uniform(1.5, MAX_HEIGHT)
+    top = rng.uniform(1.5, SMALL_HEIGHT)
     parts = [_box((0.03, w, bh), (0, 0, top - bh / 2)),
              _box((0.08, w, 0.03), (0.04, 0, top - bh - 0.015))]  # the pen tray
     foot = rng.uniform(0.4, 0.55)
@@ -230,7 +212,8 @@ def _whiteboard(rng: np.random.Generator) -> trimesh.Trimesh:
 
 _MAKERS = {"box": _cardboard, "cabinet": _cabinet, "chair": _chair, "table": _table,
            "plant": _plant, "trolley": _trolley, "bin": _bin, "bench": _bench, "sofa": _sofa,
-           "whiteboard": _whiteboard}
+           "whiteboard": _whiteboard, "shelf": _shelf, "shelf_rows": _shelf_rows, "desk": _desk,
+           "counter": _counter, "bed": _bed}
 
 
 def make_clutter_mesh(kind: str, rng: np.random.Generator) -> trimesh.Trimesh:
@@ -241,8 +224,11 @@ def make_clutter_mesh(kind: str, rng: np.random.Generator) -> trimesh.Trimesh:
         rng: random generator.
 
     Returns:
-        Mesh in metres, z up, footprint centred on the origin, standing on z = 0,
-        at most MAX_HEIGHT tall and under 2000 faces.
+        Mesh in metres, z up, footprint centred on the origin, standing on z = 0, at most
+        MAX_HEIGHT tall; under 2000 faces for the first ten kinds (at most SMALL_HEIGHT
+        tall), up to ``MAX_FACES`` for shelving full of books. The furnished kinds
+        (``furniture``) carry ``metadata``: ``parts`` (V,) and ``tones`` (P,) (their parts'
+        colours, ``datagen.appearance.materials.part_colours``) and ``footprint`` (C, 3).
     """
     if kind not in _MAKERS:
         raise ValueError(f"unknown clutter kind {kind!r}; use one of {list(CLUTTER_KINDS)}")
@@ -297,3 +283,13 @@ def make_person_mesh(rng: np.random.Generator) -> trimesh.Trimesh:
 def footprint_radius(mesh: trimesh.Trimesh) -> float:
     """Radius (m) of the smallest origin-centred circle holding the mesh's XY footprint."""
     return float(np.max(np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1])))
+
+
+def footprint_circles(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(C, 3) circles x, y, r (m, in the object frame) covering the mesh's XY footprint: its
+    maker's (``metadata["footprint"]``: a chain along a long object, each run of shelving
+    apart) or the one circle of ``footprint_radius`` about the origin."""
+    circles = mesh.metadata.get("footprint")
+    if circles is not None:
+        return np.asarray(circles, np.float64).reshape(-1, 3)
+    return np.array([[0.0, 0.0, footprint_radius(mesh)]])

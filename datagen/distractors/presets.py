@@ -17,7 +17,8 @@ from datagen.distractors.meshes import (
 
 def check_preset(preset: DistractorPreset, where: str = "distractors preset") -> None:
     """Raise ValueError, naming ``where`` (e.g. ``distractor_presets.paper``), if a preset's
-    counts are not 0 <= min <= max or its kinds are not a non-empty subset of CLUTTER_KINDS."""
+    counts are not 0 <= min <= max, its kinds are not a non-empty subset of CLUTTER_KINDS, a
+    probability is outside [0, 1] or near_camera_m is negative."""
     for key in ("clutter", "people"):
         lo, hi = getattr(preset, key).min, getattr(preset, key).max
         if not 0 <= lo <= hi:
@@ -25,6 +26,13 @@ def check_preset(preset: DistractorPreset, where: str = "distractors preset") ->
     if not preset.kinds or set(preset.kinds) - set(CLUTTER_KINDS):
         raise ValueError(f"{where}: kinds must be a non-empty subset of {list(CLUTTER_KINDS)}, "
                          f"got {list(preset.kinds)}")
+    for key in ("against_walls", "aligned"):
+        if not 0.0 <= getattr(preset, key) <= 1.0:
+            raise ValueError(f"{where}.{key} = {getattr(preset, key)} must be a probability "
+                             "in [0, 1]")
+    if preset.near_camera_m < 0:
+        raise ValueError(f"{where}.near_camera_m = {preset.near_camera_m} must be >= 0 m "
+                         "(0: anywhere on the floor)")
 
 
 def preset_counts(rng: np.random.Generator, preset: DistractorPreset | Mapping[str, Any]

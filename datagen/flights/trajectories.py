@@ -8,8 +8,9 @@ come from an occupancy map of the free space (core.occupancy); flights fly route
 
 from __future__ import annotations
 
+import functools
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -65,14 +66,18 @@ def sample_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
                           along_fraction: float = TrainingConfig.yaw_along_corridor,
                           along_spread_deg: float = TrainingConfig.yaw_spread_deg,
                           min_view_m: float = TrainingConfig.min_view_m,
-                          tries: int = 20) -> np.ndarray:
+                          tries: int = 20, handheld: float = TrainingConfig.handheld,
+                          handheld_deg: tuple[float, float] = (
+                              TrainingConfig.handheld_pitch_deg,
+                              TrainingConfig.handheld_roll_deg),
+                          top: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """Camera body poses spread over the free space, for training images.
 
     Args:
         rng: random generator.
         n: number of poses.
         free: where a camera may be; positions are uniform over its free cells.
-        z_range: (2,) heights (m), uniform.
+        z_range: (2,) heights (m), uniform (below ``top``).
         max_roll_pitch_deg: roll and pitch are uniform in +/- this.
         along_fraction: share of poses whose yaw is drawn around the local axis of the free
             space (``free_axes``: the longest free chord through the cell; in a corridor its
@@ -82,20 +87,28 @@ def sample_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
         along_spread_deg: half-width of the along-axis yaw range, degrees.
         min_view_m: a pose whose free space ahead (``view_depth``) is shorter is drawn again,
             up to ``tries`` times (the last draw is kept); 0: no check, no extra draws.
+        handheld: share of poses whose pitch and roll are uniform in +/- ``handheld_deg``
+            (pitch, roll) instead; 0: none (no draw).
+        top: (N, 2) m -> (N,) m, the highest a pose may be at each position (the ceiling's
+            headroom, ``Site.camera_top``), or None: ``z_range`` everywhere; the heights are
+            uniform in [z_range min, min(z_range max, top)], within the free space's band
+            where top is lower.
 
     Returns:
         (n, 4, 4) world_from_body.
     """
-    poses = _draw_training_poses(rng, n, free, z_range, max_roll_pitch_deg, along_fraction,
-                                 along_spread_deg)
+    draw = functools.partial(_draw_training_poses, free=free, z_range=z_range,
+                             max_roll_pitch_deg=max_roll_pitch_deg, along_fraction=along_fraction,
+                             along_spread_deg=along_spread_deg, handheld=handheld,
+                             handheld_deg=handheld_deg, top=top)
+    poses = draw(rng, n)
     if min_view_m <= 0:
         return poses
     for _ in range(tries):
         short = view_depth(free, poses, min_view_m) < min_view_m
         if not short.any():
             break
-        poses[short] = _draw_training_poses(rng, int(short.sum()), free, z_range,
-                                            max_roll_pitch_deg, along_fraction, along_spread_deg)
+        poses[short] = draw(rng, int(short.sum()))
     return poses
 
 
@@ -122,19 +135,28 @@ def view_depth(free: OccupancyMap, poses: np.ndarray, reach: float) -> np.ndarra
 
 def _draw_training_poses(rng: np.random.Generator, n: int, free: OccupancyMap,
                          z_range: np.ndarray, max_roll_pitch_deg: float, along_fraction: float,
-                         along_spread_deg: float) -> np.ndarray:
+                         along_spread_deg: float, handheld: float,
+                         handheld_deg: tuple[float, float],
+                         top: Callable[[np.ndarray], np.ndarray] | None) -> np.ndarray:
     """``sample_training_poses``'s draw of (n, 4, 4) poses, unchecked."""
     if not 0.0 <= along_fraction <= 1.0:
         raise ValueError(f"training.yaw_along_corridor must be in [0, 1], got {along_fraction}")
+    if not 0.0 <= handheld <= 1.0:
+        raise ValueError(f"training.handheld must be a share in [0, 1], got {handheld}")
     z = _check_z(z_range)
     xy = free.sample(rng, n)
-    height = rng.uniform(z[0], z[1], n)
+    hi = z[1] if top is None else np.clip(top(xy), min(free.band[1], z[1]), z[1])
+    height = rng.uniform(z[0], hi, n)
     tilt = np.deg2rad(max_roll_pitch_deg) * rng.uniform(-1, 1, (n, 2))
     yaw = rng.uniform(-np.pi, np.pi, n)
     along = rng.random(n) < along_fraction
     axis = axis_at(free, xy) + np.where(rng.random(n) < 0.5, 0.0, np.pi)
     yaw_along = axis + np.deg2rad(along_spread_deg) * rng.uniform(-1, 1, n)
     yaw = np.where(along, wrap_angle(yaw_along), yaw)
+    if handheld > 0:  # columns roll, pitch
+        held = rng.random(n) < handheld
+        hand = np.deg2rad([handheld_deg[1], handheld_deg[0]]) * rng.uniform(-1, 1, (n, 2))
+        tilt = np.where(held[:, None], hand, tilt)
     return pose_from_xyz_rpy(np.column_stack([xy, height]), np.column_stack([tilt, yaw]))
 
 

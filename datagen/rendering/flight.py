@@ -13,12 +13,12 @@ from tqdm import tqdm
 
 from core.imaging import camera_effects
 from datagen.appearance.lights import sample_lights
-from datagen.appearance.materials import object_colours, sample_floor_gloss
+from datagen.appearance.materials import object_colours, part_palettes, sample_floor_gloss
 from datagen.appearance.textures import sample_textures
 from datagen.dataset_writer import frame_done
 from datagen.distractors.crowd import person_tracks
-from datagen.distractors.meshes import footprint_radius, make_clutter_mesh, make_person_mesh
-from datagen.distractors.placement import place_objects
+from datagen.distractors.meshes import footprint_circles, make_clutter_mesh, make_person_mesh
+from datagen.distractors.placement import place_objects, placed_circles
 from datagen.distractors.presets import preset_counts, sample_kinds
 from datagen.job import Job, flight_stream, rng_for, shard_range
 from datagen.realism import optics
@@ -47,14 +47,15 @@ class FlightScene:
     """A flight's fixed dressing: drawn once, in this order, from the flight's generator.
 
     placed: (C, 3) clutter x, y, yaw (NaN: not placed); tracks: (P, N, 3) people x, y, yaw
-    per frame; colours: (C + P, 3) linear RGB of the distractors.
+    per frame; colours: C + P linear RGB colours of the distractors, (3,) each or (parts, 3)
+    for a mesh whose parts have tones (drawn last, ``part_palettes``).
     """
 
     clutter: list
     people: list
     textures: dict[str, np.ndarray]
     lights: np.ndarray
-    colours: np.ndarray
+    colours: list
     placed: np.ndarray
     tracks: np.ndarray
     gloss: tuple[float, float] | None = None  # the floor's (weight, alpha), drawn last
@@ -81,12 +82,12 @@ def flight_scene(job: Job, name: str) -> FlightScene:
     builtins = np.array([b.footprint_circle() for b in job.builtins]).reshape(-1, 3)
     if len(builtins):
         keep = np.concatenate([keep, builtins])
-    radii = np.array([footprint_radius(m) for m in clutter])
+    shapes = [footprint_circles(m) for m in clutter]
     floor = job.site.floor
-    placed = place_objects(rng, radii, floor, keep, against_walls=dp.against_walls,
-                                       wall_margin=dp.wall_margin)[0]
-    ok = ~np.isnan(placed[:, 0])
-    obstacles = np.concatenate([placed[ok, :2], radii[ok, None]], axis=1)
+    placed = place_objects(rng, shapes, [job.site.floor_for(m.bounds[1][2]) for m in clutter],
+                           keep, against_walls=dp.against_walls, wall_margin=dp.wall_margin,
+                           aligned=dp.aligned)[0]
+    obstacles = placed_circles(shapes, placed)
     if len(builtins):
         obstacles = np.concatenate([obstacles, builtins])
     tracks = person_tracks(
@@ -96,6 +97,7 @@ def flight_scene(job: Job, name: str) -> FlightScene:
         patience_s=dp.person_patience_s,
     ) if n_people else np.zeros((0, len(gt), 3))
     gloss = sample_floor_gloss(rng, cfg.appearance)
+    colours = part_palettes(rng, colours, [m.metadata.get("tones") for m in clutter + people])
     return FlightScene(clutter, people, textures, lights, colours, placed, tracks, gloss)
 
 

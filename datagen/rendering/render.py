@@ -31,7 +31,9 @@ from datagen.config import RenderConfig
 from datagen.rendering.denoise import denoise, segment_ids
 from datagen.worlds.scene import GLASS, QUAD, Scene
 
-HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor
+HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor, each
+# shrunk to a point there (degenerate triangles cost the acceleration structure's rebuild,
+# which every moved object triggers, next to nothing)
 
 @dataclass(frozen=True)
 class Traced:
@@ -155,6 +157,8 @@ class Renderer:
         hfov = _hfov_deg(camera)
         self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
+        self._slot_parts = [m.metadata.get("parts") for m, _ in self.slots]  # (V,) or None
+        self._slot_palette: dict[int, np.ndarray] = {}  # the last part colours set per slot
         self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden)
         for i in range(len(self.slots)):
             self._slot_pose[i] = np.full(3, np.nan)
@@ -237,13 +241,21 @@ class Renderer:
         return out
 
     def _object_shapes(self) -> dict[str, object]:
-        """The distractor slots, hidden below the floor until ``set_objects`` places them."""
+        """The distractor slots, hidden below the floor until ``set_objects`` places them; a
+        mesh whose parts have their own colours (``metadata["parts"]``) in vertex colours."""
         mi, out = self.mi, {}
         for i, (m, cls) in enumerate(self.slots):
             name = f"object{i}"
-            V = self._slot_vertices[i] + [0.0, 0.0, HIDDEN_Z]
-            bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}})
-            out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf)
+            V = np.zeros_like(self._slot_vertices[i]) + [0.0, 0.0, HIDDEN_Z]
+            if self._slot_parts[i] is None:
+                bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
+                                                                         "value": 0.5}})
+                out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf)
+            else:
+                bsdf = mi.load_dict({"type": "diffuse", "reflectance": {
+                    "type": "mesh_attribute", "name": "vertex_color"}})
+                out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf,
+                                  colour=np.full((len(V), 3), 0.5, np.float32))
             self.class_of[name] = cls
         return out
 
@@ -312,24 +324,38 @@ class Renderer:
         for i, wi in enumerate(w.tolist()):
             self.params[f"light{i}.emitter.sampling_weight"] = wi
 
-    def set_objects(self, poses: np.ndarray, colors: np.ndarray) -> None:
+    def set_objects(self, poses: np.ndarray, colors: Sequence[np.ndarray]) -> None:
         """Place the distractor slots.
 
         Args:
             poses: (S, 3) x, y (metres), yaw (radians) per slot; NaN x hides the slot.
-            colors: (S, 3) linear RGB reflectance per slot.
+            colors: per slot, (3,) linear RGB reflectance, or for a mesh with parts (P, 3)
+                one per part (``metadata["parts"]``; a (3,) colour paints them all): (S, 3)
+                when no slot has parts.
         """
         poses = np.asarray(poses, dtype=np.float64).reshape(len(self.slots), 3)
         for i, (pose, col) in enumerate(zip(poses, colors, strict=True)):
-            self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
-                *np.asarray(col, dtype=np.float32).tolist())
+            col = np.asarray(col, dtype=np.float32)
+            parts = self._slot_parts[i]
+            if parts is None:
+                self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
+                    *col.reshape(3).tolist())
+            elif not np.isnan(pose[0]) and not np.array_equal(self._slot_palette.get(i), col):
+                # (a hidden slot keeps its colours)
+                palette = col.reshape(-1, 3)
+                if len(palette) not in (1, int(parts.max()) + 1):
+                    raise ValueError(f"set_objects: slot {i} has {int(parts.max()) + 1} parts, "
+                                     f"got {len(palette)} colours")
+                _set(self.params, f"object{i}.vertex_color",
+                     palette[np.minimum(parts, len(palette) - 1)].ravel())
+                self._slot_palette[i] = col
             last = self._slot_pose.get(i)
             if last is not None and np.array_equal(last, pose, equal_nan=True):
                 continue  # unchanged geometry: no acceleration-structure rebuild
             self._slot_pose[i] = pose.copy()
             V = self._slot_vertices[i]
             if np.isnan(pose[0]):
-                V = V + [0.0, 0.0, HIDDEN_Z]
+                V = np.zeros_like(V) + [0.0, 0.0, HIDDEN_Z]
             else:
                 c, s = math.cos(pose[2]), math.sin(pose[2])
                 R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

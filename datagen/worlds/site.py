@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from core import classes as C
 from core.dataset import World
-from core.occupancy import OccupancyMap
+from core.occupancy import OccupancyMap, lowest_above
 from datagen.config import FileWorldConfig, ProceduralWorldConfig, WorldConfig, world_config
 from datagen.importers import Building, load_building
 from datagen.importers.classify import class_shares
@@ -36,6 +37,10 @@ log = logging.getLogger(__name__)
 
 #: m above the floor: the heights a distractor or a person occupies (the floor map's band).
 STANDING_BAND = (0.05, 1.9)
+#: m above the floor: the heights an object taller than STANDING_BAND's top occupies (shelving
+#: up to 2.4 m): where it may stand is this band's map (``Site.floor_for``), clear of door
+#: heads and low ceilings.
+TALL_BAND = (0.05, 2.45)
 
 
 @dataclass
@@ -58,6 +63,47 @@ class Site:
     route: np.ndarray | None
     building: Building
     corridor: CorridorModel | None = None
+    _built: dict = field(default_factory=dict, repr=False)  # maps built on first use
+
+    def floor_for(self, height: float) -> OccupancyMap | None:
+        """Where an object ``height`` m tall may stand: ``floor`` up to STANDING_BAND's top,
+        else the map of TALL_BAND (built on first use) up to its top; None where nothing
+        that tall has room (taller than TALL_BAND, a corridor or a floor too low)."""
+        if height <= STANDING_BAND[1]:
+            return self.floor
+        if height > TALL_BAND[1]:
+            return None
+        if "tall" not in self._built:
+            self._built["tall"] = self._tall_floor()
+        return self._built["tall"]
+
+    def _tall_floor(self) -> OccupancyMap | None:
+        if self.corridor is not None:
+            return self.floor if self.corridor.height >= TALL_BAND[1] else None
+        b = self.building
+        try:
+            return OccupancyMap.from_mesh(b.vertices, b.faces, b.face_class,
+                                          float(b.info["floor_z"]) + np.asarray(TALL_BAND),
+                                          0.0, self.floor.cell)
+        except ValueError:  # no floor has that headroom
+            return None
+
+    def camera_top(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) m: the highest a camera may be at the points (N, 2) m: the lowest
+        near-horizontal surface above the free space's band within its margin (a ceiling, a
+        door's head; ``core.occupancy.lowest_above``) less the margin, but not below the
+        band's top (built on first use)."""
+        if "top" not in self._built:
+            free, w = self.world.free, self.world
+            lowest = lowest_above(w.vertices, w.faces, free, free.band[1])
+            r = free.margin / free.cell + np.sqrt(2)  # cells whose points may lie that near
+            k = int(np.ceil(r))
+            y, x = np.ogrid[-k:k + 1, -k:k + 1]
+            near = ndimage.minimum_filter(lowest, footprint=x * x + y * y <= r * r + 1e-9,
+                                          mode="nearest")
+            self._built["top"] = np.maximum(near - free.margin, free.band[1])
+        rc, _ = self.world.free.cell_of(xy)
+        return self._built["top"][rc[0], rc[1]]
 
 
 def floor_boxes(model: CorridorModel, margin: float) -> np.ndarray:

@@ -12,7 +12,8 @@ from datagen.config import DatagenConfig
 from datagen.distractors.crowd import person_tracks
 from datagen.distractors.meshes import (
     CLUTTER_KINDS,
-    MAX_HEIGHT,
+    FURNISHED_KINDS,
+    SMALL_HEIGHT,
     footprint_radius,
     make_clutter_mesh,
     make_person_mesh,
@@ -38,15 +39,19 @@ def circles_inside(xy: np.ndarray, r: np.ndarray, boxes: np.ndarray) -> np.ndarr
     return inside.all(1)
 
 
+SMALL_KINDS = tuple(k for k in CLUTTER_KINDS if k not in FURNISHED_KINDS)
+
+
 class TestMeshes:
-    @pytest.mark.parametrize("kind", CLUTTER_KINDS)
+    @pytest.mark.parametrize("kind", SMALL_KINDS)
     def test_clutter_bounds(self, kind):
+        """The first ten kinds (the furnished ones: tests/datagen/test_furniture.py)."""
         for seed in range(8):
             mesh = make_clutter_mesh(kind, np.random.default_rng(seed))
             lo, hi = mesh.bounds
             assert isinstance(mesh, trimesh.Trimesh)
             assert abs(lo[2]) < 1e-9, "must stand on z = 0"
-            assert 0.2 < hi[2] <= MAX_HEIGHT + 1e-9
+            assert 0.2 < hi[2] <= SMALL_HEIGHT + 1e-9
             np.testing.assert_allclose((lo[:2] + hi[:2]) / 2, 0.0, atol=1e-9)  # centred
             assert footprint_radius(mesh) < 0.75  # fits in a 2 m corridor with room
             assert len(mesh.faces) < 2000
@@ -198,17 +203,17 @@ class TestPresets:
 
     def test_new_kinds_only_where_listed(self, presets):
         """The default presets draw today's five kinds; conf/distractors/varied.yaml, added
-        as a fourth preset, draws every kind."""
+        as a fourth preset, draws the ten that are not the furnished rooms' kinds."""
         for name in ("none", "paper", "cluttered"):
             assert list(presets[name].kinds) == ["box", "cabinet", "chair", "table", "plant"]
         cfg = typed(DatagenConfig, compose_config(
             "datagen", ["+distractors@distractor_presets.varied=varied",
                         "+training.distractors.varied=0.3"]), "datagen")
         varied = cfg.distractor_presets["varied"]
-        assert set(varied.kinds) == set(CLUTTER_KINDS)
+        assert set(varied.kinds) == set(SMALL_KINDS)
         check_preset(varied)
         drawn = set(sample_kinds(np.random.default_rng(0), 200, varied))
-        assert drawn == set(CLUTTER_KINDS)
+        assert drawn == set(SMALL_KINDS)
 
     def test_presets_grow(self, presets):
         load = [presets[n] for n in ("none", "paper", "cluttered")]
