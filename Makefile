@@ -72,9 +72,14 @@ best: setup
 	$(PY) -m localize name=best onnx_model=outputs/models/best5_context/segnet.onnx
 	@echo "report: outputs/reports/best/report.md"
 
-# The generalist SegNet, for buildings it never saw (docs/recipes.md, "The generalist, then the fine-tune"): 24
-# procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them), then 14 epochs
-# of training (23 min). A copy ships in models/generalist/; interrupted, `make generalist` resumes.
+# The generalist SegNet, for buildings it never saw (docs/recipes.md, "Remaking the
+# generalist"): 24 procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them),
+# then 14 epochs of training (23 min; the epochs bound it, no time budget), each epoch logged
+# with the time left. Stopped anyhow (kill -9, a new session), `make generalist` again
+# continues: datagen renders only the frames missing, training resumes after its last finished
+# epoch with the same schedule and counts the time already trained. It writes
+# outputs/models/generalist/; benchmarks/promote.py copies it into models/generalist/ only
+# when it tracks better on every third-party building and not worse in the corridor.
 generalist: setup
 	$(PY) -m datagen -m datagen_experiment=generalist_floors
 	$(PY) -m train experiment=generalist
@@ -83,14 +88,16 @@ generalist: setup
 # model file rendered (docs/importers.md; .world/.sdf, .glb/.gltf, .obj, .ply, .dae, .stl,
 # .ifc) with two ~45 m flights along routes planned through its free space
 # (conf/flights/floor.yaml); the shipped generalist SegNet (models/generalist/) fine-tuned on it
-# for 9 epochs (conf/experiment/finetune.yaml, ~9 min on 2 cores) into outputs/models/NAME/;
-# then localize with that model: `make building BUILDING=path/to/model.world NAME=hospital`.
+# for 9 epochs (conf/experiment/finetune.yaml, ~9 min on 2 cores) into outputs/models/NAME/,
+# whose segnet.onnx is the generalist's network where the building's validation renders show
+# the fine-tune no gain (docs/recipes.md, "A fine-tune that never hurts"); then localize with
+# that folder's model: `make building BUILDING=path/to/model.world NAME=hospital`.
 NAME ?= building
 building: setup
 	@test -n "$(BUILDING)" || { echo "give BUILDING=path/to/model (.world .sdf .glb .gltf .obj .ply .dae .stl .ifc)"; exit 2; }
 	@echo "1/3 datagen: render $(BUILDING) into outputs/datasets/$(NAME)"
 	$(PY) -m datagen name=$(NAME) world=file world.path=$(BUILDING) flights=floor
-	@echo "2/3 train: fine-tune the shipped generalist (models/generalist) on it, 9 epochs, into outputs/models/$(NAME)"
+	@echo "2/3 train: fine-tune the shipped generalist (models/generalist) on it, 9 epochs, into outputs/models/$(NAME) (the generalist kept where the fine-tune gains nothing)"
 	$(PY) -m train experiment=finetune name=$(NAME) dataset=outputs/datasets/$(NAME)
 	@echo "3/3 localize: the flights of outputs/datasets/$(NAME) with outputs/models/$(NAME)/segnet.onnx"
 	$(PY) -m localize name=$(NAME) dataset=outputs/datasets/$(NAME) onnx_model=outputs/models/$(NAME)/segnet.onnx

@@ -21,7 +21,9 @@ and seeds. The scan's first test flight is also exported as a folder recording
 With ``--finetune N``, N training and N / 8 validation and test images of the building (a dataset of
 their own, ``datasets/<building>_train``, apart from the test flights) fine-tune the SegNet
 (``experiment=finetune``: 9 epochs from the generalist; the epochs, not the minutes, bound it,
-so a busy machine trains the same network), and cnn runs again with it (``cnn_ft``).
+so a busy machine trains the same network), and cnn runs again with it (``cnn_ft``); where the
+fine-tune shows no gain on its own validation renders its folder holds the generalist
+(``keep``: docs/recipes.md, "A fine-tune that never hurts"), recorded as ``kept``.
 
 Buildings: the AWS hospital and bookstore (Gazebo worlds) and the ICL office scan from
 ``../shared/worlds`` (skipped where absent), and three procedural floors whose seeds (101-103)
@@ -29,13 +31,16 @@ no shipped SegNet was trained on (the generalist: seeds 0-23).
 
 Writes ``<out-root>/<name>/``: one dataset and one localize report per building
 (``datasets/<building>``, ``reports/<building>``), ``thirdparty.json`` and ``thirdparty.md``
-(the table). Finished datasets, scores and runs are kept, so a second call only collects and
-an interrupted one resumes. Lost: a run whose error stayed above 1 m for more than 1 s.
+(the table); thirdparty.json also records the SegNet's digest (``onnx_sha256``) and the
+frames per flight, which ``benchmarks/promote.py`` checks before comparing two tables.
+Finished datasets, scores and runs are kept, so a second call only collects and an interrupted
+one resumes. Lost: a run whose error stayed above 1 m for more than 1 s.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import subprocess
 import sys
@@ -74,6 +79,11 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--out-root", type=Path, default=ROOT / "outputs" / "benchmarks")
     ap.add_argument("--name", default="thirdparty")
     return ap.parse_args()
+
+
+def onnx_digest(path: Path) -> str:
+    """16 hex digits of the file's sha256: the digest localize records (``onnx_sha256``)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
 def run(cmd: list[str]) -> None:
@@ -243,7 +253,8 @@ def table(results: dict, modes: list[str]) -> str:
         if "fine-tuned mIoU / bF" in head:
             ft = r.get("finetuned") or {}
             fs, fc = ft.get("segnet"), ft.get("tracking", {}).get("cnn")
-            cells.append(f"{fs['mean_iou']:.3f} / {fs['boundary_f']:.3f}" if fs else "-")
+            cells.append((f"{fs['mean_iou']:.3f} / {fs['boundary_f']:.3f}" if fs else "-")
+                         + (" (start kept)" if ft.get("kept") == "init" else ""))
             cells.append(f"{fc['mean_m']:.3f} ({fc['lost']}/{fc['runs']})" if fc else "-")
         ms = tr.get("cnn", {}).get("frame_ms")
         cells.append(f"{ms:.0f}" if ms else "-")
@@ -269,8 +280,10 @@ def main() -> int:
         r["tracking"] = tracking(localize(ds, out / "reports" / b, args))
         if args.finetune:
             onnx = finetune(b, out, args.finetune)
+            keep = json.loads((onnx.parent / "metrics.json").read_text()).get("keep")
             r["finetuned"] = {
                 "onnx": str(onnx), "images": args.finetune,
+                "kept": keep["kept"] if keep else "finetuned",
                 "segnet": segnet_scores(ds, onnx, out / "segnet" / f"{b}.json"),
                 "tracking": tracking(localize(ds, out / "reports" / f"{b}_ft", args,
                                               onnx=onnx, modes=["cnn"]))}
@@ -282,9 +295,10 @@ def main() -> int:
         for f in (r["import"] or {}).get("flags", []):
             print(f"  import flag: {f['what']} (key: {f['key']})")
     md = table(results, args.modes)
-    atomic_write_json(out / "thirdparty.json", {"onnx": str(args.onnx), "modes": args.modes,
-                                                "seeds": args.seeds, "finetune": args.finetune,
-                                                "results": results})
+    atomic_write_json(out / "thirdparty.json", {
+        "onnx": str(args.onnx), "onnx_sha256": onnx_digest(args.onnx), "modes": args.modes,
+        "seeds": args.seeds, "frames": args.frames, "finetune": args.finetune,
+        "results": results})
     atomic_write_text(out / "thirdparty.md", md)
     print(md)
     return 0

@@ -225,6 +225,30 @@ class ExportConfig:
 
 
 @dataclass
+class KeepConfig:
+    """Which network a fine-tune ships (``keep``, train/keep.py): the fine-tuned one, or the
+    one it started from (``init_from``) where its own validation images show no gain.
+
+    Both networks segment the validation split; the fine-tune ships when its boundary F at
+    2 px (what the edge likelihood reads) or its mean IoU is higher by more than that score's
+    margin and neither is lower by more. A margin is the larger of ``min_gain`` and ``sigmas``
+    standard errors of the score's difference, from a paired bootstrap over the validation
+    images (docs/recipes.md, "A fine-tune that never hurts").
+
+    Attributes:
+        init_unless_gain: apply the rule (needs ``init_from``); off, the fine-tune ships.
+        min_gain: the smallest gain that counts, whatever the validation split's size.
+        sigmas: standard errors of the paired difference a gain must exceed.
+        resamples: bootstrap resamples of the validation images (seeded by ``seed``).
+    """
+
+    init_unless_gain: bool = False
+    min_gain: float = 0.01
+    sigmas: float = 2.0
+    resamples: int = 1000
+
+
+@dataclass
 class TrainConfig:
     """``python -m train``: SegNet on a datagen dataset, on CPU or a GPU, written to
     ``<out_root>/<name>/`` (docs/train.md).
@@ -258,6 +282,7 @@ class TrainConfig:
             smaller of the two (``make demo`` sets it; Makefile).
         init_from: a model folder (or its checkpoint_best.pt) whose weights start the
             training (fine-tuning, same ``model.*`` settings); None = random initial weights.
+        keep: whether the fine-tune or ``init_from``'s network ships (``KeepConfig``).
         overwrite: discard an output folder made with another config.
         localize: localize settings this model is tuned for, nested as in
             conf/localize.yaml (e.g. ``{edges: {cnn: {snap_px: 1}}}``), checked by localize
@@ -288,6 +313,7 @@ class TrainConfig:
     loss: LossConfig = field(default_factory=LossConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
     export: ExportConfig = field(default_factory=ExportConfig)
+    keep: KeepConfig = field(default_factory=KeepConfig)
 
 
 register_schema("train_schema", TrainConfig)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from train.config import LossConfig, TrainConfig
+from train.config import KeepConfig, LossConfig, TrainConfig
 
 
 def resolve_precision(precision: str, device: str = "cpu") -> bool:
@@ -48,6 +48,21 @@ def check_loss(loss: LossConfig) -> None:
                          "(1 = off)")
 
 
+def check_keep(keep: KeepConfig, init_from: str | None) -> None:
+    """Raise ValueError naming the ``keep.*`` key out of range, or the rule without a network
+    to keep (``init_from``)."""
+    if keep.init_unless_gain and init_from is None:
+        raise ValueError("keep.init_unless_gain=true chooses between the fine-tune and the "
+                         "network it starts from: give init_from=<model folder>, or "
+                         "keep.init_unless_gain=false")
+    for key in ("min_gain", "sigmas"):
+        if not getattr(keep, key) >= 0:
+            raise ValueError(f"keep.{key}={getattr(keep, key):g} must be >= 0")
+    if keep.resamples < 0:
+        raise ValueError(f"keep.resamples={keep.resamples} must be >= 0 (0: no bootstrap, "
+                         "the margin is keep.min_gain)")
+
+
 def check_config(cfg: TrainConfig, device: str = "cpu") -> bool:
     """Every setting ``run`` can check before loading anything, each error naming its key.
 
@@ -61,6 +76,7 @@ def check_config(cfg: TrainConfig, device: str = "cpu") -> bool:
     check_counts(cfg)
     bf16 = resolve_precision(cfg.precision, device)
     check_loss(cfg.loss)
+    check_keep(cfg.keep, cfg.init_from)
     if cfg.model.head == "sharpen" and cfg.loss.resolution != "input":
         raise ValueError(
             "model.head=sharpen learns at the input's resolution: add loss.resolution=input"

@@ -8,11 +8,14 @@ Output folder ``<out_root>/<name>/``:
 - ``checkpoint_last.pt``: everything needed to resume (weights, optimizer, schedule, history);
 - ``checkpoint_best.pt``: weights of the epoch with the best validation score;
 - ``train_log.csv``: one row per epoch;
-- ``segnet.onnx``: the best checkpoint exported and checked with onnxruntime;
+- ``segnet.onnx``: the best checkpoint exported and checked with onnxruntime; with
+  ``keep.init_unless_gain`` (a fine-tune) the starting network (``init_from``) instead where
+  the validation images show the fine-tune no gain (train/keep.py);
 - ``metrics.json``, ``confusion.png``: test-split scores of ``segnet.onnx``'s labels, the
   labels the localizer reads.
 
-Re-running with the same config resumes from ``checkpoint_last.pt``; a folder made with
+Re-running with the same config resumes from ``checkpoint_last.pt`` (written after every
+epoch: a run killed mid-epoch trains that epoch again, from the same batches); a folder made with
 another config is refused unless ``overwrite=true`` (core.outputs; docs/outputs.md). The run
 reads its settings as a ``train.config.TrainConfig`` and is ``prepare`` (config checks, data,
 network, optimizer), ``fit`` (the epochs, each ``train_one_epoch`` then validation and
@@ -29,11 +32,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf
 from torch.optim.swa_utils import AveragedModel
 
-from core.atomic import atomic_write_json, atomic_write_text
+from core.atomic import atomic_write_json, atomic_write_text, remove_temp_files
 from core.dataset import Dataset, open_datasets
 from core.imaging import camera_effects
 from core.imaging.realism import load_realism
@@ -55,6 +59,7 @@ from train.data import (
 from train.deploy.export import ParityError, export_checked, onnx_metadata, update_metadata
 from train.deploy.quantize import INT8_NAME, int8_summary, quantize_model_dir
 from train.deploy.quantize import REPORT_NAME as QUANTIZE_REPORT
+from train.keep import KeepDecision, decide
 from train.loop.checkpoint import (
     LAST_CHECKPOINT,
     disk_space_guard,
@@ -74,11 +79,11 @@ from train.loop.distributed import (
     training_device,
 )
 from train.loop.epoch import data_parallel, train_one_epoch
-from train.loop.evaluate import evaluate, evaluate_onnx
+from train.loop.evaluate import ImageScores, evaluate_onnx, score_images
 from train.loop.optim import make_ema, make_optimizer, make_scheduler
-from train.loop.train_log import TRAIN_LOG, epoch_row, write_train_log
+from train.loop.train_log import TRAIN_LOG, epoch_row, time_left, write_train_log
 from train.losses import median_frequency_weights
-from train.metrics import metrics_json, plot_confusion, scores
+from train.metrics import metrics_json, plot_confusion
 from train.net.segnet import SegNet, build_segnet, count_parameters
 from train.run_identity import config_hash, prepare_output, train_settings, training_config
 
@@ -202,6 +207,9 @@ def prepare(cfg: TrainConfig, world: DistWorld = SINGLE,
     out_dir = Path(cfg.out_root) / cfg.name
     if world.is_main:
         prepare_output(out_dir, info, cfg.overwrite)
+        stale = remove_temp_files(out_dir)  # the folder is this run's alone
+        if stale:
+            log.info("%s: removed %d temporary files of killed writes", out_dir, len(stale))
         write_localize_settings(out_dir, cfg.localize)
 
     full_labels = cfg.loss.resolution == "input"
@@ -289,8 +297,8 @@ def run_epoch(job: TrainJob, state: dict, budget: float) -> bool:
         full_labels=job.full_labels, world=job.world, ddp=job.ddp,
     )
     main = job.world.is_main
-    val = (scores(evaluate(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
-                           cfg.progress, "val")) if main else None)
+    val = (score_images(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
+                        cfg.progress, "val").summary() if main else None)
     # rank 0's epoch time on every rank, so that all re-span the schedule alike
     dt = job.world.from_main(lambda: time.monotonic() - t0)
     state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
@@ -311,11 +319,37 @@ def run_epoch(job: TrainJob, state: dict, budget: float) -> bool:
     save_last(job.out_dir / LAST_CHECKPOINT, job.model, job.optimizer, job.scheduler,
               job.ema, state, job.info["config_hash"])
     write_train_log(job.out_dir / TRAIN_LOG, state["history"])
-    log.info("epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f%s (%.0f s)%s", epoch + 1,
-             state["epochs"], res.loss, val["pixel_accuracy"], val["mean_iou"],
-             " *" if improved else "", dt,
-             "; time budget used up, stopping" if res.stopped else "")
+    left = "" if res.stopped else time_left(state["epochs"] - state["epoch"], dt)
+    log.info("epoch %d/%d: loss %.4f, val pixel acc %.4f, mIoU %.4f, boundary F %.4f%s "
+             "(%.0f s)%s", epoch + 1, state["epochs"], res.loss, val["pixel_accuracy"],
+             val["mean_iou"], val["boundary_f"], " *" if improved else "", dt,
+             "; time budget used up, stopping" if res.stopped else f"; {left}" if left else "")
     return True
+
+
+def keeps_init(cfg: TrainConfig) -> bool:
+    """Whether the keep rule (train/keep.py) chooses between the fine-tune and ``init_from``."""
+    return cfg.keep.init_unless_gain and cfg.init_from is not None
+
+
+def init_scores(job: TrainJob) -> dict:
+    """``init_from``'s network scored on the validation split, image by image (the keep
+    rule's baseline, kept in the run's state): {"confusion": (N, C, C), "boundary": (N, 4)}."""
+    net = build_network(job.cfg, job.num_classes).to(job.device)
+    s = score_images(net, job.val_data, job.num_classes, job.cfg.eval.batch_size,
+                     job.cfg.progress, "val of init_from")
+    return {"confusion": s.confusion, "boundary": s.boundary}
+
+
+def keep_decision(job: TrainJob, state: dict, model: SegNet) -> KeepDecision:
+    """The keep rule on ``init_from``'s network (the state's ``init_val``, else scored now)
+    and the fine-tuned ``model``, both on the validation split."""
+    init = state.get("init_val") or init_scores(job)
+    tuned = score_images(model, job.val_data, job.num_classes, job.cfg.eval.batch_size,
+                         job.cfg.progress, "val of the fine-tune")
+    return decide(ImageScores(np.asarray(init["confusion"]), np.asarray(init["boundary"])),
+                  tuned, job.cfg.keep, str(job.cfg.init_from),
+                  np.random.default_rng(job.cfg.seed))
 
 
 def fit(job: TrainJob) -> dict:
@@ -333,6 +367,19 @@ def fit(job: TrainJob) -> dict:
     resume(last, job.model, job.optimizer, job.scheduler, job.ema, state,
            job.world.from_main(lambda: read_last(last)))
     budget = job.world.from_main(lambda: training_budget(job.cfg, state["train_seconds"]))
+    if job.world.is_main:
+        write_train_log(job.out_dir / TRAIN_LOG, state["history"])  # a kill before it was
+        if keeps_init(job.cfg) and state["init_val"] is None:
+            state["init_val"] = init_scores(job)
+            base = ImageScores(state["init_val"]["confusion"],
+                               state["init_val"]["boundary"]).summary()
+            log.info("init_from %s on the %d validation images: boundary F %.4f, mIoU %.4f; "
+                     "the fine-tune ships only with a gain (keep.init_unless_gain)",
+                     job.cfg.init_from, len(job.val_data), base["boundary_f"], base["mean_iou"])
+        if state["epoch"] < state["epochs"]:
+            log.info("training epochs %d-%d of %d%s", state["epoch"] + 1, state["epochs"],
+                     state["epochs"], f" (resumed: {state['train_seconds'] / 60:.1f} min "
+                     "trained before)" if state["epoch"] else "")
     while state["epoch"] < state["epochs"] and not state["stopped_by_budget"]:
         if not run_epoch(job, state, budget):
             state["stopped_by_budget"] = True
@@ -364,7 +411,9 @@ def export_onnx(job: TrainJob, model: SegNet, test_data: SplitData, metrics: dic
     meta = onnx_metadata(
         model, job.classes, parity_images.shape[2], parity_images.shape[3],
         job.info["config_hash"],
-        extra={"class_weights": job.class_weights, LOCALIZE_METADATA_KEY: job.cfg.localize},
+        extra={"class_weights": job.class_weights, LOCALIZE_METADATA_KEY: job.cfg.localize,
+               **({} if metrics.get("keep") is None else
+                  {"keep": {k: metrics["keep"][k] for k in ("kept", "init_from")}})},
     )
     try:
         with disk_space_guard(out_dir, onnx_path.name):
@@ -398,6 +447,7 @@ def run_metrics(job: TrainJob, state: dict, model: SegNet, best: dict, images: d
         "stopped_by_budget": state["stopped_by_budget"],
         "best_epoch": state["best_epoch"],
         "val_best": best.get("val"),
+        "keep": None,  # the keep rule's decision (``finish``; train/keep.py), or null
         "model": {
             "name": job.cfg.model.name,
             "parameters": count_parameters(model),
@@ -459,12 +509,18 @@ def finish(job: TrainJob, state: dict, t_start: float) -> dict:
         The metrics.json contents.
     """
     model, best = load_best(job)
+    decision = keep_decision(job, state, model) if keeps_init(job.cfg) else None
+    if decision is not None and decision.kept_init:
+        model = build_network(job.cfg, job.num_classes).eval()  # on the CPU, as exported
     n_train = len(job.train_data)
     job.train_data = None  # its memory, before the test split is loaded
     test_data = load_splits(job.datasets, "test", job.num_classes, job.cfg.data.limit,
                             job.cfg.progress)
     images = {"train": n_train, "val": len(job.val_data), "test": len(test_data)}
     metrics = run_metrics(job, state, model, best, images)
+    if decision is not None:
+        metrics["keep"] = decision.as_dict()
+        log.info("%s", decision.message())
     onnx_path = export_onnx(job, model, test_data, metrics)
     metrics["test"] = test = score_graph(job, onnx_path, test_data)
     metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
@@ -475,7 +531,8 @@ def finish(job: TrainJob, state: dict, t_start: float) -> dict:
              metrics["onnx_max_abs_diff"])
     quantize(job, metrics)
     print(f"metrics: {job.out_dir / 'metrics.json'}")
-    print(f"onnx:    {onnx_path}")
+    print(f"onnx:    {onnx_path}" + ("" if decision is None else
+                                          f" ({decision.kept_what()})"))
     if "int8" in metrics:
         print(f"int8:    {job.out_dir / INT8_NAME}")
     return metrics

@@ -28,6 +28,7 @@ HASH_EXCLUDE = (
     "eval.batch_size",
     "localize",
     "export",
+    "keep",
 )
 #: A model folder belongs to its training config and dataset.json (core.outputs): config.json
 #: holds them; one run at a time.

@@ -43,14 +43,18 @@ def test_every_experiment_file_is_known() -> None:
 
 
 def test_generalist_recipes_compose() -> None:
-    """The generalist trains on every procedural floor; fine-tuning starts from the shipped
-    generalist's folder with a 10-minute budget."""
+    """The generalist trains on every procedural floor for its epochs, whatever they take;
+    fine-tuning starts from the shipped generalist's folder with a 10-minute budget and keeps
+    the generalist where it shows no gain."""
     cfg = compose_experiment("generalist")
     assert (cfg.name, cfg.dataset, cfg.init_from) == (
         "generalist", "outputs/datasets/generalist/floor*", None)
+    assert cfg.max_minutes is None  # the epochs alone: the same network on any machine
+    assert not cfg.keep.init_unless_gain
     cfg = compose_experiment("finetune", "dataset=outputs/datasets/office")
     assert (cfg.init_from, cfg.max_minutes) == ("models/generalist", 10)
     assert cfg.dataset == "outputs/datasets/office"
+    assert cfg.keep.init_unless_gain  # the generalist ships where the fine-tune gains nothing
 
 
 def test_finetune_of_ones_building() -> None:

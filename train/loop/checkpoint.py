@@ -75,6 +75,9 @@ def new_state(epochs: int) -> dict:
         "train_seconds": 0.0,
         "stopped_by_budget": False,
         "epochs": epochs,
+        # init_from's network on the validation split, image by image (train.run.init_scores):
+        # the keep rule's baseline; None without the rule or before it is scored
+        "init_val": None,
     }
 
 

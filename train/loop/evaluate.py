@@ -1,13 +1,17 @@
 """Scores on a split: the torch network's (validation) and the exported graph's (the test).
 
-The test score is that of the labels the localizer reads: the ``labels`` output of
-``segnet.onnx`` run by onnxruntime through ``core.segmenter.OnnxSegmenter``, the class reader of
-``localize.frontend.segmenter.load_segmenter``. Validation, run after every epoch, scores the torch
-network's argmax (the export's parity check holds the two to the same labels).
+Validation keeps each image's confusion matrix and boundary counts (``ImageScores``): the
+keep rule of a fine-tune (train/keep.py) resamples the images to judge a difference against
+the split's noise. The test score is that of the labels the localizer reads: the ``labels``
+output of ``segnet.onnx`` run by onnxruntime through ``core.segmenter.OnnxSegmenter``, the
+class reader of ``localize.frontend.segmenter.load_segmenter``. Validation, run after every
+epoch, scores the torch network's argmax (the export's parity check holds the two to the same
+labels).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +19,30 @@ import torch
 from tqdm import tqdm
 
 from train.data import SplitData, batches, num_batches, to_float
-from train.metrics import confusion_matrix
+from train.metrics import boundary_counts, boundary_f, confusion_matrix, scores
 from train.net.segnet import SegNet
+
+
+@dataclass(frozen=True)
+class ImageScores:
+    """A network's scores on a split, image by image.
+
+    Attributes:
+        confusion: (N, C, C) int64 confusion matrices, rows = truth.
+        boundary: (N, 4) int64 ``train.metrics.boundary_counts`` at 2 px.
+    """
+
+    confusion: np.ndarray
+    boundary: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.confusion.shape[0])
+
+    def summary(self) -> dict:
+        """``train.metrics.scores`` of the summed confusion matrix (pixel_accuracy,
+        class_accuracy, mean_iou, ...) and ``boundary_f`` of the summed counts
+        (boundary_precision, boundary_recall, boundary_f)."""
+        return scores(self.confusion.sum(0)) | boundary_f(self.boundary.sum(0))
 
 
 def _bar(data: SplitData, batch_size: int, progress: bool, desc: str):
@@ -25,15 +51,16 @@ def _bar(data: SplitData, batch_size: int, progress: bool, desc: str):
 
 
 @torch.inference_mode()
-def evaluate(
+def score_images(
     model: SegNet,
     data: SplitData,
     num_classes: int,
     batch_size: int = 8,
     progress: bool = False,
     desc: str = "eval",
-) -> torch.Tensor:
-    """Confusion matrix of the torch network's argmax on a split (full images, no augmentation).
+) -> ImageScores:
+    """Each image's confusion matrix and boundary counts (2 px) of the torch network's argmax
+    on a split (full images, no augmentation).
 
     Args:
         model: the network (put in eval mode; the images go to its device).
@@ -41,17 +68,20 @@ def evaluate(
         num_classes: C.
         batch_size: images per forward pass.
         progress: show a progress bar labelled ``desc``.
-
-    Returns:
-        (C, C) int64, rows = truth.
     """
     model.eval()
     device = next(model.parameters()).device
-    cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
+    cms, counts = [], []
     for idx in _bar(data, batch_size, progress, desc):
-        logits = model(to_float(data.images[idx]).to(device))
-        cm += confusion_matrix(logits.argmax(1).cpu(), data.labels[idx], num_classes)
-    return cm
+        pred = model(to_float(data.images[idx]).to(device)).argmax(1).cpu()
+        truth = data.labels[idx]
+        for p, t in zip(pred, truth, strict=True):
+            cms.append(confusion_matrix(p, t, num_classes).numpy())
+            counts.append(boundary_counts(p.numpy(), t.numpy()))
+    if not cms:
+        return ImageScores(np.zeros((0, num_classes, num_classes), np.int64),
+                           np.zeros((0, 4), np.int64))
+    return ImageScores(np.stack(cms), np.stack(counts))
 
 
 def evaluate_onnx(
