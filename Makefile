@@ -73,8 +73,8 @@ best: setup
 	@echo "report: outputs/reports/best/report.md"
 
 # The generalist SegNet, for buildings it never saw (docs/recipes.md, "Remaking the
-# generalist"): 24 procedural floors (~40 min; `hydra/launcher=ray` or `slurm` spreads them),
-# then 14 epochs of training (23 min; the epochs bound it, no time budget), each epoch logged
+# generalist"): 48 procedural floors (~2 h; `hydra/launcher=ray` or `slurm` spreads them),
+# then 40 epochs of training (~2.5 h; the epochs bound it, no time budget), each epoch logged
 # with the time left. Stopped anyhow (kill -9, a new session), `make generalist` again
 # continues: datagen renders only the frames missing, training resumes after its last finished
 # epoch with the same schedule and counts the time already trained. It writes
