@@ -38,6 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.class_swap import swapped_source  # noqa: E402
+from benchmarks.thirdparty import tracking  # noqa: E402
 from core import classes as C  # noqa: E402
 from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
 from localize.offline.runner import run as localize  # noqa: E402
@@ -66,13 +67,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def mean_errors(metrics: dict) -> dict[str, float]:
-    """Per mode, the mean position error (m) over a report's flights (``metrics.json``)."""
-    errs: dict[str, list[float]] = {}
-    for per_mode in metrics["flights"].values():
-        for mode, e in per_mode.items():
-            if "mean_position_error_m" in e:
-                errs.setdefault(mode, []).append(e["mean_position_error_m"])
-    return {m: float(np.mean(v)) for m, v in errs.items()}
+    """Per mode, the mean position error (m) over a report's flights (``metrics.json``;
+    ``thirdparty.tracking``'s means)."""
+    return {m: t["mean_m"] for m, t in tracking(metrics).items()}
 
 
 def costs(errors: dict[str, float]) -> dict[str, float]:

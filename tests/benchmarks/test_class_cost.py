@@ -20,9 +20,9 @@ def test_costs_are_the_cnn_error_minus_the_swapped():
 
 
 def test_mean_errors_average_the_flights_per_mode():
-    m = {"flights": {"a": {"cnn": {"mean_position_error_m": 0.2}, "oracle": {}},
-                     "b": {"cnn": {"mean_position_error_m": 0.4},
-                           "oracle": {"mean_position_error_m": 0.1}}}}
+    run = lambda m: {"mean_position_error_m": m, "per_seed_mean_m": [m], "lost_rate": 0.0}  # noqa: E731
+    m = {"flights": {"a": {"cnn": run(0.2), "oracle": {}},
+                     "b": {"cnn": run(0.4), "oracle": run(0.1)}}}
     assert mean_errors(m) == pytest.approx({"cnn": 0.3, "oracle": 0.1})
 
 
