@@ -41,7 +41,7 @@ from core.imaging.realism import MapErrorConfig, realism_label
 from core.outputs import FolderPolicy
 from datagen.config import CameraConfig, DatagenConfig
 from datagen.distractors.presets import check_preset
-from datagen.flights import trajectories
+from datagen.flights import training_views, trajectories
 from datagen.realism import ahrs, builtin_objects, calibration, map_error, optics, timing
 from datagen.worlds.scene import Scene
 from datagen.worlds.site import Site, build_site
@@ -227,7 +227,7 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
     A share ``training.flight_views`` of them (decided per frame by its own generator) are
     posed as the flights fly (``trajectories.sample_flight_views``, along each preset's route,
     resolved once per split), the rest spread over the free space
-    (``trajectories.sample_training_poses``; heights ``training.z_range`` where the ceiling
+    (``training_views.sample_training_poses``; heights ``training.z_range`` where the ceiling
     leaves room, ``Site.camera_top``).
     """
     tr, seed, free = cfg.training, cfg.seed, site.world.free
@@ -257,7 +257,7 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
             poses[i] = trajectories.sample_flight_views(
                 rng_for(seed, stream, i, 4), 1, free, z_range, presets, routes)[0]
         else:
-            poses[i] = trajectories.sample_training_poses(
+            poses[i] = training_views.sample_training_poses(
                 rng_for(seed, stream, i, 0), 1, free, spread,
                 tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg,
                 tr.min_view_m, handheld=tr.handheld,

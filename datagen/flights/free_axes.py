@@ -2,7 +2,7 @@
 
 In a corridor that is the corridor's long axis wherever one stands in it (even at its ends,
 where the end wall is nearer than the side walls), in a room its long side; training poses
-look along it as a copter flying there would (``trajectories.sample_training_poses``).
+look along it as a copter flying there would (``training_views.sample_training_poses``).
 """
 
 from __future__ import annotations

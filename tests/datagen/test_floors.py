@@ -15,6 +15,7 @@ from core.poses import xyzyaw_from_pose
 from datagen.config import FlightConfig, TrajectoryConfig
 from datagen.distractors.crowd import person_tracks
 from datagen.distractors.placement import place_objects
+from datagen.flights import training_views as TV
 from datagen.flights import trajectories as TR
 from datagen.flights.routes import find_turns, route_at, route_length
 from tests.buildings import BAND, MARGIN, assemble, occupancy, ring
@@ -122,7 +123,7 @@ def straight(length: float = 12.0, width: float = 2.0):
 class TestTrainingPoses:
     def test_along_a_straight_corridor(self):
         occ = OccupancyMap.from_mesh(*straight(), BAND, MARGIN, 0.05)
-        T = TR.sample_training_poses(np.random.default_rng(0), 2000, occ, BAND, 5.0,
+        T = TV.sample_training_poses(np.random.default_rng(0), 2000, occ, BAND, 5.0,
                                      along_fraction=1.0, along_spread_deg=20.0)
         s = xyzyaw_from_pose(T)
         assert occ.contains(s[:, :2]).all()
@@ -135,7 +136,7 @@ class TestTrainingPoses:
 
     def test_along_each_leg_of_the_ell(self):
         occ = occupancy("ell")
-        T = TR.sample_training_poses(np.random.default_rng(1), 2000, occ, BAND, 0.0,
+        T = TV.sample_training_poses(np.random.default_rng(1), 2000, occ, BAND, 0.0,
                                      along_fraction=1.0, along_spread_deg=0.0)
         s = xyzyaw_from_pose(T)
         assert occ.contains(s[:, :2]).all()
@@ -147,11 +148,11 @@ class TestTrainingPoses:
 
     def test_uniform_yaw_and_deterministic(self):
         occ = occupancy("ring")
-        T = TR.sample_training_poses(np.random.default_rng(2), 4000, occ, BAND,
+        T = TV.sample_training_poses(np.random.default_rng(2), 4000, occ, BAND,
                                      along_fraction=0.0)
         hist = np.histogram(xyzyaw_from_pose(T)[:, 3], bins=8, range=(-np.pi, np.pi))[0]
         assert hist.min() > 0.7 * 4000 / 8
-        again = TR.sample_training_poses(np.random.default_rng(2), 4000, occ, BAND,
+        again = TV.sample_training_poses(np.random.default_rng(2), 4000, occ, BAND,
                                          along_fraction=0.0)
         np.testing.assert_array_equal(T, again)
 

@@ -16,7 +16,7 @@ from core.config import compose_config, typed
 from core.occupancy import OccupancyMap
 from datagen import job as J
 from datagen.config import DatagenConfig, ProceduralWorldConfig, TrainingConfig
-from datagen.flights import trajectories as TR
+from datagen.flights import training_views as TV
 from datagen.worlds.site import STANDING_BAND, TALL_BAND, build_site, corridor_site
 
 BOXES = np.array([[-0.7, 0.3, 0.7, 9.7]])
@@ -34,7 +34,7 @@ class TestPoses:
     def test_handheld_tilts(self):
         """A share of handheld poses pitch up and down to 20 deg and roll to 15; the rest
         keep max_roll_pitch_deg; none drawn when the share is 0."""
-        T = TR.sample_training_poses(np.random.default_rng(0), 4000, FREE, Z, 5.0,
+        T = TV.sample_training_poses(np.random.default_rng(0), 4000, FREE, Z, 5.0,
                                      handheld=0.5, handheld_deg=(20.0, 15.0))
         roll, pitch = tilts_deg(T).T
         assert np.abs(pitch).max() <= 20 + 1e-6 and np.abs(roll).max() <= 15 + 1e-6
@@ -42,17 +42,17 @@ class TestPoses:
         assert (pitch > 10).mean() > 0.1 and (pitch < -10).mean() > 0.1  # up and down
         assert (np.abs(roll) > 10).mean() > 0.08
         np.testing.assert_array_equal(
-            TR.sample_training_poses(np.random.default_rng(1), 50, FREE, Z, handheld=0.0),
-            TR.sample_training_poses(np.random.default_rng(1), 50, FREE, Z))
+            TV.sample_training_poses(np.random.default_rng(1), 50, FREE, Z, handheld=0.0),
+            TV.sample_training_poses(np.random.default_rng(1), 50, FREE, Z))
         with pytest.raises(ValueError, match="training.handheld"):
-            TR.sample_training_poses(np.random.default_rng(0), 3, FREE, Z, handheld=2.0)
+            TV.sample_training_poses(np.random.default_rng(0), 3, FREE, Z, handheld=2.0)
 
     def test_heights_under_the_top(self):
         """Heights are uniform up to the z range's max where the top allows, under the top
         elsewhere, and never capped below the free space's band."""
         def top(xy):
             return np.where(xy[:, 1] < 5.0, 2.0, 2.45)
-        T = TR.sample_training_poses(np.random.default_rng(2), 4000, FREE, [0.5, 2.5], top=top)
+        T = TV.sample_training_poses(np.random.default_rng(2), 4000, FREE, [0.5, 2.5], top=top)
         p = T[:, :3, 3]
         low = p[:, 1] < 5.0
         assert (p[:, 2] >= 0.5).all()

@@ -13,6 +13,7 @@ from core.config import compose_config
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyz_rpy, xyzyaw_from_pose
 from datagen.config import OdometryConfig
+from datagen.flights import training_views as TV
 from datagen.flights import trajectories as TR
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
@@ -45,7 +46,7 @@ def assert_rigid(T: np.ndarray) -> None:
 
 class TestTrainingPoses:
     def test_inside_and_bounded(self):
-        T = TR.sample_training_poses(np.random.default_rng(0), 4000, FREE, Z, 5.0,
+        T = TV.sample_training_poses(np.random.default_rng(0), 4000, FREE, Z, 5.0,
                                      along_fraction=0.0)
         assert T.shape == (4000, 4, 4)
         assert_rigid(T)
@@ -63,7 +64,7 @@ class TestTrainingPoses:
 
     def test_along_corridor_share(self):
         main = OccupancyMap.from_boxes(BOXES[:1], Z, cell=0.05, margin=0.3)
-        T = TR.sample_training_poses(np.random.default_rng(1), 4000, main, Z, 5.0,
+        T = TV.sample_training_poses(np.random.default_rng(1), 4000, main, Z, 5.0,
                                      along_fraction=0.75, along_spread_deg=30.0)
         yaw = rpy(T)[:, 2]
         off_axis = np.abs(np.abs(yaw) - np.pi / 2)  # angle from the nearest of +Y, -Y
@@ -72,38 +73,38 @@ class TestTrainingPoses:
         assert near.mean() == pytest.approx(0.75 + 0.25 / 3, abs=0.03)
         assert (yaw > 0).mean() == pytest.approx(0.5, abs=0.04)  # both directions
         with pytest.raises(ValueError, match="yaw_along_corridor"):
-            TR.sample_training_poses(np.random.default_rng(0), 3, FREE, Z, along_fraction=1.5)
+            TV.sample_training_poses(np.random.default_rng(0), 3, FREE, Z, along_fraction=1.5)
 
     def test_deterministic(self):
-        a = TR.sample_training_poses(np.random.default_rng(4), 10, FREE, Z)
-        b = TR.sample_training_poses(np.random.default_rng(4), 10, FREE, Z)
+        a = TV.sample_training_poses(np.random.default_rng(4), 10, FREE, Z)
+        b = TV.sample_training_poses(np.random.default_rng(4), 10, FREE, Z)
         np.testing.assert_array_equal(a, b)
 
     def test_bad_input(self):
         with pytest.raises(ValueError, match="z_range"):
-            TR.sample_training_poses(np.random.default_rng(0), 3, FREE, [2.0, 1.0])
+            TV.sample_training_poses(np.random.default_rng(0), 3, FREE, [2.0, 1.0])
 
     def test_view_depth(self):
         """The free space ahead, to the edges of its box: along the corridor (+Y from y = 1)
         8.7 m, across it (+X from x = 0) 0.7 m."""
         along = pose_from_xyz_rpy(np.array([[0.0, 1.0, 1.0]]), np.array([[0, 0, np.pi / 2]]))
         across = pose_from_xyz_rpy(np.array([[0.0, 1.0, 1.0]]), np.array([[0, 0, 0.0]]))
-        d = TR.view_depth(FREE, np.concatenate([along, across]), 20.0)
+        d = TV.view_depth(FREE, np.concatenate([along, across]), 20.0)
         np.testing.assert_allclose(d, [8.7, 0.7], atol=0.05)
-        assert TR.view_depth(FREE, along, 3.0)[0] == pytest.approx(3.0)
+        assert TV.view_depth(FREE, along, 3.0)[0] == pytest.approx(3.0)
 
     def test_min_view(self):
         """min_view_m draws again the poses that see less free space ahead; 0 draws exactly
         what no check draws."""
-        free = TR.view_depth(FREE, TR.sample_training_poses(
+        free = TV.view_depth(FREE, TV.sample_training_poses(
             np.random.default_rng(2), 500, FREE, Z, along_fraction=0.0), 3.0)
         assert (free < 1.0).mean() > 0.3  # a uniform yaw in a 2 m corridor faces the walls
-        T = TR.sample_training_poses(np.random.default_rng(2), 500, FREE, Z, along_fraction=0.0,
+        T = TV.sample_training_poses(np.random.default_rng(2), 500, FREE, Z, along_fraction=0.0,
                                      min_view_m=1.0)
-        assert (TR.view_depth(FREE, T, 3.0) >= 1.0).all()
+        assert (TV.view_depth(FREE, T, 3.0) >= 1.0).all()
         np.testing.assert_array_equal(
-            TR.sample_training_poses(np.random.default_rng(3), 20, FREE, Z, min_view_m=0.0),
-            TR.sample_training_poses(np.random.default_rng(3), 20, FREE, Z))
+            TV.sample_training_poses(np.random.default_rng(3), 20, FREE, Z, min_view_m=0.0),
+            TV.sample_training_poses(np.random.default_rng(3), 20, FREE, Z))
 
 
 class TestFlightViews:
