@@ -22,7 +22,7 @@ the margin.
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,10 +31,11 @@ import numpy as np
 from scipy import ndimage
 
 from core import classes as C
+from core import raster
 from core.atomic import atomic_write
 
 _TOL = 1e-6  # m, slack of the margin test (distances are sums of cell multiples)
-_MAX_POINTS = 1 << 19  # surface samples per chunk (memory bound of from_mesh)
+MAX_POINTS = 1 << 19  # surface samples per chunk (memory bound of from_mesh)
 _KEYS = ("free", "clearance", "origin", "cell", "band", "margin")
 #: The most cells a map may have: 0.5 km^2 of 0.1 m cells (a 700 m square; building it from a
 #: mesh takes a few GB and minutes). A model read in the wrong units is far larger.
@@ -133,29 +134,30 @@ class OccupancyMap:
             raise ValueError(f"obstacle_span must be in [0, 1] and close, max_hole >= 0, got "
                              f"{obstacle_span}, {close}, {max_hole}")
         tri, index = v[f], np.arange(len(f))
-        in_band = _clip_z(*_clip_z(tri, index, z_lo, above=True), z_hi, above=False)
+        in_band = raster.clip_z(*raster.clip_z(tri, index, z_lo, above=True), z_hi, above=False)
         if obstacle_span > 0:
-            blocked = _band_cover(in_band[0], grid, z_lo) >= obstacle_span * (z_hi - z_lo) - _TOL
+            span = obstacle_span * (z_hi - z_lo)
+            blocked = raster.band_cover(in_band[0], grid, z_lo) >= span - _TOL
         else:
-            blocked = _footprint(*in_band, grid)
+            blocked = raster.footprint(*in_band, grid)
         is_floor = np.isin(cls_, np.asarray(floor_classes))
-        floor = _footprint(*_clip_z(tri[is_floor], index[is_floor], z_lo, above=False,
-                                    strict=True), grid)
+        floor = raster.footprint(*raster.clip_z(tri[is_floor], index[is_floor], z_lo,
+                                                above=False, strict=True), grid)
         if not floor.any():
             raise ValueError(f"mesh: no floor below the band {[z_lo, z_hi]} (faces of classes "
                              f"{list(floor_classes)} below z = {z_lo}); check the face classes "
                              "and the band")
         is_ceiling = np.isin(cls_, np.asarray(ceiling_classes, dtype=cls_.dtype))
         if is_ceiling.any():
-            ceiling = _footprint(*_clip_z(tri[is_ceiling], index[is_ceiling], z_hi,
-                                          above=True, strict=True), grid)
+            ceiling = raster.footprint(*raster.clip_z(tri[is_ceiling], index[is_ceiling], z_hi,
+                                                      above=True, strict=True), grid)
             floor |= ceiling
-        floor = _fill_holes(_close(floor, close / cell), max_hole / cell**2)
+        floor = raster.fill_holes(raster.close(floor, close / cell), max_hole / cell**2)
         top_up = np.zeros(shape, bool)
         if exclude_solids:  # inside a solid over the top ``obstacle_span`` of the band
             level = z_hi - obstacle_span * (z_hi - z_lo)
-            above, parent = _clip_z(tri, index, level, above=True, strict=True)
-            top_up = _lowest_faces_up(above, _normal_z(tri)[parent] > 0, grid)
+            above, parent = raster.clip_z(tri, index, level, above=True, strict=True)
+            top_up = raster.lowest_faces_up(above, raster.normal_z(tri)[parent] > 0, grid)
             if obstacle_span > 0:  # a solid is wider than a stray triangle: 3 x 3 cells
                 top_up = ndimage.binary_opening(top_up, np.ones((3, 3), bool))
         raw = floor & ~blocked & ~top_up
@@ -219,7 +221,7 @@ class OccupancyMap:
 
     def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cells of points: (2, N) int64 [row, col] (clipped) and (N,) bool inside the grid."""
-        return _cells(np.asarray(xy, dtype=np.float64).reshape(-1, 2), self.origin,
+        return raster.cells(np.asarray(xy, dtype=np.float64).reshape(-1, 2), self.origin,
                       self.cell, self.shape)
 
     def centres(self, rc: np.ndarray) -> np.ndarray:
@@ -364,9 +366,9 @@ def lowest_above(vertices: np.ndarray, faces: np.ndarray, occ: OccupancyMap,
     tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     flat = np.abs(n[:, 2]) >= 0.5 * np.linalg.norm(n, axis=1)
-    tri = _clip_z(tri[flat], np.flatnonzero(flat), level, above=True, strict=True)[0]
+    tri = raster.clip_z(tri[flat], np.flatnonzero(flat), level, above=True, strict=True)[0]
     lowest = np.full(int(np.prod(occ.shape)), np.inf)
-    for pts, _ in _samples(tri, occ.cell / 2):
+    for pts, _ in raster.samples(tri, occ.cell / 2):
         rc, inside = occ.cell_of(pts[:, :2])
         np.minimum.at(lowest, np.ravel_multi_index((rc[0, inside], rc[1, inside]), occ.shape),
                       pts[inside, 2])
@@ -420,183 +422,3 @@ def _grid(lo: np.ndarray, hi: np.ndarray, cell: float) -> tuple[np.ndarray, tupl
                          f"read as metres is 1000 x too wide); else use a larger cell")
     origin = (k0 - 0.5) * cell
     return origin, (int(k1[1] - k0[1] + 1), int(k1[0] - k0[0] + 1))
-
-
-def _cells(xy: np.ndarray, origin: np.ndarray, cell: float,
-           shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    cr = np.floor((xy - origin) / cell).astype(np.int64)
-    inside = ((cr >= 0) & (cr < np.array([shape[1], shape[0]]))).all(1)
-    rc = np.stack([np.clip(cr[:, 1], 0, shape[0] - 1), np.clip(cr[:, 0], 0, shape[1] - 1)])
-    return rc, inside
-
-
-def _normal_z(tri: np.ndarray) -> np.ndarray:
-    """(F,) z of the triangles' (unnormalised) normals, counter-clockwise winding."""
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    return n[:, 2]
-
-
-def _clip_z(tri: np.ndarray, parent: np.ndarray, level: float, above: bool,
-            strict: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """The parts of triangles (T, 3, 3) at z >= level (``above``) or z <= level, or strictly
-    beyond it (``strict``), as triangles, each with its ``parent`` (T,) entry."""
-    d = (tri[:, :, 2] - level) * (1 if above else -1)
-    inside = d > 0 if strict else d >= 0
-    n_in = inside.sum(1)
-    out_tri, out_parent = [tri[n_in == 3]], [parent[n_in == 3]]
-    for n, odd in ((1, inside), (2, ~inside)):  # roll the odd vertex out to position 0
-        sel = n_in == n
-        first = np.argmax(odd[sel], axis=1)
-        idx = (first[:, None] + np.arange(3)) % 3
-        t = np.take_along_axis(tri[sel], idx[:, :, None], axis=1)
-        dd = np.take_along_axis(d[sel], idx, axis=1)
-        a, b, c = t[:, 0], t[:, 1], t[:, 2]
-        ab = a + (b - a) * (dd[:, :1] / (dd[:, :1] - dd[:, 1:2]))
-        ac = a + (c - a) * (dd[:, :1] / (dd[:, :1] - dd[:, 2:3]))
-        if n == 1:  # a inside: one triangle
-            out_tri.append(np.stack([a, ab, ac], 1))
-            out_parent.append(parent[sel])
-        else:  # a outside: the quad ab, b, c, ac
-            out_tri += [np.stack([ab, b, c], 1), np.stack([ab, c, ac], 1)]
-            out_parent += [parent[sel], parent[sel]]
-    return np.concatenate(out_tri), np.concatenate(out_parent)
-
-
-def _footprint(tri: np.ndarray, parent: np.ndarray, grid: tuple) -> np.ndarray:
-    """(H, W) bool: the cells the triangles' XY footprints touch."""
-    origin, cell, shape, spacing = grid
-    mask = np.zeros(shape, bool)
-    for pts, _ in _samples(tri, spacing):
-        rc, inside = _cells(pts[:, :2], origin, cell, shape)
-        mask[rc[0, inside], rc[1, inside]] = True
-    return mask
-
-
-def _close(mask: np.ndarray, radius: float) -> np.ndarray:
-    """(H, W) bool: the morphological closing of ``mask`` by a disc of ``radius`` cells (the
-    mask padded first, so that nothing is lost at the grid's edge)."""
-    r = int(np.ceil(radius - 1e-9))
-    if r <= 0:
-        return mask
-    y, x = np.ogrid[-r:r + 1, -r:r + 1]
-    disc = x * x + y * y <= radius * radius + 1e-9
-    return ndimage.binary_closing(np.pad(mask, r), disc)[r:-r, r:-r] | mask
-
-
-def _fill_holes(mask: np.ndarray, max_cells: float) -> np.ndarray:
-    """(H, W) bool: ``mask`` with its holes (regions of ~mask not reaching the grid's edge,
-    4-connected) of at most ``max_cells`` cells filled."""
-    if max_cells <= 0:
-        return mask
-    label, _ = ndimage.label(~mask)
-    size = np.bincount(label.ravel())
-    edge = np.unique(np.concatenate([label[0], label[-1], label[:, 0], label[:, -1]]))
-    fill = size <= max_cells
-    fill[0] = False
-    fill[edge] = False
-    return mask | fill[label]
-
-
-def _band_cover(tri: np.ndarray, grid: tuple, z_lo: float) -> np.ndarray:
-    """(H, W) m of height covered in each cell by triangles (T, 3, 3) clipped to a band above
-    ``z_lo``: the length of the union of the height ranges of the triangles whose XY
-    footprints touch the cell (a triangle counts with its whole height range, so a long
-    sloped one covers more than its part over the cell: obstacles err on the safe side)."""
-    origin, cell, shape, spacing = grid
-    n_cells = int(np.prod(shape))
-    if len(tri) == 0:
-        return np.zeros(shape)
-    keys = []
-    for pts, t in _samples(tri, spacing):
-        rc, inside = _cells(pts[:, :2], origin, cell, shape)
-        flat = np.ravel_multi_index((rc[0, inside], rc[1, inside]), shape)
-        keys.append(np.unique(flat * len(tri) + t[inside]))
-    c, t = np.divmod(np.unique(np.concatenate(keys)), len(tri))
-    lo, hi = tri[t, :, 2].min(1) - z_lo, tri[t, :, 2].max(1) - z_lo
-    # merge the ranges per cell: shift each cell's ranges past the previous cell's, order
-    # by start, and a range starts a new run where it begins beyond all before it
-    offset = c * (float(hi.max()) + 1.0)
-    order = np.lexsort((lo, c))
-    a, b, c = lo[order] + offset[order], hi[order] + offset[order], c[order]
-    reach = np.maximum.accumulate(b)
-    new = np.r_[True, a[1:] > reach[:-1]]
-    first = np.flatnonzero(new)
-    length = np.maximum.reduceat(b, first) - a[first]
-    return np.bincount(c[first], weights=length, minlength=n_cells).reshape(shape)
-
-
-def _lowest_faces_up(tri: np.ndarray, up: np.ndarray, grid: tuple) -> np.ndarray:
-    """(H, W) bool: the lowest of the triangles over a cell faces up (``up`` (T,); at equal
-    heights, to 0.1 mm, up wins)."""
-    origin, cell, shape, spacing = grid
-    z0 = tri[:, :, 2].min() if len(tri) else 0.0
-    lowest = np.full(int(np.prod(shape)), np.iinfo(np.int64).max)  # 2 * height + (not up)
-    for pts, t in _samples(tri, spacing):
-        rc, inside = _cells(pts[:, :2], origin, cell, shape)
-        key = 2 * np.round((pts[inside, 2] - z0) * 1e4).astype(np.int64) + ~up[t[inside]]
-        np.minimum.at(lowest, np.ravel_multi_index((rc[0, inside], rc[1, inside]), shape), key)
-    return ((lowest % 2 == 0) & (lowest < np.iinfo(np.int64).max)).reshape(shape)
-
-
-def _split_long(tri: np.ndarray, parent: np.ndarray,
-                max_edge: float) -> tuple[np.ndarray, np.ndarray]:
-    """Halve triangles (T, 3, 3) across their longest XY edge until every XY edge is <=
-    max_edge.
-
-    Returns:
-        the pieces (P, 3, 3) and (P,) the ``parent`` entry of each.
-    """
-    done_tri, done_parent = [tri[:0]], [parent[:0]]
-    while len(tri):
-        edge = np.linalg.norm(tri[:, [1, 2, 0], :2] - tri[:, :, :2], axis=2)  # i -> i + 1
-        ok = edge.max(1) <= max_edge
-        done_tri.append(tri[ok])
-        done_parent.append(parent[ok])
-        tri, parent, longest = tri[~ok], parent[~ok], edge[~ok].argmax(1)
-        # roll so the longest edge is vertex 0 -> 1, then split it at its midpoint
-        idx = (longest[:, None] + np.arange(3)) % 3
-        t = np.take_along_axis(tri, idx[:, :, None], axis=1)
-        mid = (t[:, 0] + t[:, 1]) / 2
-        tri = np.concatenate([np.stack([t[:, 0], mid, t[:, 2]], 1),
-                              np.stack([mid, t[:, 1], t[:, 2]], 1)])
-        parent = np.concatenate([parent, parent])
-    return np.concatenate(done_tri), np.concatenate(done_parent)
-
-
-def _samples(tri: np.ndarray, spacing: float) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """Points on triangles (T, 3, 3) whose XY lattice steps are at most ``spacing``.
-
-    Each triangle gets the lattice A + i/ku (B - A) + j/kv (C - A), i/ku + j/kv <= 1, with A
-    the corner opposite its longest XY edge and ku, kv the XY lengths of AB, AC over the
-    spacing: every point of the triangle's XY footprint is within ``spacing`` of a sample.
-    Triangles are split first so that one has at most ~2000 points, and a chunk at most
-    ``_MAX_POINTS``.
-
-    Yields:
-        points (P, 3) and (P,) the index of each point's triangle in ``tri``.
-    """
-    tri, parent = _split_long(tri, np.arange(len(tri)), 64 * spacing)
-    edge = np.linalg.norm(tri[:, [1, 2, 0], :2] - tri[:, :, :2], axis=2)
-    a = (edge.argmax(1) + 2) % 3  # the corner opposite the longest edge
-    idx = (a[:, None] + np.arange(3)) % 3
-    t = np.take_along_axis(tri, idx[:, :, None], axis=1)
-    ab, ac = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    ku = np.maximum(np.ceil(np.linalg.norm(ab[:, :2], axis=1) / spacing), 1).astype(np.int64)
-    kv = np.maximum(np.ceil(np.linalg.norm(ac[:, :2], axis=1) / spacing), 1).astype(np.int64)
-    bound = np.cumsum((ku + 1) * (kv + 1))  # points per triangle are at most this
-    start = 0
-    while start < len(t):
-        base = bound[start - 1] if start else 0
-        stop = max(int(np.searchsorted(bound, base + _MAX_POINTS, side="right")), start + 1)
-        # rows i of every triangle, then the points j of every row
-        rows = ku[start:stop] + 1
-        row_tri = np.repeat(np.arange(start, stop), rows)
-        i = np.arange(rows.sum()) - np.repeat(np.cumsum(rows) - rows, rows)
-        u = i / ku[row_tri]
-        per_row = np.floor(kv[row_tri] * (1 - u) + 1e-9).astype(np.int64) + 1
-        which = np.repeat(row_tri, per_row)
-        j = np.arange(per_row.sum()) - np.repeat(np.cumsum(per_row) - per_row, per_row)
-        u, v = np.repeat(u, per_row), j / kv[which]
-        pts = t[which, 0] + u[:, None] * ab[which] + v[:, None] * ac[which]
-        yield pts, parent[which]
-        start = stop
