@@ -174,7 +174,7 @@ def ring_wall_distance(xy: np.ndarray) -> np.ndarray:
 
 
 class TestDistractorsOnFloors:
-    HALF_CELL = 0.025  # m, a map's distances are within half a cell (core/occupancy.py)
+    HALF_CELL = 0.025  # m, a map's distances are within half a cell (core/occupancy)
 
     def test_objects_clear_of_walls_and_each_other(self, ring_floor):
         for seed in range(6):

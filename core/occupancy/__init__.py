@@ -31,8 +31,8 @@ import numpy as np
 from scipy import ndimage
 
 from core import classes as C
-from core import raster
 from core.atomic import atomic_write
+from core.occupancy import raster
 
 _TOL = 1e-6  # m, slack of the margin test (distances are sums of cell multiples)
 MAX_POINTS = 1 << 19  # surface samples per chunk (memory bound of from_mesh)

@@ -1,6 +1,6 @@
 """Triangles onto a 2D grid of cells: footprints, band covers and lowest faces.
 
-The rasterization behind ``core.occupancy.OccupancyMap.from_mesh``. Triangles are (F, 3, 3)
+The rasterization behind ``OccupancyMap.from_mesh``. Triangles are (F, 3, 3)
 world metres (Z up); a grid is ``(origin (2,) m, cell m, shape (H, W))`` with rows along +Y
 and columns along +X, as the occupancy map's. Triangles are sampled densely enough that every
 cell they cross gets a sample (``samples``); long ones are split first so that each chunk of
