@@ -9,10 +9,12 @@ over the next one, the spread of the set and of the heaviest hypothesis, the fil
 confidence, the best particle's fit and the effective sample size's share.
 
 The map: the inputs standardized, a logistic regression (with each input's product with the
-search flag, so the search's frames and the filter's weigh them apart), then an isotonic
-(monotone) regression of the validation frames' outcomes on the logistic score, kept as
-knots and interpolated (``QualityModel``). One calibration per edge mode (the labels differ:
-the SegNet's blur the floor boundary), in one JSON file; the shipped one is
+search flag, so the search's frames and the filter's weigh them apart), its score mapped to
+the quality by knots, interpolated (``QualityModel``): the sigmoid, or an isotonic (monotone)
+regression of the validation frames' outcomes on the score (``fit``; which one, and the
+ridge penalty, chosen by leaving one validation floor out: benchmarks/quality.py). One
+calibration per edge mode (the labels differ: the SegNet's blur the floor boundary), in one
+JSON file; the shipped one is
 ``localize/filter/quality.json`` (``filter.quality_model``: null). A mode it has no
 calibration for gets NaN (and no status gate).
 
@@ -151,8 +153,16 @@ class QualityModel:
                    dict(d.get("fitted_on", {})))
 
 
+#: ``fit``'s maps from the logistic score to the quality.
+MAPS = ("logistic", "isotonic")
+#: The logistic map's knots: scores from -SCORE_SPAN to SCORE_SPAN (the sigmoid, off by
+#: < 1e-3 between knots; flat outside, where it is within 1e-5 of 0 or 1).
+SCORE_SPAN, SCORE_STEP = 12.0, 0.1
+
+
 def fit(x: np.ndarray, within: np.ndarray, groups: np.ndarray | None = None,
-        l2: float = 1.0, fitted_on: dict | None = None) -> QualityModel:
+        l2: float = 10.0, method: str = "logistic",
+        fitted_on: dict | None = None) -> QualityModel:
     """A calibration from validation frames.
 
     Args:
@@ -160,14 +170,17 @@ def fit(x: np.ndarray, within: np.ndarray, groups: np.ndarray | None = None,
         within: (N,) bool, the frame's error was below ``within_m``.
         groups: (N,) a run id per frame: each run weighs as much in the logistic fit as any
             other (a run of 300 frames does not count 10x one of 30); None: every frame alike.
-        l2: ridge penalty of the standardized coefficients (per unit of total weight).
+        l2: ridge penalty of the standardized coefficients, x 1e-3 (per unit of total weight).
+        method: the map from the logistic score to the quality: ``logistic`` (its sigmoid,
+            as knots) or ``isotonic`` (``scipy.optimize.isotonic_regression`` of ``within``
+            on the score, its blocks' mean scores as knots).
         fitted_on: stored with it.
 
     Returns:
-        The ``QualityModel``: the logistic regression (L-BFGS), then the isotonic regression
-        of ``within`` on its score (``scipy.optimize.isotonic_regression``), its blocks'
-        mean scores as knots.
+        The ``QualityModel``: the logistic regression (L-BFGS) and the map.
     """
+    if method not in MAPS:
+        raise ValueError(f"quality fit: method must be one of {MAPS}, got {method!r}")
     X = _design(x)
     y = np.asarray(within, dtype=np.float64)
     if len(X) != len(y) or len(y) < 2 or y.min() == y.max():
@@ -193,6 +206,10 @@ def fit(x: np.ndarray, within: np.ndarray, groups: np.ndarray | None = None,
         return float(nll + l2 * 1e-3 * theta[1:] @ theta[1:]), grad
 
     theta = minimize(loss, np.zeros(Z.shape[1] + 1), jac=True, method="L-BFGS-B").x
+    if method == "logistic":
+        kx = np.arange(-SCORE_SPAN, SCORE_SPAN + SCORE_STEP / 2, SCORE_STEP)
+        return QualityModel(mean, scale, theta[1:], float(theta[0]), kx, 1 / (1 + np.exp(-kx)),
+                            dict(fitted_on or {}))
     s = Z @ theta[1:] + theta[0]
     order = np.argsort(s, kind="stable")
     iso = isotonic_regression(y[order], weights=np.ones(len(y))).x
