@@ -171,7 +171,7 @@ class FilterConfig:
     dominant_mass: float = 0.9
     dominant_frames: int = 10
     quality_model: str | None = None
-    tracking_quality: float = 0.5
+    tracking_quality: float = 0.8
     init_std: list[float] = field(default_factory=lambda: [0.1, 0.1, 0.05, 3.0])
     motion_std: list[float] = field(default_factory=lambda: [0.01, 0.005, 0.5])
     mode_motion_std: dict[str, list[float]] | None = field(default_factory=lambda: {
