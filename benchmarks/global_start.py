@@ -20,7 +20,9 @@ the run) by frame 30 / 100 / 200 (None where the runs are shorter), the median f
 metres of travel to that, the false-convergence rate (status ``tracking`` while > 1 m off for
 > 1 s), the filter's ms per global update (the frames the large set is kept, the first left
 out) and the process's peak memory; kidnapped: the share whose loss was declared, and back
-within 0.3 m within 100 frames of the teleport. Timings are context only: the machine's load
+within 0.3 m within 100 frames of the teleport; and the reliability of the estimates'
+calibrated quality (every frame of the floor's runs: per decile of predicted quality, the
+share within 0.3 m). Timings are context only: the machine's load
 (``os.getloadavg``) is recorded beside them.
 
 Writes ``<out-root>/<name>/``: per floor a localize report folder (``reports/<floor>/``: one
@@ -51,6 +53,7 @@ from benchmarks.floor_localize import global_update_ms  # noqa: E402
 from core.atomic import atomic_write, atomic_write_json, atomic_write_text  # noqa: E402
 from core.dataset import Dataset  # noqa: E402
 from core.spliced import flight_segment, kidnapped  # noqa: E402
+from localize.filter.quality import reliability, worst_gap  # noqa: E402
 from localize.offline.metrics import convergence_frame, false_convergence  # noqa: E402
 from localize.offline.runner import RunSpec, check_resume, prepare, run_pass  # noqa: E402
 
@@ -203,7 +206,9 @@ def run_summary(out_dir: Path, run: RunSpec, kind: str, kidnapped_at: int | None
                                                   FALSE_M, FALSE_S),
            "global_update_ms": global_update_ms(rec),
            "peak_particles": int(max(rec["num_particles"])),
-           "final_error_m": float(err[-1])}
+           "final_error_m": float(err[-1]),
+           "quality": [round(float(v), 4) for v in rec.get("quality", [np.nan] * len(err))],
+           "within": (err < WITHIN_M).astype(int).tolist()}
     if kind == "global":
         c = convergence_frame(err, WITHIN_M)
         out.update(converged_frame=c, converged_m=None if c is None else float(travel[c]))
@@ -256,6 +261,10 @@ def summarize(rows: list[dict]) -> dict:
                 r["back_frames"] is not None and r["back_frames"] <= KIDNAP_BACK_FRAMES
                 for r in k])
             entry["kidnap_false_convergence_rate"] = _share([r["false_convergence"] for r in k])
+        runs = g + k
+        entry["quality_reliability"] = reliability(
+            np.concatenate([r["quality"] for r in runs]) if runs else [],
+            np.concatenate([r["within"] for r in runs]) if runs else [])
         table.setdefault(floor, {})[mode] = entry
     return table
 
@@ -296,6 +305,21 @@ def markdown(result: dict) -> str:
                    f"{_pct(e.get(f'kidnap_back_by_{KIDNAP_BACK_FRAMES}'))} | "
                    f"{_pct(e.get('kidnap_false_convergence_rate'))} |"
                    if "kidnaps" in e else "- | - |"))
+    lines += ["", "Quality reliability (every frame of the starts and the kidnappings): per "
+              "decile of the estimates' quality, the share of its frames within "
+              f"{WITHIN_M} m / the decile's mean quality (frames).", "",
+              "| floor | mode | worst gap | " + " | ".join(f"[{b / 10:.1f}, {(b + 1) / 10:.1f})"
+                                                      for b in range(10)) + " |",
+              "|---|---|---|" + "---|" * 10]
+    for floor, modes in result["table"].items():
+        for mode, e in modes.items():
+            t = e.get("quality_reliability", [])
+            if not any(b["frames"] for b in t):
+                continue
+            gap = worst_gap(t)
+            lines.append(f"| {floor} | {mode} | {gap:.2f} | " + " | ".join(
+                "-" if not b["frames"] else
+                f"{b['observed']:.2f} / {b['predicted']:.2f} ({b['frames']})" for b in t) + " |")
     return "\n".join([*lines, ""])
 
 

@@ -111,6 +111,10 @@ class FilterConfig:
             this share of the mass...
         dominant_frames: ...for this many frames in a row (``ambiguous`` until then; a start
             at a known pose is dominant at once).
+        quality_model: the calibration file of ``Estimate.quality`` (``localize.filter.quality``,
+            fitted by benchmarks/quality.py); null: the shipped ``localize/filter/quality.json``.
+        tracking_quality: a frame the filter calls ``tracking`` is reported ``ambiguous`` when
+            its quality is below this (in modes the calibration covers).
         init_std: (4,) tracking start noise: x, y, z (metres), yaw (degrees).
         motion_std: (3,) motion noise per ``motion_period_s``: horizontal (metres), vertical
             (metres), yaw (degrees); a move over ``dt`` seconds draws it times
@@ -166,6 +170,8 @@ class FilterConfig:
     hypothesis_yaw_deg: float = 20.0
     dominant_mass: float = 0.9
     dominant_frames: int = 10
+    quality_model: str | None = None
+    tracking_quality: float = 0.8
     init_std: list[float] = field(default_factory=lambda: [0.1, 0.1, 0.05, 3.0])
     motion_std: list[float] = field(default_factory=lambda: [0.01, 0.005, 0.5])
     mode_motion_std: dict[str, list[float]] | None = field(default_factory=lambda: {
@@ -194,6 +200,9 @@ class FilterConfig:
                              f"filter.global_particles ({self.global_particles}) must be >= 1")
         if self.global_area <= 0:
             raise ValueError(f"filter.global_area must be positive (m2), got {self.global_area}")
+        if not 0.0 <= self.tracking_quality <= 1.0:
+            raise ValueError(f"filter.tracking_quality must be in [0, 1], got "
+                             f"{self.tracking_quality}")
         if self.global_method not in ("table", "particles"):
             raise ValueError(f"filter.global_method must be table or particles, got "
                              f"{self.global_method!r}")

@@ -46,7 +46,8 @@ from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import pose_from_xyzyaw, xyzyaw_from_pose
 from localize.config import LocalizerConfig
-from localize.filter.hypotheses import Hypothesis, top_hypotheses
+from localize.filter import quality
+from localize.filter.hypotheses import Hypothesis
 from localize.filter.likelihood import EdgeLikelihood
 from localize.filter.particle_filter import LogLikelihood, ParticleFilter, noise_scale
 from localize.filter.projection import (
@@ -215,7 +216,8 @@ class Estimate:
         injected: particles injected by depletion recovery in this step.
         status: ``tracking``, ``ambiguous``, ``coasting`` or ``lost``
             (``particle_filter.StepInfo``): ``tracking`` only once one hypothesis has held
-            ``filter.dominant_mass`` for ``filter.dominant_frames`` frames.
+            ``filter.dominant_mass`` for ``filter.dominant_frames`` frames, and while
+            ``quality`` is at least ``filter.tracking_quality``.
         confidence: in [0, 1], how much the images back the estimate
             (``particle_filter.StepInfo``).
         tilt: (2,) roll, pitch correction of the IMU's attitude, radians.
@@ -223,6 +225,10 @@ class Estimate:
             and score maps) and ``filter`` (motion, likelihood, resampling), ms.
         hypotheses: the heaviest pose hypotheses of the particle set with their mass,
             heaviest first (``hypotheses.Hypothesis``).
+        quality: in [0, 1], the probability that ``state`` is within 0.3 m of the truth
+            (``localize.filter.quality``: calibrated on validation floors); NaN in an edge
+            mode the calibration does not cover.
+        quality_inputs: what it was computed from (``quality.INPUTS``).
     """
 
     timestamp: float
@@ -239,6 +245,8 @@ class Estimate:
     tilt: np.ndarray
     timing_ms: Mapping[str, float]
     hypotheses: tuple[Hypothesis, ...] = ()
+    quality: float = float("nan")
+    quality_inputs: tuple[float, ...] = ()
 
 
 class Localizer:
@@ -283,6 +291,7 @@ class Localizer:
         self._global_likelihood = None
         self.likelihood_override = likelihood_override
         self.filter = ParticleFilter(self.filter_params, world.free, rng)
+        self.quality_model = quality.load(self.filter_params.quality_model, mode)
         self.search: GlobalSearch | None = None  # a global start's search, until its handover
         self._last_time = None
         self._lost_at = None  # timestamp the track was last declared lost
@@ -362,10 +371,26 @@ class Localizer:
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"] + obs_ms, "filter": filter_ms}
-        return Estimate(timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0],
-                        info.position_std, info.yaw_std, info.ess, info.num_particles,
-                        info.best_score, info.injected, info.status, info.confidence,
-                        info.tilt, timing, info.hypotheses)
+        return self._rated(Estimate(
+            timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0], info.position_std,
+            info.yaw_std, info.ess, info.num_particles, info.best_score, info.injected,
+            info.status, info.confidence, info.tilt, timing, info.hypotheses), search=False)
+
+    def _rated(self, est: Estimate, search: bool) -> Estimate:
+        """``est`` with its ``quality`` (``self.quality_model`` of its inputs; NaN without a
+        model) and, where the filter says ``tracking`` but the quality is below
+        ``filter.tracking_quality``, the status ``ambiguous``."""
+        h = est.hypotheses
+        x = quality.inputs(search, est.status, [v.mass for v in h], est.position_std,
+                           h[0].position_std if h else float("nan"), est.yaw_std,
+                           est.confidence, est.best_score, est.ess, est.num_particles)
+        if self.quality_model is None:
+            return replace(est, quality_inputs=tuple(x.tolist()))
+        q = float(self.quality_model(x)[0])
+        status = est.status
+        if status == "tracking" and q < self.filter_params.tracking_quality:
+            status = "ambiguous"
+        return replace(est, status=status, quality=q, quality_inputs=tuple(x.tolist()))
 
     def predict(self, odometry_increment: np.ndarray, timestamp: float) -> None:
         """Move by the odometry of a frame that is not weighed (the live node's frames it has
@@ -421,8 +446,9 @@ class Localizer:
     def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float, time_scale: float) -> Estimate:
         """A frame of the global search; on its convergence the tracking filter takes over
-        from the dominant cluster's hypotheses (status ``ambiguous`` until then, the estimate
-        the heaviest cluster's pose)."""
+        from the dominant cluster's hypotheses (status ``ambiguous`` until then; the hypotheses
+        the search's heaviest clusters, the estimate the heaviest one's pose, the spreads the
+        whole set's)."""
         t0 = time.perf_counter()
         search = self.search
         with _BLAS.limit(limits=1, user_api="blas"):
@@ -430,11 +456,10 @@ class Localizer:
                 search.predict(delta, time_scale)
             if frame.labels is not None:
                 search.update(frame.labels, tilt)
-            state, pos_std, yaw_std = search.estimate()
+            _, pos_std, yaw_std = search.estimate()
             n = len(search.logw)
-            fp = self.filter_params
-            hyps = tuple(top_hypotheses(search.states, search.logw, fp.hypotheses,
-                                        fp.hypothesis_radius_m, fp.hypothesis_yaw_deg))
+            hyps = search.clusters(self.filter_params.hypotheses)
+            state = hyps[0].state  # the heaviest place
             if search.converged:
                 self.filter.init_particles(search.sample(self.filter_params.num_particles))
                 self.search = None
@@ -442,9 +467,9 @@ class Localizer:
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"], "filter": filter_ms}
-        return Estimate(timestamp, state, pose_from_xyzyaw(state)[0], pos_std, yaw_std,
-                        float("nan"), n, float("nan"), 0, "ambiguous", 0.0, np.zeros(2), timing,
-                        hyps)
+        return self._rated(Estimate(timestamp, state, pose_from_xyzyaw(state)[0], pos_std,
+                                    yaw_std, float("nan"), n, float("nan"), 0, "ambiguous", 0.0,
+                                    np.zeros(2), timing, hyps), search=True)
 
     def _log_events(self, status: str, timestamp: float) -> None:
         """Log a loss and the re-localization that follows it."""

@@ -470,8 +470,10 @@ class LiveLocalizer:
         else:
             status = out.status
             e = out.estimate
-            values.update(filter_status=e.status, confidence=e.confidence,
-                          position_std_m=e.position_std, yaw_std_deg=np.degrees(e.yaw_std),
+            values.update(filter_status=e.status, quality=e.quality,
+                          confidence=e.confidence, position_std_m=e.position_std,
+                          yaw_std_deg=np.degrees(e.yaw_std), hypotheses=len(e.hypotheses),
+                          hypothesis_masses=" ".join(f"{h.mass:.3f}" for h in e.hypotheses),
                           **self.last_split)
         return status, {k: _text(v) for k, v in values.items()}
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from core.atomic import atomic_write_json, atomic_write_text
+from localize.filter.quality import reliability, worst_gap
 from localize.offline.metrics import (
     CALIBRATION_TARGET,
     calibration,
@@ -161,8 +162,13 @@ def _calibration(runs: list[dict], pos_err: np.ndarray, within_m: float) -> dict
     confidence."""
     if not all("confidence" in r for r in runs):
         return {}
-    return {"calibration": calibration(pos_err, np.concatenate([r["confidence"] for r in runs]),
-                                       within_m)}
+    out = {"calibration": calibration(pos_err, np.concatenate([r["confidence"] for r in runs]),
+                                      within_m)}
+    if all("quality" in r for r in runs):
+        q = np.concatenate([np.asarray(r["quality"], dtype=np.float64) for r in runs])
+        if np.isfinite(q).any():
+            out["quality"] = reliability(q, pos_err < within_m)
+    return out
 
 
 def model_of(out_dir: Path, cfg, modes) -> dict:
@@ -367,6 +373,32 @@ def _calibration_table(m: dict) -> list[str]:
     return [*lines, ""]
 
 
+def _quality_table(m: dict) -> list[str]:
+    """The calibrated quality's reliability per flight, init and mode: per decile of
+    predicted quality, the share of its frames within the bound (the decile's mean
+    quality, its frames)."""
+    rows = [(fl, init, mode, own["quality"]) for fl, modes in m["flights"].items()
+            for mode, s in modes.items()
+            for init, own in (("tracking", s), ("global", s.get("global", {})))
+            if "quality" in own]
+    if not rows:
+        return []
+    lines = ["## Quality reliability", "",
+             "Per decile of the estimates' `quality` (the calibrated probability of being "
+             "within 0.3 m): the share of its frames within 0.3 m, the decile's mean quality "
+             "and its frames. Calibrated: each decile's share within 0.1 of its mean quality.",
+             "", "| flight | init | mode | worst gap | "
+             + " | ".join(f"[{b['lo']:.1f}, {b['hi']:.1f})" for b in rows[0][3]) + " |",
+             "|---|---|---|---|" + "---|" * len(rows[0][3])]
+    for fl, init, mode, table in rows:
+        gap = worst_gap(table)
+        lines.append(f"| {fl} | {init} | {mode} | {'-' if gap is None else f'{gap:.2f}'} | "
+                     + " | ".join("-" if not b["frames"] else
+                                  f"{b['observed']:.2f} / {b['predicted']:.2f} ({b['frames']})"
+                                  for b in table) + " |")
+    return [*lines, ""]
+
+
 def _global(m: dict, cfg) -> list[str]:
     """Convergence from a uniform start, where global runs exist."""
     glob = [(fl, mode, s["global"]) for fl, modes in m["flights"].items()
@@ -433,12 +465,12 @@ def _targets_and_plots(m: dict, plots: dict[str, list[str]]) -> list[str]:
 
 
 def results_sections(m: dict, cfg) -> list[str]:
-    """The sections of a flight's or a recording's report: accuracy, confidence calibration
-    and global convergence (where there is truth), time per frame."""
+    """The sections of a flight's or a recording's report: accuracy, confidence calibration,
+    the quality's reliability and global convergence (where there is truth), time per frame."""
     truth = any("mean_position_error_m" in s for modes in m["flights"].values()
                 for s in modes.values())
-    return [*(_accuracy(m, cfg) if truth else []), *_calibration_table(m), *_global(m, cfg),
-            *_timing(m, cfg)]
+    return [*(_accuracy(m, cfg) if truth else []), *_calibration_table(m), *_quality_table(m),
+            *_global(m, cfg), *_timing(m, cfg)]
 
 
 def render_markdown(m: dict, cfg, plots: dict[str, list[str]]) -> str:

@@ -56,7 +56,8 @@ log = logging.getLogger(__name__)
 
 INITS = ("tracking", "global")
 STAGES = ("acquisition", "segmentation", "preprocessing", "filter", "total")
-DIAGNOSTICS = ("ess", "best_score", "num_particles", "injected", "position_std", "confidence")
+DIAGNOSTICS = ("ess", "best_score", "num_particles", "injected", "position_std", "confidence",
+               "quality")
 
 @dataclass(frozen=True)
 class RunSpec:
@@ -204,6 +205,7 @@ class PassRecord:
         self.timing = {k: np.zeros((n_runs, T)) for k in STAGES}
         self.status = [[""] * T for _ in range(n_runs)]
         self.hypotheses = [[[] for _ in range(T)] for _ in range(n_runs)]
+        self.quality_inputs = [[[] for _ in range(T)] for _ in range(n_runs)]
         self.index: list[int] = []
         self.timestamps: list[float] = []
         self.truth: list[np.ndarray] | None = []
@@ -226,6 +228,7 @@ class PassRecord:
             self.diag[k][i, t] = getattr(est, k)
         self.status[i][t] = est.status
         self.hypotheses[i][t] = [h.as_list() for h in est.hypotheses]
+        self.quality_inputs[i][t] = [round(v, 5) for v in est.quality_inputs]
         stages = {"acquisition": acquisition_ms, **est.timing_ms}
         for k, v in stages.items():
             self.timing[k][i, t] = v
@@ -234,8 +237,9 @@ class PassRecord:
     def write(self, i: int, run: RunSpec, out_dir: Path, num_particles: int,
               free: OccupancyMap) -> None:
         """Run i's trajectory (TUM, world_from_body) and run record (JSON: per delivered frame
-        the estimate, the timings, the diagnostics, the status and the pose hypotheses
-        ``[x, y, z, yaw, mass]``, heaviest first; where there is truth, the errors and how many
+        the estimate, the timings, the diagnostics, the status, the pose hypotheses
+        ``[x, y, z, yaw, mass]``, heaviest first, and the quality's inputs
+        (``quality.INPUTS``); where there is truth, the errors and how many
         true poses lie outside the free space ``free``, and how far at most)."""
         traj, rec = run.paths(out_dir)
         n = len(self.index)
@@ -263,7 +267,8 @@ class PassRecord:
         record.update({"timing_ms": {k: v[i, :n].tolist() for k, v in self.timing.items()},
                        **{k: v[i, :n].tolist() for k, v in self.diag.items()},
                        "status": self.status[i][:n],
-                       "hypotheses": self.hypotheses[i][:n]})
+                       "hypotheses": self.hypotheses[i][:n],
+                       "quality_inputs": self.quality_inputs[i][:n]})
         atomic_write_json(rec, record)
 
 

@@ -50,6 +50,8 @@ class NodeTopicsConfig:
             particles.
         odometry_out: nav_msgs/Odometry out, map frame to ``frames.base``.
         particles: geometry_msgs/PoseArray of the particles, map frame.
+        hypotheses: geometry_msgs/PoseArray of the pose hypotheses, heaviest first (at most
+            ``filter.hypotheses``; during a global search its places), map frame, every frame.
         status: diagnostic_msgs/DiagnosticArray: status, confidence, latency, frame counts.
         free_space: nav_msgs/OccupancyGrid of the world's free space, latched (transient
             local; ``localize.ros2.world_display``).
@@ -69,6 +71,7 @@ class NodeTopicsConfig:
     pose: str = "/edgeloc/pose"
     odometry_out: str = "/edgeloc/odometry"
     particles: str = "/particle_cloud"
+    hypotheses: str = "/edgeloc/hypotheses"
     status: str = "/diagnostics"
     free_space: str = "/edgeloc/free_space"
     model_edges: str = "/edgeloc/model_edges"
@@ -104,7 +107,7 @@ class QosConfig:
         sensors: camera, CameraInfo and odometry (``best_effort``: the sensor-data profile; a
             reliable publisher reaches a best-effort subscriber, not the reverse).
         sensors_depth: messages kept per input topic (the node takes the newest frame anyway).
-        outputs: pose, odometry, particles and status.
+        outputs: pose, odometry, particles, hypotheses and status.
         outputs_depth: messages kept per output topic.
     """
 

@@ -1,6 +1,6 @@
-"""A listener of the node's outputs (rclpy): every pose and status message with the wall-clock
-time it arrived, for the tests and benchmarks/live.py; ``Session``: rclpy in a process with such
-a listener."""
+"""A listener of the node's outputs (rclpy): every pose, hypotheses and status message (the
+poses with the wall-clock time they arrived), for the tests and benchmarks/live.py;
+``Session``: rclpy in a process with such a listener."""
 
 from __future__ import annotations
 
@@ -9,26 +9,30 @@ import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
 
 from localize.ros2.config import NodeTopicsConfig
 from localize.ros2.convert import position_quaternion, stamp_seconds
 
 
 class Listener:
-    """Subscribes the node's pose and status topics on ``node`` (reliable, depth 100).
+    """Subscribes the node's pose, hypotheses and status topics on ``node`` (reliable, depth
+    100).
 
     Attributes:
         poses: the PoseWithCovarianceStamped messages, in arrival order.
         arrivals: (wall-clock seconds) when each pose arrived.
+        hypotheses: the PoseArray messages of the pose hypotheses.
         statuses: the DiagnosticArray messages.
     """
 
     def __init__(self, node, topics: NodeTopicsConfig):
         self.poses: list = []
         self.arrivals: list[float] = []
+        self.hypotheses: list = []
         self.statuses: list = []
         node.create_subscription(PoseWithCovarianceStamped, topics.pose, self._on_pose, 100)
+        node.create_subscription(PoseArray, topics.hypotheses, self.hypotheses.append, 100)
         node.create_subscription(DiagnosticArray, topics.status, self.statuses.append, 100)
 
     def _on_pose(self, msg) -> None:
@@ -54,6 +58,7 @@ class Listener:
     def clear(self) -> None:
         self.poses.clear()
         self.arrivals.clear()
+        self.hypotheses.clear()
         self.statuses.clear()
 
 

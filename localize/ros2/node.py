@@ -16,11 +16,13 @@ odometry (nav_msgs/Odometry or geometry_msgs/PoseStamped) with the sensor QoS an
 ``/reinitialize_global_localization`` (nav2 AMCL's) and ``/global_localization`` (ROS 1
 AMCL's; std_srvs/Empty, both restart the global search); publishes per processed frame,
 stamped with its capture time, in the map frame: geometry_msgs/PoseWithCovarianceStamped,
-nav_msgs/Odometry (child frame ``frames.base``), a PoseArray of the particles, and a
-diagnostic_msgs/DiagnosticArray status (also every ``realtime.status_period_s`` while no frame
-comes); and, latched, the free space (nav_msgs/OccupancyGrid) and the model's edges
-(visualization_msgs/MarkerArray; ``localize.ros2.world_display``). Topic names, frame ids and
-QoS: ``localize.ros2.config``; docs/ros2.md.
+nav_msgs/Odometry (child frame ``frames.base``), a PoseArray of the particles, a PoseArray of
+the pose hypotheses (heaviest first; during a global search, the places it still holds) and a
+diagnostic_msgs/DiagnosticArray status with the estimate's calibrated ``quality`` (also every
+``realtime.status_period_s`` while no frame comes); and, latched, the free space
+(nav_msgs/OccupancyGrid) and the model's edges (visualization_msgs/MarkerArray;
+``localize.ros2.world_display``). Topic names, frame ids and QoS: ``localize.ros2.config``;
+docs/ros2.md.
 """
 
 from __future__ import annotations
@@ -243,11 +245,12 @@ class LocalizerNode(LifecycleNode):
         self.pose_pub = pub(PoseWithCovarianceStamped, t.pose, outputs)
         self.odometry_pub = pub(Odometry, t.odometry_out, outputs)
         self.particles_pub = pub(PoseArray, t.particles, outputs)
+        self.hypotheses_pub = pub(PoseArray, t.hypotheses, outputs)
         self.status_pub = pub(DiagnosticArray, t.status, outputs)
         self.grid_pub = pub(OccupancyGrid, t.free_space, LATCHED)
         self.edges_pub = pub(MarkerArray, t.model_edges, LATCHED)
         self._outputs = [self.pose_pub, self.odometry_pub, self.particles_pub,
-                            self.status_pub, self.grid_pub, self.edges_pub]
+                         self.hypotheses_pub, self.status_pub, self.grid_pub, self.edges_pub]
         stamp = stamp_parts(time.time())
         self._grid = occupancy_grid(ctx.world.free, s.frames.map, stamp)
         self._edges = edge_markers(ctx.world, s.frames.map, stamp, s.model_edges.min_length)
@@ -363,19 +366,24 @@ class LocalizerNode(LifecycleNode):
         self.odometry_pub.publish(odo)
 
     def _publish_after(self, out: Output) -> None:
-        """The particles (at most every ``realtime.particles_period_s``) and the status, once
-        the pose is out (not in its latency)."""
+        """The particles (at most every ``realtime.particles_period_s``), the hypotheses and
+        the status, once the pose is out (not in its latency)."""
         now = time.monotonic()
         if now - self._last_particles >= self.live.settings.realtime.particles_period_s:
             self._last_particles = now
-            cloud = PoseArray()
-            self._header(cloud, out.stamp)
-            q = yaw_quaternions(out.particles[:, 3])[:, 2:].tolist()
-            cloud.poses = [Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(z=qz, w=qw))
-                           for (x, y, z, _), (qz, qw) in zip(out.particles.tolist(), q,
-                                                             strict=True)]
-            self.particles_pub.publish(cloud)
+            self.particles_pub.publish(self._pose_array(out.particles, out.stamp))
+        hyps = np.array([h.state for h in out.estimate.hypotheses]).reshape(-1, 4)
+        self.hypotheses_pub.publish(self._pose_array(hyps, out.stamp))
         self._publish_status(out.stamp)
+
+    def _pose_array(self, poses: np.ndarray, stamp: float) -> PoseArray:
+        """A PoseArray in the map frame of poses (N, 4) x, y, z, yaw."""
+        msg = PoseArray()
+        self._header(msg, stamp)
+        q = yaw_quaternions(poses[:, 3])[:, 2:].tolist()
+        msg.poses = [Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(z=qz, w=qw))
+                     for (x, y, z, _), (qz, qw) in zip(poses.tolist(), q, strict=True)]
+        return msg
 
     def _publish_status(self, stamp: float) -> None:
         status, values = self.live.status()

@@ -44,7 +44,9 @@ Interface (what the Localizer wires):
   (3, 3) roll/pitch of the IMU or None; False when the frame shows too little floor boundary
   (nothing weighed).
 - ``search.hypotheses(k) -> (poses (k', 4), mass (k',))``: the heaviest clusters, their
-  weighted mean poses and the share of the weight each holds (k' <= k).
+  weighted mean poses and the share of the weight each holds (k' <= k);
+  ``search.clusters(k)``: the same as ``hypotheses.Hypothesis`` (with their spreads), the
+  Localizer's ``Estimate.hypotheses`` during the search.
 - ``search.converged``: one cluster held ``handover_mass`` for ``handover_frames`` frames.
 - ``search.sample(n) -> (n, 4)``: particles drawn from the dominant cluster's hypotheses.
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
@@ -63,8 +65,9 @@ from scipy.special import logsumexp
 from core.dataset import Camera, World
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
+from localize.filter.hypotheses import Hypothesis
 from localize.filter.particle_filter import apply_increment, systematic_resample
-from localize.filter.pose_stats import mean_pose, spread
+from localize.filter.pose_stats import mean_pose, pose_spread, spread
 from localize.search.config import GlobalSearchConfig
 from localize.search.ray_table import RayTable, SearchUnavailable, floor_boundary
 
@@ -328,17 +331,32 @@ class GlobalSearch:
         """The ``k`` heaviest clusters (non-maximum suppression): (k', 4) weighted mean poses,
         (k',) the share of the weight within ``cluster_radius`` and ``cluster_yaw_deg`` of each,
         heaviest first (computed once per state of the set and k)."""
+        return self._cluster_list(k)[:2]
+
+    def clusters(self, k: int) -> tuple[Hypothesis, ...]:
+        """The ``k`` heaviest clusters of ``hypotheses`` as pose hypotheses
+        (``hypotheses.Hypothesis``: mean pose, mass, horizontal and yaw spread, count),
+        heaviest first (the clusters are found densest bin first; their masses may differ in
+        order): the places the search holds."""
+        poses, mass, spreads, counts = self._cluster_list(k)
+        order = np.argsort(-mass, kind="stable")
+        return tuple(Hypothesis(poses[i], float(mass[i]), float(spreads[i, 0]),
+                                float(spreads[i, 1]), int(counts[i])) for i in order)
+
+    def _cluster_list(self, k: int) -> tuple:
+        """(poses (k', 4), mass (k',), spreads (k', 2) m and rad, counts (k',)) of the ``k``
+        heaviest clusters, computed once per state of the set and k."""
         key = (self._version, int(k))
         if self._clusters is None or self._clusters[0] != key:
             self._clusters = (key, self._find_clusters(int(k)))
         return self._clusters[1]
 
-    def _find_clusters(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """``hypotheses``, computed."""
+    def _find_clusters(self, k: int) -> tuple:
+        """``_cluster_list``, computed."""
         w = np.exp(self.logw)
         S = self.states
         left = np.ones(len(S), bool)
-        poses, mass = [], []
+        poses, mass, spreads, counts = [], [], [], []
         for _ in range(k):  # k clusters, each vectorized over the hypotheses
             if not left.any():
                 break
@@ -347,9 +365,12 @@ class GlobalSearch:
             if m <= 0:
                 break
             poses.append(mean_pose(S[near], w[near] / m))
+            spreads.append(pose_spread(S[near], w[near] / m))
             mass.append(m)
+            counts.append(int(near.sum()))
             left &= ~near
-        return np.array(poses).reshape(-1, 4), np.array(mass)
+        return (np.array(poses).reshape(-1, 4), np.array(mass),
+                np.array(spreads).reshape(-1, 2), np.array(counts, dtype=int))
 
     def _densest(self, S: np.ndarray, w: np.ndarray) -> np.ndarray:
         """(4,) the weighted mean pose of the heaviest 0.5 m x 0.5 m x 20 deg bin of (S, w)."""

@@ -53,7 +53,8 @@ def test_start_frames_spread_and_leave_room():
 def _row(kind="global", **kw):
     base = {"floor": "f", "mode": "oracle", "kind": kind, "frames": 220,
             "false_convergence": False, "global_update_ms": [100.0, 120.0],
-            "peak_particles": 200000, "final_error_m": 0.1}
+            "peak_particles": 200000, "final_error_m": 0.1,
+            "quality": [0.05, 0.95, 0.95, np.nan], "within": [0, 1, 0, 1]}
     if kind == "global":
         base.update(converged_frame=50, converged_m=2.0)
     else:
@@ -76,9 +77,14 @@ def test_summary_and_table():
     assert e["global_update_ms"] == {"median": 110.0, "max": 120.0}
     assert e["kidnaps"] == 2 and e["kidnap_lost_declared"] == 0.5
     assert e["kidnap_back_by_100"] == 0.5
+    q = e["quality_reliability"]  # every run's frames; a NaN quality left out
+    assert q[0]["frames"] == 6 and q[0]["observed"] == 0.0
+    assert q[9]["frames"] == 12 and q[9]["observed"] == 0.5
+    assert q[9]["predicted"] == pytest.approx(0.95)
     md = markdown({"load": [1.0, 1.0, 1.0], "peak_rss_gb": 1.5, "table": {"f": {"oracle": e}}})
     assert "| f | oracle | 4 | 25% | 33% | 67% | 50 / 2.0 | 25% | 110 / 120 | 200000 | " \
            "50% / 50% | 0% |" in md
+    assert "| f | oracle | 0.45 | 0.00 / 0.05 (6) | - |" in md
 
 
 @pytest.mark.slow

@@ -87,3 +87,26 @@ def test_summary_and_report_show_the_calibration(tmp_path) -> None:
     path = tmp_path / "f_calibration.png"
     plot_calibration(calibrations(f), "f", path)
     assert path.stat().st_size > 0
+
+
+def test_summary_and_report_show_the_quality_reliability() -> None:
+    """Records with a quality: metrics.json holds its reliability per decile beside the
+    calibration, report.md its table; records whose quality is NaN (a mode without
+    calibration) have none."""
+    from localize.offline.report import _quality_table
+
+    cfg = OmegaConf.structured(LocalizeConfig)
+    err = np.r_[np.full(10, 0.05), np.full(10, 2.0)]
+    rated = _record("f", "oracle", "global", 0, err, np.zeros(20))
+    rated["quality"] = [0.95] * 10 + [0.05] * 5 + [0.95] * 5  # 5 confidently wrong frames
+    unrated = _record("f", "cnn", "global", 0, err, np.zeros(20))
+    unrated["quality"] = [float("nan")] * 20
+    m = summarize([rated, unrated], cfg)
+    q = m["flights"]["f"]["oracle"]["global"]["quality"]
+    assert q[0]["frames"] == 5 and q[0]["observed"] == 0.0
+    assert q[9]["frames"] == 15 and q[9]["observed"] == pytest.approx(10 / 15)
+    assert q[9]["predicted"] == pytest.approx(0.95)
+    assert "quality" not in m["flights"]["f"]["cnn"]["global"]
+    table = "\n".join(_quality_table(m))
+    assert "| f | global | oracle | 0.28 | 0.00 / 0.05 (5) |" in table
+    assert "0.67 / 0.95 (15) |" in table and "| f | global | cnn |" not in table
