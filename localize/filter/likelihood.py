@@ -82,6 +82,9 @@ from localize.filter.sample_budget import line_minimum, strides
 from localize.filter.visibility import SparseVisibility
 from localize.frontend.edge_image import EdgeImage, edge_normal_angle
 
+#: A block of particles that may see more than this many times ``max_samples`` samples
+#: together is split (``EdgeLikelihood._block``).
+BLOCK_COLUMNS = 4
 #: eps of the fit quality's log-ratio ``log(g + eps) - log(g0 + eps)``: a sample far from any
 #: edge costs ``log((g0 + eps) / eps)``, not an unbounded amount.
 FIT_EPS = 0.05
@@ -416,8 +419,9 @@ class EdgeLikelihood:
         return live if len(live) else np.zeros(1, np.int64)  # none: one sample, masked
 
     def _project(self, states: np.ndarray, near: tuple | None, tilt: np.ndarray | None,
-                 bins: int) -> tuple:
-        """Pixel indices of the samples a block scores, see ``_block``.
+                 bins: int, cols: np.ndarray | None = None) -> tuple:
+        """Pixel indices of the samples a block scores, see ``_block`` (``cols``: its
+        ``_seen`` samples when known).
 
         Returns:
             idx (n, C) int32 flat pixel (plus the orientation bin's map offset when ``bins``),
@@ -433,7 +437,8 @@ class EdgeLikelihood:
             idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
         else:
             stride = near[3]
-            cols = self._seen(near[0], near[1], states[:, 3], near[2], int(stride.min()))
+            if cols is None:
+                cols = self._seen(near[0], near[1], states[:, 3], near[2], int(stride.min()))
             lines, line_of = np.unique(s.run[cols], return_inverse=True)
             line_of = line_of.ravel()
             starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
@@ -485,9 +490,26 @@ class EdgeLikelihood:
         """Scores of a block of particles; ``near``: their visibility rows (n,), camera
         centres (n, 3), the view's half-width (radians) and their strides (n,)
         (``sample_budget``), or None without visibility. Also returns the lines and the
-        visible samples of each particle."""
+        visible samples of each particle.
+
+        A block whose particles may see more than ``BLOCK_COLUMNS`` x ``max_samples`` samples
+        together (particles far apart: injected ones, a global set) is scored in two halves,
+        and so on, so its work stays near ``max_samples`` per particle (a score does not
+        depend on its block but for the float32 rounding of a line's sum, ~1e-8)."""
         p, cam = self.params, self.camera
-        idx, valid, cols, starts, lines, thinned = self._project(states, near, tilt, obs.bins)
+        cols = None
+        if near is not None:
+            cols = self._seen(near[0], near[1], states[:, 3], near[2], int(near[3].min()))
+            if p.max_samples and len(cols) > BLOCK_COLUMNS * p.max_samples and len(states) > 1:
+                h = len(states) // 2
+                per = tilt is not None and np.ndim(tilt) == 3
+                parts = [self._block(states[a:b], (near[0][a:b], near[1][a:b], near[2],
+                                                   near[3][a:b]), obs,
+                                     tilt[a:b] if per else tilt)
+                         for a, b in ((0, h), (h, len(states)))]
+                return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+        idx, valid, cols, starts, lines, thinned = self._project(states, near, tilt, obs.bins,
+                                                                 cols)
         stride = np.ones(len(states), np.int64) if near is None else near[3]
         if obs.pairs:
             if self.pair_codes is None or obs.pairs != len(self.pair_codes):

@@ -12,10 +12,10 @@ the budget keeps stride 1 and scores exactly as without a budget.
 
 What a particle "may see" is counted without projecting: the samples listed for its
 visibility cell (``visibility.SparseVisibility``) within the azimuths that the particles of
-that cell face (the conservative cone of ``projection.in_view_cone``, for the cell's
-particles together). Its visible samples are a subset of those, so the budget bounds them
-exactly. The stride depends only on the particle set, not on how particles are grouped into
-blocks (``likelihood.chunk``) or threads.
+that cell whose heading lies in the same ``SECTORS``-th of the circle face (the conservative
+cone of ``projection.in_view_cone``, for those particles together). Its visible samples are a
+subset of those, so the budget bounds them exactly. The stride depends only on the particle
+set, not on how particles are grouped into blocks (``likelihood.chunk``) or threads.
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ import numpy as np
 
 from localize.filter.visibility import SparseVisibility
 
+#: Heading sectors of the circle: the particles of one cell and one sector are counted together.
+SECTORS = 8
 #: Most lattice levels tried (stride up to 2^MAX_LEVEL); past it the count is 0 or 1 per cell.
 MAX_LEVEL = 30
 #: Entries (listed samples) gathered at once when counting, bounding the temporaries.
@@ -87,18 +89,21 @@ def strides(vis: SparseVisibility, points: np.ndarray, rows: np.ndarray, centres
     out = np.ones(len(rows), dtype=np.int64)
     if budget <= 0 or len(rows) == 0:
         return out
-    urows, inv = np.unique(rows, return_inverse=True)
+    yaws = np.asarray(yaws, np.float64)
+    sector = np.floor(np.mod(yaws, 2 * np.pi) * (SECTORS / (2 * np.pi))).astype(np.int64)
+    keys, inv = np.unique(rows * SECTORS + np.clip(sector, 0, SECTORS - 1),
+                          return_inverse=True)
     inv = inv.ravel()
+    urows = keys // SECTORS  # the row of each (row, sector) group
     listed = np.diff(vis.indptr)[urows]
-    big = np.flatnonzero(listed > budget)  # rows that list more than the budget at all
+    big = np.flatnonzero(listed > budget)  # groups whose row lists more than the budget
     if len(big) == 0:
         return out
     slot = np.full(len(urows), -1, dtype=np.int64)
     slot[big] = np.arange(len(big))
     member = slot[inv]
     on = member >= 0
-    cones = group_cones(np.asarray(centres, np.float64)[on], np.asarray(yaws, np.float64)[on],
-                        member[on], len(big))
+    cones = group_cones(np.asarray(centres, np.float64)[on], yaws[on], member[on], len(big))
     stride = np.ones(len(big), dtype=np.int64)
     ends = np.searchsorted(np.cumsum(listed[big]), np.arange(GATHER_CHUNK, listed[big].sum()
                                                              + GATHER_CHUNK, GATHER_CHUNK),

@@ -121,3 +121,28 @@ def test_a_negative_budget_is_refused():
 
 def test_the_default_budget_is_documented():
     assert replace(LikelihoodConfig()).max_samples > 0
+
+
+def test_blocks_of_far_apart_particles_split_without_changing_a_score(model, camera, obs,
+                                                                      states, monkeypatch):
+    """Particles spread over the room see many samples together: with a cap of the block's
+    columns each projected block stays within it (or is one particle), and every score is
+    what it is in one block, to the float32 rounding of a line's sum."""
+    import localize.filter.likelihood as L
+
+    top = int(lik(model, camera, max_samples=0).visible_samples(states, obs).max())
+    whole, _ = lik(model, camera, max_samples=top).scores(states, obs)
+    seen = []
+    project = L.EdgeLikelihood._project
+
+    def spy(self, st, near, tilt, bins, cols=None):
+        out = project(self, st, near, tilt, bins, cols)
+        seen.append((len(st), len(out[2])))
+        return out
+
+    monkeypatch.setattr(L.EdgeLikelihood, "_project", spy)
+    monkeypatch.setattr(L, "BLOCK_COLUMNS", 0.5)  # at most top / 2 columns a block
+    split, _ = lik(model, camera, max_samples=top).scores(states, obs)
+    assert len(seen) > 2
+    assert all(n == 1 or c <= top / 2 for n, c in seen)
+    np.testing.assert_allclose(split, whole, rtol=0, atol=1e-6)
