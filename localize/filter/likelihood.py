@@ -493,20 +493,23 @@ class EdgeLikelihood:
         visible samples of each particle.
 
         A block whose particles may see more than ``BLOCK_COLUMNS`` x ``max_samples`` samples
-        together (particles far apart: injected ones, a global set) is scored in two halves,
-        and so on, so its work stays near ``max_samples`` per particle (a score does not
-        depend on its block but for the float32 rounding of a line's sum, ~1e-8)."""
+        together (particles far apart: injected ones, a global set) is scored in parts of
+        about half that many columns, and so on, so its work stays near ``max_samples`` per
+        particle (a score does not depend on its block but for the float32 rounding of a
+        line's sum, ~1e-8)."""
         p, cam = self.params, self.camera
         cols = None
         if near is not None:
             cols = self._seen(near[0], near[1], states[:, 3], near[2], int(near[3].min()))
-            if p.max_samples and len(cols) > BLOCK_COLUMNS * p.max_samples and len(states) > 1:
-                h = len(states) // 2
+            cap = BLOCK_COLUMNS * p.max_samples
+            if p.max_samples and len(cols) > cap and len(states) > 1:
                 per = tilt is not None and np.ndim(tilt) == 3
+                cut = np.linspace(0, len(states), min(len(states), -(-2 * len(cols) // cap)) + 1)
+                cut = cut.round().astype(np.int64)
                 parts = [self._block(states[a:b], (near[0][a:b], near[1][a:b], near[2],
                                                    near[3][a:b]), obs,
                                      tilt[a:b] if per else tilt)
-                         for a, b in ((0, h), (h, len(states)))]
+                         for a, b in zip(cut[:-1], cut[1:], strict=True)]
                 return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
         idx, valid, cols, starts, lines, thinned = self._project(states, near, tilt, obs.bins,
                                                                  cols)
