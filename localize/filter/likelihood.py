@@ -504,8 +504,8 @@ class EdgeLikelihood:
             cap = BLOCK_COLUMNS * p.max_samples
             if p.max_samples and len(cols) > cap and len(states) > 1:
                 per = tilt is not None and np.ndim(tilt) == 3
-                cut = np.linspace(0, len(states), min(len(states), -(-2 * len(cols) // cap)) + 1)
-                cut = cut.round().astype(np.int64)
+                k = min(len(states), int(np.ceil(2 * len(cols) / cap)))
+                cut = np.linspace(0, len(states), k + 1).round().astype(np.int64)
                 parts = [self._block(states[a:b], (near[0][a:b], near[1][a:b], near[2],
                                                    near[3][a:b]), obs,
                                      tilt[a:b] if per else tilt)
