@@ -160,15 +160,15 @@ def side_by_side(args: argparse.Namespace, argv: list[str]) -> int:
                            check=False)
     this, other = runs["this"], runs[args.baseline]
     print(f"localize speed, this code vs {args.baseline}: median of {args.rounds} rounds' "
-          "medians (mean, max) ms")
+          "medians, ms (this, baseline)")
     res = {}
     for k in STAGES:
         a = [float(np.median([x[k]["median"] for x in v])) for v in (this, other)]
         worst = [max(x[k]["max"] for x in v) for v in (this, other)]
         res[k] = {"this": a[0], "baseline": a[1], "ratio": a[1] / a[0] if a[0] else None,
                   "this_max": worst[0], "baseline_max": worst[1]}
-        print(f"  {k[:-3]:<16}{a[0]:>8.1f}{a[1]:>8.1f}  x{res[k]['ratio'] or 0:.2f} faster; "
-              f"worst {worst[0]:.1f} / {worst[1]:.1f}")
+        print(f"  {k[:-3]:<16}{a[0]:>8.1f}{a[1]:>8.1f}  baseline / this "
+              f"x{res[k]['ratio'] or 0:.2f}; worst {worst[0]:.1f} / {worst[1]:.1f}")
     print(json.dumps({"baseline": args.baseline, "rounds": args.rounds, "stages": res}))
     return 0
 
