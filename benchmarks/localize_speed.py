@@ -18,6 +18,16 @@ Then the paper-faithful likelihood (a Mitsuba render, contours and Hough lines p
 and the vectorized one score the same ``--pf-particles`` particles on ``--pf-frames`` frames,
 and the ratio of their times is printed. Targets (issue "localize"): filter update with 500
 particles <= 20 ms, whole frame <= 50 ms on a 2-core CPU (the paper: 177 ms with a GPU).
+
+Side by side with another commit's code (issue 82: against 331b21c)::
+
+    python benchmarks/localize_speed.py dataset=$PWD/outputs/datasets/demo --baseline 331b21c
+
+``--baseline COMMIT`` checks the commit out in a temporary ``git worktree`` and runs this
+benchmark and that commit's own ``benchmarks/localize_speed.py`` (same arguments and
+overrides; give ``dataset=`` as an absolute path) alternately, ``--rounds`` times each, each in
+a fresh process, so both meet the same machine load; it prints each stage's median over the
+rounds' medians and the ratio.
 """
 
 from __future__ import annotations
@@ -25,7 +35,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -123,6 +135,44 @@ def report(res: dict) -> None:
     print(json.dumps(res))
 
 
+STAGES = ("segmentation_ms", "preprocessing_ms", "filter_ms", "frame_ms")
+
+
+def side_by_side(args: argparse.Namespace, argv: list[str]) -> int:
+    """This code and ``args.baseline``'s, alternately (module docstring)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp) / "baseline"
+        subprocess.run(["git", "worktree", "add", "--detach", str(base), args.baseline],
+                       check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+        runs: dict[str, list[dict]] = {"this": [], args.baseline: []}
+        try:
+            for r in range(args.rounds):
+                for label, code in (("this", ROOT), (args.baseline, base)):
+                    out = subprocess.run(
+                        [sys.executable, str(code / "benchmarks" / "localize_speed.py"), *argv],
+                        check=True, cwd=code, capture_output=True, text=True,
+                        env={**os.environ, "PYTHONPATH": str(code)}).stdout
+                    runs[label].append(json.loads(out.strip().splitlines()[-1]))
+                    print(f"round {r + 1} [{label}]: frame median "
+                          f"{runs[label][-1]['frame_ms']['median']:.1f} ms", flush=True)
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", str(base)], cwd=ROOT,
+                           check=False)
+    this, other = runs["this"], runs[args.baseline]
+    print(f"localize speed, this code vs {args.baseline}: median of {args.rounds} rounds' "
+          "medians, ms (this, baseline)")
+    res = {}
+    for k in STAGES:
+        a = [float(np.median([x[k]["median"] for x in v])) for v in (this, other)]
+        worst = [max(x[k]["max"] for x in v) for v in (this, other)]
+        res[k] = {"this": a[0], "baseline": a[1], "ratio": a[1] / a[0] if a[0] else None,
+                  "this_max": worst[0], "baseline_max": worst[1]}
+        print(f"  {k[:-3]:<16}{a[0]:>8.1f}{a[1]:>8.1f}  baseline / this "
+              f"x{res[k]['ratio'] or 0:.2f}; worst {worst[0]:.1f} / {worst[1]:.1f}")
+    print(json.dumps({"baseline": args.baseline, "rounds": args.rounds, "stages": res}))
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("overrides", nargs="*", help="conf/localize.yaml overrides (key=value)")
@@ -132,7 +182,20 @@ def main() -> int:
                     help="edge mode of the whole-frame timing (cnn includes the SegNet)")
     ap.add_argument("--pf-particles", type=int, default=100)
     ap.add_argument("--pf-frames", type=int, default=3)
+    ap.add_argument("--baseline", default=None, metavar="COMMIT",
+                    help="time this commit's code side by side (module docstring)")
+    ap.add_argument("--rounds", type=int, default=3, help="alternate runs of each code")
     args = ap.parse_args()
+    if args.baseline:
+        argv, skip = [], False
+        for a in sys.argv[1:]:  # the same arguments, without --baseline / --rounds
+            if skip:
+                skip = False
+            elif a in ("--baseline", "--rounds"):
+                skip = True
+            elif not a.startswith(("--baseline=", "--rounds=")):
+                argv.append(a)
+        return side_by_side(args, argv)
 
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
         cfg = compose("localize", overrides=["progress=false", "name=speed",

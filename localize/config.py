@@ -46,6 +46,12 @@ class LikelihoodConfig:
         class_pairs: match each model sample only to image edges between its own two classes
             (label modes).
         near: samples closer to the camera than this are dropped, metres.
+        max_samples: most model samples a particle scores (0: no budget). A particle that may
+            see more (its cell's visible samples in the azimuths its cell's particles face)
+            scores every s-th sample along each segment, s the smallest power of two that
+            brings the count within it; a line then needs ``min_line_samples / s`` of them
+            (``localize.filter.sample_budget``). Bounds a frame's time whatever the building's
+            size; a particle within the budget scores as without it.
         chunk: particles scored per block (a block projects the samples its particles' cells
             see: with visibility lists, larger blocks cost less per particle while tracking).
         workers: threads scoring the blocks and the score maps (1: the calling thread).
@@ -63,6 +69,7 @@ class LikelihoodConfig:
     orientation_bins: int = 0
     class_pairs: bool = False
     near: float = 0.1
+    max_samples: int = 2000
     chunk: int = 256
     workers: int = 2
 
@@ -72,6 +79,9 @@ class LikelihoodConfig:
                              f"{self.sigma}, {self.search_px}")
         if self.workers < 1:
             raise ValueError(f"likelihood.workers must be >= 1, got {self.workers}")
+        if self.max_samples < 0:
+            raise ValueError(f"likelihood.max_samples must be >= 0 (0 = no budget), got "
+                             f"{self.max_samples}")
         if self.lines_ref < 0:
             raise ValueError(f"likelihood.lines_ref must be >= 0 (0 = off), got {self.lines_ref}")
 

@@ -78,9 +78,13 @@ from localize.filter.projection import (
     projection_matrices,
     view_half_width,
 )
+from localize.filter.sample_budget import line_minimum, strides
 from localize.filter.visibility import SparseVisibility
 from localize.frontend.edge_image import EdgeImage, edge_normal_angle
 
+#: A block of particles that may see more than this many times ``max_samples`` samples
+#: together is split (``EdgeLikelihood._block``).
+BLOCK_COLUMNS = 4
 #: eps of the fit quality's log-ratio ``log(g + eps) - log(g0 + eps)``: a sample far from any
 #: edge costs ``log((g0 + eps) / eps)``, not an unbounded amount.
 FIT_EPS = 0.05
@@ -356,12 +360,20 @@ class EdgeLikelihood:
             edges, 0: chance, negative: worse; module docstring), NaN with fewer than
             ``min_quality_samples`` of them. Recovery watches the best particle's quality.
         """
-        score, quality, _ = self._evaluate(states, obs, tilt)
+        score, quality, _, _ = self._evaluate(states, obs, tilt)
         return score, quality
 
+    def visible_samples(self, states: np.ndarray, obs: Observation,
+                        tilt: np.ndarray | None = None) -> np.ndarray:
+        """(N,) int the model samples each particle scores: in front of its camera, in the
+        image, visible from its cell, on its lattice of the sample budget
+        (``likelihood.max_samples``, ``sample_budget``); arguments as ``scores``."""
+        return self._evaluate(states, obs, tilt)[3]
+
     def _evaluate(self, states: np.ndarray, obs: Observation, tilt: np.ndarray | None
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``scores`` and (N,) int the lines each particle sees (see ``frame_k``)."""
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``scores``, (N,) int the lines each particle sees (see ``frame_k``) and (N,) int
+        its visible samples (``visible_samples``)."""
         states = np.asarray(states, dtype=np.float64)
         if states.ndim != 2 or states.shape[1] != 4:
             raise ValueError(f"states must be (N, 4), got {states.shape}")
@@ -372,40 +384,50 @@ class EdgeLikelihood:
         score = np.empty(N)
         quality = np.empty(N)
         lines = np.empty(N, dtype=np.int64)
+        seen = np.empty(N, dtype=np.int64)
         step = max(1, int(self.params.chunk))
         order, near = np.arange(N), None
         if self.visibility is not None:  # blocks of particles in neighbouring cells
             cam = self.camera
             centres = camera_centres(states, cam.body_from_cam, tilt)
             rows = self.visibility.rows(centres)
-            order = np.argsort(rows, kind="stable")
             half = view_half_width(cam.K, cam.width, cam.height, cam.body_from_cam, tilt)
-            near = (rows, centres, half)
+            stride = strides(self.visibility, self.samples.points, rows, centres, states[:, 3],
+                             half, self.params.max_samples)
+            # particles of one stride together (a block projects its smallest stride's samples)
+            order = (np.argsort(rows, kind="stable") if (stride == 1).all()
+                     else np.lexsort((rows, stride)))
+            near = (rows, centres, half, stride)
         blocks = [order[i:i + step] for i in range(0, N, step)]  # vectorized within a block
         done = run_all(lambda b: self._block(
-            states[b], None if near is None else (near[0][b], near[1][b], near[2]), obs,
-            tilt[b] if per_particle else tilt), blocks, self.params.workers)
-        for b, (s_b, q_b, l_b) in zip(blocks, done, strict=True):
-            score[b], quality[b], lines[b] = s_b, q_b, l_b
-        return score, quality, lines
+            states[b], None if near is None else (near[0][b], near[1][b], near[2], near[3][b]),
+            obs, tilt[b] if per_particle else tilt), blocks, self.params.workers)
+        for b, (s_b, q_b, l_b, v_b) in zip(blocks, done, strict=True):
+            score[b], quality[b], lines[b], seen[b] = s_b, q_b, l_b, v_b
+        return score, quality, lines, seen
 
     def _seen(self, rows: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
-              half_width: float) -> np.ndarray:
-        """The samples a block of particles may see: visible from one of ``rows`` and within
-        the azimuths the cameras (``centres`` (n, 3), ``yaws`` (n,)) see
-        (``in_view_cone``), (C,) ascending, at least one."""
+              half_width: float, stride: int = 1) -> np.ndarray:
+        """The samples a block of particles may see: visible from one of ``rows``, within
+        the azimuths the cameras (``centres`` (n, 3), ``yaws`` (n,)) see (``in_view_cone``)
+        and on the lattice of ``stride`` (ids divisible by it), (C,) ascending, at least
+        one."""
         cand = np.flatnonzero(self.visibility.union(rows))
+        if stride > 1:
+            cand = cand[(cand & (stride - 1)) == 0]
         live = cand[in_view_cone(self.samples.points[cand], centres, yaws, half_width)]
         return live if len(live) else np.zeros(1, np.int64)  # none: one sample, masked
 
     def _project(self, states: np.ndarray, near: tuple | None, tilt: np.ndarray | None,
-                 bins: int) -> tuple:
-        """Pixel indices of the samples a block scores, see ``_block``.
+                 bins: int, cols: np.ndarray | None = None) -> tuple:
+        """Pixel indices of the samples a block scores, see ``_block`` (``cols``: its
+        ``_seen`` samples when known).
 
         Returns:
             idx (n, C) int32 flat pixel (plus the orientation bin's map offset when ``bins``),
             valid (n, C) bool, cols (C,) the sample ids, starts (L,) each line's first column,
-            lines (L,) the lines (None: all of them, in order).
+            lines (L,) the lines (None: all of them, in order), thinned: whether the block
+            scores a lattice of the samples (``sample_budget``).
         """
         p, cam, s = self.params, self.camera, self.samples
         W, H = cam.width, cam.height
@@ -414,12 +436,16 @@ class EdgeLikelihood:
             cols, starts, lines = slice(None), self._starts, None
             idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
         else:
-            cols = self._seen(near[0], near[1], states[:, 3], near[2])
+            stride = near[3]
+            if cols is None:
+                cols = self._seen(near[0], near[1], states[:, 3], near[2], int(stride.min()))
             lines, line_of = np.unique(s.run[cols], return_inverse=True)
             line_of = line_of.ravel()
             starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
             idx, valid, xh = pixel_index(proj, s.points_h[:, cols], W, H, p.near)
             valid &= self.visibility.visible_in(near[0], cols)
+            if (stride > stride.min()).any():  # each particle's own lattice
+                valid &= (cols[None] & (stride[:, None] - 1)) == 0
         if bins:
             # a 3D segment projects onto one image line: (du, dv) is the same at each of its
             # samples (``image_directions``), so its bin is found once, at its first sample
@@ -430,7 +456,8 @@ class EdgeLikelihood:
                 xh0 = pixel_index(proj, s.points_h[:, s.starts[lines]], W, H, p.near)[2]
             du, dv = image_directions(proj, seg_dirs, xh0)
             self._add_bin(idx, du, dv, bins, s.run[cols] if lines is None else line_of)
-        return idx, valid, cols, starts, lines
+        thinned = near is not None and bool(near[3].min() > 1)
+        return idx, valid, cols, starts, lines, thinned
 
     def _add_bin(self, idx: np.ndarray, du: np.ndarray, dv: np.ndarray, bins: int,
                  line: np.ndarray) -> None:
@@ -443,11 +470,12 @@ class EdgeLikelihood:
         idx += b[:, line]
 
     def _line_sums(self, g: np.ndarray, cols: np.ndarray, lines: np.ndarray | None,
-                   starts: np.ndarray) -> np.ndarray:
+                   starts: np.ndarray, thinned: bool = False) -> np.ndarray:
         """(n, L) float32 sums of g (n, C) over each line's samples. With culled columns the
         sums run over every sample of the lines, the others 0, as without culling (float32
-        sums depend on where the zeros are)."""
-        if lines is None:
+        sums depend on where the zeros are); a block on a lattice of the samples
+        (``thinned``) sums its columns alone."""
+        if lines is None or thinned:
             return np.add.reduceat(g, starts, axis=1)
         s = self.samples
         n = np.diff(np.r_[s.starts, len(s)])[lines]
@@ -460,9 +488,32 @@ class EdgeLikelihood:
     def _block(self, states: np.ndarray, near: tuple | None, obs: Observation,
                tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Scores of a block of particles; ``near``: their visibility rows (n,), camera
-        centres (n, 3) and the view's half-width (radians), or None without visibility."""
+        centres (n, 3), the view's half-width (radians) and their strides (n,)
+        (``sample_budget``), or None without visibility. Also returns the lines and the
+        visible samples of each particle.
+
+        A block whose particles may see more than ``BLOCK_COLUMNS`` x ``max_samples`` samples
+        together (particles far apart: injected ones, a global set) is scored in parts of
+        about half that many columns, and so on, so its work stays near ``max_samples`` per
+        particle (a score does not depend on its block but for the float32 rounding of a
+        line's sum, ~1e-8)."""
         p, cam = self.params, self.camera
-        idx, valid, cols, starts, lines = self._project(states, near, tilt, obs.bins)
+        cols = None
+        if near is not None:
+            cols = self._seen(near[0], near[1], states[:, 3], near[2], int(near[3].min()))
+            cap = BLOCK_COLUMNS * p.max_samples
+            if p.max_samples and len(cols) > cap and len(states) > 1:
+                per = tilt is not None and np.ndim(tilt) == 3
+                k = min(len(states), int(np.ceil(2 * len(cols) / cap)))
+                cut = np.linspace(0, len(states), k + 1).round().astype(np.int64)
+                parts = [self._block(states[a:b], (near[0][a:b], near[1][a:b], near[2],
+                                                   near[3][a:b]), obs,
+                                     tilt[a:b] if per else tilt)
+                         for a, b in zip(cut[:-1], cut[1:], strict=True)]
+                return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+        idx, valid, cols, starts, lines, thinned = self._project(states, near, tilt, obs.bins,
+                                                                 cols)
+        stride = np.ones(len(states), np.int64) if near is None else near[3]
         if obs.pairs:
             if self.pair_codes is None or obs.pairs != len(self.pair_codes):
                 raise ValueError(f"the observation has {obs.pairs} class-pair map sets, this "
@@ -475,14 +526,18 @@ class EdgeLikelihood:
         fit_mean = fit.sum(axis=1, dtype=np.float64) / np.maximum(known, 1)
         # how well the known visible samples fit: 1 = all on edges, 0 = chance
         fit_top = np.log((1.0 + FIT_EPS) / (chance + FIT_EPS))
-        quality = np.where(known >= p.min_quality_samples, fit_mean / fit_top, np.nan)
+        quality = np.where(known >= line_minimum(p.min_quality_samples, stride),
+                           fit_mean / fit_top, np.nan)
         ns = np.add.reduceat(valid.view(np.uint8), starts, axis=1, dtype=np.int16)
-        ok = ns >= p.min_line_samples  # (n, L) lines with enough visible samples
+        # (n, L) lines with enough visible samples (as many metres of line at any stride)
+        ok = ns >= (p.min_line_samples if not thinned and (stride == 1).all()
+                    else line_minimum(p.min_line_samples, stride)[:, None])
         m = ok.sum(axis=1)
-        gs = self._line_sums(obs.g[idx], cols, lines, starts)
+        gs = self._line_sums(obs.g[idx], cols, lines, starts, thinned)
         line = np.where(ok, gs / np.maximum(ns, 1), np.float32(0.0))
         total = line.sum(axis=1, dtype=np.float64) + np.maximum(p.min_lines - m, 0) * chance
-        return total / np.maximum(np.maximum(m, p.min_lines), 1), quality, m
+        return (total / np.maximum(np.maximum(m, p.min_lines), 1), quality, m,
+                np.count_nonzero(valid, axis=1))
 
     def log_likelihood(self, states: np.ndarray, obs: Observation,
                        tilt: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -492,6 +547,6 @@ class EdgeLikelihood:
         Returns:
             log_w (N,) float64 (finite); quality (N,) in [0, 1] (see ``scores``).
         """
-        score, quality, lines = self._evaluate(states, obs, tilt)
+        score, quality, lines, _ = self._evaluate(states, obs, tilt)
         k = frame_k(self.params.k, lines, self.params.lines_ref)
         return k * score, quality

@@ -96,7 +96,7 @@ class SparseVisibility:
         return self.row_of[np.ravel_multi_index(tuple(ijk.T), tuple(self.shape))].astype(
             np.int64)
 
-    def _gather(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def gather(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The ids of ``rows`` (m,) concatenated, and (total,) the position in ``rows`` of
         each."""
         start, n = self.indptr[rows], np.diff(self.indptr)[rows]
@@ -107,13 +107,13 @@ class SparseVisibility:
     def union(self, rows: np.ndarray) -> np.ndarray:
         """(P,) bool: the samples visible from any of ``rows``."""
         mark = np.zeros(self.num_samples, dtype=bool)
-        mark[self._gather(np.unique(rows))[0]] = True
+        mark[self.gather(np.unique(rows))[0]] = True
         return mark
 
     def visible_in(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """(N, C) bool: sample ``cols[c]`` visible from row ``rows[n]``; ``cols`` distinct."""
         urows, inv = np.unique(rows, return_inverse=True)
-        ids, which = self._gather(urows)
+        ids, which = self.gather(urows)
         pos = np.full(self.num_samples, -1, dtype=np.int64)
         pos[cols] = np.arange(len(cols))
         at = pos[ids]
