@@ -94,7 +94,7 @@ def compare_likelihoods(ctx, loc: Localizer, seen: list, truth: np.ndarray, n: i
                         frames: int) -> tuple[list[float], list[float]]:
     """ms of the vectorized and the paper-faithful likelihood of the same ``n`` particles
     around the truth, on the first ``frames`` frames of ``seen`` (``time_frames``)."""
-    from localize.filter.paper_faithful import PaperFaithfulConfig, PaperFaithfulLikelihood
+    from localize.paper.faithful import PaperFaithfulConfig, PaperFaithfulLikelihood
 
     pfl = PaperFaithfulLikelihood(ctx.world, ctx.camera, ctx.settings.likelihood,
                                   PaperFaithfulConfig())

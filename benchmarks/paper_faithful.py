@@ -9,7 +9,7 @@ Usage::
 Tracks the first ``--frames`` frames of ``--flight`` (tracking start, ``--particles``
 particles, one run per seed) twice through the runner's pass (``localize.offline.runner.run_pass``):
 with the vectorized edge likelihood and with the paper-faithful one
-(``localize.filter.paper_faithful``: a Mitsuba render, its contours and Hough lines per particle, a
+(``localize.paper.faithful``: a Mitsuba render, its contours and Hough lines per particle, a
 Python loop over particles) as the likelihood override. Both share the frames, the edge images,
 the particles' start and the filter's settings (conf/localize.yaml with the given overrides).
 Prints each one's mean position error and filter ms per frame and the speed-up of the
@@ -35,10 +35,10 @@ sys.path.insert(0, str(ROOT))
 from core.atomic import atomic_write_json  # noqa: E402
 from core.outputs import releases_claims  # noqa: E402
 from localize.config import HoughConfig  # noqa: E402
-from localize.filter.paper_faithful import PaperFaithfulConfig, PaperFaithfulLikelihood  # noqa: E402
-from localize.filter.paper_render import centred  # noqa: E402
 from localize.offline.metrics import error_stats, timing_stats  # noqa: E402
 from localize.offline.runner import RunSpec, check_resume, load_runs, prepare, run_pass  # noqa: E402
+from localize.paper.faithful import PaperFaithfulConfig, PaperFaithfulLikelihood  # noqa: E402
+from localize.paper.render import centred  # noqa: E402
 
 DATASET = ROOT / "outputs" / "datasets" / "demo"
 

@@ -64,7 +64,8 @@ from localize.frontend.front_end import EdgeFrame, FrontEnd
 from localize.search.global_search import GlobalSearch, start_search
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
-#: likelihood that replaces the edge likelihood (``paper_faithful.PaperFaithfulLikelihood``).
+#: likelihood that replaces the edge likelihood
+#: (``localize.paper.faithful.PaperFaithfulLikelihood``).
 LikelihoodOverride = Callable[[EdgeImage, np.ndarray | None], LogLikelihood]
 
 _BLAS = ThreadpoolController()

@@ -67,7 +67,7 @@ import numpy as np
 
 from core import classes as C
 from core.dataset import Camera
-from localize.config import LikelihoodConfig
+from localize.filter.config import LikelihoodConfig
 from localize.filter.projection import (
     ModelSamples,
     cam_from_world,

@@ -50,7 +50,7 @@ from scipy.special import logsumexp
 
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
-from localize.config import FilterConfig
+from localize.filter.config import FilterConfig
 from localize.filter.hypotheses import Dominance, Hypothesis, top_hypotheses
 from localize.filter.pose_stats import estimate, normalize_log_weights, spread
 from localize.filter.start_hint import StartHint

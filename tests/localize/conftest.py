@@ -48,7 +48,7 @@ def camera() -> Camera:
 
 @pytest.fixture(scope="session")
 def renderer(small_world, camera):
-    from localize.filter.paper_render import ModelRenderer
+    from localize.paper.render import ModelRenderer
 
     return ModelRenderer(small_world, camera)
 

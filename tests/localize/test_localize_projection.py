@@ -304,7 +304,7 @@ def test_model_renderer_needs_a_centred_principal_point(camera):
     ``centred`` tells the runner to skip that comparison instead."""
     from dataclasses import replace
 
-    from localize.filter.paper_render import centred
+    from localize.paper.render import centred
 
     assert centred(camera)
     K = camera.K.copy()

@@ -1,8 +1,9 @@
 """Class and depth images of the structural model alone, rendered with Mitsuba's ``aov``.
 
-Used by the ``paper_faithful`` likelihood (render the model at a particle's pose, as the paper
-does with Gazebo) and by tests that check projection and visibility against a render. One
-un-jittered sample per pixel centre with a box filter, so the class image has hard edges.
+Used by the paper-faithful likelihood (``localize.paper.faithful``: the model rendered at a
+particle's pose, as the paper does with Gazebo) and by tests that check projection and
+visibility against a render. One un-jittered sample per pixel centre with a box filter, so the
+class image has hard edges.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The paper's likelihood as described, one particle at a time, for comparison.
 
 For each particle (Buyval et al. 2017, Sec. III): render the 3D model at the particle's pose
-(here Mitsuba's ``aov`` class image, ``localize.filter.paper_render``), find the model's contours
+(here Mitsuba's ``aov`` class image, ``localize.paper.render``), find the model's contours
 (the boundaries between classes in the render) and the Hough line segments on them, place
 ``samples_per_line`` points on each line, search the image edge map along each point's normal
 up to ``search_px`` pixels for the nearest edge (d in pixels, divided by ``search_px`` as in
@@ -22,10 +22,10 @@ import numpy as np
 
 from core.dataset import Camera, World
 from localize.config import HoughConfig, LikelihoodConfig
-from localize.filter.paper_render import ModelRenderer
 from localize.filter.projection import cam_from_world
 from localize.frontend.boundaries import label_edges
 from localize.frontend.edge_image import EdgeImage
+from localize.paper.render import ModelRenderer
 
 
 @dataclass
