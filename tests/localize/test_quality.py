@@ -122,3 +122,18 @@ def test_the_localizer_rates_its_estimates_and_gates_tracking(small_world, camer
     none.reset(TRUE)
     est = none.step(C.colorize(labels), None, None, 0.0)
     assert np.isnan(est.quality) and est.status == "tracking"
+
+
+def test_the_shipped_calibration_covers_oracle_and_cnn_fitted_on_validation_floors():
+    """The shipped file rates the estimates of modes oracle and cnn (the SegNet's edges), each
+    fitted on the validation floors only (201-203; 101-103 are the test floors), with
+    qualities that rise from a lost search's frame to a converged track's."""
+    x = np.stack([Q.inputs(True, "ambiguous", [0.05, 0.04], 8.0, 3.0, 2.5, 0.0, np.nan, np.nan,
+                           60000),
+                  Q.inputs(False, "tracking", [1.0], 0.02, 0.02, 0.003, 0.98, 0.66, 32.0, 500)])
+    for mode in ("oracle", "cnn"):
+        model = Q.load(None, mode)
+        assert model is not None, mode
+        assert model.fitted_on["floors"] == ["floor201", "floor202", "floor203"]
+        low, high = model(x)
+        assert low < 0.2 < 0.8 < high, (mode, low, high)
