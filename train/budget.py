@@ -5,10 +5,22 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 
 from train.config import TrainConfig
 
 log = logging.getLogger(__name__)
+
+#: The clocks ``budget_clock`` can name: elapsed time, or the process's CPU time (all threads).
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.monotonic, "cpu": time.process_time}
+
+
+def budget_clock(name: str) -> Callable[[], float]:
+    """The clock (seconds) the training budget counts (the ``budget_clock`` key)."""
+    if name not in CLOCKS:
+        raise ValueError(f"budget_clock={name!r}: use {' or '.join(CLOCKS)}")
+    return CLOCKS[name]
+
 
 #: Training time granted when ``finish_by`` has already passed (s): enough for a model.
 MIN_FINISH_BY_SECONDS = 120

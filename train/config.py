@@ -27,10 +27,14 @@ class ModelConfig:
     (``model=segnet_small``): the VGG16-BN layout at 3/8 width and four stages of two
     convolutions, run at a quarter of the input resolution (4x4 average in, bilinear logits
     out), with the encoder maps added after each unpooling. ``model=segnet`` is the paper's
-    network, ``model=segnet_wide`` the compact one at half width.
+    network, ``model=segnet_wide`` the compact one at half width; ``model=lraspp`` is LR-ASPP
+    on a MobileNetV3-Small encoder (train/net/lraspp.py).
 
     Attributes:
         name: the preset's name (metrics.json, logs).
+        arch: ``segnet`` or ``lraspp`` (train/net/build.py). LR-ASPP reads ``width`` (as
+            MobileNetV3's width multiplier), ``downsample``, ``inter_channels``, ``mean``,
+            ``std`` and ``num_classes``; the SegNet's other keys do not apply to it.
         vgg: ``torchvision.models.vgg.cfgs`` key: D = VGG16.
         width: channel multiplier of VGG's (0.375: channels [24, 48, 96, 192]).
         stages: encoder stages; the input H, W are padded (in the graph) to a multiple of
@@ -53,9 +57,11 @@ class ModelConfig:
         head_layers: hidden layers of the sharpen head (1: two 3x3 convolutions).
         context_layers: dilated 3x3 convolutions added as a residual at the bottleneck
             (whole-image context; 0 = none; ``init_from`` can add them to a trained network).
+        inter_channels: LR-ASPP's head: channels of its gated stride-16 branch.
     """
 
     name: str = "segnet_small"
+    arch: str = "segnet"
     vgg: str = "D"
     width: float = 0.375
     stages: int = 4
@@ -71,6 +77,7 @@ class ModelConfig:
     head_channels: int = 8
     head_layers: int = 1
     context_layers: int = 0
+    inter_channels: int = 128
 
 
 @dataclass
@@ -195,7 +202,8 @@ class EvalConfig:
     Attributes:
         batch_size: images per forward pass.
         select: the validation score that picks checkpoint_best.pt (``pixel_accuracy``,
-            ``class_accuracy`` or ``mean_iou``).
+            ``class_accuracy``, ``mean_iou`` or ``boundary_f``: the boundary F-score at 2 px
+            of the class boundaries, what the edge likelihood reads).
     """
 
     batch_size: int = 8
@@ -280,6 +288,10 @@ class TrainConfig:
             re-spanned to the epochs that fit the budget left, at most ``epochs``.
         finish_by: Unix time (s) by which training must end, or None; the budget is the
             smaller of the two (``make demo`` sets it; Makefile).
+        budget_clock: what ``max_minutes`` counts: ``wall`` (elapsed time) or ``cpu`` (the
+            process's CPU time, all its threads: two networks given the same CPU minutes get
+            the same compute whatever else the machine runs; with 2 threads a CPU minute is
+            about half a wall minute). ``cpu`` takes no ``finish_by`` (a wall-clock time).
         init_from: a model folder (or its checkpoint_best.pt) whose weights start the
             training (fine-tuning, same ``model.*`` settings); None = random initial weights.
         keep: whether the fine-tune or ``init_from``'s network ships (``KeepConfig``).
@@ -303,6 +315,7 @@ class TrainConfig:
     ema_decay: float = 0.999
     max_minutes: float | None = 18.0
     finish_by: float | None = None
+    budget_clock: str = "wall"
     init_from: str | None = None
     overwrite: bool = False
     localize: dict[str, Any] = field(default_factory=dict)

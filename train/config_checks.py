@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import torch
 
+from train.budget import budget_clock
 from train.config import KeepConfig, LossConfig, TrainConfig
+
+#: The validation scores ``eval.select`` can pick the kept checkpoint by
+#: (``train.loop.evaluate.ImageScores.summary``).
+SELECT_SCORES = ("mean_iou", "pixel_accuracy", "class_accuracy", "boundary_f")
 
 
 def resolve_precision(precision: str, device: str = "cpu") -> bool:
@@ -37,6 +42,12 @@ def check_counts(cfg: TrainConfig) -> None:
             raise ValueError(f"{key}={value!r} must be an integer >= 1")
     if cfg.max_minutes is not None and not cfg.max_minutes >= 0:
         raise ValueError(f"max_minutes={cfg.max_minutes:g} must be >= 0 (null: no time budget)")
+    budget_clock(cfg.budget_clock)
+    if cfg.budget_clock == "cpu" and cfg.finish_by is not None:
+        raise ValueError("finish_by is a wall-clock time and budget_clock=cpu counts CPU time: "
+                         "drop finish_by, or use budget_clock=wall")
+    if cfg.eval.select not in SELECT_SCORES:
+        raise ValueError(f"eval.select={cfg.eval.select!r}: use one of {', '.join(SELECT_SCORES)}")
 
 
 def check_loss(loss: LossConfig) -> None:

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from core.atomic import atomic_write
+from core.classes import pair_classes, pair_code
 
 IGNORE = 255
 
@@ -82,9 +83,18 @@ def scores(cm: np.ndarray | torch.Tensor) -> dict:
     }
 
 
-def metrics_json(cm: np.ndarray | torch.Tensor, class_names: Sequence[str]) -> dict:
-    """The ``test`` block of metrics.json: fractions, per-class IoU by name (null if absent)."""
+def metrics_json(cm: np.ndarray | torch.Tensor, class_names: Sequence[str],
+                 boundary: np.ndarray | None = None,
+                 pairs: dict[int, np.ndarray] | None = None) -> dict:
+    """The ``test`` block of metrics.json: fractions, per-class IoU by name (null if absent);
+    with ``boundary`` (summed ``boundary_counts``) the boundary precision, recall and F at
+    2 px, with ``pairs`` (summed ``pair_boundary_counts``) ``per_pair_boundary``."""
     s = scores(cm)
+    extra = {}
+    if boundary is not None:
+        extra = {k: (None if np.isnan(v) else v) for k, v in boundary_f(boundary).items()}
+    if pairs is not None:
+        extra["per_pair_boundary"] = pair_boundary_json(pairs, class_names)
     return {
         "pixel_accuracy": s["pixel_accuracy"],
         "class_accuracy": s["class_accuracy"],
@@ -98,7 +108,7 @@ def metrics_json(cm: np.ndarray | torch.Tensor, class_names: Sequence[str]) -> d
             for n, v in zip(class_names, s["per_class_accuracy"], strict=True)
         },
         "confusion_matrix": np.asarray(cm, dtype=np.int64).tolist(),
-    }
+    } | extra
 
 
 def plot_confusion(
@@ -167,15 +177,7 @@ def boundary_counts(pred: np.ndarray, truth: np.ndarray, tolerance_px: float = 2
         pred, truth: (H, W) class ids of one image.
     """
     valid = np.asarray(truth) != IGNORE
-    bp, bt = class_boundaries(pred) & valid, class_boundaries(truth)
-
-    def near(b: np.ndarray) -> np.ndarray:  # distance (px) to the nearest pixel of b
-        if not b.any():
-            return np.full(b.shape, np.inf)
-        return cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-
-    return np.array([(near(bt)[bp] <= tolerance_px).sum(), bp.sum(),
-                     (near(bp)[bt] <= tolerance_px).sum(), bt.sum()], dtype=np.int64)
+    return _match_counts(class_boundaries(pred) & valid, class_boundaries(truth), tolerance_px)
 
 
 def boundary_f(counts: np.ndarray) -> dict:
@@ -188,3 +190,81 @@ def boundary_f(counts: np.ndarray) -> dict:
     pp, rr = (p if n_p else 0.0), (r if n_t else 0.0)
     f = float("nan") if not (n_p or n_t) else (2 * pp * rr / (pp + rr) if pp + rr else 0.0)
     return {"boundary_precision": p, "boundary_recall": r, "boundary_f": f}
+
+
+def pair_boundary_codes(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The class pair of each class change: (H, W - 1) and (H - 1, W) uint8 ``pair_code`` of
+    each pixel and its right, and its lower, neighbour; 0 where the two are one class or either
+    is ignored (255). Class ids must be below 16."""
+    lab = np.asarray(labels)
+    out = []
+    for a, b in ((lab[:, :-1], lab[:, 1:]), (lab[:-1], lab[1:])):
+        change = (a != b) & (a != IGNORE) & (b != IGNORE)
+        out.append(np.where(change, pair_code(np.where(change, a, 0), np.where(change, b, 0)), 0)
+                   .astype(np.uint8))
+    return out[0], out[1]
+
+
+def _pair_mask(codes: tuple[np.ndarray, np.ndarray], code: int, shape: tuple[int, int]
+               ) -> np.ndarray:
+    """(H, W) bool: the pixels of ``class_boundaries`` whose change (right or below) is the
+    pair ``code``."""
+    out = np.zeros(shape, dtype=bool)
+    out[:, :-1] |= codes[0] == code
+    out[:-1] |= codes[1] == code
+    return out
+
+
+def pair_boundary_counts(pred: np.ndarray, truth: np.ndarray, tolerance_px: float = 2.0
+                         ) -> dict[int, np.ndarray]:
+    """``boundary_counts`` of each class pair: a predicted a|b boundary pixel is matched by a
+    true a|b boundary pixel within ``tolerance_px``, and the other way round (a wall|door
+    boundary put where the truth has wall|floor counts as a miss of both pairs).
+
+    Args:
+        pred, truth: (H, W) class ids (< 16) of one image; pixels where the truth is 255
+            count for neither.
+
+    Returns:
+        {pair_code: (4,) int64 counts} for every pair present in ``pred`` or ``truth``.
+    """
+    truth = np.asarray(truth)
+    valid = truth != IGNORE
+    pred = np.where(valid, np.asarray(pred), IGNORE)
+    pc, tc = pair_boundary_codes(pred), pair_boundary_codes(truth)
+    codes = set(np.unique(np.concatenate([c.ravel() for c in (*pc, *tc)])).tolist()) - {0}
+    out = {}
+    for code in sorted(codes):
+        bp, bt = _pair_mask(pc, code, truth.shape), _pair_mask(tc, code, truth.shape)
+        out[int(code)] = _match_counts(bp, bt, tolerance_px)
+    return out
+
+
+def _match_counts(bp: np.ndarray, bt: np.ndarray, tolerance_px: float) -> np.ndarray:
+    """(4,) counts of ``boundary_counts`` for predicted and true boundary masks."""
+    def near(b: np.ndarray) -> np.ndarray:  # distance (px) to the nearest pixel of b
+        if not b.any():
+            return np.full(b.shape, np.inf)
+        return cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+
+    return np.array([(near(bt)[bp] <= tolerance_px).sum(), bp.sum(),
+                     (near(bp)[bt] <= tolerance_px).sum(), bt.sum()], dtype=np.int64)
+
+
+def pair_boundary_json(counts: dict[int, np.ndarray], class_names: Sequence[str]) -> dict:
+    """The ``per_pair_boundary`` block of metrics.json: for each class pair with boundaries
+    (``"floor | wall"``, lower class id first), its ``boundary_f`` and the true and predicted
+    boundary pixels, most true pixels first (NaN as null).
+
+    Args:
+        counts: {pair_code: (4,) summed ``pair_boundary_counts``}.
+        class_names: the names by class id.
+    """
+    rows = []
+    for code, c in counts.items():
+        a, b = pair_classes(int(code))
+        f = boundary_f(c)
+        rows.append((int(c[3]), f"{class_names[a]} | {class_names[b]}", {
+            **{k: (None if np.isnan(v) else round(v, 6)) for k, v in f.items()},
+            "true_px": int(c[3]), "predicted_px": int(c[1])}))
+    return {name: row for _, name, row in sorted(rows, key=lambda r: (-r[0], r[1]))}

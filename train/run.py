@@ -43,7 +43,7 @@ from core.imaging import camera_effects
 from core.imaging.realism import load_realism
 from core.model_folder import LOCALIZE_METADATA_KEY, LOCALIZE_SETTINGS_NAME
 from core.outputs import releases_claims
-from train.budget import fit_epochs, training_budget
+from train.budget import budget_clock, fit_epochs, training_budget
 from train.config import AugmentConfig, LossConfig, TrainConfig
 from train.config_checks import check_config
 from train.data import (
@@ -79,12 +79,13 @@ from train.loop.distributed import (
     training_device,
 )
 from train.loop.epoch import data_parallel, train_one_epoch
-from train.loop.evaluate import ImageScores, evaluate_onnx, score_images
+from train.loop.evaluate import ImageScores, score_images, score_onnx
 from train.loop.optim import make_ema, make_optimizer, make_scheduler
 from train.loop.train_log import TRAIN_LOG, epoch_row, time_left, write_train_log
 from train.losses import median_frequency_weights
 from train.metrics import metrics_json, plot_confusion
-from train.net.segnet import SegNet, build_segnet, count_parameters
+from train.net.build import build_model
+from train.net.segnet import SegNet, count_parameters
 from train.run_identity import config_hash, prepare_output, train_settings, training_config
 
 log = logging.getLogger(__name__)
@@ -168,8 +169,9 @@ def class_weight_tensor(loss: LossConfig, data: SplitData, num_classes: int
 
 
 def build_network(cfg: TrainConfig, num_classes: int) -> SegNet:
-    """The network of ``model``: seeded random weights, or ``init_from``'s."""
-    model = build_segnet(cfg.model, num_classes, torch.Generator().manual_seed(cfg.seed))
+    """The network of ``model`` (a SegNet or LR-ASPP, train/net/build.py): seeded random
+    weights, or ``init_from``'s."""
+    model = build_model(cfg.model, num_classes, torch.Generator().manual_seed(cfg.seed))
     if cfg.init_from is not None:  # fine-tuning (a resume replaces these weights)
         log.info("weights from %s", load_init_weights(model, cfg.init_from, cfg.model,
                                                       num_classes))
@@ -285,7 +287,8 @@ def run_epoch(job: TrainJob, state: dict, budget: float) -> bool:
         False when the budget was used up before the epoch began (nothing done).
     """
     cfg, epoch = job.cfg, state["epoch"]
-    t0 = time.monotonic()
+    clock = budget_clock(cfg.budget_clock)
+    t0 = clock()
     deadline = t0 + budget - state["train_seconds"]
     if deadline <= t0:
         return False
@@ -294,13 +297,13 @@ def run_epoch(job: TrainJob, state: dict, budget: float) -> bool:
         torch.Generator().manual_seed(cfg.seed * 100_003 + epoch), job.batch_size,
         deadline, cfg.progress, desc=f"epoch {epoch + 1}/{state['epochs']}",
         bf16=job.bf16, ema=job.ema, boundary_weight=cfg.loss.boundary_weight,
-        full_labels=job.full_labels, world=job.world, ddp=job.ddp,
+        full_labels=job.full_labels, world=job.world, ddp=job.ddp, clock=clock,
     )
     main = job.world.is_main
     val = (score_images(job.net, job.val_data, job.num_classes, cfg.eval.batch_size,
                         cfg.progress, "val").summary() if main else None)
     # rank 0's epoch time on every rank, so that all re-span the schedule alike
-    dt = job.world.from_main(lambda: time.monotonic() - t0)
+    dt = job.world.from_main(lambda: clock() - t0)
     state.update(train_seconds=state["train_seconds"] + dt, epoch=epoch + 1,
                  stopped_by_budget=res.stopped)
     if main:
@@ -441,6 +444,7 @@ def run_metrics(job: TrainJob, state: dict, model: SegNet, best: dict, images: d
         "class_weights": job.class_weights,
         "onnx_max_abs_diff": None,
         "train_seconds": round(state["train_seconds"], 1),
+        "budget_clock": job.cfg.budget_clock,  # what train_seconds counts (wall or cpu)
         "epochs_done": state["epoch"],
         "epochs": state["epochs"],
         "epochs_requested": job.requested,
@@ -450,6 +454,7 @@ def run_metrics(job: TrainJob, state: dict, model: SegNet, best: dict, images: d
         "keep": None,  # the keep rule's decision (``finish``; train/keep.py), or null
         "model": {
             "name": job.cfg.model.name,
+            "arch": job.cfg.model.arch,
             "parameters": count_parameters(model),
             "channels": model.channels,
             "convs_per_stage": model.convs_per_stage,
@@ -466,12 +471,13 @@ def score_graph(job: TrainJob, onnx_path: Path, test_data: SplitData) -> dict:
     """Score ``segnet.onnx``'s labels on the test split (the labels localize reads), draw
     ``confusion.png`` and record the scores in the graph's metadata (``test_metrics``)."""
     cfg = job.cfg
-    cm = evaluate_onnx(onnx_path, test_data, job.num_classes, cfg.eval.batch_size,
+    graph = score_onnx(onnx_path, test_data, job.num_classes, cfg.eval.batch_size,
                        cfg.threads, cfg.progress, "test")
-    test = metrics_json(cm, job.names)
+    cm = graph.confusion
+    test = metrics_json(cm, job.names, graph.boundary, graph.pairs)
     with disk_space_guard(job.out_dir, f"{onnx_path.name}'s metadata and confusion.png"):
         update_metadata(onnx_path, {"test_metrics": {
-            k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou")}})
+            k: test[k] for k in ("pixel_accuracy", "class_accuracy", "mean_iou", "boundary_f")}})
         plot_confusion(cm, job.names, job.out_dir / "confusion.png",
                        title=f"{cfg.name}: test, pixel acc {test['pixel_accuracy']:.3f}, "
                        f"mIoU {test['mean_iou']:.3f}")
@@ -526,9 +532,9 @@ def finish(job: TrainJob, state: dict, t_start: float) -> dict:
     metrics["run_seconds"] = round(time.monotonic() - t_start, 1)
     with disk_space_guard(job.out_dir, "metrics.json"):
         atomic_write_json(job.out_dir / "metrics.json", metrics)
-    log.info("test (segnet.onnx's labels): pixel acc %.4f, class acc %.4f, mIoU %.4f; onnx max "
-             "|diff| %.2e", test["pixel_accuracy"], test["class_accuracy"], test["mean_iou"],
-             metrics["onnx_max_abs_diff"])
+    log.info("test (segnet.onnx's labels): pixel acc %.4f, class acc %.4f, mIoU %.4f, boundary "
+             "F %.4f; onnx max |diff| %.2e", test["pixel_accuracy"], test["class_accuracy"],
+             test["mean_iou"], test["boundary_f"] or float("nan"), metrics["onnx_max_abs_diff"])
     quantize(job, metrics)
     print(f"metrics: {job.out_dir / 'metrics.json'}")
     print(f"onnx:    {onnx_path}" + ("" if decision is None else

@@ -14,6 +14,7 @@ from omegaconf import DictConfig, OmegaConf
 from core.config import as_config
 from core.outputs import Claim, FolderPolicy, claim_output, without
 from train.config import TrainConfig
+from train.net.build import hash_view
 
 #: Config keys that do not change what is trained (left out of the config hash).
 HASH_EXCLUDE = (
@@ -23,6 +24,7 @@ HASH_EXCLUDE = (
     "device",
     "max_minutes",
     "finish_by",
+    "budget_clock",
     "overwrite",
     "progress",
     "eval.batch_size",
@@ -50,7 +52,10 @@ def training_config(cfg: DictConfig | TrainConfig) -> dict:
     d = OmegaConf.to_container(cfg if OmegaConf.is_config(cfg) else OmegaConf.structured(cfg),
                                resolve=True)
     d.pop("hydra", None)
-    return without(d, HASH_EXCLUDE)
+    d = without(d, HASH_EXCLUDE)
+    if "model" in d:
+        d["model"] = hash_view(d["model"])
+    return d
 
 
 def config_hash(train_cfg: dict, dataset_json: bytes) -> str:

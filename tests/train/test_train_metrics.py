@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from core import classes as C
 from train.metrics import (
     IGNORE,
     boundary_counts,
@@ -16,6 +17,8 @@ from train.metrics import (
     class_boundaries,
     confusion_matrix,
     metrics_json,
+    pair_boundary_counts,
+    pair_boundary_json,
     plot_confusion,
     scores,
 )
@@ -107,3 +110,29 @@ class TestBoundaryF:
         pred[5:8, 20:25] = 3  # a blob where the truth is plain
         f = boundary_f(boundary_counts(pred, truth))
         assert f["boundary_recall"] == 1.0 and 0.3 < f["boundary_precision"] < 1.0
+
+    def test_per_pair_tells_which_boundary_is_wrong(self):
+        """A door predicted as wall: the floor | wall boundary stays right, the wall | door one
+        is missed entirely, though the overall boundary F is still high."""
+        truth = np.full((20, 30), C.WALL, np.uint8)
+        truth[12:] = C.FLOOR
+        truth[2:12, 10:16] = C.DOOR
+        pred = truth.copy()
+        pred[2:12, 10:16] = C.WALL
+        pairs = pair_boundary_counts(pred, truth)
+        names = [c["name"] for c in C.as_json()]
+        out = pair_boundary_json(pairs, names)
+        assert set(out) == {"wall | door", "floor | wall", "floor | door"}
+        assert out["wall | door"]["boundary_f"] == 0.0
+        assert out["wall | door"]["predicted_px"] == 0 and out["wall | door"]["true_px"] > 10
+        assert out["floor | wall"]["boundary_f"] > 0.85
+        assert boundary_f(boundary_counts(pred, truth))["boundary_f"] > 0.6
+        # a right prediction scores every pair 1; an ignored truth pixel counts for neither
+        truth[5, :] = IGNORE
+        perfect = pair_boundary_json(pair_boundary_counts(truth, truth), names)
+        assert all(p["boundary_f"] == 1.0 for p in perfect.values())
+        test = metrics_json(confusion_matrix(torch.from_numpy(pred), torch.from_numpy(truth),
+                                             8).numpy(), names, boundary_counts(pred, truth),
+                            pair_boundary_counts(pred, truth))
+        assert test["per_pair_boundary"]["wall | door"]["boundary_f"] == 0.0
+        assert 0.6 < test["boundary_f"] < 1.0

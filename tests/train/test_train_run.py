@@ -226,7 +226,8 @@ class TestRun:
         )
         assert (meta["input_height"], meta["input_width"]) == (48, 64)
         assert meta["test_metrics"] == {k: test[k] for k in ("pixel_accuracy", "class_accuracy",
-                                                             "mean_iou")}
+                                                             "mean_iou", "boundary_f")}
+        assert 0.0 <= test["boundary_f"] <= 1.0 and test["per_pair_boundary"]
         assert meta["localize"] == on_disk["localize"] == {}
         assert (out / "localize.yaml").is_file()
         # The loss's class weights, by class name, for localize's prior correction.

@@ -1,4 +1,4 @@
-"""ONNX export of a SegNet with metadata, checked against torch with onnxruntime.
+"""ONNX export of a SegNet (or LR-ASPP) with metadata, checked against torch with onnxruntime.
 
 The graph takes ``image`` (N, 3, H, W) float32 in [0, 1] and gives ``logits`` (N, C, H, W)
 and ``labels`` (N, H, W) uint8, their argmax (``add_label_output``); the batch
@@ -194,7 +194,7 @@ def onnx_metadata(
     """The metadata_props of segnet.onnx; every value is a JSON string.
 
     Args:
-        model: the exported network (for normalization, padding, architecture).
+        model: the exported network (for normalization, padding, its ``describe()``).
         classes: dataset.json's class list (id, name, color, structural).
         height, width: the graph's input size.
         config_hash: hash of the training config and dataset (see train.run_identity.config_hash).
@@ -220,16 +220,7 @@ def onnx_metadata(
             "applied_in_graph": True,
             "note": "the graph pads to a multiple and crops the logits back to the input size",
         },
-        "model": {
-            "architecture": "SegNet (VGG16-BN encoder, max-unpooling decoder)",
-            "stages": model.stages,
-            "channels": model.channels,
-            "convs_per_stage": model.convs_per_stage,
-            "num_classes": model.num_classes,
-            "pooling": GRAPH_POOLING,
-            "downsample": model.downsample,
-            "skip": model.skip,  # add: SegNet-EncoderAddition
-        },
+        "model": model.describe(),
         "config_hash": config_hash,
     }
     meta.update(extra or {})
@@ -292,7 +283,7 @@ def check_parity(
         label_agreement=agree / float(images[:, 0].numel()),
         labels_output_mismatch=mismatch,
     )
-    if raw <= 1e-4:
+    if raw <= 1e-4 or not isinstance(model, SegNet):  # only a SegNet has pooling choices
         return report
     return _align_pooling(model, sess, images, report, threads, batch_size, exported)
 
@@ -369,6 +360,14 @@ def _stage_features(
     raise IndexError(k)
 
 
+def graph_module(model: nn.Module) -> nn.Module:
+    """What is exported of a network: a SegNet pooling by window codes (``GRAPH_POOLING``, a
+    copy), LR-ASPP as it is."""
+    if isinstance(model, SegNet):
+        return copy.deepcopy(model).set_pooling(GRAPH_POOLING)
+    return model
+
+
 def export_checked(
     model: SegNet,
     path: str | Path,
@@ -403,7 +402,7 @@ def export_checked(
         raise ValueError(f"parity images must be (N >= 1, 3, H, W), got {tuple(images.shape)}")
     model = model.eval()
     h, w = int(images.shape[2]), int(images.shape[3])
-    exported = copy.deepcopy(model).set_pooling(GRAPH_POOLING)
+    exported = graph_module(model)
     proto = add_label_output(to_onnx_proto(exported, h, w, opset=opset))
     onnx.helper.set_model_props(proto, metadata)
     onnx.checker.check_model(proto)

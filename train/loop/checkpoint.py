@@ -21,7 +21,8 @@ from torch.optim.swa_utils import AveragedModel
 
 from core.atomic import atomic_write_bytes, disk_full_guard
 from train.config import ModelConfig
-from train.net.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem, model_kwargs
+from train.net.build import from_kwargs, model_kwargs
+from train.net.segnet import STEM_CONV_KEY, SegNet, finer_unshuffle_stem
 
 log = logging.getLogger(__name__)
 
@@ -171,12 +172,12 @@ def save_best(path: Path, net: SegNet, mcfg: ModelConfig | Mapping, classes: lis
 
 
 def load_checkpoint(path: str | Path) -> SegNet:
-    """A SegNet with the weights of checkpoint_best.pt (eval mode)."""
+    """The network (SegNet or LR-ASPP) with the weights of checkpoint_best.pt (eval mode)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"checkpoint not found: {path}; train with `python -m train`")
     ckpt = torch.load(path, map_location="cpu", weights_only=False)
-    model = SegNet(num_classes=ckpt["num_classes"], **ckpt["model_kwargs"])
+    model = from_kwargs(ckpt["num_classes"], ckpt["model_kwargs"])
     model.load_state_dict(ckpt["model"])
     return model.eval()
 

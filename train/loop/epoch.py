@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -121,6 +122,7 @@ def train_one_epoch(
     full_labels: bool = False,
     world: DistWorld = SINGLE,
     ddp: torch.nn.parallel.DistributedDataParallel | None = None,
+    clock: Callable[[], float] = time.monotonic,
 ) -> EpochResult:
     """One pass over the training split with augmentation, at the network's resolution (the
     loss at the input's with ``full_labels``).
@@ -135,7 +137,7 @@ def train_one_epoch(
         augment: augmentation parameters.
         generator: shuffling and augmentation randomness.
         batch_size: images per step.
-        deadline: ``time.monotonic()`` value after which the epoch stops early.
+        deadline: ``clock()`` value after which the epoch stops early.
         progress: show a progress bar.
         desc: progress bar label.
         bf16: run the forward pass in bfloat16 autocast (the loss is taken in float32).
@@ -149,6 +151,7 @@ def train_one_epoch(
             DDP's gradient average is the whole batch's gradient; the deadline is checked
             by all together.
         ddp: ``data_parallel(model, ...)`` when ``world.active``.
+        clock: the budget's clock (``train.budget.budget_clock``): wall or process CPU time.
 
     Returns:
         Mean loss (of the global batches), number of steps done, and whether the deadline
@@ -168,13 +171,14 @@ def train_one_epoch(
         leave=False,
     )
     for idx in bar:
-        if world.any(time.monotonic() > deadline):  # every rank stops at the same step
+        if world.any(clock() > deadline):  # every rank stops at the same step
             stopped = True
             break
         x, y = augment_batch(data.images[idx], data.labels[idx], augment, generator)
         x, y = world.shard(x), world.shard(y)
-        if not full_labels and model.training_factor != model.downsample:
-            y = block_majority(y, model.downsample).long()  # full-res input, low-res logits
+        reduce = model.output_stride // model.training_factor  # labels per logit
+        if not full_labels and reduce > 1:
+            y = block_majority(y, reduce).long()  # the labels at the logits' resolution
         x = x.to(device).contiguous(memory_format=torch.channels_last)
         y = y.to(device)
         logits = training_logits(model, x, tuple(y.shape[-2:]), full_labels, bf16, ddp)

@@ -11,6 +11,7 @@ labels).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,7 +20,13 @@ import torch
 from tqdm import tqdm
 
 from train.data import SplitData, batches, num_batches, to_float
-from train.metrics import boundary_counts, boundary_f, confusion_matrix, scores
+from train.metrics import (
+    boundary_counts,
+    boundary_f,
+    confusion_matrix,
+    pair_boundary_counts,
+    scores,
+)
 from train.net.segnet import SegNet
 
 
@@ -84,6 +91,46 @@ def score_images(
     return ImageScores(np.stack(cms), np.stack(counts))
 
 
+@dataclass(frozen=True)
+class GraphScores:
+    """An exported graph's scores on a split, summed over its images.
+
+    Attributes:
+        confusion: (C, C) int64, rows = truth.
+        boundary: (4,) int64 ``train.metrics.boundary_counts`` at 2 px.
+        pairs: {pair_code: (4,) int64 ``train.metrics.pair_boundary_counts``} at 2 px.
+    """
+
+    confusion: torch.Tensor
+    boundary: np.ndarray
+    pairs: dict[int, np.ndarray]
+
+
+def score_onnx(
+    onnx_path: str | Path,
+    data: SplitData,
+    num_classes: int,
+    batch_size: int = 8,
+    threads: int = 2,
+    progress: bool = False,
+    desc: str = "test",
+) -> GraphScores:
+    """``evaluate_onnx``'s confusion matrix with the boundary counts, overall and per class
+    pair, of the graph's labels (the test block of metrics.json)."""
+    boundary = np.zeros(4, np.int64)
+    pairs: dict[int, np.ndarray] = {}
+
+    def count(pred: np.ndarray, truth: np.ndarray) -> None:
+        nonlocal boundary
+        for p, t in zip(pred, truth, strict=True):
+            boundary = boundary + boundary_counts(p, t)
+            for code, c in pair_boundary_counts(p, t).items():
+                pairs[code] = pairs.get(code, 0) + c
+
+    cm = evaluate_onnx(onnx_path, data, num_classes, batch_size, threads, progress, desc, count)
+    return GraphScores(cm, boundary, pairs)
+
+
 def evaluate_onnx(
     onnx_path: str | Path,
     data: SplitData,
@@ -92,6 +139,7 @@ def evaluate_onnx(
     threads: int = 2,
     progress: bool = False,
     desc: str = "test",
+    each: Callable[[np.ndarray, np.ndarray], None] | None = None,
 ) -> torch.Tensor:
     """Confusion matrix of an exported graph's labels on a split, as the localizer reads them.
 
@@ -102,6 +150,7 @@ def evaluate_onnx(
         batch_size: images per onnxruntime run.
         threads: onnxruntime intra-op threads.
         progress: show a progress bar labelled ``desc``.
+        each: called with every batch's (B, H, W) uint8 labels and (B, H, W) truth.
 
     Returns:
         (C, C) int64, rows = truth.
@@ -116,4 +165,6 @@ def evaluate_onnx(
         rgb = np.ascontiguousarray(data.images[idx].permute(0, 2, 3, 1).numpy())
         labels = torch.from_numpy(seg.labels(rgb))
         cm += confusion_matrix(labels, data.labels[idx], num_classes)
+        if each is not None:
+            each(labels.numpy(), data.labels[idx].numpy())
     return cm

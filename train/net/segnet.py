@@ -409,6 +409,24 @@ class SegNet(nn.Module):
         return logits + self.sharpen_head(torch.cat([logits, (image - self.mean) / self.std], 1))
 
     @property
+    def output_stride(self) -> int:
+        """Input pixels per logit of ``forward_network_resolution`` (``downsample``)."""
+        return self.downsample
+
+    def describe(self) -> dict:
+        """The ``model`` entry of the ONNX metadata."""
+        return {
+            "architecture": "SegNet (VGG16-BN encoder, max-unpooling decoder)",
+            "stages": self.stages,
+            "channels": self.channels,
+            "convs_per_stage": self.convs_per_stage,
+            "num_classes": self.num_classes,
+            "pooling": "window",  # the exported graph's (train.deploy.export.GRAPH_POOLING)
+            "downsample": self.downsample,
+            "skip": self.skip,  # add: SegNet-EncoderAddition
+        }
+
+    @property
     def training_factor(self) -> int:
         """How much smaller than the input the training images are: d with the ``average``
         stem (box-averaged once, before augmentation), 1 with ``unshuffle`` (the stem needs
