@@ -26,6 +26,23 @@ BODY_FROM_CAM = np.array([[0.0, 0.0, 1.0, 0.1], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.
                           [0.0, 0.0, 0.0, 1.0]])
 
 
+@pytest.fixture(scope="module")
+def ros(tmp_path_factory):
+    """An rclpy context confined to loopback (the environment set before init): the ROS 2
+    node tests' (skipped where rclpy is missing)."""
+    rclpy = pytest.importorskip("rclpy")
+    from localize.ros2.loopback import loopback_env
+
+    env = loopback_env(tmp_path_factory.mktemp("dds"))
+    with pytest.MonkeyPatch.context() as mp:
+        for k, v in env.items():
+            mp.setenv(k, v)
+        context = rclpy.Context()
+        rclpy.init(context=context)
+        yield context
+        rclpy.shutdown(context=context)
+
+
 def small_spec() -> dict:
     """A 4 m corridor with a door on each side, a window and a side opening."""
     spec = compose_config("datagen")["world"]

@@ -30,24 +30,10 @@ from localize.live import sync  # noqa: E402
 from localize.live.loop import load_context, offline_estimates  # noqa: E402
 from localize.ros2.config import Ros2Config  # noqa: E402
 from localize.ros2.convert import stamp_parts, stamp_seconds  # noqa: E402
-from localize.ros2.loopback import loopback_env  # noqa: E402
 from localize.ros2.play import PlayConfig, Player, open_playback  # noqa: E402
 from tests.localize.conftest import QUICK  # noqa: E402
 
 FLIGHT = "paper"
-
-
-@pytest.fixture(scope="module")
-def ros(tmp_path_factory):
-    """An rclpy context confined to loopback (the environment set before init)."""
-    env = loopback_env(tmp_path_factory.mktemp("dds"))
-    with pytest.MonkeyPatch.context() as mp:
-        for k, v in env.items():
-            mp.setenv(k, v)
-        context = rclpy.Context()
-        rclpy.init(context=context)
-        yield context
-        rclpy.shutdown(context=context)
 
 
 @pytest.fixture(scope="module")

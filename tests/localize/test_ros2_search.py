@@ -20,26 +20,12 @@ from hydra import compose, initialize_config_dir  # noqa: E402
 
 from core.config import CONF  # noqa: E402
 from localize.live.loop import load_context  # noqa: E402
-from localize.ros2.loopback import loopback_env  # noqa: E402
 from localize.ros2.play import PlayConfig, Player, open_playback  # noqa: E402
 from tests.localize.conftest import QUICK  # noqa: E402
 from tests.localize.test_ros2_node import publish_frames, start, stop, wait_until  # noqa: E402
 
 FLIGHT = "paper"
 FRAMES = 5  # fewer than the search's handover takes (filter.global_search.handover_frames)
-
-
-@pytest.fixture(scope="module")
-def ros(tmp_path_factory):
-    """An rclpy context confined to loopback (the environment set before init)."""
-    env = loopback_env(tmp_path_factory.mktemp("dds"))
-    with pytest.MonkeyPatch.context() as mp:
-        for k, v in env.items():
-            mp.setenv(k, v)
-        context = rclpy.Context()
-        rclpy.init(context=context)
-        yield context
-        rclpy.shutdown(context=context)
 
 
 @pytest.fixture(scope="module")
