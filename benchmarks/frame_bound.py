@@ -35,6 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.thirdparty import tracking  # noqa: E402
 from core.atomic import atomic_write_json  # noqa: E402
 
 #: ms: no frame of any mode above it (issue 82, 2 cores, 500 particles).
@@ -64,21 +65,11 @@ def localize(code: Path, dataset: Path, report: Path, cache: Path, args: argpars
 
 
 def per_mode(metrics: dict) -> dict:
-    """Per mode: mean error over the flights (m), lost runs, filter and frame ms (mean,
-    worst)."""
-    out = {}
-    for per_flight in metrics["flights"].values():
-        for mode, e in per_flight.items():
-            if "mean_position_error_m" not in e:
-                continue
-            o = out.setdefault(mode, {"errors": [], "lost": 0, "runs": 0})
-            runs = len(e["per_seed_mean_m"])
-            o["errors"].append(e["mean_position_error_m"])
-            o["runs"] += runs
-            o["lost"] += int(round(e["lost_rate"] * runs))
+    """Per mode: mean error over the flights (m), lost runs (``thirdparty.tracking``), filter
+    and frame ms (mean, worst)."""
+    out = tracking(metrics)
     for mode, o in out.items():
-        errs = o.pop("errors")
-        o["mean_m"] = sum(errs) / len(errs)
+        o.pop("frame_ms")
         t = metrics.get("timing_ms_by_mode", {}).get(mode, {})
         for stage in ("filter", "total"):
             s = t.get(stage, {})
