@@ -28,7 +28,7 @@ from torchvision.models._utils import IntermediateLayerGetter
 from torchvision.models.segmentation.lraspp import LRASPPHead
 
 from train.config import IMAGENET_MEAN, IMAGENET_STD
-from train.net.segnet import pad_to_multiple
+from train.net.segnet import check_images, init_weights, pad_to_multiple
 
 #: Stride of the encoder's deepest features (MobileNetV3 with its last stage dilated).
 ENCODER_STRIDE = 16
@@ -110,18 +110,7 @@ class LRASPPNet(nn.Module):
         self.encoder, low, high = mobilenet_v3_small_encoder(width)
         self.head = LRASPPHead(low, high, self.num_classes, self.inter_channels)
         self.channels = [low, high, self.inter_channels]
-        self._init_weights(generator)
-
-    def _init_weights(self, generator: torch.Generator | None) -> None:
-        """He-normal convolutions drawn from ``generator``, zero biases, unit BatchNorm."""
-        for m in self.modules():
-            if isinstance(m, nn.Conv2d):
-                nn.init.kaiming_normal_(m.weight, mode="fan_out", generator=generator)
-                if m.bias is not None:
-                    nn.init.zeros_(m.bias)
-            elif isinstance(m, nn.BatchNorm2d):
-                nn.init.ones_(m.weight)
-                nn.init.zeros_(m.bias)
+        init_weights(self, generator)
 
     @property
     def training_factor(self) -> int:
@@ -135,10 +124,7 @@ class LRASPPNet(nn.Module):
 
     def check_input(self, x: torch.Tensor) -> None:
         """Raise ValueError unless x is (B, 3, H, W) floating point with a usable size."""
-        if x.ndim != 4 or x.shape[1] != 3:
-            raise ValueError(f"LR-ASPP expects (B, 3, H, W) images, got shape {tuple(x.shape)}")
-        if not x.is_floating_point():
-            raise ValueError(f"LR-ASPP expects float images in [0, 1], got dtype {x.dtype}")
+        check_images(x, "LR-ASPP")
         h, w = x.shape[-2], x.shape[-1]
         if not self.auto_pad and (h % self.multiple or w % self.multiple):
             raise ValueError(f"LR-ASPP needs H and W divisible by {self.multiple}, got {h}x{w}; "

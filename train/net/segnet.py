@@ -57,6 +57,29 @@ def vgg_stages(cfg: str = "D") -> list[list[int]]:
     return [s for s in stages if s]
 
 
+def init_weights(module: nn.Module, generator: torch.Generator | None) -> None:
+    """He-normal convolutions drawn from ``generator`` (in ``module.modules()`` order), zero
+    biases, unit BatchNorm: every layer of ``module``."""
+    for m in module.modules():
+        if isinstance(m, nn.Conv2d):
+            nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu",
+                                    generator=generator)
+            if m.bias is not None:
+                nn.init.zeros_(m.bias)
+        elif isinstance(m, nn.BatchNorm2d):
+            nn.init.ones_(m.weight)
+            nn.init.zeros_(m.bias)
+
+
+def check_images(x: torch.Tensor, name: str) -> None:
+    """Raise ValueError, naming the network ``name``, unless x is a (B, 3, H, W) floating
+    point batch."""
+    if x.ndim != 4 or x.shape[1] != 3:
+        raise ValueError(f"{name} expects (B, 3, H, W) images, got shape {tuple(x.shape)}")
+    if not x.is_floating_point():
+        raise ValueError(f"{name} expects float images in [0, 1], got dtype {x.dtype}")
+
+
 def pad_to_multiple(x: torch.Tensor, multiple: int) -> tuple[torch.Tensor, tuple[int, int]]:
     """Reflect-pad an image batch bottom/right so H and W are multiples of ``multiple``.
 
@@ -303,16 +326,7 @@ class SegNet(nn.Module):
     def _init_weights(self, generator: torch.Generator | None) -> None:
         """He-normal convolutions drawn from ``generator``, zero biases, unit BatchNorm; the
         context branch and the sharpen head start at zero."""
-        for m in self.modules():
-            if isinstance(m, nn.Conv2d):
-                nn.init.kaiming_normal_(
-                    m.weight, mode="fan_out", nonlinearity="relu", generator=generator
-                )
-                if m.bias is not None:
-                    nn.init.zeros_(m.bias)
-            elif isinstance(m, nn.BatchNorm2d):
-                nn.init.ones_(m.weight)
-                nn.init.zeros_(m.bias)
+        init_weights(self, generator)
         if self.context is not None:  # the residual branch starts as nothing
             nn.init.zeros_(self.context[-1].weight)
         if self.sharpen_head is not None:  # the head starts as the identity: plain bilinear logits
@@ -321,10 +335,7 @@ class SegNet(nn.Module):
 
     def check_input(self, x: torch.Tensor) -> None:
         """Raise ValueError unless x is (B, 3, H, W) floating point with a usable size."""
-        if x.ndim != 4 or x.shape[1] != 3:
-            raise ValueError(f"SegNet expects (B, 3, H, W) images, got shape {tuple(x.shape)}")
-        if not x.is_floating_point():
-            raise ValueError(f"SegNet expects float images in [0, 1], got dtype {x.dtype}")
+        check_images(x, "SegNet")
         h, w = x.shape[-2], x.shape[-1]
         if not self.auto_pad and (h % self.multiple or w % self.multiple):
             raise ValueError(
