@@ -536,8 +536,9 @@ class EdgeLikelihood:
         gs = self._line_sums(obs.g[idx], cols, lines, starts, thinned)
         line = np.where(ok, gs / np.maximum(ns, 1), np.float32(0.0))
         total = line.sum(axis=1, dtype=np.float64) + np.maximum(p.min_lines - m, 0) * chance
+        # the visible samples: the lines' counts summed, not a second pass over (n, C)
         return (total / np.maximum(np.maximum(m, p.min_lines), 1), quality, m,
-                np.count_nonzero(valid, axis=1))
+                ns.sum(axis=1, dtype=np.int64))
 
     def log_likelihood(self, states: np.ndarray, obs: Observation,
                        tilt: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
