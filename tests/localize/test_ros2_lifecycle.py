@@ -3,7 +3,7 @@ the lifecycle transitions through ``~/change_state``, nav2 AMCL's
 ``reinitialize_global_localization`` (and ``global_localization``), the latched free-space
 grid and model-edge markers, and settings from a ROS params file.
 
-Every participant runs in the loopback rclpy context of ``test_ros2_node.ros``
+Every participant runs in the loopback rclpy context of ``ros`` (tests/localize/conftest.py)
 (``localize.ros2.loopback.loopback_env``: UDPv4 on 127.0.0.1 only,
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, a random domain), set before ``rclpy.init``.
 """
@@ -34,7 +34,7 @@ from tests.localize import test_ros2_node as node_tests  # noqa: E402
 from tests.localize.test_ros2_node import publish_frames, wait_until  # noqa: E402
 
 #: The fixtures of the node's tests: the loopback rclpy context, the tiny flight's config.
-ros, setup = node_tests.ros, node_tests.setup
+setup = node_tests.setup
 
 
 class Running:
