@@ -287,11 +287,30 @@ def in_view_cone(points: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
     c = np.asarray(centres, dtype=np.float64)[:, :2]
     mid = c.mean(axis=0)
     r = np.linalg.norm(c - mid, axis=1).max(initial=0.0)
+    return in_cone(points, mean_yaw, spread, mid, r, half_width)
+
+
+def in_cone(points: np.ndarray, mean_yaw: np.ndarray | float, spread: np.ndarray | float,
+            mid: np.ndarray, r: np.ndarray | float, half_width: float) -> np.ndarray:
+    """``in_view_cone``'s test of points against given cones: one for all the points, or one
+    per point.
+
+    Args:
+        points: (C, 3) world points, metres.
+        mean_yaw, spread: the cameras' circular mean heading and their largest deviation
+            from it, radians: scalars or (C,).
+        mid: (2,) or (C, 2) the cameras' mean centre, metres.
+        r: the largest distance of a camera from ``mid``, metres: a scalar or (C,).
+        half_width: ``view_half_width``, radians.
+
+    Returns:
+        (C,) bool.
+    """
     p = np.asarray(points, dtype=np.float64)[:, :2] - mid
     dist = np.linalg.norm(p, axis=1)
     off = np.abs(np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - mean_yaw))))
     reach = half_width + spread + np.arcsin(np.clip(r / np.maximum(dist, 1e-12), 0.0, 1.0))
-    return (dist <= r + 1e-6) | (off <= reach)
+    return (half_width + spread >= np.pi) | (dist <= r + 1e-6) | (off <= reach)
 
 
 @dataclass

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from localize.filter.projection import in_cone
 from localize.filter.visibility import SparseVisibility
 
 #: Heading sectors of the circle: the particles of one cell and one sector are counted together.
@@ -55,18 +56,6 @@ def group_cones(centres: np.ndarray, yaws: np.ndarray, group: np.ndarray, groups
     r = np.zeros(groups)
     np.maximum.at(r, group, np.linalg.norm(centres[:, :2] - mid[group], axis=1))
     return mean_yaw, spread, mid, r
-
-
-def _in_cones(points: np.ndarray, which: np.ndarray, cones: tuple, half_width: float
-              ) -> np.ndarray:
-    """(E,) bool: point ``points[e]`` (E, 3) within the cone ``which[e]`` of ``cones``
-    (``group_cones``), the test of ``projection.in_view_cone``."""
-    mean_yaw, spread, mid, r = (a[which] for a in cones)
-    p = points[:, :2].astype(np.float64) - mid
-    dist = np.linalg.norm(p, axis=1)
-    off = np.abs(np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - mean_yaw))))
-    reach = half_width + spread + np.arcsin(np.clip(r / np.maximum(dist, 1e-12), 0.0, 1.0))
-    return (half_width + spread >= np.pi) | (dist <= r + 1e-6) | (off <= reach)
 
 
 def strides(vis: SparseVisibility, points: np.ndarray, rows: np.ndarray, centres: np.ndarray,
@@ -112,7 +101,7 @@ def strides(vis: SparseVisibility, points: np.ndarray, rows: np.ndarray, centres
     for a, b in zip(np.r_[0, ends[:-1]], ends, strict=True):  # rows of about GATHER_CHUNK
         ids, which = vis.gather(urows[big[a:b]])
         which = which + a
-        keep = _in_cones(points[ids], which, cones, half_width)
+        keep = in_cone(points[ids], *(c[which] for c in cones), half_width)
         ids, which = ids[keep], which[keep]
         level_s = np.ones(b - a, dtype=np.int64)
         todo = np.bincount(which - a, minlength=b - a) > budget
