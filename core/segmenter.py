@@ -21,6 +21,9 @@ import onnxruntime as ort
 if TYPE_CHECKING:
     import onnx
 
+#: The int8 copy of a segnet.onnx and its report, beside it (``train.deploy.quantize``).
+INT8_NAME = "segnet_int8.onnx"
+QUANTIZE_REPORT = "quantize.json"
 INPUT_NAME = "image"
 OUTPUT_NAME = "logits"
 LABELS_NAME = "labels"

@@ -338,6 +338,10 @@ class AppConfig(LocalizerConfig):
         out_root: where output folders go.
         hint: where a start begins (``HintConfig``): a pose to track from, or where a global
             search looks; all null: anywhere in the free space.
+        segnet_int8: cnn mode runs the int8 copy of the SegNet (``segnet_int8.onnx`` beside
+            the chosen segnet.onnx, made by ``python -m train.deploy.quantize`` of that file;
+            ``localize.frontend.segmenter.int8_copy``) where one exists: half the float
+            network's time at its tracking error (docs/notes/speed.md); false: the float one.
         threads: onnxruntime intra-op threads.
         viz: ``rerun``: log frames, labels, model edges at the estimate, particles,
             trajectory and the model in 3D (``localize.viewers.viz``); ``none``: no viewer.
@@ -359,6 +363,7 @@ class AppConfig(LocalizerConfig):
     onnx_model: str = "auto"
     out_root: str = "outputs/reports"
     hint: HintConfig = field(default_factory=HintConfig)
+    segnet_int8: bool = True
     threads: int = 2
     viz: str = "none"
     viz_connect: str | None = None

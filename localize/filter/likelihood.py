@@ -158,7 +158,8 @@ def distance_to(mask: np.ndarray) -> np.ndarray:
     """
     if not mask.any():
         return np.full(mask.shape, 1e6, dtype=np.float32)
-    return cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+    return cv2.distanceTransform(np.logical_not(mask).view(np.uint8), cv2.DIST_L2,
+                                 cv2.DIST_MASK_5)
 
 
 def _bin_masks(edges: np.ndarray, bins: int) -> np.ndarray:
@@ -214,10 +215,10 @@ class _ScoreMaps:
         """g(d) (H, W) of the edges ``m`` into ``out``; returns the chance level: ``g0b``, or
         when None the mean score of a known pixel."""
         d = distance_to(m)
-        np.minimum(d, self.reach, out=out)  # d truncated at search_px, then / search_px below
-        out *= out
-        out *= self.scale
-        np.exp(out, out=out)
+        # g = exp(scale * min(d, search_px)^2), OpenCV's vectorized min, product and exp
+        cv2.min(d, float(self.reach), dst=out)
+        cv2.multiply(out, out, dst=out, scale=float(self.scale))
+        cv2.exp(out, dst=out)
         if not self.any_unknown:
             return np.float32(out.mean()) if g0b is None else g0b
         known = self.known

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from core.model_folder import MODELS_ROOT
+from core.segmenter import INT8_NAME, QUANTIZE_REPORT
 from localize.frontend.edge_image import check_rgb
 
 log = logging.getLogger(__name__)
@@ -31,6 +32,32 @@ def model_path(onnx_model: str, dataset: str) -> Path:
         return Path(onnx_model)
     own = MODELS_ROOT / Path(dataset).name / "segnet.onnx"
     return own if own.is_file() else SHIPPED_MODEL
+
+
+def int8_copy(path: str | Path) -> Path | None:
+    """The int8 copy of the SegNet ``path`` (``core.segmenter.INT8_NAME`` beside it, written by
+    ``python -m train.deploy.quantize``), where one exists that was made of this file: the
+    folder's ``quantize.json`` names a model of ``path``'s file name and the copy is not older
+    than ``path``. None otherwise (no copy, or a stale one of an earlier training)."""
+    path = Path(path)
+    copy = path.with_name(INT8_NAME)
+    report = path.with_name(QUANTIZE_REPORT)
+    if path.name == INT8_NAME or not copy.is_file() or not report.is_file():
+        return None
+    try:
+        made_of = Path(str(json.loads(report.read_text()).get("model", ""))).name
+    except (json.JSONDecodeError, AttributeError):
+        return None
+    if made_of != path.name or copy.stat().st_mtime < path.stat().st_mtime:
+        return None
+    return copy
+
+
+def runtime_model(onnx_model: str, dataset: str, int8: bool = True) -> Path:
+    """The file cnn mode runs: ``model_path(onnx_model, dataset)``, or with ``int8`` (the
+    ``segnet_int8`` setting) its int8 copy where one exists (``int8_copy``)."""
+    path = model_path(onnx_model, dataset)
+    return (int8_copy(path) if int8 and path.is_file() else None) or path
 
 
 def check_classes(model_classes: list[dict], dataset_classes: list[dict], where: str) -> None:

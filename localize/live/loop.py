@@ -39,7 +39,7 @@ from core.frames import FrameSource
 from core.poses import odometry_increment
 from localize.context import Context, open_map, report_folder
 from localize.filter.start_hint import StartHint, start_of_settings
-from localize.frontend.segmenter import load_segmenter, model_path
+from localize.frontend.segmenter import load_segmenter, model_path, runtime_model
 from localize.live.mavlink import MavlinkSender, quality_of
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
 from localize.localizer import EdgeModel, Estimate, Localizer, start_pose
@@ -78,7 +78,8 @@ def load_context(cfg: DictConfig) -> Context:
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if cfg.mode == "cnn":
-        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), classes,
+        segmenter = load_segmenter(runtime_model(cfg.onnx_model, cfg.dataset,
+                                                 cfg.segnet_int8), classes,
                                    int(cfg.threads))
     ctx = Context(cfg, dataset, camera, world, settings, model, out_dir, segmenter,
                   world_digest=digest)

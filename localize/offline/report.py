@@ -176,11 +176,12 @@ def model_of(out_dir: Path, cfg, modes) -> dict:
     folder's config.json ``onnx_sha256``); None where no cnn run is in the report."""
     if "cnn" not in modes:
         return {"onnx_model": None, "onnx_sha256": None}
-    from localize.frontend.segmenter import model_path
+    from localize.frontend.segmenter import runtime_model
 
     path = Path(out_dir) / "config.json"
     conf = json.loads(path.read_text()) if path.is_file() else {}
-    return {"onnx_model": str(model_path(str(cfg.onnx_model), str(cfg.dataset))),
+    onnx = runtime_model(str(cfg.onnx_model), str(cfg.dataset), bool(cfg.segnet_int8))
+    return {"onnx_model": str(onnx),
             "onnx_sha256": conf.get("onnx_sha256")}
 
 

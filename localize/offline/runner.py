@@ -42,7 +42,7 @@ from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES
 from localize.context import Context, SourceWrappers, open_map, report_folder, settings_of
 from localize.filter.start_hint import start_of_settings
-from localize.frontend.segmenter import load_segmenter, model_path
+from localize.frontend.segmenter import load_segmenter, runtime_model
 from localize.localizer import (
     EdgeModel,
     Estimate,
@@ -189,7 +189,8 @@ def prepare(cfg: DictConfig, source_wrappers: SourceWrappers | None = None,
     model = EdgeModel.build(world, settings, out_dir / "cache")
     segmenter = None
     if "cnn" in cfg.modes:
-        segmenter = load_segmenter(model_path(cfg.onnx_model, cfg.dataset), classes,
+        segmenter = load_segmenter(runtime_model(cfg.onnx_model, cfg.dataset,
+                                                 cfg.segnet_int8), classes,
                                    int(cfg.threads))
     return Context(cfg, dataset, dataset.camera if camera is None else camera, world, settings,
                    model, out_dir, segmenter, dict(source_wrappers or {}), digest)
@@ -462,7 +463,7 @@ def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLIC
         edges = Path(str(cfg.dataset)) / "world" / "edges.npz"
         if edges.is_file():
             conf["edges_sha256"] = hashlib.sha256(edges.read_bytes()).hexdigest()[:16]
-    onnx_path = model_path(str(cfg.onnx_model), str(cfg.dataset))
+    onnx_path = runtime_model(str(cfg.onnx_model), str(cfg.dataset), cfg.segnet_int8)
     conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)
     path = out / "config.json"

@@ -38,12 +38,18 @@ from tqdm import tqdm
 from core.atomic import atomic_write, atomic_write_json, read_png
 from core.config import user_errors
 from core.dataset import open_datasets
-from core.segmenter import INPUT_NAME, OnnxSegmenter, network_input, read_metadata
+from core.segmenter import (
+    INPUT_NAME,
+    INT8_NAME,
+    QUANTIZE_REPORT,
+    OnnxSegmenter,
+    network_input,
+    read_metadata,
+)
 from train.config import ExportConfig
 from train.metrics import confusion_matrix, metrics_json
 
-INT8_NAME = "segnet_int8.onnx"
-REPORT_NAME = "quantize.json"
+REPORT_NAME = QUANTIZE_REPORT
 #: Prefix of the work folder a quantization makes in the model folder (``.quantize.<pid>.*``).
 WORK_PREFIX = ".quantize."
 #: ops quantized by default: every one onnxruntime can (None); the convolutions alone change
