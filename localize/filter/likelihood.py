@@ -386,7 +386,8 @@ class EdgeLikelihood:
         quality = np.empty(N)
         lines = np.empty(N, dtype=np.int64)
         seen = np.empty(N, dtype=np.int64)
-        step = max(1, int(self.params.chunk))
+        # blocks of at most ``chunk``, at least one per worker
+        step = max(1, min(int(self.params.chunk), -(-N // max(1, self.params.workers))))
         order, near = np.arange(N), None
         if self.visibility is not None:  # blocks of particles in neighbouring cells
             cam = self.camera

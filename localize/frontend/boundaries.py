@@ -72,8 +72,20 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
 
 
 
+def image_gradients(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The colour gradients ``snap_to_image_edges`` reads: the 3x3 Sobel x and y of the
+    3x3-blurred image, each (H, W, 3) float32 (of the image alone: they can be made while
+    the SegNet runs)."""
+    check_rgb(rgb)
+    H, W = rgb.shape[:2]
+    img = cv2.GaussianBlur(rgb.astype(np.float32), (3, 3), 0).reshape(H, W, -1)  # (H, W, 3)
+    return (cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3).reshape(H, W, -1),
+            cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3).reshape(H, W, -1))
+
+
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
-                        min_gradient: float, nearest: bool = False) -> EdgeImage:
+                        min_gradient: float, nearest: bool = False,
+                        gradients: tuple[np.ndarray, np.ndarray] | None = None) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
     normal, up to ``radius`` pixels either way, for the strongest colour gradient across the
     boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door in
@@ -100,6 +112,7 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
             the largest a step can give. A boundary already on an edge stays; one a pixel off
             goes to the edge beside it, not to a stronger texture edge two pixels away (the top
             of a skirting board above a floor | wall boundary).
+        gradients: ``image_gradients(rgb)`` if the caller has them (None: made here).
 
     Returns:
         The edge image with moved edge pixels (several may land on one; pairs move along;
@@ -113,7 +126,7 @@ def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
     if not edge.edges.any():
         return edge
     ys, xs = np.nonzero(edge.edges)
-    prof = _normal_profiles(edge, rgb, ys, xs, radius)
+    prof = _normal_profiles(edge, gradients or image_gradients(rgb), ys, xs, radius)
     best, move = _choose_steps(prof, edge.known, radius, min_gradient, nearest)
     i = np.arange(len(ys))
     to_y = np.where(move, prof.py[i, best + 1], ys)
@@ -155,13 +168,12 @@ def _step_pixels(ys: np.ndarray, xs: np.ndarray, step: np.ndarray, ny: np.ndarra
             np.clip(np.rint(xs[:, None] + step * nx), 0, W - 1).astype(np.intp))
 
 
-def _normal_profiles(edge: EdgeImage, rgb: np.ndarray, ys: np.ndarray, xs: np.ndarray,
-                     radius: int) -> _Profiles:
-    """The gradient profiles (``_Profiles``) of the edge pixels (ys, xs) of ``edge``."""
+def _normal_profiles(edge: EdgeImage, gradients: tuple[np.ndarray, np.ndarray],
+                     ys: np.ndarray, xs: np.ndarray, radius: int) -> _Profiles:
+    """The gradient profiles (``_Profiles``) of the edge pixels (ys, xs) of ``edge``, from
+    the image's ``image_gradients``."""
     H, W = edge.edges.shape
-    img = cv2.GaussianBlur(rgb.astype(np.float32), (3, 3), 0).reshape(H, W, -1)  # (H, W, 3)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3).reshape(H, W, -1)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3).reshape(H, W, -1)
+    gx, gy = gradients
     theta = edge_normal_angle(edge.edges, at=(ys, xs))
     nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
     t = np.arange(-radius - 1, radius + 2, dtype=np.float32)

@@ -11,8 +11,11 @@ share its segmentation, edge image and distance transforms.
 
 from __future__ import annotations
 
+import functools
+import os
 import time
 from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import astuple, dataclass, field
 from typing import TYPE_CHECKING
 
@@ -58,6 +61,12 @@ class EdgeFrame:
         return self._maps[key]
 
 
+@functools.cache
+def _cue_pool(pid: int) -> ThreadPoolExecutor:
+    """One thread for the image cues, per process (a forked child makes its own)."""
+    return ThreadPoolExecutor(1, thread_name_prefix="image-cues")
+
+
 class FrontEnd:
     """Frames -> edge images with one edge source and the ``edges`` config.
 
@@ -101,8 +110,13 @@ class FrontEnd:
                                  f"{None if image is None else image.shape[:2]}, got "
                                  f"{true_labels.shape}")
         t0 = time.perf_counter()
+        cues = None
+        if self.extractor.reads_image and image is not None:
+            # the colour image's cues on a second core while the SegNet runs (onnxruntime
+            # keeps one core busy with this small network: docs/notes/speed.md)
+            cues = _cue_pool(os.getpid()).submit(self.extractor.image_cues, image)
         labels = self.source.labels(image, true_labels)
         t1 = time.perf_counter()
-        edge = self.extractor.edges(image, labels)
+        edge = self.extractor.edges(image, labels, None if cues is None else cues.result())
         t2 = time.perf_counter()
         return EdgeFrame(edge, labels, {"segmentation": (t1 - t0) * 1e3, "edges": (t2 - t1) * 1e3})

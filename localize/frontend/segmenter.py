@@ -141,7 +141,16 @@ def structural_prior_labels(logits: np.ndarray, structural_ids: np.ndarray,
     """
     ids = np.asarray(structural_ids, dtype=np.int64)
     labels = logits.argmax(0) if labels is None else labels
-    corrected = ids[(logits[ids] - np.asarray(log_prior)[ids, None, None]).argmax(0)]
+    # argmax over the S structural classes of z_c - log w_c, one class at a time (S passes
+    # over (H, W), not an (S, H, W) copy); ties go to the first, as ``argmax``
+    prior = np.asarray(log_prior, dtype=np.float64)  # as (S, H, W) logits - prior did
+    best = logits[ids[0]] - prior[ids[0]]
+    corrected = np.full(labels.shape, ids[0], dtype=np.uint8)
+    for c in ids[1:]:
+        z = logits[c] - prior[c]
+        higher = z > best
+        np.copyto(best, z, where=higher)
+        corrected[higher] = c
     structural = np.zeros(logits.shape[0], dtype=bool)
     structural[ids] = True
     return np.where(structural[labels], corrected, labels).astype(np.uint8)
