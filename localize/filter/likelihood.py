@@ -206,6 +206,8 @@ class _ScoreMaps:
         # often no unknown pixel (no object in view): their handling is skipped
         self.any_unknown = bool(self.unknown.any())
         self.dist_unknown = distance_to(self.unknown) if self.any_unknown else None
+        self.known_u8 = known.view(np.uint8)  # OpenCV's masks
+        self.any_known = bool(known.any())
         self.reach = np.float32(params.search_px)
         # g = exp(scale * min(d, reach)^2)
         self.scale = np.float32(-1.0 / (s2 * float(self.reach) ** 2))
@@ -221,22 +223,23 @@ class _ScoreMaps:
         cv2.exp(out, dst=out)
         if not self.any_unknown:
             return np.float32(out.mean()) if g0b is None else g0b
-        known = self.known
-        hidden = (d > self.dist_unknown) & known  # the nearest edge may hide behind an object
+        # the nearest edge may hide behind an object (also true on unknown pixels: they are
+        # set to g0 below)
+        hidden = cv2.compare(d, self.dist_unknown, cv2.CMP_GT)
         if g0b is None:
-            g0b = np.float32(out[known].mean() if known.any() else self.g_far)
-        np.maximum(out, g0b, out=out, where=hidden)
+            g0b = np.float32(cv2.mean(out, mask=self.known_u8)[0] if self.any_known
+                             else self.g_far)
+        cv2.copyTo(cv2.max(out, float(g0b)), hidden, out)
         np.copyto(out, g0b, where=self.unknown)
         return g0b
 
     def fit(self, g: np.ndarray, g0b: np.float32, out: np.ndarray) -> None:
         """Fit map (H, W) from a g map into ``out``: ``log(g + eps) - log(g0 + eps)``, exactly 0 on
         unknown pixels and nudged off 0 elsewhere."""
-        np.add(g, self.eps, out=out)
-        np.log(out, out=out)
-        out -= np.log(g0b + self.eps)
-        np.copyto(out, np.float32(1e-7),
-                  where=(out == 0) & self.known if self.any_unknown else out == 0)
+        cv2.add(g, float(self.eps), dst=out)
+        cv2.log(out, dst=out)
+        cv2.subtract(out, float(np.log(g0b + self.eps)), dst=out)
+        np.copyto(out, np.float32(1e-7), where=out == 0)  # unknown pixels: 0 again below
         if self.any_unknown:
             np.copyto(out, np.float32(0.0), where=self.unknown)
 
