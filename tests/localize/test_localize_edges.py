@@ -18,7 +18,9 @@ from localize.frontend.extractor import EdgeExtractor, edge_settings
 from localize.frontend.segmenter import (
     check_classes,
     class_log_prior,
+    int8_copy,
     load_segmenter,
+    runtime_model,
     structural_prior_labels,
 )
 from localize.frontend.sources import SegmenterLabels, edge_source
@@ -220,6 +222,40 @@ class TestSegmenter:
         dist = cv2.distanceTransform((~plain.edges).astype(np.uint8), cv2.DIST_L2, 3)
         assert dist[added].max() <= 2.0 + 1e-6
         assert not (added & ~both.known).any()
+
+    def test_int8_copy_made_of_the_model(self, tmp_path):
+        """segnet_int8: the int8 copy beside segnet.onnx is run where quantize.json says it
+        was made of that file and it is not older; a stale or foreign one is not."""
+        import os
+
+        model = tmp_path / "segnet.onnx"
+        palette_segnet(model, 20, 30)
+        assert runtime_model(str(model), "unused") == model  # no copy
+        copy = tmp_path / "segnet_int8.onnx"
+        copy.write_bytes(model.read_bytes())
+        assert int8_copy(model) is None  # no quantize.json: unknown origin
+        (tmp_path / "quantize.json").write_text(json.dumps({"model": "elsewhere/segnet.onnx"}))
+        assert runtime_model(str(model), "unused") == copy
+        assert runtime_model(str(model), "unused", int8=False) == model
+        assert int8_copy(copy) is None  # the copy has no copy
+        (tmp_path / "quantize.json").write_text(json.dumps({"model": "other.onnx"}))
+        assert int8_copy(model) is None  # made of another file
+        (tmp_path / "quantize.json").write_text(json.dumps({"model": "segnet.onnx"}))
+        st = model.stat()
+        os.utime(copy, (st.st_atime, st.st_mtime - 60))  # quantized before a new training
+        assert int8_copy(model) is None
+
+    def test_image_cues_made_apart_give_the_same_edges(self):
+        """The colour image's cues made beforehand (as FrontEnd.frame does, on a second
+        thread) give the edges made in one go."""
+        lab = two_walls()
+        rgb = C.colorize(lab)
+        rgb[6:9, 12] = 255
+        ex = EdgeExtractor("cnn", cnn(refine="union", refine_px=2))
+        assert ex.reads_image and not EdgeExtractor("oracle", EDGES_CFG).reads_image
+        whole, apart = ex.edges(rgb, lab), ex.edges(rgb, lab, ex.image_cues(rgb))
+        np.testing.assert_array_equal(whole.edges, apart.edges)
+        np.testing.assert_array_equal(whole.pairs, apart.pairs)
 
     def test_missing_model(self, tmp_path):
         with pytest.raises(FileNotFoundError, match="python -m train"):
