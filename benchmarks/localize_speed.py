@@ -69,11 +69,13 @@ def time_frames(loc: Localizer, flight, T: int) -> tuple[dict[str, list[float]],
 
     Returns:
         ms per frame of each stage (``segmentation``, ``preprocessing``, ``filter`` from the
-        estimates; ``frame``: the whole step, front end included) and, per frame, its edge
+        estimates; ``frame``: the whole step, front end included), the particles after each
+        step (``particles``: fewer once converged, ``filter.min_particles``) and, per frame,
+        its edge
         image, its tracking observation and tilt (for ``compare_likelihoods``).
     """
     steps = list(flight.steps(T, labels=True))  # read beforehand: decoding is not timed
-    times = {k: [] for k in ("segmentation", "preprocessing", "filter", "frame")}
+    times = {k: [] for k in ("segmentation", "preprocessing", "filter", "frame", "particles")}
     seen = []
     for t, step in enumerate(steps):
         a = time.perf_counter()
@@ -87,6 +89,7 @@ def time_frames(loc: Localizer, flight, T: int) -> tuple[dict[str, list[float]],
         for k, v in est.timing_ms.items():
             times[k].append(v)
         times["frame"].append((d - a) * 1e3)
+        times["particles"].append(est.num_particles)
     return times, seen
 
 
@@ -119,7 +122,8 @@ def report(res: dict) -> None:
     """Print the table of ``main``'s results."""
     load0, load1 = res["load"]
     print(f"localize speed: flight {res['flight']}, mode {res['mode']}, {res['frames']} frames, "
-          f"{res['particles']} particles; load average {load0:.2f} -> {load1:.2f}")
+          f"{res['particles']} particles (mean {res['mean_particles']:.0f}), SegNet "
+          f"{res['segnet']}; load average {load0:.2f} -> {load1:.2f}")
     print(f"  {'stage':<16}{'median ms':>10}{'mean ms':>9}{'p90 ms':>9}{'max ms':>9}  target")
     for key, target in (("segmentation_ms", ""), ("preprocessing_ms", ""),
                         ("filter_ms", f"<= {TARGET_FILTER_MS:.0f}"),
@@ -216,9 +220,12 @@ def main() -> int:
     times, seen = time_frames(loc, flight, T)
     truth = xyzyaw_from_pose(flight.groundtruth[:T])
     t_vec, t_pf = compare_likelihoods(ctx, loc, seen, truth, args.pf_particles, args.pf_frames)
+    counts = times.pop("particles")
     res = {
         "flight": args.flight, "mode": args.mode, "frames": T - 1,
         "particles": ctx.settings.filter.num_particles,
+        "mean_particles": float(np.mean(counts)),
+        "segnet": None if ctx.segmenter is None else str(ctx.segmenter.path),
         **{f"{k}_ms": stats(v) for k, v in times.items()},
         "likelihood_ms": {"particles": args.pf_particles, "vectorized": stats(t_vec),
                           "paper_faithful": stats(t_pf),

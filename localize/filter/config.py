@@ -168,7 +168,7 @@ class FilterConfig:
     global_likelihood: dict[str, Any] | None = field(default_factory=lambda: {
         "k": 20.0, "sigma": 0.3, "class_pairs": True, "min_line_samples": 2})
     mode_likelihood: dict[str, dict[str, Any]] | None = field(default_factory=lambda: {
-        "cnn": {"k": 40.0, "orientation_bins": 12}, "none": {"sigma": 0.3},
+        "cnn": {"k": 40.0, "orientation_bins": 8}, "none": {"sigma": 0.3},
         "oracle": {"k": 50.0}})
     global_motion_scale: float = 15.0
     global_thin: int = 3
