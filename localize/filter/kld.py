@@ -55,8 +55,9 @@ def occupied_bins(particles: np.ndarray, logw: np.ndarray, bin_m: float, bin_deg
 def adaptive_count(particles: np.ndarray, logw: np.ndarray, n_min: int, n_max: int,
                    bin_m: float, bin_deg: float) -> int:
     """The particle count of a resampled tracking set: ``kld_count`` of its occupied bins,
-    clipped to [``n_min``, ``n_max``]; ``n_max`` when ``n_min >= n_max`` (a fixed count)."""
-    if n_min >= n_max:
+    clipped to [``n_min``, ``n_max``]; ``n_max`` when ``n_min`` is 0 or >= ``n_max`` (a fixed
+    count)."""
+    if n_min <= 0 or n_min >= n_max:
         return n_max
     k = occupied_bins(particles, logw, bin_m, bin_deg, 1.0 / n_max)
     return int(np.clip(kld_count(k), n_min, n_max))

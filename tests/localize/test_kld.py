@@ -36,6 +36,7 @@ def test_occupied_bins_count_mass():
     wide = np.random.default_rng(0).uniform(-3, 3, (500, 4))
     assert adaptive_count(wide, np.full(500, -np.log(500)), 100, 500, 0.05, 2.0) == 500
     assert adaptive_count(tight, np.full(500, -np.log(500)), 500, 500, 0.05, 2.0) == 500
+    assert adaptive_count(tight, np.full(500, -np.log(500)), 0, 500, 0.05, 2.0) == 500  # off
 
 
 def _peaked(truth: np.ndarray, width: float):
@@ -63,6 +64,16 @@ def test_count_goes_down_when_converged_and_up_on_spread():
     pf.particles[:, 3] += rng.normal(0, 0.3, len(pf.particles))
     info = pf.update(_peaked(truth, 0.5))
     assert info.resampled and info.num_particles > 2 * counts[-1]
+
+
+def test_off_by_default_keeps_the_count():
+    pf = ParticleFilter(FilterConfig(num_particles=300, tilt_std=[0.0, 0.0]), FREE,
+                        np.random.default_rng(1))
+    truth = np.array([0.0, 5.0, 1.0, 0.0])
+    pf.init_tracking(truth)
+    for _ in range(5):
+        pf.predict(np.zeros(4))
+        assert pf.update(_peaked(truth, 0.02)).num_particles == 300
 
 
 def test_recovery_injection_draws_the_full_count():
