@@ -46,14 +46,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import logsumexp
 
 from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from localize.filter.config import FilterConfig
 from localize.filter.hypotheses import Dominance, Hypothesis, top_hypotheses
 from localize.filter.kld import adaptive_count
-from localize.filter.pose_stats import estimate, normalize_log_weights, spread
+from localize.filter.pose_stats import estimate, log_sum_exp, normalize_log_weights, spread
 from localize.filter.start_hint import StartHint
 
 # --- the three model functions ---------------------------------------------------------------
@@ -205,7 +204,7 @@ def free_space_log_prior(particles: np.ndarray, free: OccupancyMap, slack: float
 def effective_sample_size(logw: np.ndarray) -> float:
     """ESS = 1 / sum(w^2) of normalized weights, from log-weights (N,)."""
     lw = normalize_log_weights(logw)
-    return float(np.exp(-logsumexp(2.0 * lw)))
+    return float(np.exp(-log_sum_exp(2.0 * lw)))
 
 
 def systematic_resample(rng: np.random.Generator, logw: np.ndarray, n: int) -> np.ndarray:

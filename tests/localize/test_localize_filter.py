@@ -359,3 +359,17 @@ def test_lost_track_needs_a_long_stretch():
     assert lost_track(e, t, 1.0, 1.0) and not lost_track(np.zeros(30), t, 1.0, 1.0)
     with pytest.raises(ValueError, match="timestamps"):
         lost_track(e, t[:-1], 1.0, 1.0)
+
+
+def test_log_sum_exp_matches_scipy():
+    """pose_stats.log_sum_exp: scipy's logsumexp on log-weights, no overflow, -inf when none."""
+    from scipy.special import logsumexp
+
+    from localize.filter.pose_stats import log_sum_exp
+
+    rng = np.random.default_rng(0)
+    for n in (1, 7, 500, 40000):
+        a = rng.normal(0, 50, n) + 800.0  # exp would overflow without the shift
+        assert abs(log_sum_exp(a) - logsumexp(a)) <= 1e-12 * abs(logsumexp(a))
+    assert log_sum_exp(np.array([-np.inf, 0.0])) == 0.0
+    assert log_sum_exp(np.full(3, -np.inf)) == -np.inf and log_sum_exp(np.zeros(0)) == -np.inf
