@@ -16,6 +16,12 @@ that cell whose heading lies in the same ``SECTORS``-th of the circle face (the 
 cone of ``projection.in_view_cone``, for those particles together). Its visible samples are a
 subset of those, so the budget bounds them exactly. The stride depends only on the particle
 set, not on how particles are grouped into blocks (``likelihood.chunk``) or threads.
+
+The counting's in-cone ids are kept (``Budget``, up to ``KEEP_ENTRIES``) and are the blocks'
+columns: a block scores the union of its groups' lists on its lattice, so each list is gathered
+and cone-tested once a frame, and a group's cone (one cell, 45 degrees of heading) is narrower
+than a block's. ``Budget.own``, what each particle may see alone, is what a block of particles
+far apart (``likelihood.BLOCK_COLUMNS``) is split by.
 """
 
 from __future__ import annotations
