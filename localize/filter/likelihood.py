@@ -84,7 +84,7 @@ from localize.frontend.edge_image import EdgeImage, edge_normal_angle
 
 #: Under a budget, a block of particles that may see together more than this many times
 #: what the most seeing of them may see alone (``sample_budget.Budget.own``) is split
-#: (``EdgeLikelihood._block``).
+#: (``EdgeLikelihood._parts``).
 BLOCK_COLUMNS = 2
 #: eps of the fit quality's log-ratio ``log(g + eps) - log(g0 + eps)``: a sample far from any
 #: edge costs ``log((g0 + eps) / eps)``, not an unbounded amount.
@@ -410,9 +410,14 @@ class EdgeLikelihood:
                      else np.lexsort((rows, stride)))
             near = (rows, centres, half, budget)
         blocks = [order[i:i + step] for i in range(0, N, step)]  # vectorized within a block
-        done = run_all(lambda b: self._block(
-            states[b], None if near is None else _part(near, b), obs,
-            tilt[b] if per_particle else tilt), blocks, self.params.workers)
+        parts = [(b, None) for b in blocks]
+        if near is not None:  # a block of particles far apart in parts, all on the threads
+            parts = [x for found in run_all(lambda b: self._parts(b, near, states[b, 3]),
+                                            blocks, self.params.workers) for x in found]
+            blocks = [b for b, _ in parts]
+        done = run_all(lambda bc: self._block(
+            states[bc[0]], None if near is None else _part(near, bc[0]), obs,
+            tilt[bc[0]] if per_particle else tilt, bc[1]), parts, self.params.workers)
         for b, (s_b, q_b, l_b, v_b) in zip(blocks, done, strict=True):
             score[b], quality[b], lines[b], seen[b] = s_b, q_b, l_b, v_b
         return score, quality, lines, seen
@@ -500,32 +505,35 @@ class EdgeLikelihood:
                                                                            len(cols)]))] = g
         return np.add.reduceat(full, whole, axis=1)
 
-    def _block(self, states: np.ndarray, near: tuple | None, obs: Observation,
-               tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Scores of a block of particles; ``near``: their visibility rows (n,), camera
-        centres (n, 3), the view's half-width (radians) and their ``sample_budget.Budget``,
-        or None without visibility. Also returns the lines and the visible samples of each
-        particle.
+    def _parts(self, block: np.ndarray, near: tuple, yaws: np.ndarray
+               ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """A block of particles (indices (n,) into ``near``'s arrays, headings ``yaws`` (n,)
+        radians) as parts and the samples each may see (``_seen``).
 
         Under a budget, a block whose particles may see together more than ``BLOCK_COLUMNS``
         times the samples the most seeing of them may see alone (particles far apart:
-        injected ones, a global set) is scored in parts of about that many columns, and so
+        injected ones, a global set) is cut into parts of about that many columns, and so
         on, so each particle's work stays near what it may see (a score does not depend on
-        its block but for the float32 rounding of a line's sum, ~1e-8)."""
+        its part but for the float32 rounding of a line's sum, ~1e-8)."""
+        mine = _part(near, block)
+        cols = self._seen(mine, yaws)
+        alone = int(mine[3].own.max())
+        if not (self.params.max_samples and len(block) > 1
+                and len(cols) > max(BLOCK_COLUMNS * alone, self.params.max_samples)):
+            return [(block, cols)]
+        k = min(len(block), int(np.ceil(len(cols) / max(alone, 1))))
+        cut = np.linspace(0, len(block), k + 1).round().astype(np.int64)
+        return [x for a, b in zip(cut[:-1], cut[1:], strict=True)
+                for x in self._parts(block[a:b], near, yaws[a:b])]
+
+    def _block(self, states: np.ndarray, near: tuple | None, obs: Observation,
+               tilt: np.ndarray | None, cols: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Scores of a block of particles; ``near``: their visibility rows (n,), camera
+        centres (n, 3), the view's half-width (radians) and their ``sample_budget.Budget``,
+        or None without visibility; ``cols``: the samples they may see (``_parts``), None:
+        found here. Also returns the lines and the visible samples of each particle."""
         p, cam = self.params, self.camera
-        cols = None
-        if near is not None:
-            cols = self._seen(near, states[:, 3])
-            alone = int(near[3].own.max())
-            if p.max_samples and len(states) > 1 and len(cols) > max(BLOCK_COLUMNS * alone,
-                                                                     p.max_samples):
-                per = tilt is not None and np.ndim(tilt) == 3
-                k = min(len(states), int(np.ceil(len(cols) / max(alone, 1))))
-                cut = np.linspace(0, len(states), k + 1).round().astype(np.int64)
-                parts = [self._block(states[a:b], _part(near, np.arange(a, b)), obs,
-                                     tilt[a:b] if per else tilt)
-                         for a, b in zip(cut[:-1], cut[1:], strict=True)]
-                return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
         idx, valid, cols, starts, lines, thinned = self._project(states, near, tilt, obs.bins,
                                                                  cols)
         stride = np.ones(len(states), np.int64) if near is None else near[3].stride
