@@ -73,7 +73,7 @@ def group_cones(centres: np.ndarray, yaws: np.ndarray, group: np.ndarray, groups
 @dataclass(frozen=True)
 class Budget:
     """What the counting of the budget found, shared with the block selection
-    (``likelihood.EdgeLikelihood._block``).
+    (``likelihood.EdgeLikelihood._seen`` and ``_parts``).
 
     Attributes:
         stride: (N,) int64 each particle's sample stride (powers of two; 1 within the budget).
