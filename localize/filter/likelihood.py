@@ -78,13 +78,14 @@ from localize.filter.projection import (
     projection_matrices,
     view_half_width,
 )
-from localize.filter.sample_budget import line_minimum, strides
+from localize.filter.sample_budget import count, line_minimum
 from localize.filter.visibility import SparseVisibility
 from localize.frontend.edge_image import EdgeImage, edge_normal_angle
 
-#: A block of particles that may see more than this many times ``max_samples`` samples
-#: together is split (``EdgeLikelihood._block``).
-BLOCK_COLUMNS = 4
+#: Under a budget, a block of particles that may see together more than this many times
+#: what the most seeing of them may see alone (``sample_budget.Budget.own``) is split
+#: (``EdgeLikelihood._parts``).
+BLOCK_COLUMNS = 2
 #: eps of the fit quality's log-ratio ``log(g + eps) - log(g0 + eps)``: a sample far from any
 #: edge costs ``log((g0 + eps) / eps)``, not an unbounded amount.
 FIT_EPS = 0.05
@@ -305,6 +306,12 @@ def _pair_mask(pairs: np.ndarray, code: int) -> np.ndarray:
     return (pairs > 0) & ((lo == a) | (hi == a))
 
 
+def _part(near: tuple, particles: np.ndarray) -> tuple:
+    """``near`` (``EdgeLikelihood._block``) of some of its particles (indices (m,))."""
+    rows, centres, half_width, budget = near
+    return rows[particles], centres[particles], half_width, budget.part(particles)
+
+
 class EdgeLikelihood:
     """Log-likelihood of particle poses given a frame's edges.
 
@@ -328,6 +335,8 @@ class EdgeLikelihood:
                                                                    visibility)
         # run starts of segments, for per-line sums along the sample axis
         self._starts = samples.starts
+        # (P, 2) the samples' x, y (the budget's cone tests, ``sample_budget.count``)
+        self._xy = np.ascontiguousarray(samples.points[:, :2], dtype=np.float64)
         # (S, 3) each sampled segment's direction (its bin is found once; ``_block``)
         self._segment_dirs = np.ascontiguousarray(samples.dirs[self._starts])
         self.pair_codes = None  # (Q,) the model's class pairs, the order of the pair maps
@@ -397,30 +406,41 @@ class EdgeLikelihood:
             centres = camera_centres(states, cam.body_from_cam, tilt)
             rows = self.visibility.rows(centres)
             half = view_half_width(cam.K, cam.width, cam.height, cam.body_from_cam, tilt)
-            stride = strides(self.visibility, self.samples.points, rows, centres, states[:, 3],
-                             half, self.params.max_samples)
+            budget = count(self.visibility, self._xy, rows, centres, states[:, 3], half,
+                           self.params.max_samples,
+                           lambda fn, xs: run_all(fn, xs, self.params.workers))
+            stride = budget.stride
             # particles of one stride together (a block projects its smallest stride's samples)
             order = (np.argsort(rows, kind="stable") if (stride == 1).all()
                      else np.lexsort((rows, stride)))
-            near = (rows, centres, half, stride)
+            near = (rows, centres, half, budget)
         blocks = [order[i:i + step] for i in range(0, N, step)]  # vectorized within a block
-        done = run_all(lambda b: self._block(
-            states[b], None if near is None else (near[0][b], near[1][b], near[2], near[3][b]),
-            obs, tilt[b] if per_particle else tilt), blocks, self.params.workers)
+        parts = [(b, None) for b in blocks]
+        if near is not None:  # a block of particles far apart in parts, all on the threads
+            parts = [x for found in run_all(lambda b: self._parts(b, near, states[b, 3]),
+                                            blocks, self.params.workers) for x in found]
+            blocks = [b for b, _ in parts]
+        done = run_all(lambda bc: self._block(
+            states[bc[0]], None if near is None else _part(near, bc[0]), obs,
+            tilt[bc[0]] if per_particle else tilt, bc[1]), parts, self.params.workers)
         for b, (s_b, q_b, l_b, v_b) in zip(blocks, done, strict=True):
             score[b], quality[b], lines[b], seen[b] = s_b, q_b, l_b, v_b
         return score, quality, lines, seen
 
-    def _seen(self, rows: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
-              half_width: float, stride: int = 1) -> np.ndarray:
-        """The samples a block of particles may see: visible from one of ``rows``, within
-        the azimuths the cameras (``centres`` (n, 3), ``yaws`` (n,)) see (``in_view_cone``)
-        and on the lattice of ``stride`` (ids divisible by it), (C,) ascending, at least
-        one."""
-        cand = np.flatnonzero(self.visibility.union(rows))
-        if stride > 1:
-            cand = cand[(cand & (stride - 1)) == 0]
-        live = cand[in_view_cone(self.samples.points[cand], centres, yaws, half_width)]
+    def _seen(self, near: tuple, yaws: np.ndarray) -> np.ndarray:
+        """The samples a block of particles may see, (C,) ascending, at least one: on the
+        lattice of its smallest stride (ids divisible by it), those its particles' (cell,
+        sector) groups see within their cones where the budget counted them all
+        (``Budget.columns``), else those visible from one of its rows within the azimuths its
+        cameras see (``in_view_cone``). ``near``: see ``_block``; ``yaws`` (n,) radians."""
+        rows, centres, half_width, budget = near
+        stride = int(budget.stride.min())
+        live = budget.columns(np.arange(len(rows)), stride)
+        if live is None:
+            cand = np.flatnonzero(self.visibility.union(rows))
+            if stride > 1:
+                cand = cand[(cand & (stride - 1)) == 0]
+            live = cand[in_view_cone(self.samples.points[cand], centres, yaws, half_width)]
         return live if len(live) else np.zeros(1, np.int64)  # none: one sample, masked
 
     def _project(self, states: np.ndarray, near: tuple | None, tilt: np.ndarray | None,
@@ -441,9 +461,9 @@ class EdgeLikelihood:
             cols, starts, lines = slice(None), self._starts, None
             idx, valid, xh = pixel_index(proj, s.points_h, W, H, p.near)
         else:
-            stride = near[3]
+            stride = near[3].stride
             if cols is None:
-                cols = self._seen(near[0], near[1], states[:, 3], near[2], int(stride.min()))
+                cols = self._seen(near, states[:, 3])
             lines, line_of = np.unique(s.run[cols], return_inverse=True)
             line_of = line_of.ravel()
             starts = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]])
@@ -461,7 +481,7 @@ class EdgeLikelihood:
                 xh0 = pixel_index(proj, s.points_h[:, s.starts[lines]], W, H, p.near)[2]
             du, dv = image_directions(proj, seg_dirs, xh0)
             self._add_bin(idx, du, dv, bins, s.run[cols] if lines is None else line_of)
-        thinned = near is not None and bool(near[3].min() > 1)
+        thinned = near is not None and bool(near[3].stride.min() > 1)
         return idx, valid, cols, starts, lines, thinned
 
     def _add_bin(self, idx: np.ndarray, du: np.ndarray, dv: np.ndarray, bins: int,
@@ -490,35 +510,38 @@ class EdgeLikelihood:
                                                                            len(cols)]))] = g
         return np.add.reduceat(full, whole, axis=1)
 
-    def _block(self, states: np.ndarray, near: tuple | None, obs: Observation,
-               tilt: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Scores of a block of particles; ``near``: their visibility rows (n,), camera
-        centres (n, 3), the view's half-width (radians) and their strides (n,)
-        (``sample_budget``), or None without visibility. Also returns the lines and the
-        visible samples of each particle.
+    def _parts(self, block: np.ndarray, near: tuple, yaws: np.ndarray
+               ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """A block of particles (indices (n,) into ``near``'s arrays, headings ``yaws`` (n,)
+        radians) as parts and the samples each may see (``_seen``).
 
-        A block whose particles may see more than ``BLOCK_COLUMNS`` x ``max_samples`` samples
-        together (particles far apart: injected ones, a global set) is scored in parts of
-        about half that many columns, and so on, so its work stays near ``max_samples`` per
-        particle (a score does not depend on its block but for the float32 rounding of a
-        line's sum, ~1e-8)."""
+        Under a budget, a block whose particles may see together more than ``BLOCK_COLUMNS``
+        times the samples the most seeing of them may see alone (particles far apart:
+        injected ones, a global set) is cut into parts of about that many columns, and so
+        on, so each particle's work stays near what it may see (a score does not depend on
+        its part but for the float32 rounding of a line's sum, ~1e-8)."""
+        mine = _part(near, block)
+        cols = self._seen(mine, yaws)
+        alone = int(mine[3].own.max())
+        if not (self.params.max_samples and len(block) > 1
+                and len(cols) > max(BLOCK_COLUMNS * alone, self.params.max_samples)):
+            return [(block, cols)]
+        k = min(len(block), int(np.ceil(len(cols) / max(alone, 1))))
+        cut = np.linspace(0, len(block), k + 1).round().astype(np.int64)
+        return [x for a, b in zip(cut[:-1], cut[1:], strict=True)
+                for x in self._parts(block[a:b], near, yaws[a:b])]
+
+    def _block(self, states: np.ndarray, near: tuple | None, obs: Observation,
+               tilt: np.ndarray | None, cols: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Scores of a block of particles; ``near``: their visibility rows (n,), camera
+        centres (n, 3), the view's half-width (radians) and their ``sample_budget.Budget``,
+        or None without visibility; ``cols``: the samples they may see (``_parts``), None:
+        found here. Also returns the lines and the visible samples of each particle."""
         p, cam = self.params, self.camera
-        cols = None
-        if near is not None:
-            cols = self._seen(near[0], near[1], states[:, 3], near[2], int(near[3].min()))
-            cap = BLOCK_COLUMNS * p.max_samples
-            if p.max_samples and len(cols) > cap and len(states) > 1:
-                per = tilt is not None and np.ndim(tilt) == 3
-                k = min(len(states), int(np.ceil(2 * len(cols) / cap)))
-                cut = np.linspace(0, len(states), k + 1).round().astype(np.int64)
-                parts = [self._block(states[a:b], (near[0][a:b], near[1][a:b], near[2],
-                                                   near[3][a:b]), obs,
-                                     tilt[a:b] if per else tilt)
-                         for a, b in zip(cut[:-1], cut[1:], strict=True)]
-                return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
         idx, valid, cols, starts, lines, thinned = self._project(states, near, tilt, obs.bins,
                                                                  cols)
-        stride = np.ones(len(states), np.int64) if near is None else near[3]
+        stride = np.ones(len(states), np.int64) if near is None else near[3].stride
         if obs.pairs:
             if self.pair_codes is None or obs.pairs != len(self.pair_codes):
                 raise ValueError(f"the observation has {obs.pairs} class-pair map sets, this "

@@ -291,26 +291,43 @@ def in_view_cone(points: np.ndarray, centres: np.ndarray, yaws: np.ndarray,
 
 
 def in_cone(points: np.ndarray, mean_yaw: np.ndarray | float, spread: np.ndarray | float,
-            mid: np.ndarray, r: np.ndarray | float, half_width: float) -> np.ndarray:
-    """``in_view_cone``'s test of points against given cones: one for all the points, or one
-    per point.
+            mid: np.ndarray, r: np.ndarray | float, half_width: float,
+            which: np.ndarray | None = None) -> np.ndarray:
+    """``in_view_cone``'s test of points against given cones: one for all the points, one
+    per point, or one per group of points (``which``).
 
     Args:
         points: (C, 3) world points, metres.
         mean_yaw, spread: the cameras' circular mean heading and their largest deviation
-            from it, radians: scalars or (C,).
-        mid: (2,) or (C, 2) the cameras' mean centre, metres.
-        r: the largest distance of a camera from ``mid``, metres: a scalar or (C,).
+            from it, radians: scalars, (C,), or (G,) with ``which``.
+        mid: (2,), (C, 2) or (G, 2) the cameras' mean centre, metres.
+        r: the largest distance of a camera from ``mid``, metres: a scalar, (C,) or (G,).
         half_width: ``view_half_width``, radians.
+        which: (C,) int the cone of each point, indexing the (G,) cones; None: as given.
 
     Returns:
         (C,) bool.
     """
+    yaw = np.asarray(mean_yaw, dtype=np.float64)
+    width = half_width + np.asarray(spread, np.float64)
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    cos_w, sin_w = np.cos(np.minimum(width, np.pi)), np.sin(np.minimum(width, np.pi))
+    r = np.asarray(r, dtype=np.float64)
+    mid = np.asarray(mid, dtype=np.float64)
+    if which is not None:
+        cos, sin, cos_w, sin_w, width, mid, r = (a[which] for a in (cos, sin, cos_w, sin_w,
+                                                                     width, mid, r))
     p = np.asarray(points, dtype=np.float64)[:, :2] - mid
-    dist = np.linalg.norm(p, axis=1)
-    off = np.abs(np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - mean_yaw))))
-    reach = half_width + spread + np.arcsin(np.clip(r / np.maximum(dist, 1e-12), 0.0, 1.0))
-    return (half_width + spread >= np.pi) | (dist <= r + 1e-6) | (off <= reach)
+    d2 = p[:, 0] * p[:, 0] + p[:, 1] * p[:, 1]
+    dist = np.sqrt(d2)
+    rc = np.minimum(r, dist)
+    # the azimuth off the mean heading within reach = width + asin(rc / dist), without
+    # trigonometry per point: cos(off) >= cos(reach) while reach < pi, times dist
+    near_side = p[:, 0] * cos + p[:, 1] * sin >= (cos_w * np.sqrt(np.maximum(d2 - rc * rc, 0.0))
+                                                  - sin_w * rc)
+    # reach >= pi: every azimuth (asin(rc / dist) >= pi - width needs width >= pi / 2)
+    whole = (width >= np.pi) | ((width >= np.pi / 2) & (rc >= dist * sin_w))
+    return whole | (dist <= r + 1e-6) | near_side
 
 
 @dataclass

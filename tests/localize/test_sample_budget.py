@@ -10,7 +10,13 @@ import pytest
 
 from localize.config import LikelihoodConfig, VisibilityConfig
 from localize.filter.likelihood import EdgeLikelihood
-from localize.filter.projection import cam_from_world, camera_centres, sample_segments
+from localize.filter.projection import (
+    cam_from_world,
+    camera_centres,
+    in_cone,
+    sample_segments,
+    view_half_width,
+)
 from localize.filter.sample_budget import line_minimum, strides
 from localize.filter.visibility import build_visibility
 from localize.frontend.boundaries import label_edges
@@ -125,24 +131,73 @@ def test_the_default_budget_is_documented():
 
 def test_blocks_of_far_apart_particles_split_without_changing_a_score(model, camera, obs,
                                                                       states, monkeypatch):
-    """Particles spread over the room see many samples together: with a cap of the block's
-    columns each projected block stays within it (or is one particle), and every score is
-    what it is in one block, to the float32 rounding of a line's sum."""
+    """Particles spread over the room see many samples together: each projected block stays
+    within ``BLOCK_COLUMNS`` times what its most seeing particle may see alone (or within the
+    budget, or is one particle), and every score is what it is in one block, to the float32
+    rounding of a line's sum."""
     import localize.filter.likelihood as L
 
     top = int(lik(model, camera, max_samples=0).visible_samples(states, obs).max())
-    whole, _ = lik(model, camera, max_samples=top).scores(states, obs)
+    budget = top // 2
+    whole, _ = lik(model, camera, max_samples=budget, chunk=1024).scores(states, obs)
     seen = []
     project = L.EdgeLikelihood._project
 
     def spy(self, st, near, tilt, bins, cols=None):
         out = project(self, st, near, tilt, bins, cols)
-        seen.append((len(st), len(out[2])))
+        seen.append((len(st), len(out[2]), max(L.BLOCK_COLUMNS * near[3].own.max(), budget)))
         return out
 
     monkeypatch.setattr(L.EdgeLikelihood, "_project", spy)
-    monkeypatch.setattr(L, "BLOCK_COLUMNS", 0.5)  # at most top / 2 columns a block
-    split, _ = lik(model, camera, max_samples=top).scores(states, obs)
+    monkeypatch.setattr(L, "BLOCK_COLUMNS", 1.0)
+    split, _ = lik(model, camera, max_samples=budget, chunk=1024).scores(states, obs)
     assert len(seen) > 2
-    assert all(n == 1 or c <= top / 2 for n, c in seen)
+    assert all(n == 1 or c <= cap for n, c, cap in seen)
     np.testing.assert_allclose(split, whole, rtol=0, atol=1e-6)
+
+
+def test_blocks_score_the_counted_samples_as_their_own(model, camera, obs, states,
+                                                       monkeypatch):
+    """The blocks take their columns from the budget's counting (``Budget.columns``): the
+    same scores and visible samples as when each block selects its own (lists not kept)."""
+    import localize.filter.sample_budget as B
+
+    s, vis = model
+    c = camera_centres(states, camera.body_from_cam, None)
+    half = view_half_width(camera.K, camera.width, camera.height, camera.body_from_cam)
+    counted = B.count(vis, s.points, vis.rows(c), c, states[:, 3], half, 300)
+    assert (counted.group >= 0).mean() > 0.5 and counted.ids is not None
+    assert counted.columns(np.arange(len(states)), 1) is None or (counted.group >= 0).all()
+    shared = lik(model, camera, max_samples=300)
+    s0, q0 = shared.scores(states, obs)
+    v0 = shared.visible_samples(states, obs)
+    monkeypatch.setattr(B, "KEEP_ENTRIES", 0)
+    own = lik(model, camera, max_samples=300)
+    s1, q1 = own.scores(states, obs)
+    np.testing.assert_array_equal(own.visible_samples(states, obs), v0)
+    np.testing.assert_allclose(s1, s0, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(q1, q0, rtol=0, atol=1e-9)
+
+
+def test_the_cone_test_is_the_azimuth_test():
+    """``in_cone`` without trigonometry per point keeps what the azimuth formula keeps (the
+    offset of a point's azimuth from the mean heading within the half-width, the spread and
+    asin(r / distance)), away from its boundary; per point and per group of points."""
+    rng = np.random.default_rng(7)
+    n, G = 20_000, 50
+    pts = rng.uniform(-10, 10, (n, 3))
+    which = np.sort(rng.integers(0, G, n))
+    yaw, spread = rng.uniform(-np.pi, np.pi, G), rng.uniform(0, 2.5, G)
+    mid, r = rng.uniform(-3, 3, (G, 2)), rng.uniform(0, 2, G) * (rng.random(G) < 0.7)
+    half = 0.6
+    p = pts[:, :2] - mid[which]
+    dist = np.linalg.norm(p, axis=1)
+    off = np.abs(np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - yaw[which]))))
+    reach = half + spread[which] + np.arcsin(np.clip(r[which] / np.maximum(dist, 1e-12), 0, 1))
+    want = (half + spread[which] >= np.pi) | (dist <= r[which] + 1e-6) | (off <= reach)
+    clear = np.abs(off - reach) > 1e-9
+    got = in_cone(pts, yaw, spread, mid, r, half, which)
+    np.testing.assert_array_equal(got[clear], want[clear])
+    assert 0.2 < want.mean() < 0.9
+    np.testing.assert_array_equal(
+        in_cone(pts, yaw[which], spread[which], mid[which], r[which], half), got)
