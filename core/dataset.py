@@ -334,7 +334,12 @@ def load_world(world_dir: str | Path) -> World:
     d = Path(world_dir)
     for f in ("model.npz", "edges.npz", "free.npz", "world.json"):
         if not (d / f).is_file():
-            raise FileNotFoundError(f"world model file missing: {d / f}; re-run datagen")
+            hint = "re-run datagen"
+            if f == "edges.npz" and (d / "world.json").is_file() and \
+                    read_json(d / "world.json").get("num_edges", 0) is None:
+                hint = ("the dataset was rendered without model edges (no flights); make them: "
+                        f"python -m datagen.mesh.rebuild_edges {d.parent}")
+            raise FileNotFoundError(f"world model file missing: {d / f}; {hint}")
     m = np.load(d / "model.npz")
     e = np.load(d / "edges.npz")
     if "outline" in e:
