@@ -32,8 +32,11 @@ from datagen.rendering.denoise import denoise, segment_ids
 from datagen.worlds.scene import GLASS, QUAD, Scene
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor, each
-# shrunk to a point there (degenerate triangles cost the acceleration structure's rebuild,
-# which every moved object triggers, next to nothing)
+# shrunk to a point there and to one degenerate triangle (``HIDDEN_FACES``): the acceleration
+# structure's rebuild, which every moved object triggers, then spends nothing on them (a slot's
+# coincident triangles cost Embree's spatial-split build ~20 % of its time on a generalist
+# floor; docs/notes/render_cost.md)
+HIDDEN_FACES = np.zeros(3, np.uint32)  # a hidden slot's faces: one triangle (0, 0, 0)
 
 @dataclass(frozen=True)
 class Traced:
@@ -158,8 +161,10 @@ class Renderer:
         self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
         self._slot_parts = [m.metadata.get("parts") for m, _ in self.slots]  # (V,) or None
+        self._slot_faces = [np.asarray(m.faces, np.uint32).ravel() for m, _ in self.slots]
         self._slot_palette: dict[int, np.ndarray] = {}  # the last part colours set per slot
-        self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden)
+        self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden:
+        # NaN, one degenerate triangle, HIDDEN_FACES)
         for i in range(len(self.slots)):
             self._slot_pose[i] = np.full(3, np.nan)
         self.num_lights = scene.num_lights
@@ -244,17 +249,18 @@ class Renderer:
         """The distractor slots, hidden below the floor until ``set_objects`` places them; a
         mesh whose parts have their own colours (``metadata["parts"]``) in vertex colours."""
         mi, out = self.mi, {}
-        for i, (m, cls) in enumerate(self.slots):
+        for i, (_, cls) in enumerate(self.slots):
             name = f"object{i}"
             V = np.zeros_like(self._slot_vertices[i]) + [0.0, 0.0, HIDDEN_Z]
+            F = HIDDEN_FACES.reshape(1, 3)
             if self._slot_parts[i] is None:
                 bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                          "value": 0.5}})
-                out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf)
+                out[name] = _mesh(mi, name, V, F, None, bsdf)
             else:
                 bsdf = mi.load_dict({"type": "diffuse", "reflectance": {
                     "type": "mesh_attribute", "name": "vertex_color"}})
-                out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf,
+                out[name] = _mesh(mi, name, V, F, None, bsdf,
                                   colour=np.full((len(V), 3), 0.5, np.float32))
             self.class_of[name] = cls
         return out
@@ -349,17 +355,19 @@ class Renderer:
                 _set(self.params, f"object{i}.vertex_color",
                      palette[np.minimum(parts, len(palette) - 1)].ravel())
                 self._slot_palette[i] = col
-            last = self._slot_pose.get(i)
-            if last is not None and np.array_equal(last, pose, equal_nan=True):
+            last = self._slot_pose[i]
+            if np.array_equal(last, pose, equal_nan=True):
                 continue  # unchanged geometry: no acceleration-structure rebuild
-            self._slot_pose[i] = pose.copy()
             V = self._slot_vertices[i]
             if np.isnan(pose[0]):
-                V = np.zeros_like(V) + [0.0, 0.0, HIDDEN_Z]
+                V, F = np.zeros_like(V) + [0.0, 0.0, HIDDEN_Z], HIDDEN_FACES
             else:
                 c, s = math.cos(pose[2]), math.sin(pose[2])
                 R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-                V = V @ R.T + [pose[0], pose[1], 0.0]
+                V, F = V @ R.T + [pose[0], pose[1], 0.0], self._slot_faces[i]
+            if np.isnan(pose[0]) != np.isnan(last[0]):  # shown or hidden: its faces too
+                _set(self.params, f"object{i}.faces", F)
+            self._slot_pose[i] = pose.copy()
             _set(self.params, f"object{i}.vertex_positions", V.astype(np.float32).ravel())
 
     # --- rendering -------------------------------------------------------------------------
