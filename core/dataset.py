@@ -7,7 +7,8 @@
   world/model.ply              structural mesh, face colour = class colour
   world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
   world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8,
-                               normals (M,2,3) f8 (core.imaging.outline)
+                               normals (M,2,3) f8 (core.imaging.outline); absent from a
+                               training-only dataset (world.json num_edges null)
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
   world_truth/                 with realism.map only: the rendered world (world/ is then the

@@ -162,7 +162,7 @@ class Renderer:
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
         self._slot_parts = [m.metadata.get("parts") for m, _ in self.slots]  # (V,) or None
         self._slot_faces = [np.asarray(m.faces, np.uint32).ravel() for m, _ in self.slots]
-        self._slot_palette: dict[int, np.ndarray] = {}  # the last part colours set per slot
+        self._slot_palette: dict[int, np.ndarray] = {}  # the last colours set per slot
         self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden:
         # NaN, one degenerate triangle, HIDDEN_FACES)
         for i in range(len(self.slots)):
@@ -176,6 +176,7 @@ class Renderer:
         self._texture_keys: list[tuple[str, str]] = []  # (parameter key, texture name)
         self.glossy_floor = glossy_floor
         self._gloss_shapes: list[str] = []  # the floor shapes with a blended BSDF
+        self._gloss = (0.0, 0.1)  # their (weight, alpha), as loaded
         desc = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
         desc.update(self._surface_shapes(scene, textures))
         desc.update(self._light_shapes(scene))
@@ -318,9 +319,13 @@ class Renderer:
         the rough plastic lobe (0: the diffuse floor), alpha its GGX roughness (> 0)."""
         if not self.glossy_floor:
             raise ValueError("set_floor_gloss needs a Renderer built with glossy_floor=True")
+        gloss = (float(weight), float(max(alpha, 1e-3)))
+        if gloss == self._gloss:  # unchanged (most often the diffuse floor): no update
+            return
+        self._gloss = gloss
         for name in self._gloss_shapes:
-            self.params[f"{name}.bsdf.weight.value"] = float(weight)
-            self.params[f"{name}.bsdf.bsdf_1.alpha"] = float(max(alpha, 1e-3))
+            self.params[f"{name}.bsdf.weight.value"] = gloss[0]
+            self.params[f"{name}.bsdf.bsdf_1.alpha"] = gloss[1]
 
     def _weigh_lights(self) -> None:
         """Sampling weights of the lights for the current camera (``near_lights``)."""
@@ -343,17 +348,19 @@ class Renderer:
         for i, (pose, col) in enumerate(zip(poses, colors, strict=True)):
             col = np.asarray(col, dtype=np.float32)
             parts = self._slot_parts[i]
-            if parts is None:
-                self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
-                    *col.reshape(3).tolist())
-            elif not np.isnan(pose[0]) and not np.array_equal(self._slot_palette.get(i), col):
-                # (a hidden slot keeps its colours)
-                palette = col.reshape(-1, 3)
-                if len(palette) not in (1, int(parts.max()) + 1):
-                    raise ValueError(f"set_objects: slot {i} has {int(parts.max()) + 1} parts, "
-                                     f"got {len(palette)} colours")
-                _set(self.params, f"object{i}.vertex_color",
-                     palette[np.minimum(parts, len(palette) - 1)].ravel())
+            # a hidden slot keeps its colours, a shown one changes only those that differ: a
+            # changed parameter of a shape costs the acceleration structure's rebuild
+            if not np.isnan(pose[0]) and not np.array_equal(self._slot_palette.get(i), col):
+                if parts is None:
+                    self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
+                        *col.reshape(3).tolist())
+                else:
+                    palette = col.reshape(-1, 3)
+                    if len(palette) not in (1, int(parts.max()) + 1):
+                        raise ValueError(f"set_objects: slot {i} has {int(parts.max()) + 1} "
+                                         f"parts, got {len(palette)} colours")
+                    _set(self.params, f"object{i}.vertex_color",
+                         palette[np.minimum(parts, len(palette) - 1)].ravel())
                 self._slot_palette[i] = col
             last = self._slot_pose[i]
             if np.array_equal(last, pose, equal_nan=True):
