@@ -176,7 +176,7 @@ class Renderer:
         self._texture_keys: list[tuple[str, str]] = []  # (parameter key, texture name)
         self.glossy_floor = glossy_floor
         self._gloss_shapes: list[str] = []  # the floor shapes with a blended BSDF
-        self._gloss = (0.0, 0.1)  # their (weight, alpha), as loaded
+        self._gloss = (0.0, 0.1)  # their (weight, alpha) set last (as loaded)
         desc = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
         desc.update(self._surface_shapes(scene, textures))
         desc.update(self._light_shapes(scene))
@@ -319,13 +319,13 @@ class Renderer:
         the rough plastic lobe (0: the diffuse floor), alpha its GGX roughness (> 0)."""
         if not self.glossy_floor:
             raise ValueError("set_floor_gloss needs a Renderer built with glossy_floor=True")
-        gloss = (float(weight), float(max(alpha, 1e-3)))
-        if gloss == self._gloss:  # unchanged (most often the diffuse floor): no update
-            return
-        self._gloss = gloss
-        for name in self._gloss_shapes:
+        # weight 0 leaves alpha as it is: the lobe is then neither evaluated nor sampled, and a
+        # new alpha costs the rough plastic's precomputation (~as much as a BVH rebuild)
+        gloss = (float(weight), float(max(alpha, 1e-3)) if weight > 0 else self._gloss[1])
+        for name in self._gloss_shapes:  # (an unchanged value is no update)
             self.params[f"{name}.bsdf.weight.value"] = gloss[0]
             self.params[f"{name}.bsdf.bsdf_1.alpha"] = gloss[1]
+        self._gloss = gloss
 
     def _weigh_lights(self) -> None:
         """Sampling weights of the lights for the current camera (``near_lights``)."""
