@@ -32,11 +32,8 @@ from datagen.rendering.denoise import denoise, segment_ids
 from datagen.worlds.scene import GLASS, QUAD, Scene
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor, each
-# shrunk to a point there and to one degenerate triangle (``HIDDEN_FACES``): the acceleration
-# structure's rebuild, which every moved object triggers, then spends nothing on them (a slot's
-# coincident triangles cost Embree's spatial-split build ~20 % of its time on a generalist
-# floor; docs/notes/render_cost.md)
-HIDDEN_FACES = np.zeros(3, np.uint32)  # a hidden slot's faces: one triangle (0, 0, 0)
+# shrunk to a point there (their faces stay: a face count that changes makes Dr.Jit compile
+# new kernels for every set of meshes, docs/notes/render_cost.md)
 
 @dataclass(frozen=True)
 class Traced:
@@ -161,10 +158,8 @@ class Renderer:
         self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
         self._slot_parts = [m.metadata.get("parts") for m, _ in self.slots]  # (V,) or None
-        self._slot_faces = [np.asarray(m.faces, np.uint32).ravel() for m, _ in self.slots]
         self._slot_palette: dict[int, np.ndarray] = {}  # the last colours set per slot
-        self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden:
-        # NaN, one degenerate triangle, HIDDEN_FACES)
+        self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden)
         for i in range(len(self.slots)):
             self._slot_pose[i] = np.full(3, np.nan)
         self.num_lights = scene.num_lights
@@ -250,10 +245,10 @@ class Renderer:
         """The distractor slots, hidden below the floor until ``set_objects`` places them; a
         mesh whose parts have their own colours (``metadata["parts"]``) in vertex colours."""
         mi, out = self.mi, {}
-        for i, (_, cls) in enumerate(self.slots):
+        for i, (m, cls) in enumerate(self.slots):
             name = f"object{i}"
             V = np.zeros_like(self._slot_vertices[i]) + [0.0, 0.0, HIDDEN_Z]
-            F = HIDDEN_FACES.reshape(1, 3)
+            F = np.asarray(m.faces)
             if self._slot_parts[i] is None:
                 bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                          "value": 0.5}})
@@ -365,16 +360,14 @@ class Renderer:
             last = self._slot_pose[i]
             if np.array_equal(last, pose, equal_nan=True):
                 continue  # unchanged geometry: no acceleration-structure rebuild
+            self._slot_pose[i] = pose.copy()
             V = self._slot_vertices[i]
             if np.isnan(pose[0]):
-                V, F = np.zeros_like(V) + [0.0, 0.0, HIDDEN_Z], HIDDEN_FACES
+                V = np.zeros_like(V) + [0.0, 0.0, HIDDEN_Z]
             else:
                 c, s = math.cos(pose[2]), math.sin(pose[2])
                 R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-                V, F = V @ R.T + [pose[0], pose[1], 0.0], self._slot_faces[i]
-            if np.isnan(pose[0]) != np.isnan(last[0]):  # shown or hidden: its faces too
-                _set(self.params, f"object{i}.faces", F)
-            self._slot_pose[i] = pose.copy()
+                V = V @ R.T + [pose[0], pose[1], 0.0]
             _set(self.params, f"object{i}.vertex_positions", V.astype(np.float32).ravel())
 
     # --- rendering -------------------------------------------------------------------------

@@ -258,15 +258,15 @@ def test_glossy_floor():
         plain.set_floor_gloss(1.0, 0.1)
 
 
-def test_hidden_slots_cost_one_triangle_and_come_back_whole():
-    """A hidden distractor slot is one degenerate triangle (the acceleration structure's
-    rebuild spends nothing on it); shown again after hiding, it renders the labels, depth and
-    image of a slot shown straight away (plain and part-coloured meshes)."""
+def test_hidden_slots_come_back_whole():
+    """A distractor slot shown again after hiding (its colours not set while hidden) renders
+    the labels, depth and image of a slot shown straight away (plain and part-coloured
+    meshes); hidden, it is in no pixel."""
     import trimesh
 
     from core.imaging.variant import choose_variant
     from datagen.distractors.meshes import make_clutter_mesh
-    from datagen.rendering.render import HIDDEN_FACES, Renderer
+    from datagen.rendering.render import Renderer
 
     choose_variant()
     cfg = compose_config("datagen", ["camera.width=96", "camera.height=72"])
@@ -289,23 +289,17 @@ def test_hidden_slots_cost_one_triangle_and_come_back_whole():
         r.set_camera(body @ camera.body_from_cam)
         return r
 
-    def faces(r):
-        return [s.face_count() for s in r.scene.shapes() if s.id().startswith("object")]
-
     direct = renderer()
-    assert faces(direct) == [len(HIDDEN_FACES) // 3] * 2
     empty = direct.render(spp=1, seed=3)[1]
     direct.set_objects(shown, colours)
     want = direct.render(spp=1, seed=3)
-    assert faces(direct) == [len(m.faces) for m in meshes]
     assert (want[1] == C.CLUTTER).mean() > 0.05 and not (empty == C.CLUTTER).any()
 
     again = renderer()
     again.set_objects(shown + [[0.5, -0.4, 1.0]], colours)
     again.render(spp=1, seed=3)
-    again.set_objects(hidden, colours)
+    again.set_objects(hidden, [c * 0.5 for c in colours])  # not set: hidden
     np.testing.assert_array_equal(again.render(spp=1, seed=3)[1], empty)
-    assert faces(again) == [1, 1]
     again.set_objects(shown, colours)
     got = again.render(spp=1, seed=3)
     np.testing.assert_array_equal(got[1], want[1])
