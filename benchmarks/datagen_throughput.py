@@ -1,5 +1,8 @@
 """Labeled 320x240 images per second at the default render quality, llvm and scalar.
 
+Also the process's CPU seconds per image (all its threads): on a shared machine, less moved
+by the other jobs than the wall time.
+
 Renders N training images (path-traced RGB + denoiser + label pass + PNG writes, i.e. what
 `python -m datagen` does per frame) into a temporary dataset, once per Mitsuba variant, each
 in a fresh process (a process can only hold one variant). The first image of each run (scene
@@ -40,15 +43,17 @@ cfg = compose_config("datagen", ["splits.train=%d" % (n + 1), "splits.val=0", "s
                                  "out_dir={out}", "render.variant=" + {variant!r}] + {overrides!r})
 job = datagen_job.prepare(cfg)
 writer.write_metadata(job, variant)
-times = []
+times, cpu = [], []
 real = render_frame.write_frame
 def timed(*a, **k):
     real(*a, **k)
     times.append(time.perf_counter())
+    cpu.append(time.process_time())
 render_frame.write_frame = timed
 render_split.render_split(job, "train", progress=False)
 dt = times[-1] - times[0]
-print(json.dumps({{"variant": variant, "images": n, "seconds": dt, "images_per_second": n / dt}}))
+print(json.dumps({{"variant": variant, "images": n, "seconds": dt, "images_per_second": n / dt,
+                  "cpu_seconds": cpu[-1] - cpu[0]}}))
 """
 
 
@@ -71,7 +76,8 @@ def main() -> None:
                 continue
             r = json.loads(res.stdout.strip().splitlines()[-1])
             print(f"{r['variant']:>12}: {r['images_per_second']:.2f} labeled images/s "
-                  f"({r['seconds'] / r['images'] * 1000:.0f} ms/image; "
+                  f"({r['seconds'] / r['images'] * 1000:.0f} ms/image, "
+                  f"{r['cpu_seconds'] / r['images'] * 1000:.0f} CPU ms/image; "
                   f"process {time.perf_counter() - t:.0f} s incl. start-up)")
 
 

@@ -7,7 +7,8 @@
   world/model.ply              structural mesh, face colour = class colour
   world/model.npz              vertices (V,3) f8, faces (F,3) i8, face_class (F,) u1
   world/edges.npz              segments (M,2,3) f8, classes (M,2) u1, crease_deg (M,) f8,
-                               normals (M,2,3) f8 (core.imaging.outline)
+                               normals (M,2,3) f8 (core.imaging.outline); absent from a
+                               training-only dataset (world.json num_edges null)
   world/world.json             the world's parameters, free space summary, lights
   world/free.npz               free space: the occupancy map of the flyable heights
   world_truth/                 with realism.map only: the rendered world (world/ is then the
@@ -334,7 +335,12 @@ def load_world(world_dir: str | Path) -> World:
     d = Path(world_dir)
     for f in ("model.npz", "edges.npz", "free.npz", "world.json"):
         if not (d / f).is_file():
-            raise FileNotFoundError(f"world model file missing: {d / f}; re-run datagen")
+            hint = "re-run datagen"
+            if f == "edges.npz" and (d / "world.json").is_file() and \
+                    read_json(d / "world.json").get("num_edges", 0) is None:
+                hint = ("the dataset was rendered without model edges (no flights); make them: "
+                        f"python -m datagen.mesh.rebuild_edges {d.parent}")
+            raise FileNotFoundError(f"world model file missing: {d / f}; {hint}")
     m = np.load(d / "model.npz")
     e = np.load(d / "edges.npz")
     if "outline" in e:

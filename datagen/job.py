@@ -140,6 +140,15 @@ def val_flights(cfg: DatagenConfig) -> list[str]:
     return list(cfg.render_flights if cfg.val_flights is None else cfg.val_flights)
 
 
+def needs_edges(cfg: DatagenConfig, map_active: bool) -> bool:
+    """Whether the dataset's world needs its model edges: it has flights (test or
+    validation; the localizer reads world/edges.npz) or a map error (``realism.map`` edits
+    them). A training-only dataset (the generalist's floors) skips them: the SegNet trains
+    on images and labels, and a procedural floor's edges are most of its build
+    (``datagen.worlds.site.build_site``)."""
+    return bool(cfg.render_flights or val_flights(cfg) or map_active)
+
+
 def _check_counts(cfg: DatagenConfig) -> None:
     """Seed, counts, sizes and shards: positive where they must be."""
     if cfg.seed < 0:
@@ -288,7 +297,8 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     optics.check_settings(cfg.realism, camera, {n: cfg.flights[n].fps for n in
                                                 {*cfg.render_flights, *val_flights(cfg)}},
                           "realism")
-    site = build_site(cfg.world)
+    # model edges only where a flight is localized against them (training-only: none)
+    site = build_site(cfg.world, edges=needs_edges(cfg, map_error.is_active(map_cfg)))
     split_poses = {}
     for split in SPLITS:
         poses = poses_of_split(cfg, site, split)

@@ -65,7 +65,8 @@ def rebuild_world_edges(world_dir: Path, crease_deg: float,
     atomic_write_bytes(old, buf.getvalue())
     info_file = world_dir / "world.json"
     if info_file.is_file():
-        atomic_write_json(info_file, {**read_json(info_file), "num_edges": int(len(seg))})
+        info = {k: v for k, v in read_json(info_file).items() if k != "edges"}
+        atomic_write_json(info_file, {**info, "num_edges": int(len(seg))})
     return before, len(seg)
 
 

@@ -32,8 +32,8 @@ from datagen.rendering.denoise import denoise, segment_ids
 from datagen.worlds.scene import GLASS, QUAD, Scene
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor, each
-# shrunk to a point there (degenerate triangles cost the acceleration structure's rebuild,
-# which every moved object triggers, next to nothing)
+# shrunk to a point there (their faces stay: a face count that changes makes Dr.Jit compile
+# new kernels for every set of meshes, docs/notes/render_cost.md)
 
 @dataclass(frozen=True)
 class Traced:
@@ -158,7 +158,7 @@ class Renderer:
         self.slots = [(m, C.CLUTTER) for m in clutter] + [(m, C.PERSON) for m in people]
         self._slot_vertices = [np.asarray(m.vertices, dtype=np.float64) for m, _ in self.slots]
         self._slot_parts = [m.metadata.get("parts") for m, _ in self.slots]  # (V,) or None
-        self._slot_palette: dict[int, np.ndarray] = {}  # the last part colours set per slot
+        self._slot_palette: dict[int, np.ndarray] = {}  # the last colours set per slot
         self._slot_pose: dict[int, np.ndarray] = {}  # the last pose set per slot (all hidden)
         for i in range(len(self.slots)):
             self._slot_pose[i] = np.full(3, np.nan)
@@ -171,6 +171,7 @@ class Renderer:
         self._texture_keys: list[tuple[str, str]] = []  # (parameter key, texture name)
         self.glossy_floor = glossy_floor
         self._gloss_shapes: list[str] = []  # the floor shapes with a blended BSDF
+        self._gloss = (0.0, 0.1)  # their (weight, alpha) set last (as loaded)
         desc = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)}}
         desc.update(self._surface_shapes(scene, textures))
         desc.update(self._light_shapes(scene))
@@ -247,14 +248,15 @@ class Renderer:
         for i, (m, cls) in enumerate(self.slots):
             name = f"object{i}"
             V = np.zeros_like(self._slot_vertices[i]) + [0.0, 0.0, HIDDEN_Z]
+            F = np.asarray(m.faces)
             if self._slot_parts[i] is None:
                 bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb",
                                                                          "value": 0.5}})
-                out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf)
+                out[name] = _mesh(mi, name, V, F, None, bsdf)
             else:
                 bsdf = mi.load_dict({"type": "diffuse", "reflectance": {
                     "type": "mesh_attribute", "name": "vertex_color"}})
-                out[name] = _mesh(mi, name, V, np.asarray(m.faces), None, bsdf,
+                out[name] = _mesh(mi, name, V, F, None, bsdf,
                                   colour=np.full((len(V), 3), 0.5, np.float32))
             self.class_of[name] = cls
         return out
@@ -312,9 +314,13 @@ class Renderer:
         the rough plastic lobe (0: the diffuse floor), alpha its GGX roughness (> 0)."""
         if not self.glossy_floor:
             raise ValueError("set_floor_gloss needs a Renderer built with glossy_floor=True")
-        for name in self._gloss_shapes:
-            self.params[f"{name}.bsdf.weight.value"] = float(weight)
-            self.params[f"{name}.bsdf.bsdf_1.alpha"] = float(max(alpha, 1e-3))
+        # weight 0 leaves alpha as it is: the lobe is then neither evaluated nor sampled, and a
+        # new alpha costs the rough plastic's precomputation (~as much as a BVH rebuild)
+        gloss = (float(weight), float(max(alpha, 1e-3)) if weight > 0 else self._gloss[1])
+        for name in self._gloss_shapes:  # (an unchanged value is no update)
+            self.params[f"{name}.bsdf.weight.value"] = gloss[0]
+            self.params[f"{name}.bsdf.bsdf_1.alpha"] = gloss[1]
+        self._gloss = gloss
 
     def _weigh_lights(self) -> None:
         """Sampling weights of the lights for the current camera (``near_lights``)."""
@@ -337,20 +343,22 @@ class Renderer:
         for i, (pose, col) in enumerate(zip(poses, colors, strict=True)):
             col = np.asarray(col, dtype=np.float32)
             parts = self._slot_parts[i]
-            if parts is None:
-                self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
-                    *col.reshape(3).tolist())
-            elif not np.isnan(pose[0]) and not np.array_equal(self._slot_palette.get(i), col):
-                # (a hidden slot keeps its colours)
-                palette = col.reshape(-1, 3)
-                if len(palette) not in (1, int(parts.max()) + 1):
-                    raise ValueError(f"set_objects: slot {i} has {int(parts.max()) + 1} parts, "
-                                     f"got {len(palette)} colours")
-                _set(self.params, f"object{i}.vertex_color",
-                     palette[np.minimum(parts, len(palette) - 1)].ravel())
+            # a hidden slot keeps its colours, a shown one changes only those that differ: a
+            # changed parameter of a shape costs the acceleration structure's rebuild
+            if not np.isnan(pose[0]) and not np.array_equal(self._slot_palette.get(i), col):
+                if parts is None:
+                    self.params[f"object{i}.bsdf.reflectance.value"] = self.mi.Color3f(
+                        *col.reshape(3).tolist())
+                else:
+                    palette = col.reshape(-1, 3)
+                    if len(palette) not in (1, int(parts.max()) + 1):
+                        raise ValueError(f"set_objects: slot {i} has {int(parts.max()) + 1} "
+                                         f"parts, got {len(palette)} colours")
+                    _set(self.params, f"object{i}.vertex_color",
+                         palette[np.minimum(parts, len(palette) - 1)].ravel())
                 self._slot_palette[i] = col
-            last = self._slot_pose.get(i)
-            if last is not None and np.array_equal(last, pose, equal_nan=True):
+            last = self._slot_pose[i]
+            if np.array_equal(last, pose, equal_nan=True):
                 continue  # unchanged geometry: no acceleration-structure rebuild
             self._slot_pose[i] = pose.copy()
             V = self._slot_vertices[i]

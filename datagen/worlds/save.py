@@ -20,14 +20,19 @@ def _npz_bytes(**arrays: np.ndarray) -> bytes:
 
 
 def save_world(d: str | Path, w: World) -> None:
-    """model.npz, edges.npz, free.npz, world.json, model.ply (face colour = class colour) and,
-    for an imported building, import_summary.json."""
+    """model.npz, edges.npz (not for a world built without edges: ``num_edges`` None),
+    free.npz, world.json, model.ply (face colour = class colour) and, for an imported
+    building, import_summary.json."""
     d = Path(d)
     atomic_write_bytes(d / "model.npz", _npz_bytes(
         vertices=w.vertices, faces=w.faces.astype(np.int64), face_class=w.face_class))
     normals = {} if w.normals is None else {"normals": w.normals}
-    atomic_write_bytes(d / "edges.npz", _npz_bytes(
-        segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg, **normals))
+    if w.info.get("num_edges", 0) is None:  # built without edges: none, as world.json says
+        (d / "edges.npz").unlink(missing_ok=True)
+    else:
+        atomic_write_bytes(d / "edges.npz", _npz_bytes(
+            segments=w.segments, classes=w.segment_classes, crease_deg=w.crease_deg,
+            **normals))
     w.free.save(d / "free.npz")
     atomic_write_json(d / "world.json", w.info)
     if "import_summary" in w.info:

@@ -35,6 +35,9 @@ from datagen.worlds.scene import Scene, building_scene, corridor_scene
 
 log = logging.getLogger(__name__)
 
+#: world.json's ``edges`` of a world built without model edges (``building_site(edges=False)``).
+NO_EDGES = ("not extracted: a dataset without flights (training images only); make them with "
+            "python -m datagen.mesh.rebuild_edges DATASET")
 #: m above the floor: the heights a distractor or a person occupies (the floor map's band).
 STANDING_BAND = (0.05, 1.9)
 #: m above the floor: the heights an object taller than STANDING_BAND's top occupies (shelving
@@ -157,7 +160,7 @@ def camera_free_space(b: Building, spec: FileWorldConfig | ProceduralWorldConfig
 
 
 def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
-                  source: str, t0: float | None = None) -> Site:
+                  source: str, t0: float | None = None, edges: bool = True) -> Site:
     """A classed building mesh (imported, or drawn by datagen/worlds/procedural.py) made a site:
     camera free space, standing map, model edges, lights (``building_scene``).
 
@@ -167,6 +170,8 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
             ``crease_deg``, ``light_spacing``), ``name`` and ``kind``.
         source: what errors and the log name (the file, or the procedural seed).
         t0: ``time.perf_counter()`` when building began (the log's time; None: now).
+        edges: extract the model edges (``extract_edges``); False: the world has none
+            (``NO_EDGES``; no flight is localized against it, e.g. a training-only dataset).
 
     Raises:
         ValueError: no free space left, naming the source and keys.
@@ -179,8 +184,12 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
                                        floor_z + np.asarray(STANDING_BAND), 0.0, spec.free_cell)
     except ValueError as err:
         raise ValueError(f"{source}: {err}") from None
-    segments, seg_classes, crease, normals = extract_edges(b.vertices, b.faces, b.face_class,
-                                                           spec.crease_deg)
+    if edges:
+        segments, seg_classes, crease, normals = extract_edges(b.vertices, b.faces,
+                                                               b.face_class, spec.crease_deg)
+    else:
+        segments, seg_classes = np.zeros((0, 2, 3)), np.zeros((0, 2), np.uint8)
+        crease, normals = np.zeros(0), np.zeros((0, 2, 3))
     info = {
         "name": spec.name, "kind": spec.kind, **b.info,
         "free_space": {"z_range": list(free.band), "cell": spec.free_cell,
@@ -188,15 +197,18 @@ def building_site(b: Building, spec: FileWorldConfig | ProceduralWorldConfig,
                        "max_hole": float(spec.free_max_hole),
                        "obstacle_span": float(spec.obstacle_span),
                        "area_m2": round(free.area, 3)},
-        "num_faces": int(len(b.faces)), "num_edges": int(len(segments)),
+        "num_faces": int(len(b.faces)),
+        "num_edges": int(len(segments)) if edges else None,
     }
+    if not edges:
+        info["edges"] = NO_EDGES
     world = World(vertices=b.vertices, faces=b.faces, face_class=b.face_class,
                   segments=segments, segment_classes=seg_classes, crease_deg=crease,
                   free=free, info=info, normals=normals)
     scene = building_scene(b, free, light_spacing=spec.light_spacing)
-    log.info("%s: %d faces, %d model edges, %.0f m2 free, %d lights, built in %.1f s",
-             source, len(b.faces), len(segments), free.area, scene.num_lights,
-             time.perf_counter() - t0)
+    log.info("%s: %d faces, %s model edges, %.0f m2 free, %d lights, built in %.1f s",
+             source, len(b.faces), len(segments) if edges else "no", free.area,
+             scene.num_lights, time.perf_counter() - t0)
     return Site(world, scene, floor, None, b)
 
 
@@ -222,8 +234,9 @@ def file_site(spec: FileWorldConfig) -> Site:
     return site
 
 
-def procedural_site(spec: ProceduralWorldConfig) -> Site:
-    """A floor drawn from ``spec.seed`` (datagen/worlds/procedural.py), built as a file's building.
+def procedural_site(spec: ProceduralWorldConfig, edges: bool = True) -> Site:
+    """A floor drawn from ``spec.seed`` (datagen/worlds/procedural.py), built as a file's building
+    (``edges``: as ``building_site``'s).
 
     Raises:
         ValueError: a bad setting (naming the ``world.`` key) or no free space left.
@@ -232,15 +245,20 @@ def procedural_site(spec: ProceduralWorldConfig) -> Site:
 
     t0 = time.perf_counter()
     b, _ = build_floor(spec)
-    return building_site(b, spec, f"world=procedural seed {spec.seed}", t0)
+    return building_site(b, spec, f"world=procedural seed {spec.seed}", t0, edges)
 
 
-def build_site(spec: object) -> Site:
+def build_site(spec: object, edges: bool = True) -> Site:
     """The site of world settings (``WorldConfig``, ``FileWorldConfig``,
-    ``ProceduralWorldConfig`` or a mapping with ``kind``; None: the corridor's defaults)."""
+    ``ProceduralWorldConfig`` or a mapping with ``kind``; None: the corridor's defaults).
+
+    edges: False skips a procedural floor's model edges (``building_site``; ~80 % of its
+    build): for a dataset no flight is localized in. A file's are always extracted (its import
+    summary checks them), the corridor's cost nothing.
+    """
     spec = world_config(spec)
     if isinstance(spec, FileWorldConfig):
         return file_site(spec)
     if isinstance(spec, ProceduralWorldConfig):
-        return procedural_site(spec)
+        return procedural_site(spec, edges)
     return corridor_site(spec)

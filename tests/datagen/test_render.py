@@ -256,3 +256,52 @@ def test_glossy_floor():
     assert np.percentile(shiny.mean(1), 99) > np.percentile(base.mean(1), 99) + 10
     with pytest.raises(ValueError, match="glossy_floor"):
         plain.set_floor_gloss(1.0, 0.1)
+
+
+def test_hidden_slots_come_back_whole():
+    """A distractor slot shown again after hiding (its colours not set while hidden) renders
+    the labels, depth and image of a slot shown straight away (plain and part-coloured
+    meshes); hidden, it is in no pixel."""
+    import trimesh
+
+    from core.imaging.variant import choose_variant
+    from datagen.distractors.meshes import make_clutter_mesh
+    from datagen.rendering.render import Renderer
+
+    choose_variant()
+    cfg = compose_config("datagen", ["camera.width=96", "camera.height=72"])
+    model = build_world(cfg["world"])
+    camera = make_camera(cfg["camera"])
+    tex = sample_textures(np.random.default_rng(0), 16, cfg["appearance"])
+    box = trimesh.creation.box([0.6, 0.6, 1.0])
+    box.apply_translation([0.0, 0.0, 0.5])
+    meshes = [box, make_clutter_mesh("shelf", np.random.default_rng(2))]
+    assert meshes[1].metadata.get("parts") is not None
+    body = pose_from_xyz_rpy([0.0, 0.5, 1.3], [0.0, 0.1, np.pi / 2])[0]
+    shown = np.array([[-0.3, 2.6, 0.3], [0.4, 3.4, -0.2]])
+    hidden = np.full_like(shown, np.nan)
+    parts = int(meshes[1].metadata["parts"].max()) + 1
+    colours = [np.array([0.6, 0.2, 0.1]), np.random.default_rng(4).uniform(0.1, 0.8, (parts, 3))]
+
+    def renderer():
+        r = Renderer(corridor_scene(model), camera, tex, clutter=meshes)
+        r.set_lights(np.full((r.num_lights, 3), 6.0))
+        r.set_camera(body @ camera.body_from_cam)
+        return r
+
+    direct = renderer()
+    empty = direct.render(spp=1, seed=3)[1]
+    direct.set_objects(shown, colours)
+    want = direct.render(spp=1, seed=3)
+    assert (want[1] == C.CLUTTER).mean() > 0.05 and not (empty == C.CLUTTER).any()
+
+    again = renderer()
+    again.set_objects(shown + [[0.5, -0.4, 1.0]], colours)
+    again.render(spp=1, seed=3)
+    again.set_objects(hidden, [c * 0.5 for c in colours])  # not set: hidden
+    np.testing.assert_array_equal(again.render(spp=1, seed=3)[1], empty)
+    again.set_objects(shown, colours)
+    got = again.render(spp=1, seed=3)
+    np.testing.assert_array_equal(got[1], want[1])
+    np.testing.assert_allclose(got[2], want[2], atol=1e-5)
+    assert np.abs(got[0].astype(int) - want[0]).max() <= 1
