@@ -48,7 +48,8 @@ Interface (what the Localizer wires):
   ``search.clusters(k)``: the same as ``hypotheses.Hypothesis`` (with their spreads), the
   Localizer's ``Estimate.hypotheses`` during the search.
 - ``search.converged``: one cluster held ``handover_mass`` for ``handover_frames`` frames.
-- ``search.sample(n) -> (n, 4)``: particles drawn from the dominant cluster's hypotheses.
+- ``search.sample(n, centre=None) -> (n, 4)``: particles drawn from the dominant cluster's
+  hypotheses (or the cluster around ``centre``: a rival's, ``localize.search.rivals``).
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
   log-weights.
 
@@ -406,12 +407,14 @@ class GlobalSearch:
         """One cluster held ``handover_mass`` for ``handover_frames`` frames in a row."""
         return self._held >= self.params.handover_frames
 
-    def sample(self, n: int) -> np.ndarray:
+    def sample(self, n: int, centre: np.ndarray | None = None) -> np.ndarray:
         """(n, 4) particles for the tracking filter: resampled from the hypotheses of the
-        dominant cluster (all of them before one dominates)."""
+        cluster around ``centre`` (4,) (default: the dominant cluster; all of them when there
+        is none or it holds no hypothesis)."""
         S, lw = self.states, self.logw
-        if self._dominant is not None:
-            near = self._in_cluster(S, self._dominant)
+        centre = self._dominant if centre is None else centre
+        if centre is not None:
+            near = self._in_cluster(S, np.asarray(centre, dtype=np.float64))
             if near.any():
                 S, lw = S[near], lw[near]
         return S[systematic_resample(self.rng, lw, int(n))].copy()
