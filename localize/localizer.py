@@ -464,7 +464,10 @@ class Localizer:
         if (not fp.rivals.enabled or fp.global_method != "table"
                 or self.front_end.mode == "none" or self.likelihood_override is not None):
             return
-        rng = self.filter.rng.spawn(1)[0]
+        try:  # a child stream: the parent's state is not advanced
+            rng = self.filter.rng.spawn(1)[0]
+        except TypeError:  # a generator made without a seed sequence
+            rng = np.random.default_rng(self.filter.rng.bit_generator.state["state"]["state"])
         if search is None:
             search = start_search(self.world, self.camera, fp.global_search, rng)
             if search is None:

@@ -114,6 +114,16 @@ def start_search(world: World, camera: Camera, params: GlobalSearchConfig,
     return search
 
 
+def motion_noise(params: GlobalSearchConfig, delta: np.ndarray, time_scale: float = 1.0
+                 ) -> np.ndarray:
+    """(4,) std of the noise of a move by an odometry increment (4,): x, y, z (m), yaw (rad)
+    (``motion_std`` times ``time_scale``, plus ``motion_rel`` per m and per rad of it)."""
+    step = float(np.hypot(delta[0], delta[1]))
+    s_xy = time_scale * params.motion_std[0] + params.motion_rel[0] * step
+    s_yaw = time_scale * np.deg2rad(params.motion_std[2]) + params.motion_rel[1] * abs(delta[3])
+    return np.array([s_xy, s_xy, time_scale * params.motion_std[1], s_yaw])
+
+
 def bin_keys(states: np.ndarray, size: float = 0.5, yaw_deg: float = 20.0) -> np.ndarray:
     """(N,) int64 dense key of each state's (size m x size m x yaw_deg) bin, from 0 (for
     ``np.bincount``)."""
@@ -220,12 +230,8 @@ class GlobalSearch:
         """Move every hypothesis by an odometry increment (4,) with noise; ``time_scale``
         multiplies ``motion_std`` (``particle_filter.noise_scale`` of the time the move spans;
         1: one frame)."""
-        p = self.params
         self._version += 1
-        step = float(np.hypot(delta[0], delta[1]))
-        s_xy = time_scale * p.motion_std[0] + p.motion_rel[0] * step
-        s_yaw = time_scale * np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
-        std = np.array([s_xy, s_xy, time_scale * p.motion_std[1], s_yaw])
+        std = motion_noise(self.params, delta, time_scale)
         noise = self.rng.normal(0.0, 1.0, self.states.shape) * std
         self.states = apply_increment(self.states, np.asarray(delta, np.float64) + noise)
 

@@ -4,25 +4,27 @@ The fit gate (``filter.gate``, ``filter.lost_frames``) declares a loss only when
 fits the frames; a teleport into a stretch that still fits (a floor's repeated rooms and
 corridors) passes it. ``Rivals`` keeps a global search (``global_search.GlobalSearch``: every
 place of the floor, scored by the cheap floor-boundary table) running in the background of
-the track and checks, every ``every`` frames:
+the track, and up to ``count`` small particle sets (``particles`` poses each) at the places it
+holds away from the track. Every ``every`` frames, a check:
 
-1. the search moves by the odometry since the last check (the frames' increments composed,
-   their noise scales summed) and is weighed by this frame's labels (injecting its coarse
-   grid's best poses every ``inject_every`` checks, so a place the track never visited comes
-   in within a few checks);
-2. its ``count`` heaviest clusters farther than ``min_distance`` from the track (or off by
-   more than the search's ``cluster_yaw_deg`` in heading) are the rivals;
-3. the track (``particles`` of its particles, drawn by weight) and each rival (``particles``
-   poses drawn from its cluster's hypotheses) are scored with the tracking filter's own edge
-   likelihood on this frame; a hypothesis's score is its poses' mean likelihood
-   (``logsumexp(log_w) - log n``);
-4. when the best rival's score exceeds the track's by ``margin`` at ``checks`` checks in a
-   row, the loss is declared and the rival's poses (``GlobalSearch.sample`` around it) are
-   the filter's new particles.
+1. the search and the sets move by the odometry since the last check (the frames' increments
+   composed, their noise scales summed; the search's motion noise); the search is weighed by
+   this frame's labels (injecting its coarse grid's best poses every ``inject_every`` checks,
+   so a place the track never visited comes in within a few checks);
+2. the search's heaviest clusters farther than ``min_distance`` from the track (or off by more
+   than the search's ``cluster_yaw_deg`` in heading) that no set covers yet seed new sets
+   (``GlobalSearch.sample`` around them); sets that came near the track are dropped;
+3. the track (``particles`` of its particles, drawn by weight) and every set are scored with
+   the tracking filter's own edge likelihood on this frame: a hypothesis's score is its best
+   pose's log-likelihood (the same number of poses each); the ``count`` best sets are kept,
+   each resampled by its weights and jittered (a small particle filter: the sets settle on
+   the pose their place fits best);
+4. when the best set's score exceeds the track's by ``margin`` at ``checks`` checks in a row,
+   the loss is declared and that set's poses, repeated, are the filter's new particles.
 
 Cost per check: one search update (4,000-60,000 hypotheses at ~0.3 us each, plus the coarse
-grid on injection checks) and ``(count + 1) x particles`` edge-likelihood poses (~10 us each);
-nothing between checks but composing the odometry.
+grid on injection checks) and ``(count x 2 + 1) x particles`` edge-likelihood poses at most
+(~10 us each); nothing between checks but composing the odometry.
 
 Settings: ``localize.search.config.RivalsConfig`` (``filter.rivals``).
 """
@@ -38,7 +40,12 @@ from core.poses import wrap_angle
 from localize.filter.particle_filter import LogLikelihood, apply_increment, systematic_resample
 from localize.filter.pose_stats import mean_pose
 from localize.search.config import RivalsConfig
-from localize.search.global_search import GlobalSearch
+from localize.search.global_search import GlobalSearch, motion_noise
+
+#: (4,) std of the jitter of a rival set's poses after resampling: x, y, z (m), yaw (degrees):
+#: wide enough that a set seeded from the search's cells (0.25 m, a lag along a corridor)
+#: climbs to the pose its place fits best within a few checks.
+JITTER = (0.15, 0.15, 0.05, 4.0)
 
 
 @dataclass(frozen=True)
@@ -47,8 +54,8 @@ class Check:
 
     Attributes:
         track: the track's score (mean edge likelihood of its poses, log).
-        rival: the best rival's score (-inf: no rival far enough).
-        rival_state: (4,) that rival's cluster mean pose (None: no rival).
+        rival: the best rival set's score (-inf: no rival far enough).
+        rival_state: (4,) that set's mean pose after its refinement (None: no rival).
         lead: checks in a row a rival has led by ``margin`` (after this one).
         lost: this check declared the track lost.
     """
@@ -80,6 +87,8 @@ class Rivals:
         self._frames = 0  # frames since the last check
         self._checks = 0
         self.lead = 0
+        self.sets: list[np.ndarray] = []  # (particles, 4) poses of each rival place
+        self._winner = None
 
     def predict(self, delta: np.ndarray | None, time_scale: float = 1.0) -> None:
         """Add a frame's odometry increment (4,) (None: no move) to the move of the next
@@ -109,13 +118,14 @@ class Rivals:
 
         Returns:
             The ``Check``; ``Check.lost``: the track is lost and ``take_over(n)`` gives the
-            rival's particles.
+            winning set's particles.
         """
         if not self.due or labels is None or loglik is None:
             return None
         p, search = self.params, self.search
         if self._scale > 0:
             search.predict(self._delta, self._scale)
+            self._move_sets(self._delta, self._scale)
         self._delta, self._scale, self._frames = np.zeros(4), 0.0, 0
         if not search.update(labels, tilt):
             return None
@@ -124,32 +134,71 @@ class Rivals:
             search._inject(labels, tilt)
             search._prune()
         track_state = mean_pose(particles, np.exp(logw - logsumexp(logw)))
-        poses, _ = search.hypotheses(p.count + 1)
-        far = (np.hypot(poses[:, 0] - track_state[0], poses[:, 1] - track_state[1])
-               > p.min_distance) | (np.abs(wrap_angle(poses[:, 3] - track_state[3]))
-                                    > np.deg2rad(search.params.cluster_yaw_deg))
-        rivals = poses[far][:p.count]
+        self._seed(track_state)
         n = p.particles
-        sets = [particles[systematic_resample(self.rng, logw, n)]]
-        sets += [search.sample(n, r) for r in rivals]
-        states = np.concatenate(sets)
-        lw, _ = loglik(states, np.zeros((len(states), 2)))
-        scores = logsumexp(lw.reshape(len(sets), n), axis=1) - np.log(n)
+        sets = [particles[systematic_resample(self.rng, logw, n)], *self.sets]
+        lw, _ = loglik(np.concatenate(sets), np.zeros((n * len(sets), 2)))
+        lw = lw.reshape(len(sets), n)
+        scores = lw.max(axis=1)
         track = float(scores[0])
-        if len(rivals):
-            best = int(np.argmax(scores[1:]))
-            rival, rival_state = float(scores[1 + best]), rivals[best]
+        order = np.argsort(-scores[1:], kind="stable")[:p.count]
+        self.sets = [self._refine(self.sets[i], lw[1 + i]) for i in order]
+        if len(order):
+            rival = float(scores[1 + order[0]])
+            rival_state = mean_pose(self.sets[0], np.full(n, 1.0 / n))
         else:
             rival, rival_state = float("-inf"), None
         self.lead = self.lead + 1 if rival > track + p.margin else 0
         lost = self.lead >= p.checks
         if lost:
             self.lead = 0
-            self._winner = rival_state
+            self._winner = self.sets.pop(0)
         return Check(track, rival, rival_state, self.lead, lost)
 
     def take_over(self, n: int) -> np.ndarray:
-        """(n, 4) particles drawn from the search's hypotheses around the rival that won the
-        last check declaring a loss."""
-        return self.search.sample(n, self._winner)
+        """(n, 4) particles: the poses of the set that won the last check declaring a loss,
+        repeated (the filter's motion noise spreads them)."""
+        w = self._winner
+        return w[np.arange(int(n)) % len(w)].copy()
 
+    def _far(self, states: np.ndarray, track_state: np.ndarray) -> np.ndarray:
+        """(M,) bool: poses (M, 4) farther than ``min_distance`` from ``track_state`` (4,) or
+        off by more than the search's ``cluster_yaw_deg`` in heading."""
+        return (np.hypot(states[:, 0] - track_state[0], states[:, 1] - track_state[1])
+                > self.params.min_distance) | (np.abs(wrap_angle(states[:, 3] - track_state[3]))
+                                               > np.deg2rad(self.search.params.cluster_yaw_deg))
+
+    def _seed(self, track_state: np.ndarray) -> None:
+        """Drop the sets that came near the track; add a set for each of the search's
+        ``count`` heaviest far clusters that no set covers (within the search's cluster
+        radius and yaw)."""
+        p, search = self.params, self.search
+        n = p.particles
+        means = [mean_pose(s, np.full(n, 1.0 / n)) for s in self.sets]
+        keep = [i for i, m in enumerate(means) if self._far(m[None], track_state)[0]]
+        self.sets = [self.sets[i] for i in keep]
+        means = np.array([means[i] for i in keep]).reshape(-1, 4)
+        poses, _ = search.hypotheses(p.count + 1)
+        radius, yaw = search.params.cluster_radius, np.deg2rad(search.params.cluster_yaw_deg)
+        for c in poses[self._far(poses, track_state)][:p.count]:
+            covered = ((np.hypot(means[:, 0] - c[0], means[:, 1] - c[1]) <= radius)
+                       & (np.abs(wrap_angle(means[:, 3] - c[3])) <= yaw)).any()
+            if not covered:
+                self.sets.append(search.sample(n, c))
+
+    def _refine(self, poses: np.ndarray, lw: np.ndarray) -> np.ndarray:
+        """(n, 4) a set resampled by its log-weights ``lw`` (n,) and jittered (``JITTER``); its
+        best pose is kept as it is."""
+        out = poses[systematic_resample(self.rng, lw, len(poses))]
+        out = out + self.rng.normal(0.0, 1.0, out.shape) * np.r_[JITTER[:3],
+                                                                np.deg2rad(JITTER[3])]
+        out[0] = poses[np.argmax(lw)]
+        out[:, 3] = wrap_angle(out[:, 3])
+        return out
+
+    def _move_sets(self, delta: np.ndarray, scale: float) -> None:
+        """Move every set by the composed odometry ``delta`` (4,) with the search's motion
+        noise of ``scale`` frames."""
+        std = motion_noise(self.search.params, delta, scale)
+        self.sets = [apply_increment(s, delta + self.rng.normal(0.0, 1.0, s.shape) * std)
+                     for s in self.sets]
