@@ -108,6 +108,8 @@ class RivalsConfig:
             tracks from the rival's hypotheses).
         inject_every: the background search injects its coarse grid's best poses every this
             many checks (``global_search.inject_every`` counts the search's own updates).
+        max_hypotheses: most hypotheses the background search keeps
+            (``global_search.max_hypotheses`` for it, and its ``min_hypotheses`` at most this).
     """
 
     enabled: bool = True
@@ -118,10 +120,12 @@ class RivalsConfig:
     margin: float = 3.0
     checks: int = 3
     inject_every: int = 2
+    max_hypotheses: int = 5000
 
     def __post_init__(self) -> None:
         check_positive(self, ("every", "count", "particles", "min_distance", "checks",
-                              "inject_every"), "filter.rivals")
+                              "inject_every", "max_hypotheses"),
+                       "filter.rivals")
         if self.margin < 0:
             raise ValueError(f"filter.rivals.margin must be >= 0 (log-likelihood), got "
                              f"{self.margin}")

@@ -22,9 +22,10 @@ holds away from the track. Every ``every`` frames, a check:
 4. when the best set's score exceeds the track's by ``margin`` at ``checks`` checks in a row,
    the loss is declared and that set's poses, repeated, are the filter's new particles.
 
-Cost per check: one search update (4,000-60,000 hypotheses at ~0.3 us each, plus the coarse
-grid on injection checks) and ``(count x 2 + 1) x particles`` edge-likelihood poses at most
-(~10 us each); nothing between checks but composing the odometry.
+Cost per check: one search update (at most ``max_hypotheses`` hypotheses at ~0.3 us each,
+plus the coarse grid on injection checks) and at most
+``(2 count + 1) x particles`` edge-likelihood poses (~10 us each); nothing between checks
+but composing the odometry.
 
 Settings: ``localize.search.config.RivalsConfig`` (``filter.rivals``).
 """
@@ -73,7 +74,8 @@ class Rivals:
     Args:
         search: the global search to keep running (a global start's, after its handover, or
             a fresh one for a start at a known pose); its injection is taken over here
-            (``RivalsConfig.inject_every``).
+            (``RivalsConfig.inject_every``) and its count capped
+            (``RivalsConfig.max_hypotheses``).
         params: settings.
         rng: random generator (its only source of randomness; the search keeps its own).
     """
@@ -81,7 +83,10 @@ class Rivals:
     def __init__(self, search: GlobalSearch, params: RivalsConfig, rng: np.random.Generator):
         self.search, self.params, self.rng = search, params, rng
         self._inject = search.params.inject_every
-        search.params = replace(search.params, inject_every=0)
+        sp = search.params
+        search.params = replace(sp, inject_every=0,
+                                max_hypotheses=min(sp.max_hypotheses, params.max_hypotheses),
+                                min_hypotheses=min(sp.min_hypotheses, params.max_hypotheses))
         self._delta = np.zeros(4)  # odometry composed since the last check
         self._scale = 0.0
         self._frames = 0  # frames since the last check

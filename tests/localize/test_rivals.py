@@ -49,7 +49,7 @@ def flights(small_world, camera, renderer, tmp_path_factory):
                              renderer, camera, np.eye(4))
     a = rendered_flight(folder, "a", walk([0.2, 0.6, 1.2, np.deg2rad(80.0)], 12), renderer,
                         camera, np.eye(4))
-    b = rendered_flight(folder, "b", walk([-0.1, 3.2, 1.3, np.deg2rad(-95.0)], 30), renderer,
+    b = rendered_flight(folder, "b", walk([-0.1, 3.2, 1.2, np.deg2rad(-95.0)], 30), renderer,
                         camera, np.eye(4))
     return steady, kidnapped(a, b)
 
