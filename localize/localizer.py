@@ -11,7 +11,9 @@ dominates; the filter's uniform set, or the hint's, for mode ``none``,
 ``global_search.start_search``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
-``Estimate``; ``predict(odometry_increment, timestamp)`` moves them only (a frame that is not
+``Estimate``; while tracking, rival hypotheses (``search.rivals``: a global search kept
+running beside the track) are checked every few frames and a far one that outweighs the track
+declares it lost; ``predict(odometry_increment, timestamp)`` moves them only (a frame that is not
 weighed). The motion noise follows the time between frames (``filter.motion_period_s``). No
 file is read or written.
 
