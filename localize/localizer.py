@@ -11,7 +11,9 @@ dominates; the filter's uniform set, or the hint's, for mode ``none``,
 ``global_search.start_search``);
 ``step(image, odometry_increment, attitude, timestamp)`` moves the particles by the odometry,
 weighs them by how well the model's edges fall on the frame's edges and returns an
-``Estimate``; ``predict(odometry_increment, timestamp)`` moves them only (a frame that is not
+``Estimate``; while tracking, rival hypotheses (``search.rivals``: a global search kept
+running beside the track) are checked every few frames and a far one that outweighs the track
+declares it lost; ``predict(odometry_increment, timestamp)`` moves them only (a frame that is not
 weighed). The motion noise follows the time between frames (``filter.motion_period_s``). No
 file is read or written.
 
@@ -62,6 +64,7 @@ from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage
 from localize.frontend.front_end import EdgeFrame, FrontEnd
 from localize.search.global_search import GlobalSearch, start_search
+from localize.search.rivals import Rivals
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood
@@ -294,6 +297,7 @@ class Localizer:
         self.filter = ParticleFilter(self.filter_params, world.free, rng)
         self.quality_model = quality.load(self.filter_params.quality_model, mode)
         self.search: GlobalSearch | None = None  # a global start's search, until its handover
+        self.rivals: Rivals | None = None  # the hypotheses kept beside the track, while tracking
         self._last_time = None
         self._lost_at = None  # timestamp the track was last declared lost
 
@@ -320,12 +324,13 @@ class Localizer:
             start: (4,) x, y, z (metres), yaw (radians), or (4, 4) world_from_body (its
                 heading taken; roll and pitch ignored), or a ``StartHint``, or None.
         """
-        self.search = None
+        self.search = self.rivals = None
         if start is None or isinstance(start, StartHint):
             if not self._start_search(start):
                 self.filter.init_global(start)
         else:
             self.filter.init_tracking(start_pose(start, "reset(start)"))
+            self._keep_rivals(None)
         self._last_time = self._lost_at = None
 
     def step(self, image: np.ndarray | EdgeFrame | None, odometry_increment: np.ndarray | None,
@@ -365,9 +370,14 @@ class Localizer:
             if delta is not None:
                 self.filter.predict(delta, time_scale)
             info = self.filter.update(loglik) if loglik is not None else self.filter.coast()
+            gate_lost = info.status == "lost"  # the fit gate's loss (filter.lost_frames)
+            if not gate_lost:
+                info = self._check_rivals(info, frame, delta, tilt, time_scale, loglik, timestamp)
         filter_ms = (time.perf_counter() - t0) * 1e3
-        if info.status == "lost" and not self._start_search():  # the one re-localization
-            self.filter.relocalize_uniform(info.estimate)
+        if gate_lost:
+            self.rivals = None
+            if not self._start_search():  # the one re-localization
+                self.filter.relocalize_uniform(info.estimate)
         self._log_events(info.status, timestamp)
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
@@ -418,6 +428,8 @@ class Localizer:
                 self.search.predict(delta, time_scale)
             else:
                 self.filter.predict(delta, time_scale)
+                if self.rivals is not None:
+                    self.rivals.predict(delta, time_scale)
         self._last_time = timestamp
 
     def _time_scale(self, timestamp: float) -> float:
@@ -444,6 +456,48 @@ class Localizer:
                                    None if hint is None else hint.log_prior)
         return self.search is not None
 
+    def _keep_rivals(self, search: GlobalSearch | None) -> None:
+        """Keep rival hypotheses beside the track (``filter.rivals``, ``search.rivals``): the
+        global start's ``search`` after its handover, or a fresh one (None: a start at a known
+        pose), with a random stream of their own (the track's draws are the same with and
+        without them); none where the search does not run (``_start_search``'s conditions)."""
+        fp = self.filter_params
+        self.rivals = None
+        if (not fp.rivals.enabled or fp.global_method != "table"
+                or self.front_end.mode == "none" or self.likelihood_override is not None):
+            return
+        try:  # a child stream: the parent's state is not advanced
+            rng = self.filter.rng.spawn(1)[0]
+        except TypeError:  # a generator made without a seed sequence
+            rng = np.random.default_rng(self.filter.rng.bit_generator.state["state"]["state"])
+        if search is None:
+            search = start_search(self.world, self.camera, fp.global_search, rng)
+            if search is None:
+                return
+        self.rivals = Rivals(search, fp.rivals, rng)
+
+    def _check_rivals(self, info, frame: EdgeFrame, delta: np.ndarray | None,
+                      tilt: np.ndarray | None, time_scale: float,
+                      loglik: LogLikelihood | None, timestamp: float):
+        """``info`` after this frame's check of the rivals (``Rivals.check``): status ``lost``
+        when one outweighed the track, the filter then restarted from its hypotheses
+        (``ambiguous`` until they dominate for ``filter.dominant_frames``)."""
+        rivals = self.rivals
+        if rivals is None:
+            return info
+        rivals.predict(delta, time_scale)
+        chk = rivals.check(frame.labels, tilt, self.filter.particles, self.filter.logw, loglik)
+        if chk is None or not chk.lost:
+            return info
+        log.warning("t = %.2f s: a hypothesis %.1f m away outweighs the track (log-likelihood "
+                    "%.1f against %.1f for %d checks): track lost, tracking from it",
+                    timestamp, float(np.hypot(*(chk.rival_state[:2] - info.estimate[:2]))),
+                    chk.rival,
+                    chk.track, self.filter_params.rivals.checks)
+        self.filter.init_particles(rivals.take_over(self.filter_params.num_particles))
+        self.filter.dominance.clear()
+        return replace(info, status="lost", confidence=0.0)
+
     def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float, time_scale: float) -> Estimate:
         """A frame of the global search; on its convergence the tracking filter takes over
@@ -464,6 +518,7 @@ class Localizer:
             if search.converged:
                 self.filter.init_particles(search.sample(self.filter_params.num_particles))
                 self.search = None
+                self._keep_rivals(search)
         filter_ms = (time.perf_counter() - t0) * 1e3
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
@@ -476,8 +531,10 @@ class Localizer:
         """Log a loss and the re-localization that follows it."""
         if status == "lost":
             self._lost_at = timestamp
-            log.warning("t = %.2f s: track lost (%d frames fit no particle); re-localizing "
-                        "over the free space", timestamp, self.filter_params.lost_frames)
+            if self.rivals is None:  # the fit gate's loss (a rival's is logged where found)
+                log.warning("t = %.2f s: track lost (%d frames fit no particle); "
+                            "re-localizing over the free space", timestamp,
+                            self.filter_params.lost_frames)
         elif status == "tracking" and self._lost_at is not None:
             log.warning("t = %.2f s: re-localized, %.1f s after the loss", timestamp,
                         timestamp - self._lost_at)

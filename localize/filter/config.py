@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from core.config import typed
-from localize.search.config import GlobalSearchConfig
+from localize.search.config import GlobalSearchConfig, RivalsConfig
 
 #: The edge modes (``localize.frontend.extractor``).
 MODES = ("none", "cnn", "oracle")
@@ -111,6 +111,8 @@ class FilterConfig:
             cell x heading weighed by the floor boundary against a precomputed table; the label
             modes) or ``particles`` (the uniform set above; always for mode ``none``).
         global_search: the global search (``GlobalSearchConfig``, ``localize.search``).
+        rivals: the rival hypotheses kept beside a track (``RivalsConfig``,
+            ``localize.search.rivals``): a loss when a far one outweighs the track.
         hypotheses: pose hypotheses reported per frame (``localize.filter.hypotheses``: the
             heaviest modes of the weighted set and their mass).
         hypothesis_radius_m, hypothesis_yaw_deg: a hypothesis's kernel: horizontal radius
@@ -175,6 +177,7 @@ class FilterConfig:
     global_thin: int = 3
     global_method: str = "table"
     global_search: GlobalSearchConfig = field(default_factory=GlobalSearchConfig)
+    rivals: RivalsConfig = field(default_factory=RivalsConfig)
     hypotheses: int = 3
     hypothesis_radius_m: float = 0.5
     hypothesis_yaw_deg: float = 20.0

@@ -86,3 +86,46 @@ class GlobalSearchConfig:
             if len(getattr(self, key)) != n:
                 raise ValueError(f"filter.global_search.{key} needs {n} values, got "
                                  f"{list(getattr(self, key))}")
+
+
+@dataclass
+class RivalsConfig:
+    """Settings of the rival hypotheses kept beside a track (``filter.rivals``,
+    ``localize.search.rivals``).
+
+    Attributes:
+        enabled: keep them (a loss is then also declared when a far rival outweighs the
+            track); false: only the fit gate's ``filter.lost_frames`` declares a loss.
+        every: frames between checks (the background search's update and the edge scoring).
+        count: most rivals scored per check (the background search's heaviest far clusters).
+        particles: poses per hypothesis scored with the edge likelihood (the track's drawn
+            from its particles by weight, a rival's from its cluster's hypotheses).
+        min_distance: m, a cluster is a rival only this far from the track's estimate (or
+            more than the search's ``cluster_yaw_deg`` off in heading).
+        margin: log-likelihood (the edge likelihood's ``k * score``) by which a rival's mean
+            likelihood must exceed the track's...
+        checks: ...at this many checks in a row to declare the track lost (the filter then
+            tracks from the rival's hypotheses).
+        inject_every: the background search injects its coarse grid's best poses every this
+            many checks (``global_search.inject_every`` counts the search's own updates).
+        max_hypotheses: most hypotheses the background search keeps
+            (``global_search.max_hypotheses`` for it, and its ``min_hypotheses`` at most this).
+    """
+
+    enabled: bool = True
+    every: int = 3
+    count: int = 3
+    particles: int = 64
+    min_distance: float = 1.0
+    margin: float = 3.0
+    checks: int = 3
+    inject_every: int = 2
+    max_hypotheses: int = 5000
+
+    def __post_init__(self) -> None:
+        check_positive(self, ("every", "count", "particles", "min_distance", "checks",
+                              "inject_every", "max_hypotheses"),
+                       "filter.rivals")
+        if self.margin < 0:
+            raise ValueError(f"filter.rivals.margin must be >= 0 (log-likelihood), got "
+                             f"{self.margin}")

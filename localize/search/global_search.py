@@ -48,7 +48,8 @@ Interface (what the Localizer wires):
   ``search.clusters(k)``: the same as ``hypotheses.Hypothesis`` (with their spreads), the
   Localizer's ``Estimate.hypotheses`` during the search.
 - ``search.converged``: one cluster held ``handover_mass`` for ``handover_frames`` frames.
-- ``search.sample(n) -> (n, 4)``: particles drawn from the dominant cluster's hypotheses.
+- ``search.sample(n, centre=None) -> (n, 4)``: particles drawn from the dominant cluster's
+  hypotheses (or the cluster around ``centre``: a rival's, ``localize.search.rivals``).
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
   log-weights.
 
@@ -111,6 +112,16 @@ def start_search(world: World, camera: Camera, params: GlobalSearchConfig,
                         "warning)", err)
         return None
     return search
+
+
+def motion_noise(params: GlobalSearchConfig, delta: np.ndarray, time_scale: float = 1.0
+                 ) -> np.ndarray:
+    """(4,) std of the noise of a move by an odometry increment (4,): x, y, z (m), yaw (rad)
+    (``motion_std`` times ``time_scale``, plus ``motion_rel`` per m and per rad of it)."""
+    step = float(np.hypot(delta[0], delta[1]))
+    s_xy = time_scale * params.motion_std[0] + params.motion_rel[0] * step
+    s_yaw = time_scale * np.deg2rad(params.motion_std[2]) + params.motion_rel[1] * abs(delta[3])
+    return np.array([s_xy, s_xy, time_scale * params.motion_std[1], s_yaw])
 
 
 def bin_keys(states: np.ndarray, size: float = 0.5, yaw_deg: float = 20.0) -> np.ndarray:
@@ -219,12 +230,8 @@ class GlobalSearch:
         """Move every hypothesis by an odometry increment (4,) with noise; ``time_scale``
         multiplies ``motion_std`` (``particle_filter.noise_scale`` of the time the move spans;
         1: one frame)."""
-        p = self.params
         self._version += 1
-        step = float(np.hypot(delta[0], delta[1]))
-        s_xy = time_scale * p.motion_std[0] + p.motion_rel[0] * step
-        s_yaw = time_scale * np.deg2rad(p.motion_std[2]) + p.motion_rel[1] * abs(delta[3])
-        std = np.array([s_xy, s_xy, time_scale * p.motion_std[1], s_yaw])
+        std = motion_noise(self.params, delta, time_scale)
         noise = self.rng.normal(0.0, 1.0, self.states.shape) * std
         self.states = apply_increment(self.states, np.asarray(delta, np.float64) + noise)
 
@@ -406,12 +413,14 @@ class GlobalSearch:
         """One cluster held ``handover_mass`` for ``handover_frames`` frames in a row."""
         return self._held >= self.params.handover_frames
 
-    def sample(self, n: int) -> np.ndarray:
+    def sample(self, n: int, centre: np.ndarray | None = None) -> np.ndarray:
         """(n, 4) particles for the tracking filter: resampled from the hypotheses of the
-        dominant cluster (all of them before one dominates)."""
+        cluster around ``centre`` (4,) (default: the dominant cluster; all of them when there
+        is none or it holds no hypothesis)."""
         S, lw = self.states, self.logw
-        if self._dominant is not None:
-            near = self._in_cluster(S, self._dominant)
+        centre = self._dominant if centre is None else centre
+        if centre is not None:
+            near = self._in_cluster(S, np.asarray(centre, dtype=np.float64))
             if near.any():
                 S, lw = S[near], lw[near]
         return S[systematic_resample(self.rng, lw, int(n))].copy()

@@ -58,7 +58,7 @@ def _row(kind="global", **kw):
     if kind == "global":
         base.update(converged_frame=50, converged_m=2.0)
     else:
-        base.update(lost_declared=True, back_frames=40)
+        base.update(lost_declared=True, lost_after_frames=12, back_frames=40)
     return {**base, **kw}
 
 
@@ -66,7 +66,9 @@ def test_summary_and_table():
     rows = [_row(), _row(converged_frame=150, converged_m=6.0),
             _row(converged_frame=None, converged_m=None, false_convergence=True),
             _row(frames=60, converged_frame=20, converged_m=1.0),
-            _row("kidnapped"), _row("kidnapped", lost_declared=False, back_frames=None)]
+            _row("kidnapped"), _row("kidnapped", lost_declared=False, lost_after_frames=None,
+                                    back_frames=None),
+            _row("kidnapped", lost_after_frames=31, back_frames=90)]
     e = summarize(rows)["f"]["oracle"]
     assert e["starts"] == 4
     assert e["within_0.3m_by_30"] == 0.25
@@ -75,16 +77,17 @@ def test_summary_and_table():
     assert e["median_frames_to_converge"] == 50 and e["median_m_to_converge"] == 2.0
     assert e["false_convergence_rate"] == 0.25
     assert e["global_update_ms"] == {"median": 110.0, "max": 120.0}
-    assert e["kidnaps"] == 2 and e["kidnap_lost_declared"] == 0.5
-    assert e["kidnap_back_by_100"] == 0.5
+    assert e["kidnaps"] == 3 and e["kidnap_lost_declared"] == pytest.approx(2 / 3)
+    assert e["kidnap_lost_by_30"] == pytest.approx(1 / 3)  # one declared too late (31)
+    assert e["kidnap_back_by_100"] == pytest.approx(2 / 3)
     q = e["quality_reliability"]  # every run's frames; a NaN quality left out
-    assert q[0]["frames"] == 6 and q[0]["observed"] == 0.0
-    assert q[9]["frames"] == 12 and q[9]["observed"] == 0.5
+    assert q[0]["frames"] == 7 and q[0]["observed"] == 0.0
+    assert q[9]["frames"] == 14 and q[9]["observed"] == 0.5
     assert q[9]["predicted"] == pytest.approx(0.95)
     md = markdown({"load": [1.0, 1.0, 1.0], "peak_rss_gb": 1.5, "table": {"f": {"oracle": e}}})
     assert "| f | oracle | 4 | 25% | 33% | 67% | 50 / 2.0 | 25% | 110 / 120 | 200000 | " \
-           "50% / 50% | 0% |" in md
-    assert "| f | oracle | 0.45 | 0.00 / 0.05 (6) | - |" in md
+           "67% / 33% / 67% | 0% |" in md
+    assert "| f | oracle | 0.45 | 0.00 / 0.05 (7) | - |" in md
 
 
 @pytest.mark.slow

@@ -1,0 +1,89 @@
+"""Rival hypotheses kept beside the track (localize.search.rivals): a teleport into a place
+that still fits is declared lost by them, with the fit gate off; a steady track is never."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from core.poses import xyzyaw_from_pose
+from core.spliced import kidnapped
+from localize.config import FilterConfig
+from localize.localizer import EdgeModel, Localizer
+from localize.offline.metrics import false_convergence
+from localize.search.config import RivalsConfig
+from tests.localize.test_global_search import PARAMS
+from tests.localize.test_kidnapped import rendered_flight, walk
+from tests.localize.test_localize_localizer import SETTINGS
+
+#: The gate never declares a loss (``lost_frames`` 0): only the rivals can.
+NO_GATE = replace(SETTINGS, filter=FilterConfig(
+    num_particles=300, global_method="table", global_search=PARAMS, lost_frames=0,
+    tracking_quality=0.0, rivals=RivalsConfig()))
+
+
+def run(flight, world, camera, settings, seed=0):
+    """Track ``flight`` from its first true pose: (statuses, horizontal errors (m), the
+    localizer)."""
+    model = EdgeModel.build(world, settings).for_mode(world, "oracle")
+    loc = Localizer(world, camera, "oracle", settings, np.random.default_rng(seed), model=model)
+    truth = xyzyaw_from_pose(flight.groundtruth)
+    loc.reset(truth[0])
+    status, err = [], []
+    for f in flight.steps(images=False, labels=True):
+        est = loc.step(None, f.odometry_increment, f.attitude, f.timestamp, labels=f.labels)
+        status.append(est.status)
+        err.append(float(np.linalg.norm(est.state[:2] - truth[f.index, :2])))
+    return status, np.array(err), loc
+
+
+@pytest.fixture(scope="module")
+def flights(small_world, camera, renderer, tmp_path_factory):
+    """(steady, kidnapped): a 40-frame walk up the small corridor; 12 frames of it, then the
+    truth teleported 2.6 m to the far end, facing back, for 30 frames (the odometry does not
+    feel the jump)."""
+    folder = tmp_path_factory.mktemp("rivals")
+    steady = rendered_flight(folder, "s", walk([0.2, 0.6, 1.2, np.deg2rad(80.0)], 40),
+                             renderer, camera, np.eye(4))
+    a = rendered_flight(folder, "a", walk([0.2, 0.6, 1.2, np.deg2rad(80.0)], 12), renderer,
+                        camera, np.eye(4))
+    b = rendered_flight(folder, "b", walk([-0.1, 3.2, 1.2, np.deg2rad(-95.0)], 30), renderer,
+                        camera, np.eye(4))
+    return steady, kidnapped(a, b)
+
+
+@pytest.mark.slow
+def test_a_kidnapping_the_gate_misses_is_caught_by_the_rivals(flights, small_world, camera):
+    """With the fit gate off, the teleport is declared ``lost`` within 15 frames, the track
+    is back within 0.3 m by the end, and ``tracking`` is never reported > 1 m off for > 1 s;
+    without the rivals the loss is never declared."""
+    _, flight = flights
+    at = flight.info["kidnapped_at"]
+    status, err, _ = run(flight, small_world, camera, NO_GATE)
+    assert "lost" not in status[:at]
+    assert "lost" in status[at:at + 15], status[at:]
+    assert (err[-5:] < 0.3).all(), err[at:]
+    assert not false_convergence(err, flight.timestamps, status, 1.0, 1.0)
+    off = replace(NO_GATE, filter=replace(NO_GATE.filter, rivals=RivalsConfig(enabled=False)))
+    status, err, loc = run(flight, small_world, camera, off)
+    assert loc.rivals is None and "lost" not in status
+    assert err[at:].min() > 0.5  # the teleport goes unnoticed: the rivals are what caught it
+
+
+@pytest.mark.slow
+def test_a_steady_track_is_never_declared_lost(flights, small_world, camera):
+    """40 frames along the corridor from the truth: the rivals are checked (13 times) and
+    never outweigh the track."""
+    steady, _ = flights
+    status, err, loc = run(steady, small_world, camera, NO_GATE)
+    assert loc.rivals is not None and loc.rivals._checks >= 10
+    assert "lost" not in status and (err < 0.2).all(), err
+
+
+def test_rivals_settings_are_checked():
+    with pytest.raises(ValueError, match="filter.rivals.every"):
+        RivalsConfig(every=0)
+    with pytest.raises(ValueError, match="filter.rivals.margin"):
+        RivalsConfig(margin=-1.0)
