@@ -112,7 +112,7 @@ class RivalsConfig:
             (``global_search.max_hypotheses`` for it, and its ``min_hypotheses`` at most this).
     """
 
-    enabled: bool = True
+    enabled: bool = False
     every: int = 3
     count: int = 3
     particles: int = 64

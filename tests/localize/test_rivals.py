@@ -21,7 +21,7 @@ from tests.localize.test_localize_localizer import SETTINGS
 #: The gate never declares a loss (``lost_frames`` 0): only the rivals can.
 NO_GATE = replace(SETTINGS, filter=FilterConfig(
     num_particles=300, global_method="table", global_search=PARAMS, lost_frames=0,
-    tracking_quality=0.0, rivals=RivalsConfig()))
+    tracking_quality=0.0, rivals=RivalsConfig(enabled=True)))
 
 
 def run(flight, world, camera, settings, seed=0):
