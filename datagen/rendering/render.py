@@ -32,8 +32,8 @@ from datagen.rendering.denoise import denoise, segment_ids
 from datagen.worlds.scene import GLASS, QUAD, Scene
 
 HIDDEN_Z = -100.0  # distractors not in use wait below the (closed) corridor floor, each
-# shrunk to a point there (their faces stay: a face count that changes makes Dr.Jit compile
-# new kernels for every set of meshes, docs/notes/render_cost.md)
+# shrunk to a point there (degenerate triangles cost the acceleration structure's rebuild,
+# which every moved object triggers, little: docs/notes/render_cost.md)
 
 @dataclass(frozen=True)
 class Traced:
