@@ -70,9 +70,8 @@ def time_frames(loc: Localizer, flight, T: int) -> tuple[dict[str, list[float]],
     Returns:
         ms per frame of each stage (``segmentation``, ``preprocessing``, ``filter`` from the
         estimates; ``frame``: the whole step, front end included), the particles after each
-        step (``particles``: fewer once converged, ``filter.min_particles``) and, per frame,
-        its edge
-        image, its tracking observation and tilt (for ``compare_likelihoods``).
+        step (``particles``) and, per frame, its edge image, its tracking observation and tilt
+        (for ``compare_likelihoods``).
     """
     steps = list(flight.steps(T, labels=True))  # read beforehand: decoding is not timed
     times = {k: [] for k in ("segmentation", "preprocessing", "filter", "frame", "particles")}

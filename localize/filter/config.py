@@ -83,14 +83,7 @@ class FilterConfig:
     conf/filter/*.yaml (``filter=paper``: the paper's settings).
 
     Attributes:
-        num_particles: particles while tracking (the most, with ``min_particles``).
-        min_particles: 0: a fixed count. Else the fewest particles of a converged track:
-            each resampling while tracking draws the count KLD sampling asks for
-            (``localize.filter.kld``: more the more ``kld_bin`` bins the set spreads over),
-            between this and ``num_particles``; a recovery's injection draws
-            ``num_particles``. Off by default: 250 saves ~40 % of the filter's time on the
-            corridor but costs ~5 % of its error (docs/notes/speed.md).
-        kld_bin: (2,) the KLD histogram's bin: x and y (metres), yaw (degrees).
+        num_particles: particles while tracking.
         global_particles: particles of the initial uniform draw of a global start over up to
             ``global_area`` m2 of free space; thinned to ``num_particles`` by resampling after
             ``global_frames`` frames.
@@ -162,8 +155,6 @@ class FilterConfig:
     """
 
     num_particles: int = 500
-    min_particles: int = 0
-    kld_bin: list[float] = field(default_factory=lambda: [0.05, 2.0])
     global_particles: int = 40000
     global_area: float = 16.0
     global_max_particles: int = 200000
@@ -171,7 +162,7 @@ class FilterConfig:
     global_likelihood: dict[str, Any] | None = field(default_factory=lambda: {
         "k": 20.0, "sigma": 0.3, "class_pairs": True, "min_line_samples": 2})
     mode_likelihood: dict[str, dict[str, Any]] | None = field(default_factory=lambda: {
-        "cnn": {"k": 40.0, "orientation_bins": 8}, "none": {"sigma": 0.3},
+        "cnn": {"k": 40.0, "orientation_bins": 12}, "none": {"sigma": 0.3},
         "oracle": {"k": 50.0}})
     global_motion_scale: float = 15.0
     global_thin: int = 3
@@ -211,9 +202,6 @@ class FilterConfig:
         if self.num_particles < 1 or self.global_particles < 1:
             raise ValueError(f"filter.num_particles ({self.num_particles}) and "
                              f"filter.global_particles ({self.global_particles}) must be >= 1")
-        if self.min_particles < 0 or len(self.kld_bin) != 2 or min(self.kld_bin) <= 0:
-            raise ValueError(f"filter.min_particles ({self.min_particles}) must be >= 0 and "
-                             f"filter.kld_bin two positive sizes (m, deg), got {self.kld_bin}")
         if self.global_area <= 0:
             raise ValueError(f"filter.global_area must be positive (m2), got {self.global_area}")
         if not 0.0 <= self.tracking_quality <= 1.0:

@@ -51,7 +51,6 @@ from core.occupancy import OccupancyMap
 from core.poses import wrap_angle
 from localize.filter.config import FilterConfig
 from localize.filter.hypotheses import Dominance, Hypothesis, top_hypotheses
-from localize.filter.kld import adaptive_count
 from localize.filter.pose_stats import estimate, log_sum_exp, normalize_log_weights, spread
 from localize.filter.start_hint import StartHint
 
@@ -404,9 +403,6 @@ class ParticleFilter:
         injected = 0
         if resampled:
             n = N if large else p.num_particles
-            if not (large or thin or inject_frac > 0):  # tracking: as many as KLD asks for
-                n = adaptive_count(self.particles, self.logw, p.min_particles, p.num_particles,
-                                   *p.kld_bin)
             idx = systematic_resample(self.rng, self.logw, n)
             self.particles, self.tilt = self.particles[idx], self.tilt[idx]
             injected = int(round(inject_frac * n))

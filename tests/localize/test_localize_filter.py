@@ -176,7 +176,7 @@ class TestWeights:
         with pytest.raises(ValueError, match="mode_likelihood: unknown edge modes"):
             FilterConfig(mode_likelihood={"segnet": {"k": 5.0}})
         per_mode = typed(FilterConfig, {"mode_likelihood": {"cnn": {"k": 5.0}}}, "filter")
-        assert per_mode.mode_likelihood["cnn"] == {"k": 5.0, "orientation_bins": 8}  # merged
+        assert per_mode.mode_likelihood["cnn"] == {"k": 5.0, "orientation_bins": 12}  # merged
 
     def test_mode_motion_std(self):
         fp = FilterConfig(motion_std=[0.01, 0.005, 0.5],

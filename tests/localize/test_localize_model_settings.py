@@ -44,7 +44,7 @@ class TestApplyModelSettings:
         with caplog.at_level(logging.INFO, logger="localize.resolve"):
             taken = ls.apply_model_settings(cfg, overrides)
         assert cfg.filter.mode_likelihood.cnn.k == 50.0
-        assert cfg.filter.mode_likelihood.cnn.orientation_bins == 8  # merged, not replaced
+        assert cfg.filter.mode_likelihood.cnn.orientation_bins == 12  # merged, not replaced
         assert cfg.edges.cnn.snap_px == 1 and cfg.edges.cnn.snap_nearest is True
         assert cfg.edges.cnn.refine == "none" and cfg.edges.cnn.prior_correction == 0.0
         assert taken["edges.cnn.snap_px"] == 1 and len(taken) == 5
