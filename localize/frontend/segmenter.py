@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from core.model_folder import MODELS_ROOT
-from core.segmenter import INT8_NAME, QUANTIZE_REPORT
+from core.segmenter import INT8_NAME, QUANTIZE_REPORT, file_sha256
 from localize.frontend.edge_image import check_rgb
 
 log = logging.getLogger(__name__)
@@ -37,20 +37,24 @@ def model_path(onnx_model: str, dataset: str) -> Path:
 def int8_copy(path: str | Path) -> Path | None:
     """The int8 copy of the SegNet ``path`` (``core.segmenter.INT8_NAME`` beside it, written by
     ``python -m train.deploy.quantize``), where one exists that was made of this file: the
-    folder's ``quantize.json`` names a model of ``path``'s file name and the copy is not older
-    than ``path``. None otherwise (no copy, or a stale one of an earlier training)."""
+    folder's ``quantize.json`` names a model of ``path``'s file name, and its ``model_sha256``
+    is that of ``path``'s bytes (reports without a digest: the copy is not older than
+    ``path``). None otherwise (no copy, or a stale one of an earlier training)."""
     path = Path(path)
     copy = path.with_name(INT8_NAME)
     report = path.with_name(QUANTIZE_REPORT)
     if path.name == INT8_NAME or not copy.is_file() or not report.is_file():
         return None
     try:
-        made_of = Path(str(json.loads(report.read_text()).get("model", ""))).name
+        made = json.loads(report.read_text())
+        made_of, digest = Path(str(made.get("model", ""))).name, made.get("model_sha256")
     except (json.JSONDecodeError, AttributeError):
         return None
-    if made_of != path.name or copy.stat().st_mtime < path.stat().st_mtime:
+    if made_of != path.name:
         return None
-    return copy
+    if digest is not None:
+        return copy if digest == file_sha256(path) else None
+    return None if copy.stat().st_mtime < path.stat().st_mtime else copy
 
 
 def runtime_model(onnx_model: str, dataset: str, int8: bool = True) -> Path:

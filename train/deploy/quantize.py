@@ -43,6 +43,7 @@ from core.segmenter import (
     INT8_NAME,
     QUANTIZE_REPORT,
     OnnxSegmenter,
+    file_sha256,
     network_input,
     read_metadata,
 )
@@ -250,8 +251,8 @@ def quantize_model_dir(model_dir: str | Path, dataset: str | Path | None = None,
     tests = [d.split("test") for d in datasets]  # (rgb paths, label paths) of each
     test_rgb = [p for rgb, _ in tests for p in rgb][:test_limit]
     test_label = [p for _, labels in tests for p in labels][:test_limit]
-    report = {"model": str(src), "int8_model": str(dst), "dataset": str(dataset),
-              "quantization": info}
+    report = {"model": src.name, "model_sha256": file_sha256(src), "int8_model": dst.name,
+              "dataset": str(dataset), "quantization": info}
     report.update(compare_on_split(src, dst, test_rgb, test_label, threads, progress=progress))
     atomic_write_json(model_dir / REPORT_NAME, report)
     return report
@@ -272,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
     for k in ("fp32", "int8"):
         print(f"{k}: test pixel acc {r[k]['pixel_accuracy']:.4f}, mIoU {r[k]['mean_iou']:.4f}")
     print(f"labels equal on {100 * r['label_agreement']:.2f} % of pixels ({r['images']} images)")
-    print(f"int8 model: {r['int8_model']}")
+    print(f"int8 model: {Path(args.model_dir) / r['int8_model']}")
     return 0
 
 
