@@ -52,7 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 SHARED = ROOT.parent / "shared" / "worlds"
 
-from core.atomic import atomic_write_json, atomic_write_text  # noqa: E402
+from core.atomic import atomic_write_json, atomic_write_text, file_sha256  # noqa: E402
 
 #: building -> (the model file under ../shared/worlds or None, datagen overrides)
 BUILDINGS: dict[str, tuple[str | None, list[str]]] = {
@@ -83,7 +83,7 @@ def parse_args() -> argparse.Namespace:
 
 def onnx_digest(path: Path) -> str:
     """16 hex digits of the file's sha256: the digest localize records (``onnx_sha256``)."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    return file_sha256(path)[:16]
 
 
 def run(cmd: list[str]) -> None:
@@ -160,8 +160,6 @@ def edge_scores(ds: Path, cache: Path, step: int = 20) -> dict:
     """Rendered-edge recall and precision (``datagen.mesh.edge_check``) of the dataset's model
     edges at every ``step``-th ground-truth pose of its test flights (kept in ``cache`` under
     the digest of the edges, their classes and normals)."""
-    import hashlib
-
     from core.dataset import Dataset
     from datagen.mesh.edge_check import EdgeChecker, agreement
 

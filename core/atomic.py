@@ -1,4 +1,5 @@
-"""Atomic file writes: write to a temporary file in the same folder, then rename.
+"""Atomic file writes: write to a temporary file in the same folder, then rename; and the
+checks of a written file (complete images, its digest).
 
 A write that fails for want of disk space raises ``DiskFullError`` naming the file, its folder,
 the free space there and the fix.
@@ -7,6 +8,7 @@ the free space there and the fix.
 from __future__ import annotations
 
 import errno
+import hashlib
 import json
 import os
 import re
@@ -190,3 +192,13 @@ def png_complete(path: str | Path) -> bool:
             return f.read() == PNG_END
     except OSError:  # missing, or shorter than 12 bytes
         return False
+
+
+def file_sha256(path: str | Path) -> str:
+    """The SHA-256 of a file's bytes (64 hex digits), read in 1 MiB blocks: a file's identity
+    that holds on a fresh clone, where file times do not."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

@@ -11,7 +11,6 @@ API::
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -28,16 +27,6 @@ QUANTIZE_REPORT = "quantize.json"
 INPUT_NAME = "image"
 OUTPUT_NAME = "logits"
 LABELS_NAME = "labels"
-
-
-def file_sha256(path: str | Path) -> str:
-    """The SHA-256 of a file's bytes (hex): what ``quantize.json`` records of the model its int8
-    copy was made of, which holds on a fresh clone where file times do not."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _not_onnx(path: Path, reason: str) -> ValueError:

@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic import file_sha256
 from core.dataset import Camera, World, load_world
 from localize.config import WorldFileConfig
 
@@ -72,14 +73,6 @@ def cache_root(cache: str | None) -> Path:
         return Path(cache).expanduser()
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
     return Path(base) / "edgeloc" / "worlds"
-
-
-def _sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 @cache
@@ -105,7 +98,7 @@ def content_key(path: str | Path, settings: Mapping) -> str:
     path = Path(path)
     h = hashlib.sha256(CACHE_VERSION)
     h.update(path.suffix.lower().encode() + b"\0")
-    h.update(_sha256_file(path).encode())
+    h.update(file_sha256(path).encode())
     h.update(json.dumps(dict(settings), sort_keys=True, default=str).encode() + b"\0")
     h.update(importer_digest().encode())
     return h.hexdigest()
@@ -135,7 +128,7 @@ def _inputs_hold(entry: Path, file: Path) -> bool:
         return False
     for item in inputs:
         p = _input_path(item["path"], file)
-        if not p.is_file() or _sha256_file(p) != item["sha256"]:
+        if not p.is_file() or file_sha256(p) != item["sha256"]:
             log.info("world: %s changed since the map in %s was made", p, entry)
             return False
     return True
@@ -198,7 +191,7 @@ def file_map(path: str | Path, settings: Mapping | None = None,
         run_importer(file, settings, tmp)
         read = json.loads((tmp / INPUTS).read_text())["inputs"]
         own = str(file.resolve())
-        inputs = [{"path": _input_name(Path(p), file), "sha256": _sha256_file(Path(p))}
+        inputs = [{"path": _input_name(Path(p), file), "sha256": file_sha256(Path(p))}
                   for p in read if p != own]
         variant = hashlib.sha256(json.dumps(sorted(i["sha256"] for i in inputs)).encode())
         (tmp / INPUTS).write_text(json.dumps({"inputs": inputs}, indent=1))

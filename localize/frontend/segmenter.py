@@ -9,8 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic import file_sha256
 from core.model_folder import MODELS_ROOT
-from core.segmenter import INT8_NAME, QUANTIZE_REPORT, file_sha256
+from core.segmenter import INT8_NAME, QUANTIZE_REPORT
 from localize.frontend.edge_image import check_rgb
 
 log = logging.getLogger(__name__)

@@ -20,7 +20,6 @@ finished when its trajectory and run file exist, so a stopped job resumes where 
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import time
@@ -33,7 +32,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
-from core.atomic import atomic_write_json, disk_full_guard
+from core.atomic import atomic_write_json, disk_full_guard, file_sha256
 from core.dataset import FLIGHT_SETS, Camera, Dataset
 from core.frames import Frame, FrameSource, frame_count
 from core.occupancy import OccupancyMap
@@ -462,9 +461,9 @@ def check_resume(out: Path, cfg: DictConfig, policy: FolderPolicy = REPORT_POLIC
         conf.pop("world", None)
         edges = Path(str(cfg.dataset)) / "world" / "edges.npz"
         if edges.is_file():
-            conf["edges_sha256"] = hashlib.sha256(edges.read_bytes()).hexdigest()[:16]
+            conf["edges_sha256"] = file_sha256(edges)[:16]
     onnx_path = runtime_model(str(cfg.onnx_model), str(cfg.dataset), cfg.segnet_int8)
-    conf["onnx_sha256"] = (hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:16]
+    conf["onnx_sha256"] = (file_sha256(onnx_path)[:16]
                            if "cnn" in cfg.modes and onnx_path.is_file() else None)
     path = out / "config.json"
     if not conf["onnx_sha256"] and path.is_file():  # no cnn run now: keep the runs' digest

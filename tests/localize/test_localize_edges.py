@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from core.atomic import file_sha256
 from core.classes import pair_classes, pair_code, pair_name
-from core.segmenter import file_sha256
 from localize.config import HoughConfig
 from localize.frontend.boundaries import label_edges
 from localize.frontend.canny import canny_edges

@@ -35,7 +35,7 @@ from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantTy
 from onnxruntime.quantization.shape_inference import quant_pre_process
 from tqdm import tqdm
 
-from core.atomic import atomic_write, atomic_write_json, read_png
+from core.atomic import atomic_write, atomic_write_json, file_sha256, read_png
 from core.config import user_errors
 from core.dataset import open_datasets
 from core.segmenter import (
@@ -43,7 +43,6 @@ from core.segmenter import (
     INT8_NAME,
     QUANTIZE_REPORT,
     OnnxSegmenter,
-    file_sha256,
     network_input,
     read_metadata,
 )
