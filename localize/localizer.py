@@ -64,7 +64,7 @@ from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage
 from localize.frontend.front_end import EdgeFrame, FrontEnd
 from localize.search.global_search import GlobalSearch, start_search
-from localize.search.rivals import Rivals
+from localize.search.rivals import Rivals, own_stream
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood
@@ -466,10 +466,7 @@ class Localizer:
         if (not fp.rivals.enabled or fp.global_method != "table"
                 or self.front_end.mode == "none" or self.likelihood_override is not None):
             return
-        try:  # a child stream: the parent's state is not advanced
-            rng = self.filter.rng.spawn(1)[0]
-        except TypeError:  # a generator made without a seed sequence
-            rng = np.random.default_rng(self.filter.rng.bit_generator.state["state"]["state"])
+        rng = own_stream(self.filter.rng)
         if search is None:
             search = start_search(self.world, self.camera, fp.global_search, rng)
             if search is None:
@@ -492,8 +489,7 @@ class Localizer:
         log.warning("t = %.2f s: a hypothesis %.1f m away outweighs the track (log-likelihood "
                     "%.1f against %.1f for %d checks): track lost, tracking from it",
                     timestamp, float(np.hypot(*(chk.rival_state[:2] - info.estimate[:2]))),
-                    chk.rival,
-                    chk.track, self.filter_params.rivals.checks)
+                    chk.rival, chk.track, self.filter_params.rivals.checks)
         self.filter.init_particles(rivals.take_over(self.filter_params.num_particles))
         self.filter.dominance.clear()
         return replace(info, status="lost", confidence=0.0)

@@ -35,13 +35,22 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.special import logsumexp
 
 from core.poses import wrap_angle
 from localize.filter.particle_filter import LogLikelihood, apply_increment, systematic_resample
-from localize.filter.pose_stats import mean_pose
+from localize.filter.pose_stats import mean_pose, normalize_log_weights
 from localize.search.config import RivalsConfig
 from localize.search.global_search import GlobalSearch, motion_noise
+
+
+def own_stream(rng: np.random.Generator) -> np.random.Generator:
+    """A child stream of ``rng`` for the rivals, its parent's state not advanced (the track
+    draws the same numbers with and without them)."""
+    try:
+        return rng.spawn(1)[0]
+    except TypeError:  # a generator made without a seed sequence
+        return np.random.default_rng(rng.bit_generator.state["state"]["state"])
+
 
 #: (4,) std of the jitter of a rival set's poses after resampling: x, y, z (m), yaw (degrees):
 #: wide enough that a set seeded from the search's cells (0.25 m, a lag along a corridor)
@@ -138,7 +147,7 @@ class Rivals:
         if self._inject > 0 and self._checks % p.inject_every == 0:
             search._inject(labels, tilt)
             search._prune()
-        track_state = mean_pose(particles, np.exp(logw - logsumexp(logw)))
+        track_state = mean_pose(particles, np.exp(normalize_log_weights(logw)))
         self._seed(track_state)
         n = p.particles
         sets = [particles[systematic_resample(self.rng, logw, n)], *self.sets]
