@@ -28,7 +28,7 @@ from torchvision.models._utils import IntermediateLayerGetter
 from torchvision.models.segmentation.lraspp import LRASPPHead
 
 from train.config import IMAGENET_MEAN, IMAGENET_STD
-from train.net.segnet import check_images, init_weights, pad_to_multiple
+from train.net.segnet import check_images, check_shape_options, init_weights, pad_to_multiple
 
 #: Stride of the encoder's deepest features (MobileNetV3 with its last stage dilated).
 ENCODER_STRIDE = 16
@@ -91,12 +91,7 @@ class LRASPPNet(nn.Module):
     ) -> None:
         super().__init__()
         downsample = int(downsample)
-        if num_classes < 2:
-            raise ValueError(f"num_classes must be >= 2, got {num_classes}")
-        if width <= 0:
-            raise ValueError(f"model.width must be positive, got {width}")
-        if downsample < 1 or downsample & (downsample - 1):
-            raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
+        check_shape_options(num_classes, width, downsample)
         if int(inter_channels) < 1:
             raise ValueError(f"model.inter_channels must be >= 1, got {inter_channels}")
         self.num_classes = int(num_classes)

@@ -177,15 +177,21 @@ def decoder_stages(chans: Sequence[int], convs: Sequence[int]) -> nn.ModuleList:
     return stages
 
 
-def _check_options(num_classes: int, width: float, downsample: int, skip: str, stem: str,
-                   head: str, head_channels: int, head_layers: int, context_layers: int) -> None:
-    """Raise ValueError naming the ``model.*`` key of a SegNet option out of range."""
+def check_shape_options(num_classes: int, width: float, downsample: int) -> None:
+    """Raise ValueError naming the ``model.*`` key of an option every network has (the class
+    count, the width multiplier, the input downsampling) out of range."""
     if num_classes < 2:
         raise ValueError(f"num_classes must be >= 2, got {num_classes}")
     if width <= 0:
         raise ValueError(f"model.width must be positive, got {width}")
     if downsample < 1 or downsample & (downsample - 1):
         raise ValueError(f"model.downsample must be 1, 2, 4, ..., got {downsample}")
+
+
+def _check_options(num_classes: int, width: float, downsample: int, skip: str, stem: str,
+                   head: str, head_channels: int, head_layers: int, context_layers: int) -> None:
+    """Raise ValueError naming the ``model.*`` key of a SegNet option out of range."""
+    check_shape_options(num_classes, width, downsample)
     if skip not in ("none", "add"):
         raise ValueError(f"model.skip must be 'none' or 'add', got {skip!r}")
     if stem not in ("average", "unshuffle"):
