@@ -72,20 +72,24 @@ def label_edges(labels: np.ndarray, structural: tuple[int, ...] = C.STRUCTURAL,
 
 
 
-def image_gradients(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The colour gradients ``snap_to_image_edges`` reads: the 3x3 Sobel x and y of the
-    3x3-blurred image, each (H, W, 3) float32 (of the image alone: they can be made while
-    the SegNet runs)."""
+def image_gradients(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The colour gradient tensor ``snap_to_image_edges`` reads: of the 3x3 Sobel x and y
+    (gx, gy, each (H, W, 3)) of the 3x3-blurred image, the channel means of gx^2, gx gy and
+    gy^2, each (H, W) float32. The RMS over the channels of the gradient along a unit normal
+    (nx, ny) is ``sqrt(nx^2 gxx + 2 nx ny gxy + ny^2 gyy)``. Of the image alone: they can be
+    made while the SegNet runs."""
     check_rgb(rgb)
-    H, W = rgb.shape[:2]
-    img = cv2.GaussianBlur(rgb.astype(np.float32), (3, 3), 0).reshape(H, W, -1)  # (H, W, 3)
-    return (cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3).reshape(H, W, -1),
-            cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3).reshape(H, W, -1))
+    img = cv2.GaussianBlur(rgb.astype(np.float32), (3, 3), 0)  # (H, W, 3)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    mean = np.full((1, 3), 1.0 / 3.0)  # the channel mean, by OpenCV's per-pixel transform
+    return tuple(cv2.transform(cv2.multiply(a, b), mean) for a, b in ((gx, gx), (gx, gy), (gy, gy)))
 
 
 def snap_to_image_edges(edge: EdgeImage, rgb: np.ndarray, radius: int,
                         min_gradient: float, nearest: bool = False,
-                        gradients: tuple[np.ndarray, np.ndarray] | None = None) -> EdgeImage:
+                        gradients: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                        ) -> EdgeImage:
     """Class boundaries moved onto the image's own edges: each edge pixel searches along its
     normal, up to ``radius`` pixels either way, for the strongest colour gradient across the
     boundary, and moves there if that gradient reaches ``min_gradient``; elsewhere (a door in
@@ -168,19 +172,19 @@ def _step_pixels(ys: np.ndarray, xs: np.ndarray, step: np.ndarray, ny: np.ndarra
             np.clip(np.rint(xs[:, None] + step * nx), 0, W - 1).astype(np.intp))
 
 
-def _normal_profiles(edge: EdgeImage, gradients: tuple[np.ndarray, np.ndarray],
+def _normal_profiles(edge: EdgeImage, gradients: tuple[np.ndarray, np.ndarray, np.ndarray],
                      ys: np.ndarray, xs: np.ndarray, radius: int) -> _Profiles:
     """The gradient profiles (``_Profiles``) of the edge pixels (ys, xs) of ``edge``, from
-    the image's ``image_gradients``."""
+    the image's gradient tensor (``image_gradients``)."""
     H, W = edge.edges.shape
-    gx, gy = gradients
+    gxx, gxy, gyy = gradients
     theta = edge_normal_angle(edge.edges, at=(ys, xs))
     nx, ny = np.cos(theta)[:, None], np.sin(theta)[:, None]
     t = np.arange(-radius - 1, radius + 2, dtype=np.float32)
     py, px = _step_pixels(ys, xs, t, ny, nx, (H, W))  # (n, T)
-    # (n, T, 3) channel gradients along the normal -> their RMS
-    grad = np.sqrt(np.mean((gx[py, px] * nx[..., None] + gy[py, px] * ny[..., None]) ** 2,
-                           axis=-1))
+    # (n, T) RMS over the channels of the gradient along the normal
+    sq = nx * nx * gxx[py, px] + 2.0 * nx * ny * gxy[py, px] + ny * ny * gyy[py, px]
+    grad = np.sqrt(np.maximum(sq, 0.0)).astype(np.float32)
     return _Profiles(t, py, px, grad)
 
 

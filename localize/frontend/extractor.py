@@ -45,7 +45,7 @@ class ImageCues:
         canny: (H, W) bool Canny edges of the colour image, or None (``refine: none``).
     """
 
-    gradients: tuple[np.ndarray, np.ndarray] | None
+    gradients: tuple[np.ndarray, np.ndarray, np.ndarray] | None
     canny: np.ndarray | None
 
 
