@@ -39,8 +39,8 @@ def int8_copy(path: str | Path) -> Path | None:
     """The int8 copy of the SegNet ``path`` (``core.segmenter.INT8_NAME`` beside it, written by
     ``python -m train.deploy.quantize``), where one exists that was made of this file: the
     folder's ``quantize.json`` names a model of ``path``'s file name, and its ``model_sha256``
-    is that of ``path``'s bytes (reports without a digest: the copy is not older than
-    ``path``). None otherwise (no copy, or a stale one of an earlier training)."""
+    is that of ``path``'s bytes. None otherwise (no copy, a stale one of an earlier training,
+    or a report without the digest: quantize again)."""
     path = Path(path)
     copy = path.with_name(INT8_NAME)
     report = path.with_name(QUANTIZE_REPORT)
@@ -51,11 +51,9 @@ def int8_copy(path: str | Path) -> Path | None:
         made_of, digest = Path(str(made.get("model", ""))).name, made.get("model_sha256")
     except (json.JSONDecodeError, AttributeError):
         return None
-    if made_of != path.name:
+    if made_of != path.name or digest is None:
         return None
-    if digest is not None:
-        return copy if digest == file_sha256(path) else None
-    return None if copy.stat().st_mtime < path.stat().st_mtime else copy
+    return copy if digest == file_sha256(path) else None
 
 
 def runtime_model(onnx_model: str, dataset: str, int8: bool = True) -> Path:

@@ -226,30 +226,23 @@ class TestSegmenter:
 
     def test_int8_copy_made_of_the_model(self, tmp_path):
         """segnet_int8: the int8 copy beside segnet.onnx is run where quantize.json says it
-        was made of that file and it is not older; a stale or foreign one is not."""
-        import os
-
+        was made of that file's bytes (its SHA-256); a stale, foreign or undated one is not."""
         model = tmp_path / "segnet.onnx"
         palette_segnet(model, 20, 30)
         assert runtime_model(str(model), "unused") == model  # no copy
         copy = tmp_path / "segnet_int8.onnx"
         copy.write_bytes(model.read_bytes())
         assert int8_copy(model) is None  # no quantize.json: unknown origin
-        (tmp_path / "quantize.json").write_text(json.dumps({"model": "elsewhere/segnet.onnx"}))
+        made_of = {"model": "elsewhere/segnet.onnx", "model_sha256": file_sha256(model)}
+        (tmp_path / "quantize.json").write_text(json.dumps(made_of))
         assert runtime_model(str(model), "unused") == copy
         assert runtime_model(str(model), "unused", int8=False) == model
         assert int8_copy(copy) is None  # the copy has no copy
-        (tmp_path / "quantize.json").write_text(json.dumps({"model": "other.onnx"}))
+        (tmp_path / "quantize.json").write_text(json.dumps({**made_of, "model": "other.onnx"}))
         assert int8_copy(model) is None  # made of another file
         (tmp_path / "quantize.json").write_text(json.dumps({"model": "segnet.onnx"}))
-        st = model.stat()
-        os.utime(copy, (st.st_atime, st.st_mtime - 60))  # quantized before a new training
-        assert int8_copy(model) is None
-        # with the model's digest the file times do not count (a fresh clone sets them in any
-        # order): the copy is chosen while segnet.onnx has the bytes it was made of
-        (tmp_path / "quantize.json").write_text(json.dumps(
-            {"model": "segnet.onnx", "model_sha256": file_sha256(model)}))
-        assert int8_copy(model) == copy
+        assert int8_copy(model) is None  # no digest: quantize again
+        (tmp_path / "quantize.json").write_text(json.dumps(made_of))
         model.write_bytes(model.read_bytes() + b"\0")  # retrained: other bytes
         assert int8_copy(model) is None
 
