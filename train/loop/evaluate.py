@@ -11,7 +11,6 @@ labels).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,33 +114,9 @@ def score_onnx(
     progress: bool = False,
     desc: str = "test",
 ) -> GraphScores:
-    """``evaluate_onnx``'s confusion matrix with the boundary counts, overall and per class
-    pair, of the graph's labels (the test block of metrics.json)."""
-    boundary = np.zeros(4, np.int64)
-    pairs: dict[int, np.ndarray] = {}
-
-    def count(pred: np.ndarray, truth: np.ndarray) -> None:
-        nonlocal boundary
-        for p, t in zip(pred, truth, strict=True):
-            boundary = boundary + boundary_counts(p, t)
-            for code, c in pair_boundary_counts(p, t).items():
-                pairs[code] = pairs.get(code, 0) + c
-
-    cm = evaluate_onnx(onnx_path, data, num_classes, batch_size, threads, progress, desc, count)
-    return GraphScores(cm, boundary, pairs)
-
-
-def evaluate_onnx(
-    onnx_path: str | Path,
-    data: SplitData,
-    num_classes: int,
-    batch_size: int = 8,
-    threads: int = 2,
-    progress: bool = False,
-    desc: str = "test",
-    each: Callable[[np.ndarray, np.ndarray], None] | None = None,
-) -> torch.Tensor:
-    """Confusion matrix of an exported graph's labels on a split, as the localizer reads them.
+    """The confusion matrix and the boundary counts, overall and per class pair, of an
+    exported graph's labels on a split, as the localizer reads them (the test block of
+    metrics.json).
 
     Args:
         onnx_path: a ``segnet.onnx`` (or its int8 copy) written by ``python -m train``.
@@ -150,10 +125,6 @@ def evaluate_onnx(
         batch_size: images per onnxruntime run.
         threads: onnxruntime intra-op threads.
         progress: show a progress bar labelled ``desc``.
-        each: called with every batch's (B, H, W) uint8 labels and (B, H, W) truth.
-
-    Returns:
-        (C, C) int64, rows = truth.
     """
     from core.segmenter import OnnxSegmenter
 
@@ -161,10 +132,14 @@ def evaluate_onnx(
     if seg.num_classes != num_classes:
         raise ValueError(f"{onnx_path} has {seg.num_classes} classes, the split {num_classes}")
     cm = torch.zeros(num_classes, num_classes, dtype=torch.int64)
+    boundary = np.zeros(4, np.int64)
+    pairs: dict[int, np.ndarray] = {}
     for idx in _bar(data, batch_size, progress, desc):
         rgb = np.ascontiguousarray(data.images[idx].permute(0, 2, 3, 1).numpy())
         labels = torch.from_numpy(seg.labels(rgb))
         cm += confusion_matrix(labels, data.labels[idx], num_classes)
-        if each is not None:
-            each(labels.numpy(), data.labels[idx].numpy())
-    return cm
+        for p, t in zip(labels.numpy(), data.labels[idx].numpy(), strict=True):
+            boundary = boundary + boundary_counts(p, t)
+            for code, c in pair_boundary_counts(p, t).items():
+                pairs[code] = pairs.get(code, 0) + c
+    return GraphScores(cm, boundary, pairs)
