@@ -20,7 +20,9 @@ holds away from the track. Every ``every`` frames, a check:
    each resampled by its weights and jittered (a small particle filter: the sets settle on
    the pose their place fits best);
 4. when the best set's score exceeds the track's by ``margin`` at ``checks`` checks in a row,
-   the loss is declared and that set's poses, repeated, are the filter's new particles.
+   the loss is declared and that set's poses, repeated, are the filter's new particles; the
+   track is then doubted (``doubt_after``) until it has led every rival by ``margin`` at
+   ``checks`` checks in a row.
 
 Cost per check: one search update (at most ``max_hypotheses`` hypotheses at ~0.3 us each,
 plus the coarse grid on injection checks) and at most
@@ -75,6 +77,26 @@ class Check:
     rival_state: np.ndarray | None
     lead: int
     lost: bool
+
+
+def doubt_after(doubt: int | None, chk: Check | None, params: RivalsConfig) -> int | None:
+    """The doubt in a track after a loss, updated by a check: the checks in a row at which the
+    track led every rival by ``margin`` (None: no doubt, after ``checks`` such checks; a loss
+    declared by ``chk`` starts it at 0). While there is doubt the track is not reported
+    ``tracking``: the set that outweighed a wrong track, or a search that converged, may sit
+    at a copy of the true place, and a rival there keeps within the margin of it.
+
+    Args:
+        doubt: the doubt before the check (None: none).
+        chk: the check (None: none was made at this frame).
+        params: settings (``margin``, ``checks``).
+    """
+    if chk is not None and chk.lost:
+        return 0
+    if doubt is None or chk is None:
+        return doubt
+    doubt = doubt + 1 if chk.track > chk.rival + params.margin else 0
+    return None if doubt >= params.checks else doubt
 
 
 class Rivals:
