@@ -382,7 +382,7 @@ class Localizer:
             self.rivals = None
             if not self._start_search():  # the one re-localization
                 self.filter.relocalize_uniform(info.estimate)
-        self._log_events(info.status, timestamp)
+        self._log_events(info.status, timestamp, gate_lost)
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"] + obs_ms, "filter": filter_ms}
@@ -481,10 +481,10 @@ class Localizer:
                       tilt: np.ndarray | None, time_scale: float,
                       loglik: LogLikelihood | None, timestamp: float):
         """``info`` after this frame's check of the rivals (``Rivals.check``): status ``lost``
-        when one outweighed the track, the filter then restarted from its hypotheses. After a
-        loss (a rival's or the fit gate's) ``tracking`` is reported as ``ambiguous`` until the
-        track has led every rival by ``margin`` at ``checks`` checks in a row
-        (``rivals.doubt_after``)."""
+        when one outweighed the track, the background search then re-localizing (``ambiguous``
+        until one place dominates it: ``Rivals.hand_over``). After a loss (a rival's or the
+        fit gate's) ``tracking`` is reported as ``ambiguous`` until the track has led every
+        rival by ``margin`` at ``checks`` checks in a row (``rivals.doubt_after``)."""
         rivals, rp = self.rivals, self.filter_params.rivals
         if rivals is None:
             return info
@@ -494,11 +494,10 @@ class Localizer:
         if chk is not None and chk.lost:
             log.warning("t = %.2f s: a hypothesis %.1f m away outweighs the track "
                         "(log-likelihood %.1f against %.1f for %d checks): track lost, "
-                        "tracking from it", timestamp,
+                        "re-localizing with the background search", timestamp,
                         float(np.hypot(*(chk.rival_state[:2] - info.estimate[:2]))),
                         chk.rival, chk.track, rp.checks)
-            self.filter.init_particles(rivals.take_over(self.filter_params.num_particles))
-            self.filter.dominance.clear()
+            self.search, self.rivals = rivals.hand_over(), None
             return replace(info, status="lost", confidence=0.0)
         if self._doubt is not None and info.status == "tracking":
             return replace(info, status="ambiguous")
@@ -535,11 +534,12 @@ class Localizer:
                                     yaw_std, float("nan"), n, float("nan"), 0, "ambiguous", 0.0,
                                     np.zeros(2), timing, hyps), search=True)
 
-    def _log_events(self, status: str, timestamp: float) -> None:
-        """Log a loss and the re-localization that follows it."""
+    def _log_events(self, status: str, timestamp: float, gate_lost: bool) -> None:
+        """Log a loss (``gate_lost``: the fit gate's; a rival's is logged where found) and the
+        re-localization that follows it."""
         if status == "lost":
             self._lost_at = timestamp
-            if self.rivals is None:  # the fit gate's loss (a rival's is logged where found)
+            if gate_lost:
                 log.warning("t = %.2f s: track lost (%d frames fit no particle); "
                             "re-localizing over the free space", timestamp,
                             self.filter_params.lost_frames)
