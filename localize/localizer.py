@@ -64,7 +64,7 @@ from localize.filter.visibility_budget import fit_grid_cached
 from localize.frontend.edge_image import EdgeImage
 from localize.frontend.front_end import EdgeFrame, FrontEnd
 from localize.search.global_search import GlobalSearch, start_search
-from localize.search.rivals import Rivals, own_stream
+from localize.search.rivals import Rivals, doubt_after, own_stream
 
 #: ``(edge image, tilt (3, 3) or None) -> (states (N, 4) -> (log_w (N,), quality (N,)))``: a
 #: likelihood that replaces the edge likelihood
@@ -300,6 +300,9 @@ class Localizer:
         self.rivals: Rivals | None = None  # the hypotheses kept beside the track, while tracking
         self._last_time = None
         self._lost_at = None  # timestamp the track was last declared lost
+        # after a loss with rivals: checks in a row the track has led every rival by
+        # ``filter.rivals.margin`` (None: no doubt; ``rivals.doubt_after``)
+        self._doubt: int | None = None
 
     @property
     def global_likelihood(self) -> EdgeLikelihood:
@@ -331,7 +334,7 @@ class Localizer:
         else:
             self.filter.init_tracking(start_pose(start, "reset(start)"))
             self._keep_rivals(None)
-        self._last_time = self._lost_at = None
+        self._last_time = self._lost_at = self._doubt = None
 
     def step(self, image: np.ndarray | EdgeFrame | None, odometry_increment: np.ndarray | None,
              attitude: np.ndarray | None, timestamp: float,
@@ -375,10 +378,11 @@ class Localizer:
                 info = self._check_rivals(info, frame, delta, tilt, time_scale, loglik, timestamp)
         filter_ms = (time.perf_counter() - t0) * 1e3
         if gate_lost:
+            self._doubt = None if self.rivals is None else 0
             self.rivals = None
             if not self._start_search():  # the one re-localization
                 self.filter.relocalize_uniform(info.estimate)
-        self._log_events(info.status, timestamp)
+        self._log_events(info.status, timestamp, gate_lost)
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"] + obs_ms, "filter": filter_ms}
@@ -477,22 +481,27 @@ class Localizer:
                       tilt: np.ndarray | None, time_scale: float,
                       loglik: LogLikelihood | None, timestamp: float):
         """``info`` after this frame's check of the rivals (``Rivals.check``): status ``lost``
-        when one outweighed the track, the filter then restarted from its hypotheses
-        (``ambiguous`` until they dominate for ``filter.dominant_frames``)."""
-        rivals = self.rivals
+        when one outweighed the track, the background search then re-localizing (``ambiguous``
+        until one place dominates it: ``Rivals.hand_over``). After a loss (a rival's or the
+        fit gate's) ``tracking`` is reported as ``ambiguous`` until the track has led every
+        rival by ``margin`` at ``checks`` checks in a row (``rivals.doubt_after``)."""
+        rivals, rp = self.rivals, self.filter_params.rivals
         if rivals is None:
             return info
         rivals.predict(delta, time_scale)
         chk = rivals.check(frame.labels, tilt, self.filter.particles, self.filter.logw, loglik)
-        if chk is None or not chk.lost:
-            return info
-        log.warning("t = %.2f s: a hypothesis %.1f m away outweighs the track (log-likelihood "
-                    "%.1f against %.1f for %d checks): track lost, tracking from it",
-                    timestamp, float(np.hypot(*(chk.rival_state[:2] - info.estimate[:2]))),
-                    chk.rival, chk.track, self.filter_params.rivals.checks)
-        self.filter.init_particles(rivals.take_over(self.filter_params.num_particles))
-        self.filter.dominance.clear()
-        return replace(info, status="lost", confidence=0.0)
+        self._doubt = doubt_after(self._doubt, chk, rp)
+        if chk is not None and chk.lost:
+            log.warning("t = %.2f s: a hypothesis %.1f m away outweighs the track "
+                        "(log-likelihood %.1f against %.1f for %d checks): track lost, "
+                        "re-localizing with the background search", timestamp,
+                        float(np.hypot(*(chk.rival_state[:2] - info.estimate[:2]))),
+                        chk.rival, chk.track, rp.checks)
+            self.search, self.rivals = rivals.hand_over(), None
+            return replace(info, status="lost", confidence=0.0)
+        if self._doubt is not None and info.status == "tracking":
+            return replace(info, status="ambiguous")
+        return info
 
     def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float, time_scale: float) -> Estimate:
@@ -515,6 +524,8 @@ class Localizer:
                 self.filter.init_particles(search.sample(self.filter_params.num_particles))
                 self.search = None
                 self._keep_rivals(search)
+                if self.rivals is None:
+                    self._doubt = None
         filter_ms = (time.perf_counter() - t0) * 1e3
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
@@ -523,11 +534,12 @@ class Localizer:
                                     yaw_std, float("nan"), n, float("nan"), 0, "ambiguous", 0.0,
                                     np.zeros(2), timing, hyps), search=True)
 
-    def _log_events(self, status: str, timestamp: float) -> None:
-        """Log a loss and the re-localization that follows it."""
+    def _log_events(self, status: str, timestamp: float, gate_lost: bool) -> None:
+        """Log a loss (``gate_lost``: the fit gate's; a rival's is logged where found) and the
+        re-localization that follows it."""
         if status == "lost":
             self._lost_at = timestamp
-            if self.rivals is None:  # the fit gate's loss (a rival's is logged where found)
+            if gate_lost:
                 log.warning("t = %.2f s: track lost (%d frames fit no particle); "
                             "re-localizing over the free space", timestamp,
                             self.filter_params.lost_frames)

@@ -104,8 +104,10 @@ class RivalsConfig:
             more than the search's ``cluster_yaw_deg`` off in heading).
         margin: log-likelihood (the edge likelihood's ``k * score``) by which a rival's mean
             likelihood must exceed the track's...
-        checks: ...at this many checks in a row to declare the track lost (the filter then
-            tracks from the rival's hypotheses).
+        checks: ...at this many checks in a row to declare the track lost (the background
+            search then re-localizes in the foreground); after a loss, the track is ``ambiguous``
+            until it has led every rival by ``margin`` at this many checks in a row
+            (``search.rivals.doubt_after``).
         inject_every: the background search injects its coarse grid's best poses every this
             many checks (``global_search.inject_every`` counts the search's own updates).
         max_hypotheses: most hypotheses the background search keeps

@@ -408,6 +408,11 @@ class GlobalSearch:
         poses, _ = self.hypotheses(1)
         return poses[0], *spread(self.states, self.logw)
 
+    def forget_dominance(self) -> None:
+        """Count the dominance afresh (a search handed over from the background of a track
+        converges only on its own frames from here)."""
+        self._held, self._dominant = 0, None
+
     @property
     def converged(self) -> bool:
         """One cluster held ``handover_mass`` for ``handover_frames`` frames in a row."""

@@ -20,7 +20,10 @@ holds away from the track. Every ``every`` frames, a check:
    each resampled by its weights and jittered (a small particle filter: the sets settle on
    the pose their place fits best);
 4. when the best set's score exceeds the track's by ``margin`` at ``checks`` checks in a row,
-   the loss is declared and that set's poses, repeated, are the filter's new particles.
+   the loss is declared and the background search is handed over as the re-localization's
+   search (``hand_over``; the filter takes over when one place dominates it); the new
+   track is then doubted (``doubt_after``) until it has led every rival by ``margin`` at
+   ``checks`` checks in a row.
 
 Cost per check: one search update (at most ``max_hypotheses`` hypotheses at ~0.3 us each,
 plus the coarse grid on injection checks) and at most
@@ -77,6 +80,26 @@ class Check:
     lost: bool
 
 
+def doubt_after(doubt: int | None, chk: Check | None, params: RivalsConfig) -> int | None:
+    """The doubt in a track after a loss, updated by a check: the checks in a row at which the
+    track led every rival by ``margin`` (None: no doubt, after ``checks`` such checks; a loss
+    declared by ``chk`` starts it at 0). While there is doubt the track is not reported
+    ``tracking``: the set that outweighed a wrong track, or a search that converged, may sit
+    at a copy of the true place, and a rival there keeps within the margin of it.
+
+    Args:
+        doubt: the doubt before the check (None: none).
+        chk: the check (None: none was made at this frame).
+        params: settings (``margin``, ``checks``).
+    """
+    if chk is not None and chk.lost:
+        return 0
+    if doubt is None or chk is None:
+        return doubt
+    doubt = doubt + 1 if chk.track > chk.rival + params.margin else 0
+    return None if doubt >= params.checks else doubt
+
+
 class Rivals:
     """A background global search and the check of its far clusters against the track.
 
@@ -92,7 +115,7 @@ class Rivals:
     def __init__(self, search: GlobalSearch, params: RivalsConfig, rng: np.random.Generator):
         self.search, self.params, self.rng = search, params, rng
         self._inject = search.params.inject_every
-        sp = search.params
+        self._search_params = sp = search.params
         search.params = replace(sp, inject_every=0,
                                 max_hypotheses=min(sp.max_hypotheses, params.max_hypotheses),
                                 min_hypotheses=min(sp.min_hypotheses, params.max_hypotheses))
@@ -102,7 +125,6 @@ class Rivals:
         self._checks = 0
         self.lead = 0
         self.sets: list[np.ndarray] = []  # (particles, 4) poses of each rival place
-        self._winner = None
 
     def predict(self, delta: np.ndarray | None, time_scale: float = 1.0) -> None:
         """Add a frame's odometry increment (4,) (None: no move) to the move of the next
@@ -131,8 +153,8 @@ class Rivals:
                 corrections (n, 2) -> (log_w (n,), score (n,))``).
 
         Returns:
-            The ``Check``; ``Check.lost``: the track is lost and ``take_over(n)`` gives the
-            winning set's particles.
+            The ``Check``; ``Check.lost``: the track is lost and ``hand_over()`` gives the
+            search to re-localize with.
         """
         if not self.due or labels is None or loglik is None:
             return None
@@ -166,14 +188,15 @@ class Rivals:
         lost = self.lead >= p.checks
         if lost:
             self.lead = 0
-            self._winner = self.sets.pop(0)
         return Check(track, rival, rival_state, self.lead, lost)
 
-    def take_over(self, n: int) -> np.ndarray:
-        """(n, 4) particles: the poses of the set that won the last check declaring a loss,
-        repeated (the filter's motion noise spreads them)."""
-        w = self._winner
-        return w[np.arange(int(n)) % len(w)].copy()
+    def hand_over(self) -> GlobalSearch:
+        """The background search for the re-localization after a loss: its own settings back
+        (injection, count), its dominance counted afresh (it converges only when one place
+        holds ``handover_frames`` frames of its own, updated at every frame from now on)."""
+        self.search.params = self._search_params
+        self.search.forget_dominance()
+        return self.search
 
     def _far(self, states: np.ndarray, track_state: np.ndarray) -> np.ndarray:
         """(M,) bool: poses (M, 4) farther than ``min_distance`` from ``track_state`` (4,) or
