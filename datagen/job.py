@@ -209,22 +209,34 @@ def _check_presets(cfg: DatagenConfig) -> None:
                              f"known: {sorted(presets)}")
 
 
-def check_inside(site: Site, camera: Camera, poses: np.ndarray, where: str) -> None:
-    """Every camera centre must lie within the camera margin of the free space (its cells and
-    its band of heights, or up to ``site.camera_top`` above the band): nearer to no surface
-    than the margin allows."""
+#: draws of a training pose whose camera would leave the free space (the body under a high
+#: ceiling, the camera a few centimetres ahead under a door's head) before the last is kept
+REDRAWS = 10
+
+
+def outside_by(site: Site, camera: Camera, poses: np.ndarray) -> np.ndarray:
+    """(N,) m by which each camera centre of ``poses`` (N, 4, 4) lies outside the free space:
+    its cells and its band of heights, or up to ``site.camera_top`` above the band (0 inside)."""
     free = site.world.free
     centres = (poses @ camera.body_from_cam)[:, :3, 3]
     top = np.full(len(centres), free.band[1])
     high = centres[:, 2] > free.band[1]
     if high.any():
         top[high] = site.camera_top(centres[high, :2])
-    off = np.maximum(free.outside_distance(centres[:, :2]),
-                     np.maximum(free.band[0] - centres[:, 2], centres[:, 2] - top))
+    return np.maximum(free.outside_distance(centres[:, :2]),
+                      np.maximum(free.band[0] - centres[:, 2], centres[:, 2] - top))
+
+
+def check_inside(site: Site, camera: Camera, poses: np.ndarray, where: str) -> None:
+    """Every camera centre must lie within the camera margin of the free space
+    (``outside_by``): nearer to no surface than the margin allows."""
+    free = site.world.free
+    off = outside_by(site, camera, poses)
     bad = np.flatnonzero(off >= free.margin)
     if len(bad):
         i = int(bad[0])
-        raise ValueError(f"{where}: camera {i} at {np.round(centres[i], 3).tolist()} is "
+        centre = (poses[i] @ camera.body_from_cam)[:3, 3]
+        raise ValueError(f"{where}: camera {i} at {np.round(centre, 3).tolist()} is "
                          f"{off[i]:.2f} m outside the free space (more than its margin "
                          f"{free.margin} m); check world.camera_margin, world.z_range, "
                          "camera.mount and the flight preset's trajectory")
@@ -237,7 +249,8 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
     posed as the flights fly (``trajectories.sample_flight_views``, along each preset's route,
     resolved once per split), the rest spread over the free space
     (``training_views.sample_training_poses``; heights ``training.z_range`` where the ceiling
-    leaves room, ``Site.camera_top``).
+    leaves room, ``Site.camera_top``; a pose whose camera would leave the free space is drawn
+    again, from its frame's next generator, up to ``REDRAWS`` times).
     """
     tr, seed, free = cfg.training, cfg.seed, site.world.free
     z_range = np.asarray(free.band)
@@ -261,16 +274,20 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
         routes = [trajectories.flight_route(p, free, site.route,
                                             rng_for(seed, 100 + stream, k), f"flights.{name}")
                   for k, (name, p) in enumerate(cfg.flights.items())]
+    camera = make_camera(cfg.camera)
     for i in range(len(poses)):
         if i in views:
             poses[i] = trajectories.sample_flight_views(
                 rng_for(seed, stream, i, 4), 1, free, z_range, presets, routes)[0]
-        else:
+            continue
+        for k in range(REDRAWS):  # a draw whose camera leaves the free space: the next
             poses[i] = training_views.sample_training_poses(
-                rng_for(seed, stream, i, 0), 1, free, spread,
+                rng_for(seed, stream, i, 0, *([k] if k else [])), 1, free, spread,
                 tr.max_roll_pitch_deg, tr.yaw_along_corridor, tr.yaw_spread_deg,
                 tr.min_view_m, handheld=tr.handheld,
                 handheld_deg=(tr.handheld_pitch_deg, tr.handheld_roll_deg), top=top)[0]
+            if outside_by(site, camera, poses[i][None])[0] < free.margin:
+                break
     return poses
 
 

@@ -145,3 +145,15 @@ def test_generalist_poses_span_heights_and_tilts(tmp_path):
         J.poses_of_split(bad, job.site, "train")
     with pytest.raises(ValueError, match="training.z_range"):
         J.prepare(replace(bad, training=replace(bad.training, z_range=[2.0, 1.0])))
+
+
+def test_a_camera_ahead_of_its_body_stays_under_a_door_head(tmp_path):
+    """Generalist floor 15's training frame 136 drew a body at 2.27 m under a room's 3.2 m
+    ceiling whose camera, 0.1 m ahead, sat under a door's head (1.9 m at most there): the
+    whole floor failed its free-space check. Such a draw is drawn again."""
+    cfg = compose_config("datagen", [
+        "datagen_experiment=generalist_floors", "world.seed=15", "splits.train=137",
+        "splits.val=0", "splits.test=0", f"out_dir={tmp_path / 'ds'}"])
+    job = J.prepare(cfg)  # raised ValueError "splits.train: camera 136 ... outside"
+    poses = job.split_poses["train"]
+    assert J.outside_by(job.site, job.camera, poses).max() < job.site.world.free.margin
