@@ -114,8 +114,7 @@ class Rivals:
 
     def __init__(self, search: GlobalSearch, params: RivalsConfig, rng: np.random.Generator):
         self.search, self.params, self.rng = search, params, rng
-        self._inject = search.params.inject_every
-        self._search_params = sp = search.params
+        self._search_params = sp = search.params  # its own, back on ``hand_over``
         search.params = replace(sp, inject_every=0,
                                 max_hypotheses=min(sp.max_hypotheses, params.max_hypotheses),
                                 min_hypotheses=min(sp.min_hypotheses, params.max_hypotheses))
@@ -166,7 +165,7 @@ class Rivals:
         if not search.update(labels, tilt):
             return None
         self._checks += 1
-        if self._inject > 0 and self._checks % p.inject_every == 0:
+        if self._search_params.inject_every > 0 and self._checks % p.inject_every == 0:
             search._inject(labels, tilt)
             search._prune()
         track_state = mean_pose(particles, np.exp(normalize_log_weights(logw)))
