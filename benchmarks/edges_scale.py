@@ -48,8 +48,8 @@ def pair_table(seg: np.ndarray, cls: np.ndarray) -> list[tuple[str, int, float]]
 def scored(seg: np.ndarray, cls: np.ndarray, min_length: float, spacing: float) -> dict:
     """Segments and samples the localizer scores: all, those between two different
     structural classes, those with void on one side."""
+    from localize.edge_model import scored_segments
     from localize.filter.projection import sample_segments
-    from localize.localizer import scored_segments
 
     world = SimpleNamespace(segments=seg, segment_classes=cls)
     keep = scored_segments(world, min_length)

@@ -41,6 +41,7 @@ from core.imaging.rays import RayCaster  # noqa: E402
 from core.occupancy import OccupancyMap  # noqa: E402
 from core.poses import odometry_increment, pose_from_xyzyaw  # noqa: E402
 from localize.config import LocalizerConfig  # noqa: E402
+from localize.edge_model import EdgeModel, scored_segments  # noqa: E402
 from localize.filter.projection import (  # noqa: E402
     cam_from_world,
     camera_centres,
@@ -50,7 +51,7 @@ from localize.filter.projection import (  # noqa: E402
 )
 from localize.frontend.edge_image import EdgeImage  # noqa: E402
 from localize.frontend.front_end import EdgeFrame  # noqa: E402
-from localize.localizer import EdgeModel, Localizer, scored_segments  # noqa: E402
+from localize.localizer import Localizer  # noqa: E402
 
 HOSPITAL = ROOT.parent / "shared" / "worlds" / "aws_hospital" / "worlds" / "hospital.world"
 TARGET_FILTER_MS, TARGET_GB = 20.0, 2.0

@@ -15,9 +15,9 @@ from core import classes as C
 from core.config import typed
 from core.dataset import Camera, Dataset, World
 from localize.config import AppConfig, LocalizeConfig, WorldFileConfig
+from localize.edge_model import EdgeModel
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import EdgeSource, edge_source
-from localize.localizer import EdgeModel
 
 #: Per edge mode, a function of the mode's own edge source giving the source to use instead
 #: (benchmarks/class_swap.py: the SegNet's labels with some classes from the truth).

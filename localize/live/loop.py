@@ -38,11 +38,12 @@ from core.config import typed
 from core.frames import FrameSource
 from core.poses import odometry_increment
 from localize.context import Context, open_map, report_folder
+from localize.edge_model import EdgeModel
 from localize.filter.start_hint import StartHint, start_of_settings
 from localize.frontend.segmenter import load_segmenter, model_path, runtime_model
 from localize.live.mavlink import MavlinkSender, quality_of
 from localize.live.sync import LatencyWindow, LatestSlot, OdometryBuffer, Throttle
-from localize.localizer import EdgeModel, Estimate, Localizer, start_pose
+from localize.localizer import Estimate, Localizer, start_pose
 from localize.recordings.recording import Rectifier, SourceCamera, check_rigid, delivered_camera
 from localize.ros2.config import Ros2Config
 from localize.ros2.convert import (

@@ -40,14 +40,10 @@ from core.outputs import Claim, FolderPolicy, claim_output, releases_claims
 from core.poses import pose_from_xyzyaw, write_tum, xyzyaw_from_pose
 from localize.config import MODES
 from localize.context import Context, SourceWrappers, open_map, report_folder, settings_of
+from localize.edge_model import EdgeModel
 from localize.filter.start_hint import start_of_settings
 from localize.frontend.segmenter import load_segmenter, runtime_model
-from localize.localizer import (
-    EdgeModel,
-    Estimate,
-    LikelihoodOverride,
-    Localizer,
-)
+from localize.localizer import Estimate, LikelihoodOverride, Localizer
 from localize.offline.metrics import position_errors, yaw_errors_deg
 from localize.viewers.viz import open_viewer
 

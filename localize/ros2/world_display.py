@@ -5,7 +5,7 @@ latched: transient local).
 The grid is the world's free space (``core.occupancy.OccupancyMap``: where a camera centre may
 be, for the flyable band of heights): 0 (free) there, 100 (occupied) elsewhere; its origin is
 the map's lower-left corner at the band's lower height. The edges are the segments the filter
-scores (``localize.localizer.scored_segments``), one LINE_LIST marker per class (namespace
+scores (``localize.edge_model.scored_segments``), one LINE_LIST marker per class (namespace
 ``edges/<class>``), each segment in the colour (``core.classes.palette``) of the larger class
 id of its two sides: a door's outline in the door's colour, a wall's foot in the wall's.
 """
@@ -22,7 +22,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from core import classes as C
 from core.dataset import World
 from core.occupancy import OccupancyMap
-from localize.localizer import scored_segments
+from localize.edge_model import scored_segments
 
 #: Occupancy values of a free cell and of any other.
 FREE, OCCUPIED = 0, 100

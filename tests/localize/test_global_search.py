@@ -12,8 +12,9 @@ import pytest
 from core import classes as C
 from core.poses import odometry_increment, pose_from_xyzyaw, wrap_angle
 from localize.config import FilterConfig, LocalizerConfig
+from localize.edge_model import EdgeModel
 from localize.filter.start_hint import StartHint
-from localize.localizer import EdgeModel, Localizer
+from localize.localizer import Localizer
 from localize.search.config import GlobalSearchConfig
 from localize.search.global_search import GlobalSearch, ray_table_for
 from localize.search.ray_table import STANDING, RayTable, SearchUnavailable, floor_boundary

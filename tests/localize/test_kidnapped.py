@@ -13,9 +13,10 @@ from core.dataset import Flight
 from core.poses import odometry_increment, pose_from_xyzyaw, xyzyaw_from_pose
 from core.spliced import flight_segment, kidnapped
 from localize.config import FilterConfig
+from localize.edge_model import EdgeModel
 from localize.filter.particle_filter import apply_increment
 from localize.filter.projection import cam_from_world
-from localize.localizer import EdgeModel, Localizer
+from localize.localizer import Localizer
 from localize.offline.metrics import false_convergence
 from tests.localize.test_localize_localizer import SETTINGS
 

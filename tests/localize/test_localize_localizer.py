@@ -15,11 +15,12 @@ from core.dataset import Dataset
 from core.poses import odometry_increment
 from localize.config import FilterConfig, LikelihoodConfig, LocalizerConfig, VisibilityConfig
 from localize.context import settings_of
+from localize.edge_model import EdgeModel
 from localize.filter.projection import cam_from_world
 from localize.frontend.extractor import edge_settings
 from localize.frontend.front_end import FrontEnd
 from localize.frontend.sources import LabelFunction, TrueLabels
-from localize.localizer import EdgeModel, Estimate, Localizer
+from localize.localizer import Estimate, Localizer
 from localize.offline.runner import RunSpec, run
 from tests.localize.conftest import QUICK, localize_cfg
 from tests.localize.test_localize_edges import EDGES_CFG

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from core import classes as C
+from localize.edge_model import EdgeModel
 from localize.filter import quality as Q
 from localize.filter.projection import cam_from_world
-from localize.localizer import EdgeModel, Localizer
+from localize.localizer import Localizer
 from tests.localize.test_localize_localizer import SETTINGS, TRUE
 
 

@@ -11,7 +11,8 @@ import pytest
 from core.poses import xyzyaw_from_pose
 from core.spliced import kidnapped
 from localize.config import FilterConfig
-from localize.localizer import EdgeModel, Localizer
+from localize.edge_model import EdgeModel
+from localize.localizer import Localizer
 from localize.offline.metrics import false_convergence
 from localize.search.config import RivalsConfig
 from localize.search.rivals import Check, doubt_after

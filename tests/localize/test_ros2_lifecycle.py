@@ -26,7 +26,7 @@ from std_srvs.srv import Empty  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from core import classes as C  # noqa: E402
-from localize.localizer import scored_segments  # noqa: E402
+from localize.edge_model import scored_segments  # noqa: E402
 from localize.ros2.node import LATCHED, LocalizerNode  # noqa: E402
 from localize.ros2.parameters import config_with, parameter_values  # noqa: E402
 from localize.ros2.play import PlayConfig, Player  # noqa: E402

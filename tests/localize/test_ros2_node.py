@@ -91,8 +91,8 @@ def test_camera_info_makes_no_model_edges(setup, monkeypatch):
     ran no frame was received (the sensor QoS kept the last few, the rest were lost)."""
     import dataclasses
 
+    from localize.edge_model import EdgeModel
     from localize.live.loop import LiveLocalizer
-    from localize.localizer import EdgeModel
 
     cfg, ctx, pb = setup
     fresh = dataclasses.replace(ctx, _models={})

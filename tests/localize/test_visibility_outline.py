@@ -11,9 +11,9 @@ from core.imaging.rays import RayCaster
 from datagen.mesh.edges import extract_edges
 from datagen.worlds.corridor import build_world
 from localize.config import LocalizerConfig, VisibilityConfig
+from localize.edge_model import EdgeModel
 from localize.filter.projection import sample_segments
 from localize.filter.visibility import build_visibility
-from localize.localizer import EdgeModel
 from tests.buildings import HEIGHT
 from tests.datagen.test_edges import _join
 from tests.datagen.test_edges_construction import _ring, _slab, _solid

@@ -11,6 +11,7 @@ from core.dataset import World
 from core.occupancy import OccupancyMap
 from datagen.mesh.edges import extract_edges
 from localize.config import LikelihoodConfig, LocalizerConfig, VisibilityConfig
+from localize.edge_model import EdgeModel, scored_segments
 from localize.filter.likelihood import EdgeLikelihood
 from localize.filter.projection import (
     cam_from_world,
@@ -23,7 +24,6 @@ from localize.filter.projection import (
     view_half_width,
 )
 from localize.filter.visibility import build_visibility
-from localize.localizer import EdgeModel, scored_segments
 from tests.buildings import BAND, MARGIN, THICK, assemble
 
 TRUE = np.array([0.2, 0.8, 1.2, np.deg2rad(80.0)])
