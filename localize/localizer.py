@@ -390,7 +390,8 @@ class Localizer:
     def _search_step(self, frame: EdgeFrame, delta: np.ndarray | None, tilt: np.ndarray | None,
                      timestamp: float, time_scale: float) -> Estimate:
         """A frame of the global search; on its convergence the tracking filter takes over
-        from the dominant cluster's hypotheses (status ``ambiguous`` until then; the hypotheses
+        from the hypotheses of the places that held the mass (status ``ambiguous`` until then,
+        and after a handover of several places until one dominates the filter; the hypotheses
         the search's heaviest clusters, the estimate the heaviest one's pose, the spreads the
         whole set's)."""
         t0 = time.perf_counter()
@@ -405,7 +406,8 @@ class Localizer:
             hyps = search.clusters(self.filter_params.hypotheses)
             state = hyps[0].state  # the heaviest place
             if search.converged:
-                self.filter.init_particles(search.sample(self.filter_params.num_particles))
+                self.filter.init_particles(search.sample(self.filter_params.num_particles),
+                                           dominant=search.places == 1)
                 self.search = None
                 self._keep_rivals(search)
                 if self.rivals is None:

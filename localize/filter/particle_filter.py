@@ -313,9 +313,11 @@ class ParticleFilter:
         p = self.params
         self.init_particles(init_tracking(self.rng, start, p.num_particles, p.init_std))
 
-    def init_particles(self, particles: np.ndarray) -> None:
+    def init_particles(self, particles: np.ndarray, dominant: bool = True) -> None:
         """Start tracking from a given set (N, 4) x, y, z, yaw, equally weighted (a tracking
-        start, or a global search's handover once one pose dominated): status ``tracking``."""
+        start, or a global search's handover): status ``tracking`` when ``dominant`` (one
+        place), else ``ambiguous`` until one hypothesis has held ``dominant_mass`` for
+        ``dominant_frames`` (a handover of several places)."""
         p = self.params
         self.particles = np.array(particles, dtype=np.float64)
         n = len(self.particles)
@@ -323,7 +325,10 @@ class ParticleFilter:
         self.logw = np.full(n, -np.log(n))
         self.frame, self._fast, self._slow, self._thin_at, self._low = 0, None, None, 0, 0
         self._poor, self._fit, self._reckoned = 0, 1.0, None
-        self.dominance.confirm()
+        if dominant:
+            self.dominance.confirm()
+        else:
+            self.dominance.clear()
 
     def init_global(self, hint: StartHint | None = None) -> None:
         """Start uniform over the free space, or inside ``hint`` (``StartHint.draw``), with

@@ -38,8 +38,14 @@ class GlobalSearchConfig:
         min_hypotheses, max_hypotheses: bounds of the count after resampling.
         cluster_radius: m, a cluster's radius (the mass of a hypothesis).
         cluster_yaw_deg: degrees, its half-width in yaw.
-        handover_mass: share of the weight one cluster must hold to converge.
-        handover_frames: frames in a row it must hold it.
+        handover_mass: share of the weight the ``handover_places`` heaviest clusters must
+            hold together to converge...
+        handover_frames: ...for this many frames in a row.
+        handover_places: the most places handed over to the tracking filter: the search
+            converges once this many clusters hold ``handover_mass``; the filter's particles
+            are split evenly between them and its edge likelihood (door frames, windows, the
+            ceiling line: what the floor boundary does not see) chooses, ``ambiguous`` until
+            one holds ``filter.dominant_mass`` (1: one place must dominate the search).
         stride: pixel step of the boundary search in the label image.
     """
 
@@ -68,11 +74,13 @@ class GlobalSearchConfig:
     cluster_yaw_deg: float = 25.0
     handover_mass: float = 0.999
     handover_frames: int = 10
+    handover_places: int = 1
     stride: int = 2
 
     def __post_init__(self) -> None:
         check_positive(self, ("rays", "headings", "min_bins", "max_bins", "inject_headings",
                               "per_bin", "min_hypotheses", "max_hypotheses", "handover_frames",
+                              "handover_places",
                               "stride", "cell", "sigma_deg", "outlier", "evidence",
                               "cluster_radius", "cluster_yaw_deg"), "filter.global_search")
         if self.min_bins > self.max_bins or self.min_hypotheses > self.max_hypotheses:

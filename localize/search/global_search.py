@@ -23,9 +23,10 @@ are dropped and the count is brought to an adaptive one (KLD-style: ``per_bin`` 
 bin of 0.5 m x 0.5 m x 20 deg, within [``min_hypotheses``, ``max_hypotheses``]) by jittered
 copies of the survivors that share their parent's weight, or by a uniform thinning; so a pose
 that fits as well as the best keeps its share however few hypotheses it started with. It
-converges when one cluster (``cluster_radius`` m, ``cluster_yaw_deg``) holds
-``handover_mass`` of the weight for ``handover_frames`` frames in a row; ``sample`` then draws
-the tracking filter's particles from that cluster.
+converges when at most ``handover_places`` clusters (``cluster_radius`` m, ``cluster_yaw_deg``)
+hold ``handover_mass`` of the weight together for ``handover_frames`` frames in a row;
+``sample`` then splits the tracking filter's particles evenly between those places, and the
+filter's edge likelihood chooses between them.
 
 Interface (what the Localizer wires):
 
@@ -47,9 +48,10 @@ Interface (what the Localizer wires):
   weighted mean poses and the share of the weight each holds (k' <= k);
   ``search.clusters(k)``: the same as ``hypotheses.Hypothesis`` (with their spreads), the
   Localizer's ``Estimate.hypotheses`` during the search.
-- ``search.converged``: one cluster held ``handover_mass`` for ``handover_frames`` frames.
-- ``search.sample(n, centre=None) -> (n, 4)``: particles drawn from the dominant cluster's
-  hypotheses (or the cluster around ``centre``: a rival's, ``localize.search.rivals``).
+- ``search.converged``: the ``handover_places`` heaviest clusters held ``handover_mass``
+  together for ``handover_frames`` frames; ``search.places``: how many places they are.
+- ``search.sample(n, centre=None) -> (n, 4)``: particles split evenly between the places
+  (or drawn from the cluster around ``centre``: a rival's, ``localize.search.rivals``).
 - ``search.states``, ``search.logw``: (N, 4), (N,) the hypotheses and their normalized
   log-weights.
 
@@ -161,7 +163,7 @@ class GlobalSearch:
         self.states = np.zeros((0, 4))
         self.logw = np.zeros(0)
         self._held = self._frames = 0
-        self._dominant = None  # (4,) mean pose of the cluster that held the mass
+        self._dominant = None  # (k, 4) mean poses of the places that held the mass
         self._clusters = None  # ((version, k), hypotheses) of the last call
         self._version = 0  # counts the changes of the set: reset, predict, update
 
@@ -394,11 +396,14 @@ class GlobalSearch:
             & (np.abs(wrap_angle(S[:, 3] - centre[3])) <= np.deg2rad(p.cluster_yaw_deg))
 
     def _track_dominant(self) -> None:
-        """Count the frames in a row one cluster holds ``handover_mass``."""
-        poses, mass = self.hypotheses(1)
-        if len(mass) and mass[0] >= self.params.handover_mass:
+        """Count the frames in a row the ``handover_places`` heaviest clusters hold
+        ``handover_mass`` together; the places are those of them holding at least
+        ``1 - handover_mass``."""
+        p = self.params
+        poses, mass = self.hypotheses(p.handover_places)
+        if len(mass) and mass.sum() >= p.handover_mass:
             self._held += 1
-            self._dominant = poses[0]
+            self._dominant = poses[(mass >= 1.0 - p.handover_mass) | (mass == mass.max())]
         else:
             self._held, self._dominant = 0, None
 
@@ -415,18 +420,34 @@ class GlobalSearch:
 
     @property
     def converged(self) -> bool:
-        """One cluster held ``handover_mass`` for ``handover_frames`` frames in a row."""
+        """The places held ``handover_mass`` for ``handover_frames`` frames in a row."""
         return self._held >= self.params.handover_frames
+
+    @property
+    def places(self) -> int:
+        """How many places ``sample`` hands over (0 before the search has converged)."""
+        return 0 if self._dominant is None else len(self._dominant)
 
     def sample(self, n: int, centre: np.ndarray | None = None) -> np.ndarray:
         """(n, 4) particles for the tracking filter: resampled from the hypotheses of the
-        cluster around ``centre`` (4,) (default: the dominant cluster; all of them when there
-        is none or it holds no hypothesis)."""
-        S, lw = self.states, self.logw
-        centre = self._dominant if centre is None else centre
+        cluster around ``centre`` (4,), or split evenly between the places that held the mass
+        (``places``; all the hypotheses when there is none or a place holds no hypothesis)."""
         if centre is not None:
-            near = self._in_cluster(S, np.asarray(centre, dtype=np.float64))
+            return self._sample_near(int(n), np.asarray(centre, dtype=np.float64)[None])
+        if self._dominant is None:
+            return self._sample_near(int(n), None)
+        k = len(self._dominant)
+        counts = np.full(k, int(n) // k)
+        counts[: int(n) - counts.sum()] += 1
+        return np.concatenate([self._sample_near(int(c), d[None])
+                               for c, d in zip(counts, self._dominant, strict=True)])
+
+    def _sample_near(self, n: int, centre: np.ndarray | None) -> np.ndarray:
+        """(n, 4) hypotheses resampled by weight from the cluster around ``centre`` (1, 4)
+        (all of them with None or an empty cluster)."""
+        S, lw = self.states, self.logw
+        if centre is not None:
+            near = self._in_cluster(S, centre[0])
             if near.any():
                 S, lw = S[near], lw[near]
-        return S[systematic_resample(self.rng, lw, int(n))].copy()
-
+        return S[systematic_resample(self.rng, lw, n)].copy()

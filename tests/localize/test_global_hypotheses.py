@@ -137,6 +137,26 @@ def test_a_search_hands_over_its_poses():
     assert pf.update(flat).status == "ambiguous"
 
 
+def test_a_handover_of_several_places_is_ambiguous_until_one_dominates():
+    """``init_particles(dominant=False)``: the edge likelihood chooses between the places; the
+    status is ``tracking`` only after the chosen one has held ``dominant_mass`` for
+    ``dominant_frames``."""
+    params = FilterConfig(num_particles=400)
+    pf = ParticleFilter(params, FREE, np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    a, b = np.array([0.0, 2.0, 1.2, 0.5]), np.array([0.0, 8.0, 1.2, -2.5])
+    pf.init_particles(np.concatenate([cloud(rng, a, 200), cloud(rng, b, 200)]), dominant=False)
+
+    def near_a(states, tilt=None):
+        d = np.hypot(*(states[:, :2] - a[:2]).T)
+        return -5.0 * d, np.exp(-d)
+
+    status = [pf.update(near_a).status for _ in range(20)]
+    first = status.index("tracking")
+    assert first == params.dominant_frames - 1 and status[-1] == "tracking", status
+    assert np.hypot(*(pf.particles[:, :2] - a[:2]).T).max() < 1.0
+
+
 class TestStartHint:
     def test_region_restricts_the_particles(self):
         region = [-0.7, 4.0, 0.7, 6.0]

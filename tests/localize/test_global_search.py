@@ -104,6 +104,30 @@ def test_search_finds_the_true_pose_and_is_deterministic(table, small_world, cam
     np.testing.assert_array_equal(tops, again)
 
 
+def test_several_places_are_handed_over_evenly(table, small_world, camera):
+    """With ``handover_places`` k the search converges once k clusters hold the mass together
+    (one alone never does here) and ``sample`` splits the particles evenly between them."""
+    centres = np.array([[-0.6, 0.8], [-0.6, 3.0]])
+
+    def two_places(s):
+        d = np.hypot(s[:, 0, None] - centres[:, 0], s[:, 1, None] - centres[:, 1]).min(1)
+        return np.where((d < 0.2) & (np.abs(wrap_angle(s[:, 3] - np.pi / 2)) < 0.2), 0.0,
+                        -np.inf)
+
+    wall = np.full((camera.height, camera.width), C.WALL, np.uint8)  # nothing to weigh
+    for places in (1, 3):
+        params = dataclasses.replace(PARAMS, handover_places=places)
+        search = GlobalSearch(table, camera, small_world.free, params, np.random.default_rng(0))
+        search.reset(two_places)
+        for _ in range(params.handover_frames):
+            assert not search.update(wall, None)
+        assert search.converged is (places == 3)
+        assert search.places == (0 if places == 1 else 2)
+    particles = search.sample(201)
+    near = [np.hypot(*(particles[:, :2] - c).T) < 0.5 for c in centres]
+    assert sorted([near[0].sum(), near[1].sum()]) == [100, 101]
+
+
 def test_a_hint_limits_the_start(table, small_world, camera):
     search = GlobalSearch(table, camera, small_world.free, PARAMS, np.random.default_rng(0))
     search.reset(lambda s: np.where(s[:, 1] < 1.0, 0.0, -np.inf))
