@@ -187,6 +187,9 @@ class Localizer:
         # after a loss with rivals: checks in a row the track has led every rival by
         # ``filter.rivals.margin`` (None: no doubt; ``rivals.doubt_after``)
         self._doubt: int | None = None
+        # since a search's handover, until confirmed (``global_search.confirm_within``):
+        # [frames since it, frames in a row reported ``tracking``]; None: nothing to confirm
+        self._unconfirmed: list[int] | None = None
 
     @property
     def global_likelihood(self) -> EdgeLikelihood:
@@ -218,7 +221,7 @@ class Localizer:
         else:
             self.filter.init_tracking(start_pose(start, "reset(start)"))
             self._keep_rivals(None)
-        self._last_time = self._lost_at = self._doubt = None
+        self._last_time = self._lost_at = self._doubt = self._unconfirmed = None
 
     def step(self, image: np.ndarray | EdgeFrame | None, odometry_increment: np.ndarray | None,
              attitude: np.ndarray | None, timestamp: float,
@@ -270,10 +273,35 @@ class Localizer:
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],
                   "preprocessing": frame.timing_ms["edges"] + obs_ms, "filter": filter_ms}
-        return self._rated(Estimate(
+        return self._confirmed(self._rated(Estimate(
             timestamp, info.estimate, pose_from_xyzyaw(info.estimate)[0], info.position_std,
             info.yaw_std, info.ess, info.num_particles, info.best_score, info.injected,
-            info.status, info.confidence, info.tilt, timing, info.hypotheses), search=False)
+            info.status, info.confidence, info.tilt, timing, info.hypotheses), search=False))
+
+    def _confirmed(self, est: Estimate) -> Estimate:
+        """``est`` after the check of a handover not yet confirmed
+        (``global_search.confirm_within``): status ``lost`` and a fresh search when the track
+        has not been reported ``tracking`` for ``filter.dominant_frames`` frames in a row
+        within that many frames of the handover."""
+        u = self._unconfirmed
+        if u is None or self.search is not None:
+            return est
+        if est.status == "lost":
+            self._unconfirmed = None
+            return est
+        u[0] += 1
+        u[1] = u[1] + 1 if est.status == "tracking" else 0
+        if u[1] >= self.filter_params.dominant_frames:
+            self._unconfirmed = None
+        elif u[0] >= self.filter_params.global_search.confirm_within:
+            log.warning("t = %.2f s: the place the search handed over was not confirmed within "
+                        "%d frames: searching again", est.timestamp, u[0])
+            self._unconfirmed = None
+            self.rivals = None
+            if self._start_search():
+                self._lost_at = est.timestamp
+                return replace(est, status="lost", confidence=0.0)
+        return est
 
     def _rated(self, est: Estimate, search: bool) -> Estimate:
         """``est`` with its ``quality`` (``self.quality_model`` of its inputs; NaN without a
@@ -412,6 +440,8 @@ class Localizer:
                 self._keep_rivals(search)
                 if self.rivals is None:
                     self._doubt = None
+                if self.filter_params.global_search.confirm_within > 0:
+                    self._unconfirmed = [0, 0]
         filter_ms = (time.perf_counter() - t0) * 1e3
         self._last_time = timestamp
         timing = {"segmentation": frame.timing_ms["segmentation"],

@@ -242,6 +242,11 @@ class FilterConfig:
                              f"({self.hypothesis_radius_m}) and hypothesis_yaw_deg "
                              f"({self.hypothesis_yaw_deg}) positive, filter.dominant_mass "
                              f"({self.dominant_mass}) in (0, 1]")
+        cw = self.global_search.confirm_within
+        if cw < 0 or 0 < cw <= self.dominant_frames:
+            raise ValueError(f"filter.global_search.confirm_within ({cw}) must be 0 (never) or "
+                             f"more than filter.dominant_frames ({self.dominant_frames}): the "
+                             "track must be able to be reported tracking for that many frames")
         if min(self.tilt_std) < 0:
             raise ValueError(f"filter.tilt_std must be >= 0 degrees, got {list(self.tilt_std)}")
         for mode in MODES:  # a typo or a bad value in an override fails here, at start-up

@@ -46,6 +46,11 @@ class GlobalSearchConfig:
             are split evenly between them and its edge likelihood (door frames, windows, the
             ceiling line: what the floor boundary does not see) chooses, ``ambiguous`` until
             one holds ``filter.dominant_mass`` (1: one place must dominate the search).
+        confirm_within: frames after a handover within which the track must be reported
+            ``tracking`` (the quality's gate passed: ``filter.tracking_quality``) for
+            ``filter.dominant_frames`` frames in a row; otherwise the handover went to a
+            wrong place the floor boundary could not tell from the right one, and the track
+            is declared lost and a fresh search starts (0: never).
         stride: pixel step of the boundary search in the label image.
     """
 
@@ -75,6 +80,7 @@ class GlobalSearchConfig:
     handover_mass: float = 0.999
     handover_frames: int = 10
     handover_places: int = 1
+    confirm_within: int = 0
     stride: int = 2
 
     def __post_init__(self) -> None:

@@ -165,6 +165,35 @@ def test_localizer_global_start_hands_over_to_tracking(small_world, camera, rend
         small_world, GlobalSearchConfig(headings=36))
 
 
+@pytest.mark.parametrize("tracking_quality", [0.0, 1.0])
+def test_an_unconfirmed_handover_searches_again(small_world, camera, rendered, tracking_quality):
+    """``global_search.confirm_within``: a handover whose track is not reported ``tracking``
+    within that many frames (here: a quality gate no estimate passes) is declared lost and a
+    fresh search starts; a confirmed one is kept."""
+    poses, labels = rendered
+    params = dataclasses.replace(PARAMS, confirm_within=12)
+    settings = LocalizerConfig(filter=FilterConfig(num_particles=150, global_search=params,
+                                                   tracking_quality=tracking_quality))
+    model = EdgeModel.build(small_world, settings, occlusion=False).for_mode(small_world,
+                                                                             "oracle")
+    loc = Localizer(small_world, camera, "oracle", settings, np.random.default_rng(0),
+                    model=model)
+    loc.reset(None)
+    statuses, searching = [], []
+    for t in range(FRAMES):
+        delta = odometry_increment(poses[t - 1], poses[t]) if t else None
+        statuses.append(loc.step(None, delta, poses[t], 0.1 * t, labels=labels[t]).status)
+        searching.append(loc.search is not None)
+    handover = searching.index(False)  # the frame the filter took over at
+    if tracking_quality == 0.0:
+        assert "lost" not in statuses and statuses[-1] == "tracking"
+    else:
+        assert "tracking" not in statuses
+        lost = statuses.index("lost")
+        assert lost == handover + params.confirm_within, (handover, lost)
+        assert searching[lost]
+
+
 def test_localizer_hint_weighs_the_search(small_world, camera):
     """A ``StartHint`` given to ``Localizer.reset`` restricts the search's start: a region
     keeps only its poses, a pose with covariance weighs them by its Gaussian."""
