@@ -80,7 +80,7 @@ class GlobalSearchConfig:
     handover_mass: float = 0.999
     handover_frames: int = 10
     handover_places: int = 1
-    confirm_within: int = 0
+    confirm_within: int = 40
     stride: int = 2
 
     def __post_init__(self) -> None:
