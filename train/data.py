@@ -1,7 +1,8 @@
 """Dataset splits in memory and joint image/label augmentation on batches.
 
 A split is read once through ``core.dataset.Dataset`` into uint8 tensors (the demo dataset
-is a few hundred MB at most), so an epoch is pure tensor work. Augmentation runs on a whole
+is a few hundred MB, the generalist's 48 floors about 4 GB; the work on a whole split holds
+at most one more copy of it), so an epoch is pure tensor work. Augmentation runs on a whole
 batch at once with kornia functions and draws every random number from an explicit
 ``torch.Generator``, so a resumed run sees the same batches as an uninterrupted one.
 """
@@ -27,6 +28,8 @@ from core.imaging.realism import RealismConfig
 from train.config import AugmentConfig
 
 IGNORE = 255
+#: Images per step of the work on a whole split (bounds its float temporaries).
+CHUNK = 256
 
 
 @dataclass(frozen=True)
@@ -90,14 +93,22 @@ def check_same_kind(datasets: Sequence[Dataset]) -> None:
 
 def load_splits(datasets: Sequence[Dataset], split: str, num_classes: int,
                 limit: int | None = None, progress: bool = False) -> SplitData:
-    """``load_split`` of each dataset, concatenated in order (``limit`` applies to each)."""
-    parts = [load_split(d, split, num_classes, limit, progress) for d in datasets]
-    if len(parts) == 1:
-        return parts[0]
+    """``load_split`` of each dataset, concatenated in order (``limit`` applies to each),
+    read into one array (no second copy of the whole split)."""
+    lists = [_split_paths(d, split, limit) for d in datasets]
+    n = sum(len(rgb) for rgb, _ in lists)
+    cam = datasets[0].camera
+    images = np.empty((n, 3, cam.height, cam.width), dtype=np.uint8)
+    labels = np.empty((n, cam.height, cam.width), dtype=np.uint8)
+    at = 0
+    for d, (rgb, lab) in zip(datasets, lists, strict=True):
+        _read_into(d, rgb, lab, images[at:at + len(rgb)], labels[at:at + len(rgb)],
+                   num_classes, split, progress)
+        at += len(rgb)
     return SplitData(
-        images=torch.cat([p.images for p in parts]),
-        labels=torch.cat([p.labels for p in parts]),
-        paths=[path for p in parts for path in p.paths],
+        images=torch.from_numpy(images),
+        labels=torch.from_numpy(labels),
+        paths=[path for rgb, _ in lists for path in rgb],
     )
 
 
@@ -121,6 +132,12 @@ def load_split(
         The split as uint8 tensors. Raises FileNotFoundError if the split is empty and
         ValueError naming the file if an image has the wrong size or a label an unknown id.
     """
+    return load_splits([dataset], split, num_classes, limit, progress)
+
+
+def _split_paths(dataset: Dataset, split: str, limit: int | None) -> tuple[list, list]:
+    """(rgb paths, label paths) of a split, the first ``limit``; FileNotFoundError when
+    empty."""
     rgb_paths, label_paths = dataset.split(split)
     if limit is not None:
         rgb_paths, label_paths = rgb_paths[:limit], label_paths[:limit]
@@ -129,10 +146,15 @@ def load_split(
             f"split {split!r} of dataset {dataset.root} has no images in "
             f"{dataset.root / split / 'rgb'}; finish the dataset with `python -m datagen`."
         )
+    return list(rgb_paths), list(label_paths)
+
+
+def _read_into(dataset: Dataset, rgb_paths: list, label_paths: list, images: np.ndarray,
+               labels: np.ndarray, num_classes: int, split: str, progress: bool) -> None:
+    """Read the PNGs into ``images`` (n, 3, H, W) and ``labels`` (n, H, W), checking each
+    against the dataset's camera and the class ids."""
     cam = dataset.camera
     n = len(rgb_paths)
-    images = np.empty((n, cam.height, cam.width, 3), dtype=np.uint8)
-    labels = np.empty((n, cam.height, cam.width), dtype=np.uint8)
     pairs = zip(rgb_paths, label_paths, strict=True)
     for i, (rp, lp) in enumerate(tqdm(pairs, total=n, desc=f"load {split}", disable=not progress)):
         rgb = read_png(rp)
@@ -145,7 +167,7 @@ def load_split(
                     f"({'RGB' if want == 3 else 'single-channel label'} expected); "
                     f"regenerate the dataset or fix camera.width/height."
                 )
-        images[i] = rgb
+        images[i] = rgb.transpose(2, 0, 1)
         labels[i] = lab
     bad = np.unique(labels[(labels >= num_classes) & (labels != IGNORE)])
     if bad.size:
@@ -155,11 +177,6 @@ def load_split(
             f"{num_classes} classes of {dataset.root / 'dataset.json'} (255 = ignore); the "
             f"labels and the class list disagree, regenerate the dataset."
         )
-    return SplitData(
-        images=torch.from_numpy(images).permute(0, 3, 1, 2).contiguous(),
-        labels=torch.from_numpy(labels),
-        paths=list(rgb_paths),
-    )
 
 
 def through_camera(data: SplitData, settings: RealismConfig, seed: int, stream: int) -> SplitData:
@@ -182,14 +199,14 @@ def through_camera(data: SplitData, settings: RealismConfig, seed: int, stream: 
         the split with new images (labels and paths shared).
     """
     c = settings.exposure
-    images = data.images.permute(0, 2, 3, 1).numpy()
-    out = np.empty_like(images)
-    for i, rgb in enumerate(images):
+    out = torch.empty_like(data.images)
+    for i in range(len(data)):
         rng = np.random.default_rng([seed, stream, i])
         ev = rng.uniform(-c.step_ev, c.step_ev) + c.drift_ev * rng.standard_normal()
-        out[i] = apply_effects(rgb, rng, settings, float(np.clip(ev, -c.max_ev, c.max_ev)))
-    return SplitData(images=torch.from_numpy(out).permute(0, 3, 1, 2).contiguous(),
-                     labels=data.labels, paths=data.paths)
+        rgb = data.images[i].permute(1, 2, 0).numpy()
+        out[i] = torch.from_numpy(apply_effects(
+            rgb, rng, settings, float(np.clip(ev, -c.max_ev, c.max_ev)))).permute(2, 0, 1)
+    return SplitData(images=out, labels=data.labels, paths=data.paths)
 
 
 def downsample_split(data: SplitData, factor: int, keep_labels: bool = False) -> SplitData:
@@ -212,7 +229,11 @@ def downsample_split(data: SplitData, factor: int, keep_labels: bool = False) ->
     h, w = data.images.shape[-2:]
     if h % factor or w % factor:
         raise ValueError(f"image size {h}x{w} is not a multiple of model.downsample={factor}")
-    images = F.avg_pool2d(data.images.float(), factor).round_().to(torch.uint8)
+    n, c = data.images.shape[:2]
+    images = torch.empty((n, c, h // factor, w // factor), dtype=torch.uint8)
+    for s in range(0, n, CHUNK):  # a float copy of a chunk, not of the split
+        images[s:s + CHUNK] = F.avg_pool2d(data.images[s:s + CHUNK].float(),
+                                           factor).round_().to(torch.uint8)
     labels = data.labels if keep_labels else block_majority(data.labels, factor)
     return SplitData(images=images, labels=labels, paths=data.paths)
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+import train.data as data_module
 from core import classes as C
 from core.atomic import write_png
 from core.config import typed
@@ -155,6 +156,15 @@ def test_downsample_split() -> None:
     assert downsample_split(SplitData(images, labels, []), 1).images is images
     with pytest.raises(ValueError, match="multiple of model.downsample"):
         downsample_split(SplitData(images[..., :47, :], labels[:, :47], []), 2)
+
+
+def test_downsample_split_in_chunks_is_the_whole(monkeypatch) -> None:
+    """The split is averaged a chunk at a time (no float copy of it all): the same bytes."""
+    images, labels = _palette_batch()
+    whole = downsample_split(SplitData(images, labels, []), 2)
+    monkeypatch.setattr(data_module, "CHUNK", 3)  # 4 images: a chunk of 3, then 1
+    chunked = downsample_split(SplitData(images, labels, []), 2)
+    assert torch.equal(chunked.images, whole.images)
 
 
 class TestLoad:
