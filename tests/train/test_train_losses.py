@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+import train.losses as losses
 from train.losses import (
     boundary_mask,
     class_pixel_counts,
@@ -19,6 +20,18 @@ def test_pixel_counts_hand_made() -> None:
     assert counts.tolist() == [2, 4, 1, 0]
     # class 0 only in image 0 (3 valid px), class 1 in both (3 + 4), class 2 in image 1 (4)
     assert image_pixels.tolist() == [3, 7, 4, 0]
+
+
+def test_pixel_counts_a_chunk_at_a_time(monkeypatch) -> None:
+    """Counted a chunk of images at a time (the generalist's split does not fit in int64):
+    the same counts."""
+    labels = torch.tensor([[[0, 0], [1, 255]], [[1, 1], [1, 2]], [[2, 2], [255, 0]]],
+                          dtype=torch.uint8)
+    whole = class_pixel_counts(labels, 4)
+    monkeypatch.setattr(losses, "COUNT_CHUNK", 2)
+    chunked = class_pixel_counts(labels, 4)
+    assert [t.tolist() for t in chunked] == [t.tolist() for t in whole]
+    assert whole[0].tolist() == [3, 4, 3, 0] and whole[1].tolist() == [6, 7, 7, 0]
 
 
 def test_median_frequency_hand_made() -> None:
