@@ -253,8 +253,11 @@ def block_majority(labels: torch.Tensor, factor: int, chunk: int = 256) -> torch
     Returns:
         (N, H / factor, W / factor) uint8.
     """
-    ids = [int(c) for c in torch.unique(labels) if int(c) != IGNORE]
     n, h, w = labels.shape
+    present = set()  # the classes present, a chunk at a time (unique sorts a copy)
+    for s in range(0, n, chunk):
+        present.update(int(c) for c in torch.unique(labels[s:s + chunk]))
+    ids = sorted(present - {IGNORE})
     out = torch.full((n, h // factor, w // factor), IGNORE, dtype=torch.uint8)
     if not ids:
         return out
