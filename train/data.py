@@ -238,7 +238,7 @@ def downsample_split(data: SplitData, factor: int, keep_labels: bool = False) ->
     return SplitData(images=images, labels=labels, paths=data.paths)
 
 
-def block_majority(labels: torch.Tensor, factor: int, chunk: int = 256) -> torch.Tensor:
+def block_majority(labels: torch.Tensor, factor: int, chunk: int = CHUNK) -> torch.Tensor:
     """The most frequent class of each factor x factor block of a label batch.
 
     Ignored pixels (255) do not vote; a block with no other pixel stays 255; ties go to the

@@ -28,10 +28,10 @@ def class_pixel_counts(labels: torch.Tensor, num_classes: int) -> tuple[torch.Te
     n = labels.shape[0]
     parts = []
     for s in range(0, n, COUNT_CHUNK):  # int64 copies of a chunk, not of the whole split
-        flat = labels[s:s + COUNT_CHUNK].reshape(min(COUNT_CHUNK, n - s), -1).long()
+        k = min(COUNT_CHUNK, n - s)
+        flat = labels[s:s + k].reshape(k, -1).long()
         # Ignore pixels go to an extra bin C, dropped afterwards.
         flat = torch.where(flat == IGNORE, num_classes, flat).clamp_(max=num_classes)
-        k = len(flat)
         offset = torch.arange(k).unsqueeze(1) * (num_classes + 1)
         parts.append(torch.bincount((flat + offset).reshape(-1),
                                     minlength=k * (num_classes + 1)).view(k, num_classes + 1))

@@ -433,21 +433,21 @@ class GlobalSearch:
         cluster around ``centre`` (4,), or split evenly between the places that held the mass
         (``places``; all the hypotheses when there is none or a place holds no hypothesis)."""
         if centre is not None:
-            return self._sample_near(int(n), np.asarray(centre, dtype=np.float64)[None])
+            return self._sample_near(int(n), np.asarray(centre, dtype=np.float64))
         if self._dominant is None:
             return self._sample_near(int(n), None)
         k = len(self._dominant)
         counts = np.full(k, int(n) // k)
         counts[: int(n) - counts.sum()] += 1
-        return np.concatenate([self._sample_near(int(c), d[None])
+        return np.concatenate([self._sample_near(int(c), d)
                                for c, d in zip(counts, self._dominant, strict=True)])
 
     def _sample_near(self, n: int, centre: np.ndarray | None) -> np.ndarray:
-        """(n, 4) hypotheses resampled by weight from the cluster around ``centre`` (1, 4)
+        """(n, 4) hypotheses resampled by weight from the cluster around ``centre`` (4,)
         (all of them with None or an empty cluster)."""
         S, lw = self.states, self.logw
         if centre is not None:
-            near = self._in_cluster(S, centre[0])
+            near = self._in_cluster(S, centre)
             if near.any():
                 S, lw = S[near], lw[near]
         return S[systematic_resample(self.rng, lw, n)].copy()
