@@ -242,7 +242,7 @@ def check_inside(site: Site, camera: Camera, poses: np.ndarray, where: str) -> N
                          "camera.mount and the flight preset's trajectory")
 
 
-def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
+def poses_of_split(cfg: DatagenConfig, site: Site, camera: Camera, split: str) -> np.ndarray:
     """(N, 4, 4) body poses of a split's frames; frame i's depends only on (seed, split, i).
 
     A share ``training.flight_views`` of them (decided per frame by its own generator) are
@@ -274,7 +274,6 @@ def poses_of_split(cfg: DatagenConfig, site: Site, split: str) -> np.ndarray:
         routes = [trajectories.flight_route(p, free, site.route,
                                             rng_for(seed, 100 + stream, k), f"flights.{name}")
                   for k, (name, p) in enumerate(cfg.flights.items())]
-    camera = make_camera(cfg.camera)
     for i in range(len(poses)):
         if i in views:
             poses[i] = trajectories.sample_flight_views(
@@ -318,7 +317,7 @@ def prepare(cfg: DatagenConfig | Mapping) -> Job:
     site = build_site(cfg.world, edges=needs_edges(cfg, map_error.is_active(map_cfg)))
     split_poses = {}
     for split in SPLITS:
-        poses = poses_of_split(cfg, site, split)
+        poses = poses_of_split(cfg, site, camera, split)
         check_inside(site, camera, poses, f"splits.{split}")
         split_poses[split] = poses
     flights = {}

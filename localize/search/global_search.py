@@ -204,11 +204,16 @@ class GlobalSearch:
         z = np.full(n, 0.5 * (self.band[0] + self.band[1]))
         return np.column_stack([xy, z, wrap_angle(yaw)])
 
+    def inject(self, labels: np.ndarray, tilt: np.ndarray | None) -> None:
+        """Score a coarse grid (``inject_headings`` per cell) on this frame alone, add its
+        ``inject_count`` best poses ``inject_below`` under the best log-weight (a pose lost to
+        a run of bad frames comes back when a good one shows it), then prune (``update`` does
+        it every ``inject_every`` frames)."""
+        self._inject(labels, tilt)
+        self._prune()
+
     def _inject(self, labels: np.ndarray, tilt: np.ndarray | None) -> None:
-        """Every ``inject_every`` frames: score a coarse grid (``inject_headings`` per cell)
-        on this frame alone and add its ``inject_count`` best poses, ``inject_below`` under the
-        best log-weight (a pose lost to a run of bad frames comes back when a good one
-        shows it)."""
+        """``inject``'s additions, without the pruning."""
         p = self.params
         kept_S, kept_lw = self.states, self.logw
         self.states = self._grid(p.inject_headings)

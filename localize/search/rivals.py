@@ -166,8 +166,7 @@ class Rivals:
             return None
         self._checks += 1
         if self._search_params.inject_every > 0 and self._checks % p.inject_every == 0:
-            search._inject(labels, tilt)
-            search._prune()
+            search.inject(labels, tilt)
         track_state = mean_pose(particles, np.exp(normalize_log_weights(logw)))
         self._seed(track_state)
         n = p.particles

@@ -142,7 +142,7 @@ def test_generalist_poses_span_heights_and_tilts(tmp_path):
     bad = typed(DatagenConfig, cfg, "datagen")
     bad.training.z_range = [0.3, 2.5]
     with pytest.raises(ValueError, match="training.z_range"):
-        J.poses_of_split(bad, job.site, "train")
+        J.poses_of_split(bad, job.site, job.camera, "train")
     with pytest.raises(ValueError, match="training.z_range"):
         J.prepare(replace(bad, training=replace(bad.training, z_range=[2.0, 1.0])))
 
