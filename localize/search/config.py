@@ -38,7 +38,8 @@ class GlobalSearchConfig:
         min_hypotheses, max_hypotheses: bounds of the count after resampling.
         cluster_radius: m, a cluster's radius (the mass of a hypothesis).
         cluster_yaw_deg: degrees, its half-width in yaw.
-        handover_mass: share of the weight the ``handover_places`` heaviest clusters must
+        handover_mass: share of the settled weight (injected hypotheses count once weighed
+            for ``handover_frames`` frames) the ``handover_places`` heaviest clusters must
             hold together to converge...
         handover_frames: ...for this many frames in a row.
         handover_places: the most places handed over to the tracking filter: the search

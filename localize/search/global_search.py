@@ -24,7 +24,9 @@ bin of 0.5 m x 0.5 m x 20 deg, within [``min_hypotheses``, ``max_hypotheses``]) 
 copies of the survivors that share their parent's weight, or by a uniform thinning; so a pose
 that fits as well as the best keeps its share however few hypotheses it started with. It
 converges when at most ``handover_places`` clusters (``cluster_radius`` m, ``cluster_yaw_deg``)
-hold ``handover_mass`` of the weight together for ``handover_frames`` frames in a row;
+hold ``handover_mass`` of the weight together for ``handover_frames`` frames in a row (the
+weight of the settled hypotheses: those of the start, and the injected ones once they have
+been weighed for ``handover_frames`` frames);
 ``sample`` then splits the tracking filter's particles evenly between those places, and the
 filter's edge likelihood chooses between them.
 
@@ -162,6 +164,8 @@ class GlobalSearch:
         self._kind = np.concatenate([k[:, -M:], k, k[:, :M]], axis=1).ravel()
         self.states = np.zeros((0, 4))
         self.logw = np.zeros(0)
+        # (N,) the frame each hypothesis (or its parent) was injected at; -1: the start's
+        self._born = np.zeros(0, np.int64)
         self._held = self._frames = 0
         self._dominant = None  # (k, 4) mean poses of the places that held the mass
         self._clusters = None  # ((version, k), hypotheses) of the last call
@@ -189,6 +193,7 @@ class GlobalSearch:
                                         f"{self.table.cell} m) in the free space")
             self.states, self.logw = self.states[keep], self.logw[keep]
         self.logw -= logsumexp(self.logw)
+        self._born = np.full(len(self.states), -1, np.int64)  # the start: no injection
         self._held, self._dominant, self._frames = 0, None, 0
 
     def _grid(self, headings: int) -> np.ndarray:
@@ -231,6 +236,7 @@ class GlobalSearch:
         lw = np.full(len(top), kept_lw.max() - p.inject_below)
         self.states = np.concatenate([kept_S, S[top]])
         self.logw = np.concatenate([kept_lw, lw])
+        self._born = np.concatenate([self._born, np.full(len(top), self._frames)])
         self.logw -= logsumexp(self.logw)
 
     def predict(self, delta: np.ndarray, time_scale: float = 1.0) -> None:
@@ -325,12 +331,12 @@ class GlobalSearch:
         cluster's share in expectation)."""
         p = self.params
         keep = self.logw >= self.logw.max() - p.prune_band
-        S, lw = self.states[keep], self.logw[keep]
+        S, lw, born = self.states[keep], self.logw[keep], self._born[keep]
         occupied = int(np.count_nonzero(np.bincount(bin_keys(S))))
         n = int(np.clip(occupied * p.per_bin, p.min_hypotheses, p.max_hypotheses))
         if len(S) > n:
             sel = np.sort(self.rng.choice(len(S), n, replace=False))
-            S, lw = S[sel], lw[sel]
+            S, lw, born = S[sel], lw[sel], born[sel]
         elif len(S) < n:
             parent = systematic_resample(self.rng, lw, n - len(S))
             copies = 1 + np.bincount(parent, minlength=len(S))
@@ -339,7 +345,8 @@ class GlobalSearch:
                 [p.jitter[0], p.jitter[0], 0.0, np.deg2rad(p.jitter[1])])
             new[:, 3] = wrap_angle(new[:, 3])
             S, lw = np.concatenate([S, new]), np.concatenate([lw, lw[parent]])
-        self.states, self.logw = S, lw - logsumexp(lw)
+            born = np.concatenate([born, born[parent]])
+        self.states, self.logw, self._born = S, lw - logsumexp(lw), born
 
     def hypotheses(self, k: int = 5) -> tuple[np.ndarray, np.ndarray]:
         """The ``k`` heaviest clusters (non-maximum suppression): (k', 4) weighted mean poses,
@@ -402,15 +409,35 @@ class GlobalSearch:
 
     def _track_dominant(self) -> None:
         """Count the frames in a row the ``handover_places`` heaviest clusters hold
-        ``handover_mass`` together; the places are those of them holding at least
-        ``1 - handover_mass``."""
+        ``handover_mass`` of the settled weight together (``_settled_mass``: a fresh injection
+        is a proposal, not yet evidence, and does not hold a handover back); the places are
+        those of them holding at least ``1 - handover_mass``."""
         p = self.params
         poses, mass = self.hypotheses(p.handover_places)
+        if len(mass):
+            mass = self._settled_mass(poses)
         if len(mass) and mass.sum() >= p.handover_mass:
             self._held += 1
             self._dominant = poses[(mass >= 1.0 - p.handover_mass) | (mass == mass.max())]
         else:
             self._held, self._dominant = 0, None
+
+    def _settled_mass(self, poses: np.ndarray) -> np.ndarray:
+        """(k,) the share of the settled hypotheses' weight (the start's, and the injected
+        ones weighed for at least ``handover_frames`` frames since) within each cluster
+        around ``poses`` (k, 4), each hypothesis counted in the first cluster it falls in."""
+        settled = (self._born < 0) | (self._born <= self._frames - self.params.handover_frames)
+        if not settled.any():
+            return np.zeros(len(poses))
+        S, lw = self.states[settled], self.logw[settled]
+        w = np.exp(lw - lw.max())
+        left = np.ones(len(S), bool)
+        out = np.zeros(len(poses))
+        for i, c in enumerate(poses):
+            near = left & self._in_cluster(S, c)
+            out[i] = w[near].sum()
+            left &= ~near
+        return out / w.sum()
 
     def estimate(self) -> tuple[np.ndarray, float, float]:
         """The heaviest cluster's mean pose (4,), and the weighted horizontal spread (m) and

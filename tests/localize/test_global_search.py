@@ -128,6 +128,36 @@ def test_several_places_are_handed_over_evenly(table, small_world, camera):
     assert sorted([near[0].sum(), near[1].sum()]) == [100, 101]
 
 
+def test_a_fresh_injection_does_not_hold_a_handover_back(table, small_world, camera):
+    """Hypotheses injected this frame (1 % of the weight, far from the one place that holds
+    the rest) do not count against ``handover_mass`` until they have been weighed for
+    ``handover_frames`` frames; the mass reported (``hypotheses``) still includes them."""
+    centre = np.array([-0.6, 0.8, 0.7, np.pi / 2])
+
+    def one_place(s):
+        near = (np.hypot(s[:, 0] - centre[0], s[:, 1] - centre[1]) < 0.2) \
+            & (np.abs(wrap_angle(s[:, 3] - centre[3])) < 0.2)
+        return np.where(near, 0.0, -np.inf)
+
+    params = dataclasses.replace(PARAMS, handover_mass=0.999)
+    search = GlobalSearch(table, camera, small_world.free, params, np.random.default_rng(0))
+    search.reset(one_place)
+    search._frames = 50  # as after 50 weighed frames
+    far = np.tile([-0.6, 3.2, 0.7, -np.pi / 2], (20, 1))
+    n = len(search.states)
+    search.states = np.concatenate([search.states, far])
+    search.logw = np.concatenate([search.logw + np.log(0.99), np.full(20, np.log(0.01 / 20))])
+    search._born = np.concatenate([search._born, np.full(20, 50)])
+    search._version += 1
+    assert search.hypotheses(1)[1][0] == pytest.approx(0.99)
+    np.testing.assert_allclose(search._settled_mass(search.hypotheses(1)[0]), [1.0])
+    for _ in range(params.handover_frames):
+        search._track_dominant()
+    assert search.converged and search.places == 1
+    search._born[n:] = 50 - params.handover_frames  # weighed long enough: they count
+    np.testing.assert_allclose(search._settled_mass(search.hypotheses(1)[0]), [0.99])
+
+
 def test_a_hint_limits_the_start(table, small_world, camera):
     search = GlobalSearch(table, camera, small_world.free, PARAMS, np.random.default_rng(0))
     search.reset(lambda s: np.where(s[:, 1] < 1.0, 0.0, -np.inf))
