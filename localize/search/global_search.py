@@ -413,9 +413,8 @@ class GlobalSearch:
         is a proposal, not yet evidence, and does not hold a handover back); the places are
         those of them holding at least ``1 - handover_mass``."""
         p = self.params
-        poses, mass = self.hypotheses(p.handover_places)
-        if len(mass):
-            mass = self._settled_mass(poses)
+        poses, _ = self.hypotheses(p.handover_places)
+        mass = self._settled_mass(poses)
         if len(mass) and mass.sum() >= p.handover_mass:
             self._held += 1
             self._dominant = poses[(mass >= 1.0 - p.handover_mass) | (mass == mass.max())]
