@@ -10,7 +10,9 @@ for a plain mapping (library use, tests, settings read back from a model folder)
 ``hydra_app`` makes a stage's entry point: Hydra's composition, every key checked against the
 stage's schema (also one added with ``+``), and a user's error (``USER_ERRORS``) reported as
 one line ``error: <message>`` with exit status 2; ``user_errors`` does the same for the
-argparse tools. ``HYDRA_FULL_ERROR=1`` in the environment shows the traceback instead.
+argparse tools. ``HYDRA_FULL_ERROR=1`` in the environment shows the traceback instead. In a
+multirun (``-m``) a job's user error is reported the same way and the other jobs still run
+(``JobFailed``).
 """
 
 from __future__ import annotations
@@ -27,7 +29,9 @@ from typing import Any, TypeVar
 import hydra
 from hydra import compose, initialize_config_dir
 from hydra.core.config_store import ConfigStore
+from hydra.core.hydra_config import HydraConfig
 from hydra.errors import CompactHydraException
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException
 
@@ -133,6 +137,13 @@ USER_ERRORS: tuple[type[BaseException], ...] = (
     ValueError, FileNotFoundError, FileExistsError, NotADirectoryError, IsADirectoryError,
     PermissionError, DiskFullError, OutputFolderError, OmegaConfBaseException,
     CompactHydraException)
+
+
+class JobFailed(CompactHydraException):
+    """A job of a multirun (``-m``) stopped on a user error, already reported on stderr as
+    ``error: <message>``: Hydra runs the other jobs, then exits 1 with the first such message."""
+
+
 #: The environment variable (Hydra's) that keeps a user error's traceback: ``1``.
 FULL_ERROR = "HYDRA_FULL_ERROR"
 
@@ -228,9 +239,18 @@ def hydra_app(config_name: str, schema: type, aliases: Mapping[str, str] | None 
         @functools.wraps(task)
         def checked(cfg: DictConfig) -> Any:
             unset()  # the task's own failures as Hydra reports them
-            with user_errors():
+            if HydraConfig.get().mode != RunMode.MULTIRUN:
+                with user_errors():
+                    typed(schema, cfg, "")
+                    return task(cfg)
+            try:  # one job of a multirun: report it, then go on with the others
                 typed(schema, cfg, "")
                 return task(cfg)
+            except USER_ERRORS as err:
+                if full_error():
+                    raise
+                print(f"error: {error_message(err)}", file=sys.stderr)
+                raise JobFailed(error_message(err)) from None
 
         hydra_main = hydra.main(version_base="1.3", config_path=str(CONF),
                                 config_name=config_name)(checked)

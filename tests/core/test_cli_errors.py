@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize_config_dir
 
-from core.config import CONF, error_message, typed
+from core.config import CONF, TINY_DATAGEN, error_message, typed
 from localize.config import LocalizeConfig
 
 REPO = Path(__file__).resolve().parents[2]
@@ -77,6 +77,19 @@ def test_datagen_bad_value(tmp_path: Path) -> None:
 def test_full_error_keeps_the_traceback(tmp_path: Path, args: list[str]) -> None:
     res = cli(tmp_path, "localize", *args, full_error=True)
     assert res.returncode != 0 and "Traceback" in res.stderr, res.stderr[-3000:]
+
+
+def test_a_multirun_goes_on_after_a_failing_job(tmp_path: Path) -> None:
+    """``-m``: the job with an unknown flight is reported as ``error: ...`` and the next job
+    still writes its dataset; the multirun exits 1 with the failure's message."""
+    tiny = [o for o in TINY_DATAGEN if not o.startswith("render_flights=")]
+    res = cli(tmp_path, "datagen", "-m", "name=mr", "render_flights=[nope],[paper]",
+              "progress=false", *tiny)
+    assert res.returncode == 1, res.stderr[-3000:]
+    errors = [line for line in res.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and "nope" in errors[0], res.stderr[-3000:]
+    assert "Traceback" not in res.stderr, res.stderr[-3000:]
+    assert (tmp_path / "outputs/datasets/mr/dataset.json").is_file(), res.stderr[-3000:]
 
 
 def test_argparse_tool(tmp_path: Path) -> None:
