@@ -214,6 +214,7 @@ class GlobalSearch:
         ``inject_count`` best poses ``inject_below`` under the best log-weight (a pose lost to
         a run of bad frames comes back when a good one shows it), then prune (``update`` does
         it every ``inject_every`` frames)."""
+        self._version += 1
         self._inject(labels, tilt)
         self._prune()
 
@@ -359,14 +360,15 @@ class GlobalSearch:
         (``hypotheses.Hypothesis``: mean pose, mass, horizontal and yaw spread, count),
         heaviest first (the clusters are found densest bin first; their masses may differ in
         order): the places the search holds."""
-        poses, mass, spreads, counts = self._cluster_list(k)
+        poses, mass, spreads, counts, _ = self._cluster_list(k)
         order = np.argsort(-mass, kind="stable")
         return tuple(Hypothesis(poses[i], float(mass[i]), float(spreads[i, 0]),
                                 float(spreads[i, 1]), int(counts[i])) for i in order)
 
     def _cluster_list(self, k: int) -> tuple:
-        """(poses (k', 4), mass (k',), spreads (k', 2) m and rad, counts (k',)) of the ``k``
-        heaviest clusters, computed once per state of the set and k."""
+        """(poses (k', 4), mass (k',), spreads (k', 2) m and rad, counts (k',), settled mass
+        (k',): the share of the settled hypotheses' weight, see ``_track_dominant``) of the
+        ``k`` heaviest clusters, computed once per state of the set and k."""
         key = (self._version, int(k))
         if self._clusters is None or self._clusters[0] != key:
             self._clusters = (key, self._find_clusters(int(k)))
@@ -376,8 +378,12 @@ class GlobalSearch:
         """``_cluster_list``, computed."""
         w = np.exp(self.logw)
         S = self.states
+        settled = (self._born < 0) | (self._born <= self._frames - self.params.handover_frames)
+        w_settled = np.where(settled, w, 0.0)
+        total_settled = w_settled.sum()
         left = np.ones(len(S), bool)
-        poses, mass, spreads, counts = [], [], [], []
+        left_settled = settled.copy()
+        poses, mass, spreads, counts, settled_mass = [], [], [], [], []
         for _ in range(k):  # k clusters, each vectorized over the hypotheses
             if not left.any():
                 break
@@ -389,9 +395,17 @@ class GlobalSearch:
             spreads.append(pose_spread(S[near], w[near] / m))
             mass.append(m)
             counts.append(int(near.sum()))
+            # the settled weight around the cluster's mean pose, each settled hypothesis in
+            # the first cluster it falls in (around the densest bin instead, handovers come
+            # later: docs/notes/global_places.md)
+            near_settled = left_settled & self._in_cluster(S, poses[-1])
+            settled_mass.append(w_settled[near_settled].sum() / total_settled
+                                if total_settled > 0 else 0.0)
+            left_settled &= ~near_settled
             left &= ~near
         return (np.array(poses).reshape(-1, 4), np.array(mass),
-                np.array(spreads).reshape(-1, 2), np.array(counts, dtype=int))
+                np.array(spreads).reshape(-1, 2), np.array(counts, dtype=int),
+                np.array(settled_mass))
 
     def _densest(self, S: np.ndarray, w: np.ndarray) -> np.ndarray:
         """(4,) the weighted mean pose of the heaviest 0.5 m x 0.5 m x 20 deg bin of (S, w)."""
@@ -409,34 +423,17 @@ class GlobalSearch:
 
     def _track_dominant(self) -> None:
         """Count the frames in a row the ``handover_places`` heaviest clusters hold
-        ``handover_mass`` of the settled weight together (``_settled_mass``: a fresh injection
+        ``handover_mass`` of the settled weight together (the start's hypotheses, and the
+        injected ones weighed for at least ``handover_frames`` frames since: a fresh injection
         is a proposal, not yet evidence, and does not hold a handover back); the places are
-        those of them holding at least ``1 - handover_mass``."""
+        those of them holding at least ``1 - handover_mass`` of it."""
         p = self.params
-        poses, _ = self.hypotheses(p.handover_places)
-        mass = self._settled_mass(poses)
+        poses, _, _, _, mass = self._cluster_list(p.handover_places)
         if len(mass) and mass.sum() >= p.handover_mass:
             self._held += 1
             self._dominant = poses[(mass >= 1.0 - p.handover_mass) | (mass == mass.max())]
         else:
             self._held, self._dominant = 0, None
-
-    def _settled_mass(self, poses: np.ndarray) -> np.ndarray:
-        """(k,) the share of the settled hypotheses' weight (the start's, and the injected
-        ones weighed for at least ``handover_frames`` frames since) within each cluster
-        around ``poses`` (k, 4), each hypothesis counted in the first cluster it falls in."""
-        settled = (self._born < 0) | (self._born <= self._frames - self.params.handover_frames)
-        if not settled.any():
-            return np.zeros(len(poses))
-        S, lw = self.states[settled], self.logw[settled]
-        w = np.exp(lw - lw.max())
-        left = np.ones(len(S), bool)
-        out = np.zeros(len(poses))
-        for i, c in enumerate(poses):
-            near = left & self._in_cluster(S, c)
-            out[i] = w[near].sum()
-            left &= ~near
-        return out / w.sum()
 
     def estimate(self) -> tuple[np.ndarray, float, float]:
         """The heaviest cluster's mean pose (4,), and the weighted horizontal spread (m) and
