@@ -27,7 +27,8 @@ The candidate replaces the shipped model when
   the difference from the per-seed errors (3 seeds: the seed spread), with no more lost runs.
 
 Both tables must come from the same seeds and frames, each from the model it is compared as
-(its ``onnx_sha256``), and both corridor reports from the same dataset, flights and seeds,
+(its ``onnx_sha256``: the file localize runs, the folder's int8 copy where it holds a valid one,
+``thirdparty.runtime_onnx``), and both corridor reports from the same dataset, flights and seeds,
 each from its model. Otherwise the script says which figure to make again. Promoted, the
 candidate's files (``FILES``) are copied into ``--shipped`` (default models/generalist/), the
 folder replaced as a whole (a copy beside it, then two renames); its README.md stays and its
@@ -51,12 +52,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.thirdparty import onnx_digest  # noqa: E402
+from benchmarks.thirdparty import onnx_digest, runtime_onnx  # noqa: E402
 
 #: The model folder's files a promotion copies (those marked True must be there).
 FILES = {"segnet.onnx": True, "checkpoint_best.pt": True, "metrics.json": True,
          "config.json": True, "localize.yaml": False, "train_log.csv": False,
-         "confusion.png": False}
+         "confusion.png": False, "segnet_int8.onnx": False, "quantize.json": False}
 #: The corridor's "not worse": the relative tolerance and the standard errors allowed.
 CORRIDOR_REL = 0.10
 CORRIDOR_SIGMAS = 2.0
@@ -266,6 +267,8 @@ def copy_model(candidate: Path, dest: Path) -> list[str]:
         copied = [f for f in FILES if (candidate / f).is_file()]
         for f in copied:
             shutil.copy2(candidate / f, staged / f)
+        for f in set(FILES) - set(copied):  # none of the shipped model's left beside it
+            (staged / f).unlink(missing_ok=True)
         shutil.rmtree(old, ignore_errors=True)
         if dest.exists():
             dest.rename(old)
@@ -295,7 +298,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    cand_onnx, ship_onnx = args.candidate / "segnet.onnx", args.shipped / "segnet.onnx"
+    cand_onnx, ship_onnx = (runtime_onnx(args.candidate / "segnet.onnx"),
+                            runtime_onnx(args.shipped / "segnet.onnx"))
     if restore_stopped(args.shipped):
         print(f"{args.shipped}: put back from {aside(args.shipped)} (a promotion stopped "
               "before its end)")

@@ -11,6 +11,8 @@ import pytest
 
 from benchmarks.promote import compare_corridor, corridor_errors, main
 from benchmarks.thirdparty import onnx_digest
+from core.atomic import file_sha256
+from core.segmenter import INT8_NAME, QUANTIZE_REPORT
 
 BUILDINGS = ("hospital", "bookstore", "floor101")
 SHIPPED = {"hospital": 0.229, "bookstore": 0.128, "floor101": 0.040}
@@ -187,3 +189,34 @@ def test_a_promotion_stopped_between_its_renames_is_finished(setup, capsys) -> N
     assert "put back from" in capsys.readouterr().out
     assert (shipped / "README.md").is_file()
     assert (shipped / "segnet.onnx").read_bytes() == b"graph of candidate"
+
+
+def test_an_int8_copy_is_what_is_compared_and_shipped(tmp_path, capsys) -> None:
+    """A candidate with a valid int8 copy beside it (what localize runs by default) is
+    compared by that copy's figures, and the copy ships with it; a later candidate without
+    one leaves no stale copy behind."""
+    shipped = model(tmp_path / "models" / "generalist", "shipped")
+    cand = model(tmp_path / "cand", "candidate")
+    (cand / INT8_NAME).write_bytes(b"int8 graph of candidate")
+    (cand / QUANTIZE_REPORT).write_text(json.dumps(
+        {"model": str(cand / "segnet.onnx"), "model_sha256": file_sha256(cand / "segnet.onnx")}))
+    ship_t = table(tmp_path / "ship.json", shipped / "segnet.onnx", SHIPPED)
+    ship_c = corridor(tmp_path / "ship_corr", shipped / "segnet.onnx", CORRIDOR)
+
+    def promote(candidate: Path, onnx: Path, name: str) -> int:
+        cand_t = table(tmp_path / f"{name}.json", onnx, better())
+        cand_c = corridor(tmp_path / f"{name}_corr", onnx, CORRIDOR)
+        return main(["--candidate", str(candidate), "--candidate-table", str(cand_t),
+                     "--candidate-corridor", str(cand_c), "--shipped", str(shipped),
+                     "--shipped-table", str(ship_t), "--shipped-corridor", str(ship_c)])
+
+    assert promote(cand, cand / "segnet.onnx", "float") == 2  # figures of the float graph
+    assert "made with another SegNet" in capsys.readouterr().err
+    assert promote(cand, cand / INT8_NAME, "int8") == 0
+    assert (shipped / INT8_NAME).read_bytes() == b"int8 graph of candidate"
+    assert (shipped / QUANTIZE_REPORT).is_file()
+    plain = model(tmp_path / "plain", "plain")
+    ship_t = table(tmp_path / "ship2.json", shipped / INT8_NAME, SHIPPED)
+    ship_c = corridor(tmp_path / "ship2_corr", shipped / INT8_NAME, CORRIDOR)
+    assert promote(plain, plain / "segnet.onnx", "plain") == 0
+    assert not (shipped / INT8_NAME).exists() and not (shipped / QUANTIZE_REPORT).exists()
