@@ -216,7 +216,10 @@ def run_recording(cfg: DictConfig) -> Path:
                          body_from_cam=None if mount is None else np.asarray(mount,
                                                                              dtype=np.float64))
     with disk_full_guard(report_folder(cfg), "the report", REPORT_DISK_FULL_FIX):
-        ctx = prepare(OmegaConf.merge(cfg, {"modes": modes}), recording=rec, camera=rec.camera)
+        # one pass a mode, from the first seed: the folder records that seed alone, so a
+        # longer seed list (a flight's runs) resumes it
+        ctx = prepare(OmegaConf.merge(cfg, {"modes": modes, "seeds": [int(cfg.seeds[0])]}),
+                      recording=rec, camera=rec.camera)
         check_resume(ctx.out_dir, ctx.cfg, RECORDING_POLICY, ctx.world_digest)
         start = start_state(ctx, rec)
         init = "tracking" if isinstance(start, np.ndarray) else "global"

@@ -111,6 +111,20 @@ class TestRecordingOutputPolicy:
         for name in ("trajectory.txt", "trajectories/none.txt"):
             assert len(read_tum(folder / name)[0]) == 5, name
 
+    def test_more_seeds_resume_a_recording_another_first_seed_is_refused(
+            self, flat_dataset, folder_recording, tmp_path):
+        """A recording runs its first seed alone: ``seeds=[0,1]`` resumes a ``seeds=[0]``
+        folder; ``seeds=[1]`` is another run."""
+        from core.outputs import OutputFolderError
+
+        run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=4",
+                                    "seeds=[0]"))
+        run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path, "max_frames=4",
+                                    "seeds=[0,1]"))
+        with pytest.raises(OutputFolderError, match="seeds"):
+            run_recording(recording_cfg(flat_dataset, folder_recording, tmp_path,
+                                        "max_frames=4", "seeds=[1]"))
+
     def test_other_modes_join_the_report(self, flat_dataset, folder_recording, flat_segnet,
                                          tmp_path):
         import json
