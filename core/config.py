@@ -239,7 +239,7 @@ def hydra_app(config_name: str, schema: type, aliases: Mapping[str, str] | None 
         @functools.wraps(task)
         def checked(cfg: DictConfig) -> Any:
             unset()  # the task's own failures as Hydra reports them
-            if HydraConfig.get().mode != RunMode.MULTIRUN:
+            if not (HydraConfig.initialized() and HydraConfig.get().mode == RunMode.MULTIRUN):
                 with user_errors():
                     typed(schema, cfg, "")
                     return task(cfg)
