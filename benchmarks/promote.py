@@ -28,7 +28,7 @@ The candidate replaces the shipped model when
 
 Both tables must come from the same seeds and frames, each from the model it is compared as
 (its ``onnx_sha256``: the file localize runs, the folder's int8 copy where it holds a valid one,
-``thirdparty.runtime_onnx``), and both corridor reports from the same dataset, flights and seeds,
+``segmenter.runtime_model``), and both corridor reports from the same dataset, flights and seeds,
 each from its model. Otherwise the script says which figure to make again. Promoted, the
 candidate's files (``FILES``) are copied into ``--shipped`` (default models/generalist/), the
 folder replaced as a whole (a copy beside it, then two renames); its README.md stays and its
@@ -52,7 +52,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.thirdparty import onnx_digest, runtime_onnx  # noqa: E402
+from benchmarks.thirdparty import onnx_digest  # noqa: E402
+from localize.frontend.segmenter import runtime_model  # noqa: E402
 
 #: The model folder's files a promotion copies (those marked True must be there).
 FILES = {"segnet.onnx": True, "checkpoint_best.pt": True, "metrics.json": True,
@@ -298,8 +299,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    cand_onnx, ship_onnx = (runtime_onnx(args.candidate / "segnet.onnx"),
-                            runtime_onnx(args.shipped / "segnet.onnx"))
+    cand_onnx, ship_onnx = (runtime_model(str(args.candidate / "segnet.onnx"), ""),
+                            runtime_model(str(args.shipped / "segnet.onnx"), ""))
     if restore_stopped(args.shipped):
         print(f"{args.shipped}: put back from {aside(args.shipped)} (a promotion stopped "
               "before its end)")

@@ -12,9 +12,9 @@ Per building, with no per-building setting: ``python -m datagen`` renders its te
 ``flights=handheld``, camera 1.0-1.6 m, tilts up to ~8 deg, yaw swings up to ~90 deg/s),
 no training images and no validation flights (this table is test data: no setting is chosen
 on it); then the SegNet (``--onnx``, default the shipped generalist; its int8 copy where one
-lies beside it, as localize runs it: ``runtime_onnx``) is scored on every delivered flight
-frame (pixel accuracy, mean IoU, boundary F at 2 px: what the likelihood needs), the model
-edges are checked against the model's label maps at the flights' poses
+lies beside it, as localize runs it: ``segmenter.runtime_model``) is scored on every delivered
+flight frame (pixel accuracy, mean IoU, boundary F at 2 px: what the likelihood needs), the
+model edges are checked against the model's label maps at the flights' poses
 (``datagen.mesh.edge_check``: recall and precision at 2 px, "edges R / P"), and
 ``python -m localize`` tracks each flight from its true start in the given modes
 and seeds. The scan's first test flight is also exported as a folder recording
@@ -54,7 +54,7 @@ sys.path.insert(0, str(ROOT))
 SHARED = ROOT.parent / "shared" / "worlds"
 
 from core.atomic import atomic_write_json, atomic_write_text, file_sha256  # noqa: E402
-from localize.frontend.segmenter import int8_copy  # noqa: E402
+from localize.frontend.segmenter import runtime_model  # noqa: E402
 
 #: building -> (the model file under ../shared/worlds or None, datagen overrides)
 BUILDINGS: dict[str, tuple[str | None, list[str]]] = {
@@ -86,12 +86,6 @@ def parse_args() -> argparse.Namespace:
 def onnx_digest(path: Path) -> str:
     """16 hex digits of the file's sha256: the digest localize records (``onnx_sha256``)."""
     return file_sha256(path)[:16]
-
-
-def runtime_onnx(path: Path) -> Path:
-    """The file cnn mode runs for the SegNet ``path``: its int8 copy where a valid one lies
-    beside it (``segnet_int8``, localize's default), else ``path``."""
-    return int8_copy(path) or Path(path)
 
 
 def run(cmd: list[str]) -> None:
@@ -272,7 +266,7 @@ def table(results: dict, modes: list[str]) -> str:
 
 def main() -> int:
     args = parse_args()
-    args.onnx = runtime_onnx(args.onnx)  # scored, run and recorded: the file localize runs
+    args.onnx = runtime_model(str(args.onnx), "")  # scored, run, recorded: what localize runs
     out = args.out_root / args.name
     results: dict = {}
     for b in args.buildings:
@@ -286,7 +280,7 @@ def main() -> int:
             r["segnet"] = segnet_scores(ds, args.onnx, out / "segnet" / f"{b}.json")
         r["tracking"] = tracking(localize(ds, out / "reports" / b, args))
         if args.finetune:
-            onnx = runtime_onnx(finetune(b, out, args.finetune))
+            onnx = runtime_model(str(finetune(b, out, args.finetune)), "")
             keep = json.loads((onnx.parent / "metrics.json").read_text()).get("keep")
             r["finetuned"] = {
                 "onnx": str(onnx), "images": args.finetune,
