@@ -191,16 +191,18 @@ def full_error() -> bool:
 
 
 @contextmanager
-def user_errors() -> Iterator[None]:
+def user_errors(go_on: bool = False) -> Iterator[None]:
     """Report a user error (``USER_ERRORS``) raised inside as ``error: <message>`` on stderr
-    and exit with status 2; with ``HYDRA_FULL_ERROR=1``, let it raise (its traceback)."""
+    and exit with status 2, or with ``go_on`` (one job of a multirun) raise ``JobFailed`` so
+    that Hydra runs the other jobs; with ``HYDRA_FULL_ERROR=1``, let it raise (its
+    traceback)."""
     try:
         yield
     except USER_ERRORS as err:
         if full_error():
             raise
         print(f"error: {error_message(err)}", file=sys.stderr)
-        raise SystemExit(2) from None
+        raise (JobFailed(error_message(err)) if go_on else SystemExit(2)) from None
 
 
 def expand_aliases(argv: list[str], aliases: Mapping[str, str]) -> list[str]:
@@ -239,18 +241,10 @@ def hydra_app(config_name: str, schema: type, aliases: Mapping[str, str] | None 
         @functools.wraps(task)
         def checked(cfg: DictConfig) -> Any:
             unset()  # the task's own failures as Hydra reports them
-            if not (HydraConfig.initialized() and HydraConfig.get().mode == RunMode.MULTIRUN):
-                with user_errors():
-                    typed(schema, cfg, "")
-                    return task(cfg)
-            try:  # one job of a multirun: report it, then go on with the others
+            multirun = HydraConfig.initialized() and HydraConfig.get().mode == RunMode.MULTIRUN
+            with user_errors(go_on=multirun):
                 typed(schema, cfg, "")
                 return task(cfg)
-            except USER_ERRORS as err:
-                if full_error():
-                    raise
-                print(f"error: {error_message(err)}", file=sys.stderr)
-                raise JobFailed(error_message(err)) from None
 
         hydra_main = hydra.main(version_base="1.3", config_path=str(CONF),
                                 config_name=config_name)(checked)
